@@ -1,0 +1,48 @@
+// CalcAlphaRef of Laine & Karras 2011, Figure 4: a scrambled radical-inverse
+// opacity reference value per sample. The default 32-bit datapath is the
+// paper's; hash_bits narrows it for what-if studies (docs/numerics.md).
+#pragma once
+#include <cstdint>
+
+#include "numerics.h"
+
+namespace ropsim {
+
+inline constexpr uint32_t kAlphaRefConstants[4] = {0x6C50B47Cu, 0xB82F1E52u, 0xC7AFE638u,
+                                                   0x8D22F6E6u};
+
+inline uint32_t reverse_bits32(uint32_t x) {
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
+  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+/// Sequence index of a sample: sampleId + pixelId * spp, kept modulo 2^hash_bits
+/// (the paper's 32-bit unsigned arithmetic; wraps on screens where
+/// pixelId * spp >= 2^32, see docs/numerics.md "Index overflow").
+inline uint32_t alpha_ref_index(uint32_t sample_id, uint64_t pixel_id, uint32_t spp,
+                                int hash_bits = 32) {
+  const uint64_t x = uint64_t{sample_id} + pixel_id * uint64_t{spp};
+  return static_cast<uint32_t>(x & low_mask(hash_bits));
+}
+
+/// The hash of Figure 4 on a hash_bits-wide datapath. Returns an integer in
+/// [0, 2^hash_bits); the reference value is that integer / 2^hash_bits.
+inline uint32_t calc_alpha_ref_index(uint32_t index, uint32_t surface_id, int hash_bits = 32) {
+  const uint32_t m = static_cast<uint32_t>(low_mask(hash_bits));
+  uint32_t x = reverse_bits32(index & m) >> (32 - hash_bits);
+  x = (x + surface_id) & m;
+  for (uint32_t c : kAlphaRefConstants) x = (x ^ (x * (c & m))) & m;
+  return x;
+}
+
+/// CalcAlphaRef(sampleId, pixelId, surfaceId) with the paper's 32-bit datapath.
+inline uint32_t calc_alpha_ref(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id,
+                               uint32_t spp, int hash_bits = 32) {
+  return calc_alpha_ref_index(alpha_ref_index(sample_id, pixel_id, spp, hash_bits), surface_id,
+                              hash_bits);
+}
+
+}  // namespace ropsim

@@ -1,0 +1,40 @@
+// Depth format, per-sample depth from a plane, and the depth-test rule
+// (docs/numerics.md "Depth").
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+namespace ropsim {
+
+/// Depth is IEEE binary32 in [0, 1], 0 = near. -0 is canonicalised to +0, so the
+/// bit pattern of a stored depth orders like its value.
+inline float canonical_depth(float z) {
+  if (!(z > 0.0f)) return 0.0f;  // also maps -0 to +0
+  if (z > 1.0f) return 1.0f;
+  return z;
+}
+
+inline uint32_t depth_bits(float z) {
+  uint32_t b;
+  std::memcpy(&b, &z, sizeof b);
+  return b;
+}
+
+/// Sample offset from the pixel centre, from a position stored in 1/256 pixel
+/// units from the pixel's top-left corner. Exact in binary32.
+inline float sample_offset(uint8_t pos) { return (static_cast<float>(pos) - 128.0f) / 256.0f; }
+
+/// Depth of one sample from a fragment's plane: z0 at the pixel centre plus the
+/// per-pixel gradients times the sample offset, evaluated as two fused
+/// multiply-adds (x first), then clamped to [0, 1]. fmaf is correctly rounded,
+/// so every conforming implementation gets the same bits.
+inline float plane_depth(float z0, float dzdx, float dzdy, float ox, float oy) {
+  return canonical_depth(std::fma(dzdy, oy, std::fma(dzdx, ox, z0)));
+}
+
+/// LK Figure 7 line 2: a sample is removed when s.z > stored; ties pass
+/// (LESS_EQUAL), so a later fragment at equal depth wins.
+inline bool depth_passes(float z, float stored) { return !(z > stored); }
+
+}  // namespace ropsim

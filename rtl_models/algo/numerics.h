@@ -1,0 +1,41 @@
+// Numeric formats shared by the golden model and the SystemC units.
+// See docs/numerics.md for the rules; every function here is the single
+// definition used by both models, so bit-exactness is structural.
+#pragma once
+#include <cstdint>
+
+namespace ropsim {
+
+inline constexpr int kMaxSpp = 64;
+
+/// Widths of the datapaths that a what-if study may narrow. Defaults are the
+/// 32-bit arithmetic of Laine & Karras 2011, Figure 4.
+struct Numerics {
+  int hash_bits = 32;        ///< width of the alpha-reference hash datapath (8..32)
+  int alpha_bits = 32;       ///< fixed-point precision of the fragment opacity (1..32)
+  int surface_id_bits = 32;  ///< width of the per-pixel surface id register (1..32); wraps
+};
+
+/// Returns an error message for an out-of-range field, or nullptr when valid.
+inline const char* validate(const Numerics& n) {
+  if (n.hash_bits < 8 || n.hash_bits > 32) return "hash_bits must be in [8, 32]";
+  if (n.alpha_bits < 1 || n.alpha_bits > 32) return "alpha_bits must be in [1, 32]";
+  if (n.surface_id_bits < 1 || n.surface_id_bits > 32) return "surface_id_bits must be in [1, 32]";
+  return nullptr;
+}
+
+inline constexpr uint64_t low_mask(int bits) {
+  return bits >= 64 ? ~uint64_t{0} : (uint64_t{1} << bits) - 1;
+}
+
+inline bool is_valid_spp(int spp) {
+  return spp >= 1 && spp <= kMaxSpp && (spp & (spp - 1)) == 0;
+}
+
+inline int log2_spp(int spp) {
+  int l = 0;
+  while ((1 << l) < spp) ++l;
+  return l;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,262 @@
+// ropsim: command-line entry point. Thin: parses flags, calls the driver,
+// prints the summary. Every user error is one line and a non-zero exit.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "driver.h"
+#include "image_io.h"
+#include "report.h"
+#include "scenes.h"
+#include "trace.h"
+#include "vectors.h"
+
+using namespace ropsim;
+
+namespace {
+
+struct UserError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string join(const std::vector<std::string>& v, const char* sep = ", ") {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : sep) + x;
+  return s;
+}
+
+std::vector<std::string> scene_names() {
+  std::vector<std::string> v;
+  for (const auto& s : scene_catalog()) v.push_back(s.name);
+  return v;
+}
+
+void ensure_parent_dir(const std::string& path) {
+  std::filesystem::path p(path);
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+}
+
+struct RunOpts {
+  std::string trace, scene = "cloth", method = "lk", fidelity = "functional", report;
+  std::vector<std::string> outs;
+  int spp = 16;
+  uint32_t width = 0, height = 0;
+  uint64_t seed = 1, scene_seed = 1;
+  Numerics num;
+  bool vs_reference = false, quiet = false;
+};
+
+int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
+  if (o.fidelity != "functional")
+    throw UserError("--fidelity " + o.fidelity + ": only the functional golden model is built so far");
+  InputSpec in;
+  if (!o.trace.empty()) {
+    in.trace_path = o.trace;
+    for (const char* f : {"--scene", "--spp", "--width", "--height", "--scene-seed"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --scene, not --trace");
+  } else {
+    in.scene.name = o.scene;
+    in.scene.spp = o.spp;
+    in.scene.width = o.width;
+    in.scene.height = o.height;
+    in.scene.seed = o.scene_seed;
+  }
+  GoldenConfig cfg;
+  parse_method(o.method, cfg.method);
+  cfg.numerics = o.num;
+  cfg.seed = o.seed;
+  std::vector<std::string> outs = o.outs;
+  std::string report = o.report;
+  if (outs.empty() && report.empty()) {
+    const std::string stem = in.from_trace() ? std::filesystem::path(o.trace).stem().string() : o.scene;
+    const std::string base = fmt::format("out/run/{}-{}-{}spp", stem, o.method, in.from_trace() ? 0 : o.spp);
+    outs = {base + ".png", base + ".exr"};
+    report = base + ".json";
+  }
+  for (const auto& p : outs) {  // fail before the run, not after
+    auto ext = std::filesystem::path(p).extension().string();
+    if (ext != ".png" && ext != ".exr") throw UserError("--out " + p + ": use a .png or .exr file name");
+  }
+  FunctionalRun run = run_functional(in, cfg, o.vs_reference);
+  ReportContext ctx{cmdline, in, cfg, {}};
+  for (const auto& p : outs) {
+    ensure_parent_dir(p);
+    write_image(run.image, p);
+    ctx.outputs.push_back(p);
+  }
+  if (!report.empty()) {
+    ensure_parent_dir(report);
+    ctx.outputs.push_back(report);
+    write_text_file_atomic(report, functional_report(ctx, run).dump(2) + "\n");
+  }
+  if (!o.quiet) std::fputs(functional_summary(ctx, run).c_str(), stdout);
+  return 0;
+}
+
+int cmd_trace_info(const std::string& path, bool validate_only) {
+  TraceReader r(path);
+  Fragment f;
+  uint64_t covered = 0;
+  uint32_t max_draw = 0;
+  while (r.next(f)) {
+    covered += __builtin_popcountll(f.coverage);
+    max_draw = std::max(max_draw, f.draw_id);
+  }
+  const uint64_t n = r.records_read();
+  if (validate_only) {
+    fmt::print("{}: valid, {} fragments\n", path, n);
+    return 0;
+  }
+  const auto& h = r.header();
+  const auto file_bytes = std::filesystem::file_size(path);
+  fmt::print("{}\n  scene {}  {}x{}  {} spp\n  depth {}  colour {}  compression {}\n", path, h.scene_name, h.width,
+             h.height, h.spp, to_string(h.depth_mode), to_string(h.color_format), to_string(h.compression));
+  fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered,
+             n ? double(covered) / n : 0.0, n ? max_draw + 1 : 0);
+  fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
+             r.payload_bytes(), n ? double(r.payload_bytes()) / n : 0.0, n ? double(file_bytes) / n : 0.0);
+  return 0;
+}
+
+int cmd_trace_dump(const std::string& path, uint64_t limit) {
+  TraceReader r(path);
+  std::cout << header_to_json(r.header()) << '\n';
+  Fragment f;
+  uint64_t i = 0;
+  while (r.next(f) && i < limit) std::cout << fragment_to_json(r.header(), f, i++) << '\n';
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ropsim: a simulator of a GPU ROP for stratified stochastic transparency (Laine & Karras 2011)"};
+  app.require_subcommand(1);
+  std::string cmdline;
+  for (int i = 0; i < argc; ++i) cmdline += (i ? " " : "") + std::string(argv[i]);
+
+  // run
+  RunOpts ro;
+  CLI::App* run = app.add_subcommand("run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
+  auto* opt_trace = run->add_option("--trace", ro.trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
+  run->add_option("--scene", ro.scene, "Built-in scene (default cloth): " + join(scene_names()))
+      ->check(CLI::IsMember(scene_names()))->excludes(opt_trace);
+  run->add_option("--method", ro.method, "Method: " + join(method_names()) + " (default lk)")->check(CLI::IsMember(method_names()));
+  run->add_option("--spp", ro.spp, "Samples per pixel for --scene: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
+      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
+  run->add_option("--width", ro.width, "Scene width in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--height", ro.height, "Scene height in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--scene-seed", ro.scene_seed, "Seed of the scene generator (default 1)");
+  run->add_option("--seed", ro.seed, "Seed of the methods' hash-based random numbers (default 1)");
+  run->add_option("--hash-bits", ro.num.hash_bits, "Alpha-reference hash datapath width, bits (8..32, default 32)")->check(CLI::Range(8, 32));
+  run->add_option("--alpha-bits", ro.num.alpha_bits, "Opacity fixed-point precision, bits (1..32, default 32)")->check(CLI::Range(1, 32));
+  run->add_option("--surface-id-bits", ro.num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")->check(CLI::Range(1, 32));
+  run->add_option("--out", ro.outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
+  run->add_option("--report", ro.report, "JSON report file");
+  run->add_option("--fidelity", ro.fidelity, "functional (golden model)")->check(CLI::IsMember({"functional", "cycle"}));
+  run->add_flag("--vs-reference", ro.vs_reference, "Also run the A-buffer reference on the same stream and report the RMSE");
+  run->add_flag("--quiet", ro.quiet, "Print nothing on success");
+
+  // compare
+  std::string cmp_a, cmp_b;
+  bool cmp_json = false;
+  CLI::App* cmp = app.add_subcommand("compare", "RMSE (8-bit units) and PSNR of image A against image B (OpenImageIO)");
+  cmp->add_option("A", cmp_a, "Image")->required()->check(CLI::ExistingFile);
+  cmp->add_option("B", cmp_b, "Reference image")->required()->check(CLI::ExistingFile);
+  cmp->add_flag("--json", cmp_json, "Print JSON");
+
+  // scene
+  SceneParams sp;
+  std::string scene_out, depth_mode = "plane", color_fmt = "rgb-f32", compression = "zstd";
+  bool scene_list = false;
+  CLI::App* scn = app.add_subcommand("scene", "Write a built-in scene as a trace file, or list the scenes");
+  scn->add_option("NAME", sp.name, "Scene: " + join(scene_names()))->check(CLI::IsMember(scene_names()));
+  scn->add_option("--spp", sp.spp, "Samples per pixel: 1, 2, 4, 8, 16, 32 or 64 (default 16)")->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
+  scn->add_option("-o,--output", scene_out, "Trace file to write");
+  scn->add_option("--width", sp.width, "Width in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  scn->add_option("--height", sp.height, "Height in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  scn->add_option("--seed", sp.seed, "Scene generator seed (default 1)");
+  scn->add_option("--depth", depth_mode, "Depth records: plane or per-sample (default plane)")->check(CLI::IsMember({"plane", "per-sample"}));
+  scn->add_option("--color", color_fmt, "Colour records: rgb-f32 or rgb-unorm8 (default rgb-f32)")->check(CLI::IsMember({"rgb-f32", "rgb-unorm8"}));
+  scn->add_option("--compression", compression, "zstd or none (default zstd)")->check(CLI::IsMember({"zstd", "none"}));
+  scn->add_flag("--list", scene_list, "List the built-in scenes");
+
+  // trace
+  CLI::App* trc = app.add_subcommand("trace", "Inspect a trace file");
+  trc->require_subcommand(1);
+  std::string trace_path;
+  uint64_t dump_limit = UINT64_MAX;
+  CLI::App* tinfo = trc->add_subcommand("info", "Header and statistics (streams the whole trace)");
+  tinfo->add_option("FILE", trace_path, "Trace file")->required();
+  CLI::App* tval = trc->add_subcommand("validate", "Check every record; exit 1 naming the first bad one");
+  tval->add_option("FILE", trace_path, "Trace file")->required();
+  CLI::App* tdump = trc->add_subcommand("dump", "Header and fragments as JSON lines");
+  tdump->add_option("FILE", trace_path, "Trace file")->required();
+  tdump->add_option("--limit", dump_limit, "Dump at most this many fragments");
+
+  // vectors
+  std::string vec_unit, vec_out;
+  uint64_t vec_count = 1000, vec_seed = 1;
+  Numerics vec_num;
+  CLI::App* vec = app.add_subcommand("vectors", "Golden test vectors (CSV) for one unit, for RTL verification");
+  vec->add_option("UNIT", vec_unit, "Unit: " + join(vector_units()))->required()->check(CLI::IsMember(vector_units()));
+  vec->add_option("--count", vec_count, "Number of vectors (default 1000)")->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
+  vec->add_option("-o,--output", vec_out, "CSV file to write")->required();
+  vec->add_option("--seed", vec_seed, "Seed of the random cases (default 1)");
+  vec->add_option("--hash-bits", vec_num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
+  vec->add_option("--surface-id-bits", vec_num.surface_id_bits, "tracker: surface id width (1..32)")->check(CLI::Range(1, 32));
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    if (run->parsed()) return cmd_run(ro, *run, cmdline);
+    if (cmp->parsed()) {
+      CompareResult c = compare_image_files(cmp_a, cmp_b);
+      if (cmp_json)
+        fmt::print("{{\"rmse_8bit\": {:.6f}, \"psnr_db\": {:.4f}, \"max_error_8bit\": {:.6f}, \"mean_error_8bit\": {:.6f}}}\n",
+                   c.rmse_8bit, std::isfinite(c.psnr_db) ? c.psnr_db : 999.0, c.max_error_8bit, c.mean_error_8bit);
+      else
+        fmt::print("RMSE {:.4f} (8-bit units)  PSNR {:.2f} dB  max error {:.2f}\n", c.rmse_8bit, c.psnr_db, c.max_error_8bit);
+      return 0;
+    }
+    if (scn->parsed()) {
+      if (scene_list) {
+        for (const auto& s : scene_catalog()) fmt::print("{:<13} {:>4}x{:<4} {}\n", s.name, s.width, s.height, s.description);
+        return 0;
+      }
+      if (!scn->count("NAME")) throw UserError("scene: give a scene NAME (or --list)");
+      if (scene_out.empty()) throw UserError("scene: give -o FILE");
+      sp.depth_mode = depth_mode == "plane" ? DepthMode::kPlane : DepthMode::kPerSample;
+      sp.color_format = color_fmt == "rgb-f32" ? ColorFormat::kRgbF32 : ColorFormat::kRgbUnorm8;
+      sp.compression = compression == "zstd" ? Compression::kZstd : Compression::kNone;
+      ensure_parent_dir(scene_out);
+      RasterStats st = write_scene_trace(sp, scene_out);
+      fmt::print("wrote {}: {} triangles, {} fragments, {} covered samples\n", scene_out, st.triangles, st.fragments,
+                 st.covered_samples);
+      return 0;
+    }
+    if (tinfo->parsed()) return cmd_trace_info(trace_path, false);
+    if (tval->parsed()) return cmd_trace_info(trace_path, true);
+    if (tdump->parsed()) return cmd_trace_dump(trace_path, dump_limit);
+    if (vec->parsed()) {
+      if (const char* err = validate(vec_num)) throw UserError(err);
+      std::string csv = make_vectors(vec_unit, vec_count, vec_seed, vec_num);
+      ensure_parent_dir(vec_out);
+      write_text_file_atomic(vec_out, csv);
+      fmt::print("wrote {}: {} vectors for {}\n", vec_out, vec_count, vec_unit);
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "ropsim: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,31 @@
+// Run reports: one JSON printer and one human-summary printer, so the model
+// code never prints (docs/reports.md lists every field with its unit).
+#pragma once
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "driver.h"
+
+namespace ropsim {
+
+nlohmann::ordered_json counters_to_json(const Counters& c);
+nlohmann::ordered_json numerics_to_json(const Numerics& n);
+
+struct ReportContext {
+  std::string command_line;
+  InputSpec input;
+  GoldenConfig config;
+  std::vector<std::string> outputs;
+};
+
+nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run);
+
+/// A short human summary of a functional run (a few lines).
+std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);
+
+/// Writes text to path through a temporary file and a rename.
+void write_text_file_atomic(const std::string& path, const std::string& text);
+
+}  // namespace ropsim

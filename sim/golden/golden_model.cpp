@@ -1,0 +1,380 @@
+#include "golden_model.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "alpha_ref.h"
+#include "depth.h"
+#include "half.h"
+#include "hilbert.h"
+#include "opacity.h"
+#include "random_hash.h"
+#include "sort_order.h"
+
+namespace ropsim {
+
+namespace {
+struct MethodName {
+  Method m;
+  const char* name;
+};
+constexpr MethodName kMethods[] = {{Method::kLk, "lk"},         {Method::kEnderton, "enderton"},
+                                   {Method::kNaive, "naive"},   {Method::kA2c, "a2c"},
+                                   {Method::kOpaque, "opaque"}, {Method::kReference, "reference"}};
+
+inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
+
+/// a2c: 4x4 ordered-dither thresholds (Bayer), in 1/16 units.
+constexpr uint32_t kBayer4[16] = {0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5};
+}  // namespace
+
+const char* to_string(Method m) {
+  for (const auto& x : kMethods)
+    if (x.m == m) return x.name;
+  return "?";
+}
+
+bool parse_method(const std::string& s, Method& out) {
+  for (const auto& x : kMethods)
+    if (s == x.name) { out = x.m; return true; }
+  return false;
+}
+
+const std::vector<std::string>& method_names() {
+  static const std::vector<std::string> v = [] {
+    std::vector<std::string> r;
+    for (const auto& x : kMethods) r.push_back(x.name);
+    return r;
+  }();
+  return v;
+}
+
+// ------------------------------------------------------------ StochasticModel
+
+StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
+    : FunctionalModel(h), cfg_(cfg), tiles_(h.width, h.height), hilbert_n_(hilbert_side(h.width, h.height)),
+      alpha_one_(uint64_t{1} << cfg.numerics.alpha_bits),
+      tracker_bytes_((h.spp + cfg.numerics.surface_id_bits + 7) / 8), clear_depth_(canonical_depth(h.clear_depth)) {
+  for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+  switch (cfg.method) {
+    case Method::kLk: draw_fn_ = &StochasticModel::draw_lk; break;
+    case Method::kEnderton: draw_fn_ = &StochasticModel::draw_enderton; break;
+    case Method::kNaive: draw_fn_ = &StochasticModel::draw_naive; break;
+    case Method::kA2c: draw_fn_ = &StochasticModel::draw_a2c; break;
+    case Method::kOpaque: draw_fn_ = &StochasticModel::draw_opaque; break;
+    case Method::kReference: throw std::logic_error("StochasticModel cannot run the reference method");
+  }
+  // a2c covers the first k samples of the bit-reversed sample order, so any
+  // prefix is spread over the pixel.
+  const int m = log2_spp(h.spp);
+  for (int k = 1; k <= h.spp; ++k) {
+    uint32_t j = uint32_t(k - 1), r = 0;
+    for (int b = 0; b < m; ++b) r |= ((j >> b) & 1u) << (m - 1 - b);
+    a2c_prefix_[k] = a2c_prefix_[k - 1] | (uint64_t{1} << r);
+  }
+}
+
+StochasticModel::PixelRef StochasticModel::pixel(uint32_t x, uint32_t y) {
+  const int spp = header_.spp;
+  const bool lk = cfg_.method == Method::kLk;
+  SampleTile& t = tiles_.get(x, y, [&](uint32_t, uint32_t) {
+    auto tile = std::make_unique<SampleTile>();
+    const size_t n = size_t(64) * spp;
+    tile->depth.reset(new float[n]);
+    tile->rgb.reset(new uint16_t[3 * n]);
+    std::fill_n(tile->depth.get(), n, clear_depth_);
+    for (size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
+    if (lk) tile->tracker.reset(new TrackerState[64]());
+    return tile;
+  });
+  const int p = pixel_in_tile(x, y);
+  return PixelRef{t.depth.get() + size_t(p) * spp, t.rgb.get() + size_t(p) * spp * 3,
+                  t.tracker ? t.tracker.get() + p : nullptr};
+}
+
+inline void StochasticModel::write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16) {
+  p.depth[i] = z;
+  p.rgb[3 * i] = rgb16[0];
+  p.rgb[3 * i + 1] = rgb16[1];
+  p.rgb[3 * i + 2] = rgb16[2];
+}
+
+void StochasticModel::draw(const Fragment& f) {
+  ++counters_.fragments;
+  const int covered = __builtin_popcountll(f.coverage);
+  counters_.samples_tested += covered;
+  counters_.depth_bytes_read += 4u * covered;
+  (this->*draw_fn_)(f);
+  counters_.tiles_touched = tiles_.tiles();
+}
+
+// LK 2011 Figure 7, line for line.
+void StochasticModel::draw_lk(const Fragment& f) {
+  const Numerics& num = cfg_.numerics;
+  PixelRef p = pixel(f.x, f.y);
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  // Lines 1-3: depth test first.
+  uint64_t S = 0;
+  for (uint64_t m = f.coverage; m; m &= m - 1) {
+    const int i = __builtin_ctzll(m);
+    if (depth_passes(z[i], p.depth[i])) S |= uint64_t{1} << i;
+  }
+  const int m = __builtin_popcountll(S);
+  counters_.samples_depth_passed += m;
+  counters_.tracker_bytes_read += tracker_bytes_;
+  if (!m) return;  // nothing survives: the tracker is unchanged (line 18 sets no bit)
+  // Lines 4-8: surface tracking.
+  const TrackResult tr = track_surface(*p.tracker, S, num.surface_id_bits);
+  counters_.surface_id_changes += tr.new_surface;
+  // Line 9: sort the surviving samples by the depth already stored.
+  uint64_t keys[64];
+  int k = 0;
+  for (uint64_t s = S; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    keys[k++] = sort_key(p.depth[i], uint32_t(i));
+  }
+  if (m > 1) {
+    sort_keys(keys, m);
+    ++counters_.sorts;
+  }
+  // Lines 10-17: opacity test against CalcAlphaRef(n, pixelId, surfaceId).
+  const uint64_t pixel_id = hilbert_xy2d(hilbert_n_, f.x, f.y);
+  const uint64_t a = alpha_to_fixed(f.alpha, num.alpha_bits);
+  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  uint32_t written = 0;
+  for (int j = 0; j < m; ++j) {
+    const int i = int(sort_key_sample(keys[j]));
+    const uint32_t ref = calc_alpha_ref(tr.n + uint32_t(j), pixel_id, tr.surface_id, uint32_t(header_.spp), num.hash_bits);
+    if (opacity_passes(a, num.alpha_bits, ref, num.hash_bits)) {
+      write_sample(p, i, z[i], rgb16);
+      ++written;
+    }
+  }
+  // Line 18.
+  track_commit(*p.tracker, S);
+  counters_.tracker_bytes_written += tracker_bytes_;
+  counters_.samples_opacity_passed += written;
+  counters_.samples_written += written;
+  counters_.depth_bytes_written += 4u * written;
+  counters_.color_bytes_written += 6u * written;
+}
+
+// Enderton et al. 2010 with the depth test first (as LK compare against):
+// R = floor(alpha * |S'| + xi) samples chosen uniformly among the survivors S'.
+void StochasticModel::draw_enderton(const Fragment& f) {
+  const Numerics& num = cfg_.numerics;
+  PixelRef p = pixel(f.x, f.y);
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  int list[64], m = 0;
+  for (uint64_t c = f.coverage; c; c &= c - 1) {
+    const int i = __builtin_ctzll(c);
+    if (depth_passes(z[i], p.depth[i])) list[m++] = i;
+  }
+  counters_.samples_depth_passed += m;
+  if (!m) return;
+  const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
+  const uint64_t a32 = alpha_to_fixed(f.alpha, num.alpha_bits) << (32 - num.alpha_bits);
+  const uint32_t r = uint32_t((a32 * uint64_t(m) + fragment_random(key, 0)) >> 32);
+  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  for (uint32_t j = 0; j < r; ++j) {  // partial Fisher-Yates with hashed choices
+    const uint32_t pick = j + uint32_t((uint64_t(fragment_random(key, j + 1)) * (uint32_t(m) - j)) >> 32);
+    std::swap(list[j], list[pick]);
+    write_sample(p, list[j], z[list[j]], rgb16);
+  }
+  counters_.samples_opacity_passed += r;
+  counters_.samples_written += r;
+  counters_.depth_bytes_written += 4u * r;
+  counters_.color_bytes_written += 6u * r;
+}
+
+// Naive stochastic transparency (LK §1.1): an independent random reference per sample.
+void StochasticModel::draw_naive(const Fragment& f) {
+  const Numerics& num = cfg_.numerics;
+  PixelRef p = pixel(f.x, f.y);
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
+  const uint64_t a = alpha_to_fixed(f.alpha, num.alpha_bits);
+  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  uint32_t passed = 0, written = 0;
+  for (uint64_t c = f.coverage; c; c &= c - 1) {
+    const int i = __builtin_ctzll(c);
+    if (!depth_passes(z[i], p.depth[i])) continue;
+    ++passed;
+    if (opacity_passes(a, num.alpha_bits, fragment_random(key, uint32_t(i) + 1), 32)) {
+      write_sample(p, i, z[i], rgb16);
+      ++written;
+    }
+  }
+  counters_.samples_depth_passed += passed;
+  counters_.samples_opacity_passed += written;
+  counters_.samples_written += written;
+  counters_.depth_bytes_written += 4u * written;
+  counters_.color_bytes_written += 6u * written;
+}
+
+// Alpha-to-coverage as today's hardware: k = floor(alpha * spp + dither) samples
+// from a fixed order, dithered with a 4x4 Bayer threshold per pixel; the same
+// alpha always gives the same samples in a pixel (static assignment).
+void StochasticModel::draw_a2c(const Fragment& f) {
+  PixelRef p = pixel(f.x, f.y);
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  const uint64_t a32 = alpha_to_fixed(f.alpha, cfg_.numerics.alpha_bits) << (32 - cfg_.numerics.alpha_bits);
+  const uint64_t dither = uint64_t(2 * kBayer4[(f.y & 3u) * 4 + (f.x & 3u)] + 1) << 27;  // (d + 1/2) / 16
+  const uint64_t k = std::min<uint64_t>(uint64_t(header_.spp), (a32 * uint64_t(header_.spp) + dither) >> 32);
+  const uint64_t mask = f.coverage & a2c_prefix_[k];
+  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  uint32_t written = 0;
+  for (uint64_t c = mask; c; c &= c - 1) {
+    const int i = __builtin_ctzll(c);
+    if (depth_passes(z[i], p.depth[i])) {
+      write_sample(p, i, z[i], rgb16);
+      ++written;
+    }
+  }
+  counters_.samples_opacity_passed += __builtin_popcountll(mask);
+  counters_.samples_depth_passed += written;
+  counters_.samples_written += written;
+  counters_.depth_bytes_written += 4u * written;
+  counters_.color_bytes_written += 6u * written;
+}
+
+void StochasticModel::draw_opaque(const Fragment& f) {
+  PixelRef p = pixel(f.x, f.y);
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  uint32_t written = 0;
+  for (uint64_t c = f.coverage; c; c &= c - 1) {
+    const int i = __builtin_ctzll(c);
+    if (depth_passes(z[i], p.depth[i])) {
+      write_sample(p, i, z[i], rgb16);
+      ++written;
+    }
+  }
+  counters_.samples_depth_passed += written;
+  counters_.samples_opacity_passed += written;
+  counters_.samples_written += written;
+  counters_.depth_bytes_written += 4u * written;
+  counters_.color_bytes_written += 6u * written;
+}
+
+Image StochasticModel::resolve() const {
+  Image img;
+  img.width = header_.width;
+  img.height = header_.height;
+  img.rgb.resize(size_t(img.width) * img.height * 3);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = half_to_float(clear_rgb16_[i % 3]);
+  const int spp = header_.spp;
+  const float inv = 1.0f / float(spp);  // exact: spp is a power of two
+  tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
+      if (x >= img.width || y >= img.height) continue;
+      const uint16_t* c = t.rgb.get() + size_t(p) * spp * 3;
+      float sum[3] = {0, 0, 0};
+      for (int s = 0; s < spp; ++s)  // summed in sample order: deterministic
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += half_to_float(c[3 * s + ch]);
+      float* o = img.at(x, y);
+      for (int ch = 0; ch < 3; ++ch) o[ch] = sum[ch] * inv;
+    }
+  });
+  return img;
+}
+
+size_t StochasticModel::state_bytes() const {
+  const size_t per_tile = size_t(64) * header_.spp * (4 + 6) + (cfg_.method == Method::kLk ? 64 * sizeof(TrackerState) : 0);
+  return tiles_.tiles() * per_tile + tiles_.directory_bytes();
+}
+
+// ------------------------------------------------------------ ReferenceModel
+
+ReferenceModel::ReferenceModel(const TraceHeader& h) : FunctionalModel(h), heads_(h.width, h.height) {}
+
+void ReferenceModel::draw(const Fragment& f) {
+  ++counters_.fragments;
+  const int covered = __builtin_popcountll(f.coverage);
+  counters_.samples_tested += covered;
+  HeadTile& t = heads_.get(f.x, f.y, [](uint32_t, uint32_t) {
+    auto ht = std::make_unique<HeadTile>();
+    ht->head.fill(-1);
+    return ht;
+  });
+  int64_t& head = t.head[pixel_in_tile(f.x, f.y)];
+  Entry e;
+  e.coverage = f.coverage;
+  e.z_offset = z_.size();
+  e.rgb = f.rgb;
+  e.alpha = f.alpha;
+  e.seq = head < 0 ? 0 : entries_[size_t(head)].seq + 1;
+  e.next = head;
+  float z[64];
+  fragment_sample_depths(header_, f, z);
+  for (uint64_t m = f.coverage; m; m &= m - 1) z_.push_back(z[__builtin_ctzll(m)]);
+  head = int64_t(entries_.size());
+  entries_.push_back(e);
+  counters_.tiles_touched = heads_.tiles();
+}
+
+Image ReferenceModel::resolve() const {
+  Image img;
+  img.width = header_.width;
+  img.height = header_.height;
+  img.rgb.resize(size_t(img.width) * img.height * 3);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = header_.clear_color[i % 3];
+  const int spp = header_.spp;
+  struct Layer {
+    float z;
+    uint32_t seq;
+    const Entry* e;
+  };
+  std::vector<Layer> layers[64];
+  heads_.for_each([&](uint32_t x0, uint32_t y0, const HeadTile& t) {
+    for (int p = 0; p < 64; ++p) {
+      if (t.head[p] < 0) continue;
+      for (auto& l : layers) l.clear();
+      for (int64_t ei = t.head[p]; ei >= 0; ei = entries_[size_t(ei)].next) {
+        const Entry& e = entries_[size_t(ei)];
+        size_t k = e.z_offset;
+        for (uint64_t m = e.coverage; m; m &= m - 1) layers[__builtin_ctzll(m)].push_back(Layer{z_[k++], e.seq, &e});
+      }
+      double sum[3] = {0, 0, 0};
+      for (int s = 0; s < spp; ++s) {
+        auto& L = layers[s];
+        // Nearest first; at equal depth the later fragment is in front, as the
+        // LESS_EQUAL depth test of the stochastic methods decides.
+        std::sort(L.begin(), L.end(), [](const Layer& a, const Layer& b) {
+          return a.z != b.z ? a.z < b.z : a.seq > b.seq;
+        });
+        double trans = 1.0, c[3] = {0, 0, 0};
+        for (const Layer& l : L) {
+          const double a = l.e->alpha;
+          for (int ch = 0; ch < 3; ++ch) c[ch] += trans * a * l.e->rgb[ch];
+          trans *= 1.0 - a;
+          if (trans == 0.0) break;
+        }
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch] + trans * header_.clear_color[ch];
+      }
+      float* o = img.at(x0 + (p & 7), y0 + (p >> 3));
+      for (int ch = 0; ch < 3; ++ch) o[ch] = float(sum[ch] / spp);
+    }
+  });
+  return img;
+}
+
+size_t ReferenceModel::state_bytes() const {
+  return entries_.capacity() * sizeof(Entry) + z_.capacity() * sizeof(float) + heads_.tiles() * sizeof(HeadTile) +
+         heads_.directory_bytes();
+}
+
+std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg) {
+  if (const char* err = validate(cfg.numerics)) throw std::invalid_argument(err);
+  if (cfg.method == Method::kReference) return std::make_unique<ReferenceModel>(h);
+  return std::make_unique<StochasticModel>(h, cfg);
+}
+
+}  // namespace ropsim

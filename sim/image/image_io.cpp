@@ -1,0 +1,108 @@
+#include "image_io.h"
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <vector>
+
+namespace ropsim {
+
+namespace {
+
+std::string extension_of(const std::string& path) {
+  auto dot = path.find_last_of('.');
+  auto slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string e = path.substr(dot + 1);
+  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+OIIO::ImageBuf to_imagebuf(const Image& img) {
+  OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::FLOAT);
+  OIIO::ImageBuf buf(spec);
+  buf.set_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, img.rgb.data());
+  return buf;
+}
+
+}  // namespace
+
+float linear_to_srgb(float v) {
+  if (!(v > 0.0f)) return 0.0f;
+  if (v >= 1.0f) return 1.0f;
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+void write_image(const Image& img, const std::string& path) {
+  const std::string ext = extension_of(path);
+  if (ext != "exr" && ext != "png")
+    throw ImageError(path + ": unsupported image extension '." + ext + "' (use .exr or .png)");
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw ImageError(path + ": cannot create an image writer: " + OIIO::geterror());
+  const std::string tmp = path + ".tmp";
+  bool ok;
+  if (ext == "exr") {
+    OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::FLOAT);
+    spec.attribute("oiio:ColorSpace", "Linear");
+    spec.attribute("compression", "zip");
+    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::FLOAT, img.rgb.data());
+  } else {
+    OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:ColorSpace", "sRGB");
+    std::vector<uint8_t> px(img.rgb.size());
+    for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(std::lround(linear_to_srgb(img.rgb[i]) * 255.0f));
+    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
+  }
+  ok = out->close() && ok;
+  if (!ok) {
+    std::string err = out->geterror();
+    std::remove(tmp.c_str());
+    throw ImageError(path + ": write failed: " + err);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw ImageError(path + ": cannot rename the temporary file");
+  }
+}
+
+Image read_image(const std::string& path) {
+  OIIO::ImageBuf buf(path);
+  if (!buf.read(0, 0, true, OIIO::TypeDesc::FLOAT)) throw ImageError(path + ": cannot read image: " + buf.geterror());
+  const auto& spec = buf.spec();
+  if (spec.nchannels < 3) throw ImageError(path + ": image has " + std::to_string(spec.nchannels) + " channels, need RGB");
+  Image img;
+  img.width = uint32_t(spec.width);
+  img.height = uint32_t(spec.height);
+  img.rgb.resize(size_t(img.width) * img.height * 3);
+  OIIO::ROI roi = buf.roi();
+  roi.chbegin = 0;
+  roi.chend = 3;
+  if (!buf.get_pixels(roi, OIIO::TypeDesc::FLOAT, img.rgb.data()))
+    throw ImageError(path + ": cannot read pixels: " + buf.geterror());
+  return img;
+}
+
+CompareResult compare_images(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height)
+    throw ImageError("images differ in size: " + std::to_string(a.width) + "x" + std::to_string(a.height) + " vs " +
+                     std::to_string(b.width) + "x" + std::to_string(b.height));
+  OIIO::ImageBuf A = to_imagebuf(a), B = to_imagebuf(b);
+  auto r = OIIO::ImageBufAlgo::compare(A, B, 1e30f, 1e30f);
+  if (r.error) throw ImageError("image comparison failed: " + OIIO::geterror());
+  CompareResult c;
+  c.rmse_8bit = r.rms_error * 255.0;
+  c.psnr_db = r.rms_error > 0 ? r.PSNR : std::numeric_limits<double>::infinity();
+  c.max_error_8bit = r.maxerror * 255.0;
+  c.mean_error_8bit = r.meanerror * 255.0;
+  return c;
+}
+
+CompareResult compare_image_files(const std::string& a, const std::string& b) {
+  return compare_images(read_image(a), read_image(b));
+}
+
+}  // namespace ropsim

@@ -1,0 +1,37 @@
+// Image output through OpenImageIO: linear EXR and sRGB PNG, written to a
+// temporary name and renamed, so a failure leaves no partial file.
+#pragma once
+#include <stdexcept>
+#include <string>
+
+#include "golden_model.h"
+
+namespace ropsim {
+
+class ImageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Writes img by extension: .exr (linear binary32 RGB) or .png (sRGB 8-bit).
+void write_image(const Image& img, const std::string& path);
+
+/// Reads any OpenImageIO-readable image as float RGB, values as stored
+/// (an 8-bit PNG gives its code values / 255, an EXR its linear values).
+Image read_image(const std::string& path);
+
+struct CompareResult {
+  double rmse_8bit = 0;   ///< RMSE over all pixels and RGB channels, x 255
+  double psnr_db = 0;     ///< 20 log10(1 / RMSE) with RMSE in [0, 1] units
+  double max_error_8bit = 0;
+  double mean_error_8bit = 0;
+};
+
+/// Compares two images of the same size with ImageBufAlgo::compare.
+CompareResult compare_images(const Image& a, const Image& b);
+CompareResult compare_image_files(const std::string& a, const std::string& b);
+
+/// Linear -> sRGB transfer function (IEC 61966-2-1), input clamped to [0, 1].
+float linear_to_srgb(float v);
+
+}  // namespace ropsim

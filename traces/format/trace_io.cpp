@@ -1,0 +1,430 @@
+// Trace v1 reader and writer (docs/trace-format.md).
+#include <zstd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "depth.h"
+#include "numerics.h"
+#include "trace.h"
+
+namespace ropsim {
+
+const char* to_string(DepthMode m) { return m == DepthMode::kPlane ? "plane" : "per-sample"; }
+const char* to_string(ColorFormat f) { return f == ColorFormat::kRgbF32 ? "rgb-f32" : "rgb-unorm8"; }
+const char* to_string(Compression c) { return c == Compression::kZstd ? "zstd" : "none"; }
+
+namespace {
+
+constexpr size_t kFixedHeaderBytes = 48;
+constexpr size_t kIoChunk = 1 << 17;
+
+void put_u16(uint8_t* p, uint16_t v) { p[0] = uint8_t(v); p[1] = uint8_t(v >> 8); }
+void put_u32(uint8_t* p, uint32_t v) { for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i)); }
+void put_u64(uint8_t* p, uint64_t v) { for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i)); }
+void put_f32(uint8_t* p, float f) { uint32_t v; std::memcpy(&v, &f, 4); put_u32(p, v); }
+uint16_t get_u16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
+uint32_t get_u32(const uint8_t* p) {
+  return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
+uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
+float get_f32(const uint8_t* p) { uint32_t v = get_u32(p); float f; std::memcpy(&f, &v, 4); return f; }
+
+int coverage_bytes(int spp) { return (spp + 7) / 8; }
+
+}  // namespace
+
+// ---------------------------------------------------------------- byte I/O
+
+class ByteSource {
+ public:
+  virtual ~ByteSource() = default;
+  /// Reads up to n bytes; returns fewer only at the end of the data.
+  virtual size_t read(void* dst, size_t n) = 0;
+  uint64_t consumed = 0;
+};
+
+class ByteSink {
+ public:
+  virtual ~ByteSink() = default;
+  virtual void write(const void* src, size_t n) = 0;
+  virtual void close() = 0;
+};
+
+namespace {
+
+class FileSource : public ByteSource {
+ public:
+  explicit FileSource(FILE* f) : f_(f) {}
+  size_t read(void* dst, size_t n) override {
+    size_t got = std::fread(dst, 1, n, f_);
+    consumed += got;
+    return got;
+  }
+
+ private:
+  FILE* f_;
+};
+
+class ZstdSource : public ByteSource {
+ public:
+  ZstdSource(FILE* f, std::string path) : f_(f), path_(std::move(path)), in_(kIoChunk), out_(kIoChunk) {
+    ds_ = ZSTD_createDStream();
+    ZSTD_initDStream(ds_);
+  }
+  ~ZstdSource() override { ZSTD_freeDStream(ds_); }
+  size_t read(void* dst, size_t n) override {
+    uint8_t* d = static_cast<uint8_t*>(dst);
+    size_t done = 0;
+    while (done < n) {
+      if (out_pos_ < out_len_) {
+        size_t k = std::min(n - done, out_len_ - out_pos_);
+        std::memcpy(d + done, out_.data() + out_pos_, k);
+        out_pos_ += k;
+        done += k;
+        continue;
+      }
+      if (!refill()) break;
+    }
+    consumed += done;
+    return done;
+  }
+
+ private:
+  bool refill() {
+    for (;;) {
+      if (in_pos_ == in_len_) {
+        if (eof_) return false;
+        in_len_ = std::fread(in_.data(), 1, in_.size(), f_);
+        in_pos_ = 0;
+        if (in_len_ == 0) { eof_ = true; return false; }
+      }
+      ZSTD_inBuffer ib{in_.data(), in_len_, in_pos_};
+      ZSTD_outBuffer ob{out_.data(), out_.size(), 0};
+      size_t r = ZSTD_decompressStream(ds_, &ob, &ib);
+      in_pos_ = ib.pos;
+      if (ZSTD_isError(r))
+        throw TraceError(path_ + ": corrupt compressed data: " + ZSTD_getErrorName(r));
+      out_len_ = ob.pos;
+      out_pos_ = 0;
+      if (out_len_ > 0) return true;
+    }
+  }
+  FILE* f_;
+  std::string path_;
+  ZSTD_DStream* ds_;
+  std::vector<uint8_t> in_, out_;
+  size_t in_pos_ = 0, in_len_ = 0, out_pos_ = 0, out_len_ = 0;
+  bool eof_ = false;
+};
+
+class FileSink : public ByteSink {
+ public:
+  FileSink(FILE* f, std::string path) : f_(f), path_(std::move(path)) {}
+  void write(const void* src, size_t n) override {
+    if (std::fwrite(src, 1, n, f_) != n) throw TraceError(path_ + ": write failed: " + std::strerror(errno));
+  }
+  void close() override {}
+
+ protected:
+  FILE* f_;
+  std::string path_;
+};
+
+class ZstdSink : public FileSink {
+ public:
+  ZstdSink(FILE* f, std::string path, int level) : FileSink(f, std::move(path)), buf_(ZSTD_CStreamOutSize()) {
+    cs_ = ZSTD_createCCtx();
+    ZSTD_CCtx_setParameter(cs_, ZSTD_c_compressionLevel, level);
+    ZSTD_CCtx_setParameter(cs_, ZSTD_c_checksumFlag, 1);
+    pending_.reserve(kIoChunk);
+  }
+  ~ZstdSink() override { ZSTD_freeCCtx(cs_); }
+  void write(const void* src, size_t n) override {
+    const uint8_t* s = static_cast<const uint8_t*>(src);
+    pending_.insert(pending_.end(), s, s + n);
+    if (pending_.size() >= kIoChunk) flush(ZSTD_e_continue);
+  }
+  void close() override { flush(ZSTD_e_end); }
+
+ private:
+  void flush(ZSTD_EndDirective mode) {
+    ZSTD_inBuffer ib{pending_.data(), pending_.size(), 0};
+    for (;;) {
+      ZSTD_outBuffer ob{buf_.data(), buf_.size(), 0};
+      size_t r = ZSTD_compressStream2(cs_, &ob, &ib, mode);
+      if (ZSTD_isError(r)) throw TraceError(path_ + ": compression failed: " + ZSTD_getErrorName(r));
+      FileSink::write(buf_.data(), ob.pos);
+      if (mode == ZSTD_e_end ? r == 0 : ib.pos == ib.size) break;
+    }
+    pending_.clear();
+  }
+  ZSTD_CCtx* cs_;
+  std::vector<uint8_t> buf_, pending_;
+};
+
+}  // namespace
+
+// ---------------------------------------------------------------- validation
+
+std::string validate_header(const TraceHeader& h) {
+  if (h.width == 0 || h.height == 0) return "width and height must be at least 1";
+  if (h.width > kMaxScreenSide || h.height > kMaxScreenSide)
+    return "width and height must be at most " + std::to_string(kMaxScreenSide);
+  if (!is_valid_spp(h.spp)) return "samples per pixel " + std::to_string(h.spp) + " is not one of 1, 2, 4, 8, 16, 32, 64";
+  if (static_cast<uint8_t>(h.depth_mode) > 1) return "unknown depth mode";
+  if (static_cast<uint8_t>(h.color_format) > 1) return "unknown colour format";
+  if (static_cast<uint8_t>(h.compression) > 1) return "unknown compression";
+  for (float c : h.clear_color)
+    if (!std::isfinite(c) || c < 0.0f) return "clear colour must be finite and non-negative";
+  if (!(h.clear_depth >= 0.0f && h.clear_depth <= 1.0f)) return "clear depth must be in [0, 1]";
+  if (h.scene_name.size() > 65535) return "scene name longer than 65535 bytes";
+  return "";
+}
+
+std::string validate_fragment(const TraceHeader& h, const Fragment& f) {
+  if (f.x >= h.width || f.y >= h.height)
+    return "pixel (" + std::to_string(f.x) + ", " + std::to_string(f.y) + ") is outside the " +
+           std::to_string(h.width) + "x" + std::to_string(h.height) + " screen";
+  if (f.coverage == 0) return "empty coverage mask";
+  if (h.spp < 64 && (f.coverage >> h.spp) != 0)
+    return "coverage mask sets bits beyond " + std::to_string(h.spp) + " samples";
+  if (h.depth_mode == DepthMode::kPlane) {
+    if (!std::isfinite(f.z0) || !std::isfinite(f.dzdx) || !std::isfinite(f.dzdy))
+      return "depth plane is not finite";
+  } else {
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      float z = f.z[__builtin_ctzll(m)];
+      if (!(z >= 0.0f && z <= 1.0f)) return "depth of sample " + std::to_string(__builtin_ctzll(m)) + " is not in [0, 1]";
+    }
+  }
+  for (float c : f.rgb)
+    if (!std::isfinite(c) || c < 0.0f) return "colour is not finite and non-negative";
+  if (!(f.alpha >= 0.0f && f.alpha <= 1.0f)) return "opacity is not in [0, 1]";
+  return "";
+}
+
+size_t fragment_record_bytes(const TraceHeader& h, int covered) {
+  size_t depth = h.depth_mode == DepthMode::kPlane ? 12 : 4 * size_t(covered);
+  size_t colour = h.color_format == ColorFormat::kRgbF32 ? 12 : 3;
+  return 1 + 4 + 4 + 2 + 2 + coverage_bytes(h.spp) + depth + colour + 4;
+}
+
+void fragment_sample_depths(const TraceHeader& h, const Fragment& f, float* z_out) {
+  if (h.depth_mode == DepthMode::kPlane) {
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      int i = __builtin_ctzll(m);
+      z_out[i] = plane_depth(f.z0, f.dzdx, f.dzdy, sample_offset(h.positions[i].x),
+                             sample_offset(h.positions[i].y));
+    }
+  } else {
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      int i = __builtin_ctzll(m);
+      z_out[i] = canonical_depth(f.z[i]);
+    }
+  }
+}
+
+// ---------------------------------------------------------------- reader
+
+TraceReader::TraceReader(const std::string& path) : path_(path) {
+  FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw TraceError(path + ": cannot open: " + std::strerror(errno));
+  std::unique_ptr<FILE, int (*)(FILE*)> guard(f, &std::fclose);
+  uint8_t fixed[kFixedHeaderBytes];
+  size_t got = std::fread(fixed, 1, sizeof fixed, f);
+  if (got >= 8 && std::memcmp(fixed, kTraceMagic, 8) != 0)
+    throw TraceError(path + ": header: not a ropsim trace (bad magic)");
+  if (got < sizeof fixed) throw TraceError(path + ": header: truncated (" + std::to_string(got) + " of 48 bytes)");
+  uint16_t version = get_u16(fixed + 8);
+  if (version != kTraceVersion)
+    throw TraceError(path + ": header: unsupported version " + std::to_string(version) + " (this reader reads 1)");
+  TraceHeader& h = header_;
+  h.width = get_u32(fixed + 12);
+  h.height = get_u32(fixed + 16);
+  h.spp = fixed[20];
+  h.depth_mode = static_cast<DepthMode>(fixed[21]);
+  h.color_format = static_cast<ColorFormat>(fixed[22]);
+  h.compression = static_cast<Compression>(fixed[23]);
+  for (int i = 0; i < 3; ++i) h.clear_color[i] = get_f32(fixed + 24 + 4 * i);
+  h.clear_depth = get_f32(fixed + 36);
+  uint16_t name_len = get_u16(fixed + 40);
+  std::string err = validate_header(h);
+  if (!err.empty()) throw TraceError(path + ": header: " + err);
+  uint8_t pos[128];
+  if (std::fread(pos, 1, 2 * size_t(h.spp), f) != 2 * size_t(h.spp))
+    throw TraceError(path + ": header: truncated in the sample positions");
+  for (int i = 0; i < h.spp; ++i) h.positions[i] = SamplePos{pos[2 * i], pos[2 * i + 1]};
+  h.scene_name.resize(name_len);
+  if (name_len && std::fread(h.scene_name.data(), 1, name_len, f) != name_len)
+    throw TraceError(path + ": header: truncated in the scene name");
+  std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
+  if (h.compression == Compression::kZstd)
+    src_ = std::make_unique<ZstdSource>(f, path);
+  else
+    src_ = std::make_unique<FileSource>(f);
+  guard.release();
+  file_ = f;
+}
+
+TraceReader::~TraceReader() {
+  src_.reset();
+  if (file_) std::fclose(file_);
+}
+
+uint64_t TraceReader::payload_bytes() const { return src_ ? src_->consumed : 0; }
+
+void TraceReader::fail(const std::string& what) const {
+  throw TraceError(path_ + ": record " + std::to_string(records_) + ": " + what);
+}
+
+void TraceReader::read_exact(void* dst, size_t n, const char* what) {
+  if (src_->read(dst, n) != n) fail(std::string("truncated in the ") + what + " (no end record)");
+}
+
+bool TraceReader::next(Fragment& f) {
+  if (ended_) return false;
+  uint8_t tag;
+  if (src_->read(&tag, 1) != 1) fail("truncated: the trace ends without an end record");
+  if (tag == kTagEnd) {
+    uint8_t b[8];
+    read_exact(b, 8, "end record");
+    uint64_t count = get_u64(b);
+    if (count != records_)
+      fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
+    uint8_t extra;
+    if (src_->read(&extra, 1) != 0) fail("data after the end record");
+    ended_ = true;
+    return false;
+  }
+  if (tag != kTagFragment) fail("unknown record tag " + std::to_string(tag));
+  const TraceHeader& h = header_;
+  uint8_t b[16 + 8 + 256 + 12 + 4];
+  const int cb = coverage_bytes(h.spp);
+  read_exact(b, 12 + cb, "fragment");
+  f.draw_id = get_u32(b);
+  f.prim_id = get_u32(b + 4);
+  f.x = get_u16(b + 8);
+  f.y = get_u16(b + 10);
+  f.coverage = 0;
+  for (int i = 0; i < cb; ++i) f.coverage |= uint64_t(b[12 + i]) << (8 * i);
+  const int covered = __builtin_popcountll(f.coverage);
+  if (h.depth_mode == DepthMode::kPlane) {
+    read_exact(b, 12, "depth plane");
+    f.z0 = get_f32(b);
+    f.dzdx = get_f32(b + 4);
+    f.dzdy = get_f32(b + 8);
+  } else {
+    read_exact(b, 4 * size_t(covered), "sample depths");
+    int k = 0;
+    for (uint64_t m = f.coverage; m; m &= m - 1) f.z[__builtin_ctzll(m)] = get_f32(b + 4 * k++);
+  }
+  if (h.color_format == ColorFormat::kRgbF32) {
+    read_exact(b, 16, "colour");
+    for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(b + 4 * i);
+    f.alpha = get_f32(b + 12);
+  } else {
+    read_exact(b, 7, "colour");
+    for (int i = 0; i < 3; ++i) f.rgb[i] = b[i] / 255.0f;
+    f.alpha = get_f32(b + 3);
+  }
+  std::string err = validate_fragment(h, f);
+  if (!err.empty()) fail(err);
+  ++records_;
+  return true;
+}
+
+// ---------------------------------------------------------------- writer
+
+TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level)
+    : path_(path), tmp_path_(path + ".tmp"), header_(header) {
+  std::string err = validate_header(header_);
+  if (!err.empty()) throw TraceError(path + ": header: " + err);
+  FILE* f = std::fopen(tmp_path_.c_str(), "wb");
+  if (!f) throw TraceError(path + ": cannot create: " + std::strerror(errno));
+  file_ = f;
+  uint8_t fixed[kFixedHeaderBytes] = {};
+  std::memcpy(fixed, kTraceMagic, 8);
+  put_u16(fixed + 8, kTraceVersion);
+  put_u32(fixed + 12, header_.width);
+  put_u32(fixed + 16, header_.height);
+  fixed[20] = uint8_t(header_.spp);
+  fixed[21] = uint8_t(header_.depth_mode);
+  fixed[22] = uint8_t(header_.color_format);
+  fixed[23] = uint8_t(header_.compression);
+  for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header_.clear_color[i]);
+  put_f32(fixed + 36, header_.clear_depth);
+  put_u16(fixed + 40, uint16_t(header_.scene_name.size()));
+  FileSink raw(f, path);
+  raw.write(fixed, sizeof fixed);
+  for (int i = 0; i < header_.spp; ++i) {
+    uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
+    raw.write(p, 2);
+  }
+  raw.write(header_.scene_name.data(), header_.scene_name.size());
+  if (header_.compression == Compression::kZstd)
+    sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
+  else
+    sink_ = std::make_unique<FileSink>(f, path);
+}
+
+TraceWriter::~TraceWriter() {
+  if (!finished_) {
+    sink_.reset();
+    if (file_) std::fclose(file_);
+    std::remove(tmp_path_.c_str());
+  }
+}
+
+void TraceWriter::write(const Fragment& f) {
+  std::string err = validate_fragment(header_, f);
+  if (!err.empty()) throw TraceError(path_ + ": record " + std::to_string(count_) + ": " + err);
+  uint8_t b[16 + 8 + 256 + 16];
+  size_t n = 0;
+  b[n++] = kTagFragment;
+  put_u32(b + n, f.draw_id); n += 4;
+  put_u32(b + n, f.prim_id); n += 4;
+  put_u16(b + n, f.x); n += 2;
+  put_u16(b + n, f.y); n += 2;
+  for (int i = 0; i < coverage_bytes(header_.spp); ++i) b[n++] = uint8_t(f.coverage >> (8 * i));
+  if (header_.depth_mode == DepthMode::kPlane) {
+    put_f32(b + n, f.z0); put_f32(b + n + 4, f.dzdx); put_f32(b + n + 8, f.dzdy); n += 12;
+  } else {
+    for (uint64_t m = f.coverage; m; m &= m - 1) { put_f32(b + n, f.z[__builtin_ctzll(m)]); n += 4; }
+  }
+  if (header_.color_format == ColorFormat::kRgbF32) {
+    for (int i = 0; i < 3; ++i) { put_f32(b + n, f.rgb[i]); n += 4; }
+  } else {
+    for (int i = 0; i < 3; ++i) {
+      float c = std::min(1.0f, std::max(0.0f, f.rgb[i]));
+      b[n++] = uint8_t(std::lround(c * 255.0f));
+    }
+  }
+  put_f32(b + n, f.alpha); n += 4;
+  sink_->write(b, n);
+  raw_bytes_ += n;
+  ++count_;
+}
+
+void TraceWriter::finish() {
+  if (finished_) return;
+  uint8_t b[9];
+  b[0] = kTagEnd;
+  put_u64(b + 1, count_);
+  sink_->write(b, 9);
+  raw_bytes_ += 9;
+  sink_->close();
+  sink_.reset();
+  FILE* f = file_;
+  file_ = nullptr;
+  if (std::fclose(f) != 0) { std::remove(tmp_path_.c_str()); throw TraceError(path_ + ": write failed"); }
+  if (std::rename(tmp_path_.c_str(), path_.c_str()) != 0) {
+    std::remove(tmp_path_.c_str());
+    throw TraceError(path_ + ": cannot rename the temporary file: " + std::strerror(errno));
+  }
+  finished_ = true;
+}
+
+}  // namespace ropsim

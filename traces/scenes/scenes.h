@@ -1,0 +1,53 @@
+// Built-in procedural scenes (docs/scenes.md), generated deterministically
+// from a seed as screen-space triangles in API order and rasterized to traces.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rasterizer.h"
+#include "trace.h"
+
+namespace ropsim {
+
+struct SceneInfo {
+  std::string name;
+  std::string description;
+  uint32_t width, height;  ///< default resolution
+};
+
+/// The catalogue of built-in scenes, in a fixed order.
+const std::vector<SceneInfo>& scene_catalog();
+
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct SceneParams {
+  std::string name = "cloth";
+  int spp = 16;
+  uint32_t width = 0, height = 0;  ///< 0 = the scene's default
+  uint64_t seed = 1;
+  DepthMode depth_mode = DepthMode::kPlane;
+  ColorFormat color_format = ColorFormat::kRgbF32;
+  Compression compression = Compression::kZstd;
+};
+
+struct Scene {
+  TraceHeader header;
+  std::vector<ScreenTriangle> triangles;  ///< in API order
+};
+
+/// Builds a scene; throws SceneError for an unknown name or bad parameters.
+Scene build_scene(const SceneParams& p);
+
+/// Rasterizes every triangle of the scene in API order.
+RasterStats rasterize_scene(const Scene& s, const std::function<void(const Fragment&)>& emit);
+
+/// Builds the scene and writes it as a trace file (atomically).
+RasterStats write_scene_trace(const SceneParams& p, const std::string& path);
+
+}  // namespace ropsim
