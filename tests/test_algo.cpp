@@ -1,1 +1,195 @@
+// Bit-level functions shared by the golden model and the SystemC units.
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "alpha_ref.h"
+#include "depth.h"
+#include "half.h"
+#include "hilbert.h"
+#include "opacity.h"
+#include "sort_order.h"
+#include "tracker.h"
+
+using namespace ropsim;
+
+TEST(AlphaRef, ReproducesThePublishedValues) {
+  // (sampleId 0, spp 1): (pixel, surface) -> CalcAlphaRef bits (issue #2).
+  struct Case { uint64_t pixel; uint32_t surface; uint32_t expect; };
+  const Case cases[] = {{0, 0, 0x00000000u}, {1, 0, 0x80000000u}, {0, 1, 0x3707B665u},
+                        {5, 7, 0xD1FDFF63u}, {12345, 678, 0x2ED32D8Eu}};
+  for (const auto& c : cases)
+    EXPECT_EQ(calc_alpha_ref(0, c.pixel, c.surface, 1), c.expect)
+        << std::hex << "pixel " << c.pixel << " surface " << c.surface;
+}
+
+TEST(AlphaRef, ReverseBits) {
+  EXPECT_EQ(reverse_bits32(1u), 0x80000000u);
+  EXPECT_EQ(reverse_bits32(0x80000000u), 1u);
+  EXPECT_EQ(reverse_bits32(0x12345678u), 0x1E6A2C48u);
+  for (uint32_t x : {0u, 7u, 0xDEADBEEFu, 0xFFFFFFFFu}) EXPECT_EQ(reverse_bits32(reverse_bits32(x)), x);
+}
+
+// Every aligned power-of-two span of one pixel's sequence is stratified: the
+// top log2(N) bits of the N references are a permutation (LK §3), for any
+// pixel and surface id, including surface-id and index wrap.
+TEST(AlphaRef, AlignedSpansAreStratified) {
+  const uint64_t pixels[] = {0, 1, 2, 3, 1000, 123456, (1ull << 24) - 1, (1ull << 26) - 1, 1ull << 30};
+  const uint32_t surfaces[] = {0, 1, 2, 77, 0x7FFFFFFFu, 0xFFFFFFFFu};
+  for (uint32_t spp = 1; spp <= 64; spp *= 2)
+    for (uint64_t p : pixels)
+      for (uint32_t sid : surfaces) {
+        const int L = log2_spp(int(spp));
+        std::set<uint32_t> strata;
+        for (uint32_t s = 0; s < spp; ++s) strata.insert(L ? calc_alpha_ref(s, p, sid, spp) >> (32 - L) : 0);
+        EXPECT_EQ(strata.size(), spp) << "spp " << spp << " pixel " << p << " surface " << sid;
+      }
+}
+
+TEST(AlphaRef, IndexWrapsModulo2To32) {
+  // pixelId * spp beyond 32 bits (a 16384^2 screen at 64 spp) wraps like the
+  // paper's 32-bit unsigned arithmetic.
+  const uint64_t p = (1ull << 28) + 5;
+  EXPECT_EQ(alpha_ref_index(3, p, 64), uint32_t((3 + p * 64) & 0xFFFFFFFFu));
+  EXPECT_EQ(calc_alpha_ref(3, p, 9, 64), calc_alpha_ref(3, 5, 9, 64));
+}
+
+TEST(AlphaRef, NarrowHashStaysInRangeAndStratified) {
+  for (int h : {8, 12, 16, 24}) {
+    std::set<uint32_t> strata;
+    for (uint32_t s = 0; s < 16; ++s) {
+      uint32_t r = calc_alpha_ref(s, 4321, 5, 16, h);
+      EXPECT_LT(r, 1u << h) << "hash_bits " << h;
+      strata.insert(r >> (h - 4));
+    }
+    EXPECT_EQ(strata.size(), 16u) << "hash_bits " << h;
+  }
+  // The 32-bit path through the general function equals the paper's.
+  EXPECT_EQ(calc_alpha_ref_index(alpha_ref_index(0, 12345, 1), 678, 32), 0x2ED32D8Eu);
+}
+
+TEST(Hilbert, MatchesTheCanonicalFourByFour) {
+  const uint64_t rows[4][4] = {{0, 1, 14, 15}, {3, 2, 13, 12}, {4, 7, 8, 11}, {5, 6, 9, 10}};
+  for (uint32_t y = 0; y < 4; ++y)
+    for (uint32_t x = 0; x < 4; ++x) EXPECT_EQ(hilbert_xy2d(4, x, y), rows[y][x]) << "x " << x << " y " << y;
+}
+
+TEST(Hilbert, IsABijectionWithUnitSteps) {
+  for (uint32_t n : {1u, 2u, 8u, 64u}) {
+    std::vector<std::pair<uint32_t, uint32_t>> at(size_t(n) * n, {~0u, ~0u});
+    for (uint32_t y = 0; y < n; ++y)
+      for (uint32_t x = 0; x < n; ++x) {
+        uint64_t d = hilbert_xy2d(n, x, y);
+        ASSERT_LT(d, uint64_t(n) * n);
+        ASSERT_EQ(at[d].first, ~0u) << "index " << d << " visited twice, n " << n;
+        at[d] = {x, y};
+      }
+    for (size_t d = 1; d < at.size(); ++d) {
+      int dx = std::abs(int(at[d].first) - int(at[d - 1].first)), dy = std::abs(int(at[d].second) - int(at[d - 1].second));
+      EXPECT_EQ(dx + dy, 1) << "consecutive indices " << d - 1 << "," << d << " are not neighbours (n " << n << ")";
+    }
+  }
+  EXPECT_EQ(hilbert_side(1920, 1080), 2048u);
+  EXPECT_EQ(hilbert_side(4, 3), 4u);
+  EXPECT_EQ(hilbert_side(1, 1), 1u);
+  EXPECT_EQ(hilbert_xy2d(32768, 32767, 0), (1ull << 30) - 1);  // corner of the largest screen
+}
+
+TEST(Opacity, ExtremesAndExactProbability) {
+  for (int b : {1, 8, 16, 24, 32}) {
+    const uint64_t one = alpha_to_fixed(1.0f, b), zero = alpha_to_fixed(0.0f, b);
+    EXPECT_EQ(one, uint64_t{1} << b);
+    EXPECT_EQ(zero, 0u);
+    for (uint32_t ref : {0u, 1u, 0x80000000u, 0xFFFFFFFFu}) {
+      EXPECT_TRUE(opacity_passes(one, b, ref, 32)) << "alpha 1 must always write (bits " << b << ")";
+      EXPECT_FALSE(opacity_passes(zero, b, ref, 32)) << "alpha 0 must never write (bits " << b << ")";
+    }
+  }
+  // alpha = 2^-k is exact; alpha just below 1 still fails for the largest refs.
+  EXPECT_EQ(alpha_to_fixed(0x1p-9f, 32), 1ull << 23);
+  const uint64_t near_one = alpha_to_fixed(1.0f - 0x1p-24f, 32);
+  EXPECT_EQ(near_one, (1ull << 32) - (1ull << 8));
+  EXPECT_FALSE(opacity_passes(near_one, 32, 0xFFFFFFFFu, 32));
+  EXPECT_TRUE(opacity_passes(near_one, 32, 0xFFFFFEFFu, 32));
+  // alpha = 1e-6 keeps a non-zero probability of round(1e-6 * 2^32) / 2^32.
+  EXPECT_EQ(alpha_to_fixed(1e-6f, 32), uint64_t(std::nearbyint(double(1e-6f) * 4294967296.0)));
+  EXPECT_TRUE(opacity_passes(alpha_to_fixed(1e-6f, 32), 32, 0, 32));
+  // P(pass) = A / 2^alpha_bits exactly when hash_bits >= alpha_bits: count over all refs of a 12-bit hash.
+  const uint64_t a8 = alpha_to_fixed(0.3f, 8);
+  int passes = 0;
+  for (uint32_t r = 0; r < 4096; ++r) passes += opacity_passes(a8, 8, r, 12);
+  EXPECT_EQ(uint64_t(passes), a8 * 16);
+}
+
+TEST(Tracker, FollowsFigure7) {
+  TrackerState t;
+  TrackResult r = track_surface(t, 0x00FF, 32);
+  EXPECT_FALSE(r.new_surface);
+  EXPECT_EQ(r.n, 0u);
+  track_commit(t, 0x00FF);
+  r = track_surface(t, 0xFF00, 32);  // disjoint: same surface continues at n = 8
+  EXPECT_FALSE(r.new_surface);
+  EXPECT_EQ(r.n, 8u);
+  EXPECT_EQ(r.surface_id, 0u);
+  track_commit(t, 0xFF00);
+  r = track_surface(t, 0x0001, 32);  // conflict: new surface, mask cleared
+  EXPECT_TRUE(r.new_surface);
+  EXPECT_EQ(r.n, 0u);
+  EXPECT_EQ(r.surface_id, 1u);
+  track_commit(t, 0x0001);
+  EXPECT_EQ(t.covered, 0x0001u);
+}
+
+TEST(Tracker, SurfaceIdWraps) {
+  for (int bits : {1, 4, 8, 32}) {
+    TrackerState t{~0ull, uint32_t(low_mask(bits))};
+    TrackResult r = track_surface(t, 1, bits);
+    EXPECT_TRUE(r.new_surface);
+    EXPECT_EQ(r.surface_id, 0u) << "surface id of " << bits << " bits must wrap to 0";
+  }
+}
+
+TEST(SortOrder, ByStoredDepthThenSampleId) {
+  const float stored[6] = {1.0f, 0.5f, 1.0f, 0.25f, 0.5f, 0.0f};
+  uint64_t keys[6];
+  for (int i = 0; i < 6; ++i) keys[i] = sort_key(stored[i], uint32_t(i));
+  sort_keys(keys, 6);
+  const uint32_t expect[6] = {5, 3, 1, 4, 0, 2};
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(sort_key_sample(keys[i]), expect[i]) << "position " << i;
+  // Same permutation as std::sort on random keys.
+  uint64_t a[64], b[64];
+  uint32_t s = 12345;
+  for (int i = 0; i < 64; ++i) {
+    s = s * 1664525u + 1013904223u;
+    a[i] = b[i] = sort_key(float(s >> 28) / 16.0f, uint32_t(i));
+  }
+  sort_keys(a, 64);
+  std::sort(b, b + 64);
+  EXPECT_TRUE(std::equal(a, a + 64, b));
+}
+
+TEST(Depth, PlaneTiesAndCanonicalZero) {
+  EXPECT_TRUE(depth_passes(0.5f, 0.5f)) << "equal depth passes (LESS_EQUAL)";
+  EXPECT_FALSE(depth_passes(0.50001f, 0.5f));
+  EXPECT_EQ(depth_bits(canonical_depth(-0.0f)), 0u);
+  EXPECT_EQ(canonical_depth(-3.0f), 0.0f);
+  EXPECT_EQ(canonical_depth(2.0f), 1.0f);
+  EXPECT_EQ(sample_offset(128), 0.0f);
+  EXPECT_EQ(sample_offset(0), -0.5f);
+  EXPECT_EQ(plane_depth(0.5f, 0.25f, -0.125f, 0.25f, 0.5f), 0.5f + 0.0625f - 0.0625f);
+  // fma: the product is not rounded before the add.
+  const float z0 = 1.0f - 0x1p-24f, g = 1.0f + 0x1p-23f, o = 0x1p-24f;
+  EXPECT_EQ(plane_depth(z0, g, 0.0f, -o, 0.0f), float(std::fma(double(g), double(-o), double(z0))));
+}
+
+TEST(Half, RoundTripAndRounding) {
+  for (float f : {0.0f, 0.25f, 0.5f, 1.0f, 0.7626953125f, 65504.0f, 0x1p-14f, 0x1p-24f})
+    EXPECT_EQ(half_to_float(float_to_half(f)), f) << f;
+  EXPECT_EQ(float_to_half(1.0f + 0x1p-11f), float_to_half(1.0f)) << "ties round to even";
+  EXPECT_EQ(float_to_half(1.0f + 0x1p-11f + 0x1p-20f), float_to_half(1.0f) + 1);
+  EXPECT_EQ(float_to_half(70000.0f), 0x7C00);
+  for (uint32_t h = 0; h < 0x7C00; ++h) ASSERT_EQ(float_to_half(half_to_float(uint16_t(h))), h) << h;
+}

@@ -1,1 +1,372 @@
+// The golden model: the properties Laine & Karras 2011 prove or claim, the
+// comparison methods, and the numerical extremes.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "driver.h"
+#include "golden_model.h"
+#include "half.h"
+#include "image_io.h"
+#include "random_hash.h"
+#include "sample_patterns.h"
+
+using namespace ropsim;
+
+namespace {
+
+TraceHeader header(uint32_t w, uint32_t h, int spp, std::array<float, 3> clear = {0, 0, 0}) {
+  TraceHeader hd;
+  hd.width = w;
+  hd.height = h;
+  hd.spp = spp;
+  hd.positions = standard_sample_positions(spp);
+  hd.clear_color = clear;
+  return hd;
+}
+
+uint64_t full_mask(int spp) { return spp == 64 ? ~0ull : (1ull << spp) - 1; }
+
+Fragment frag(uint32_t x, uint32_t y, uint64_t cov, float z, float alpha, std::array<float, 3> rgb = {1, 1, 1},
+              uint32_t draw = 0, uint32_t prim = 0) {
+  Fragment f;
+  f.x = uint16_t(x);
+  f.y = uint16_t(y);
+  f.coverage = cov;
+  f.z0 = z;
+  f.rgb = rgb;
+  f.alpha = alpha;
+  f.draw_id = draw;
+  f.prim_id = prim;
+  return f;
+}
+
+StochasticModel model(const TraceHeader& h, Method m, Numerics num = {}, uint64_t seed = 1) {
+  GoldenConfig c;
+  c.method = m;
+  c.numerics = num;
+  c.seed = seed;
+  return StochasticModel(h, c);
+}
+
+/// Samples of pixel (x, y) whose stored depth is z.
+int samples_at_depth(const StochasticModel& m, uint32_t x, uint32_t y, float z) {
+  auto v = m.pixel_view(x, y);
+  if (!v.depth) return 0;
+  int n = 0;
+  for (int s = 0; s < m.header().spp; ++s) n += v.depth[s] == z;
+  return n;
+}
+
+/// Splits a full pixel mask into k random disjoint non-empty parts.
+std::vector<uint64_t> split_mask(uint64_t mask, int k, uint64_t key) {
+  std::vector<uint64_t> parts(size_t(k), 0);
+  int i = 0;
+  for (uint64_t m = mask; m; m &= m - 1, ++i) {
+    const uint64_t bit = m & (~m + 1);
+    const int slot = i < k ? i : int(fragment_random(key, uint32_t(i)) % uint32_t(k));
+    parts[size_t(slot)] |= bit;
+  }
+  std::vector<uint64_t> out;
+  for (uint64_t p : parts)
+    if (p) out.push_back(p);
+  return out;
+}
+
+const float kAlphaSweep[] = {0.0f, 1e-6f, 0x1p-9f, 0.01f, 0.1f, 0.2f, 0.25f, 1.0f / 3.0f, 0.4f, 0.5f, 0.61f,
+                             0.75f, 0.9f, 0.99f, 1.0f - 1e-6f, 1.0f};
+
+}  // namespace
+
+// One surface of opacity alpha, drawn as any number of triangles (disjoint
+// coverage parts of one draw) into a pixel, covers exactly floor(aN) or ceil(aN)
+// of its N samples -- in every pixel (LK §3-4).
+TEST(LkStratification, OneSurfaceCoversFloorOrCeil) {
+  for (int spp = 1; spp <= 64; spp *= 2) {
+    for (float alpha : kAlphaSweep) {
+      // Pixels near the origin, mid-screen and at the far corner of a large screen.
+      TraceHeader h = header(4096, 4096, spp);
+      StochasticModel m = model(h, Method::kLk);
+      std::vector<std::pair<uint32_t, uint32_t>> pixels;
+      for (uint32_t y = 0; y < 12; ++y)
+        for (uint32_t x = 0; x < 12; ++x) {
+          pixels.push_back({x, y});
+          pixels.push_back({2000 + x, 1000 + y});
+          pixels.push_back({4084 + x, 4084 + y});
+        }
+      uint32_t prim = 0;
+      for (auto [x, y] : pixels) {
+        const uint64_t key = fragment_key(99, 0, 0, x, y);
+        const int k = 1 + int(fragment_random(key, 100) % 5);
+        for (uint64_t part : split_mask(full_mask(spp), k, key)) m.draw(frag(x, y, part, 0.5f, alpha, {1, 1, 1}, 0, prim++));
+      }
+      const double an = double(alpha) * spp;
+      for (auto [x, y] : pixels) {
+        const int c = samples_at_depth(m, x, y, 0.5f);
+        EXPECT_TRUE(c == int(std::floor(an)) || c == int(std::ceil(an)))
+            << "spp " << spp << " alpha " << alpha << " pixel (" << x << "," << y << ") covers " << c
+            << " samples, expected floor/ceil of " << an;
+      }
+    }
+  }
+}
+
+// LK §4: two full-pixel alpha = 0.5 surfaces at 16 spp leave the far one in
+// exactly 4 samples, whichever is drawn first (sorting by stored depth).
+TEST(LkStratification, FarSurfaceKeepsExactlyFourOfSixteen) {
+  for (bool near_first : {true, false}) {
+    TraceHeader h = header(64, 64, 16);
+    StochasticModel m = model(h, Method::kLk);
+    for (uint32_t y = 0; y < 64; ++y)
+      for (uint32_t x = 0; x < 64; ++x) {
+        Fragment nearf = frag(x, y, 0xFFFF, 0.25f, 0.5f, {1, 0, 0}, near_first ? 0 : 1);
+        Fragment farf = frag(x, y, 0xFFFF, 0.75f, 0.5f, {0, 1, 0}, near_first ? 1 : 0);
+        if (near_first) { m.draw(nearf); m.draw(farf); }
+        else { m.draw(farf); m.draw(nearf); }
+      }
+    for (uint32_t y = 0; y < 64; ++y)
+      for (uint32_t x = 0; x < 64; ++x) {
+        ASSERT_EQ(samples_at_depth(m, x, y, 0.75f), 4) << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
+        ASSERT_EQ(samples_at_depth(m, x, y, 0.25f), 8) << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
+      }
+  }
+}
+
+namespace {
+/// Mean fraction of samples at depth z over a W x W region after drawing the
+/// given layers (full-pixel fragments) in order.
+struct Layer { float z, alpha; };
+double mean_coverage(Method meth, int spp, uint32_t W, const std::vector<Layer>& layers, float z_query, Numerics num = {}) {
+  TraceHeader h = header(W, W, spp);
+  StochasticModel m = model(h, meth, num);
+  for (uint32_t y = 0; y < W; ++y)
+    for (uint32_t x = 0; x < W; ++x) {
+      uint32_t d = 0;
+      for (const Layer& l : layers) m.draw(frag(x, y, full_mask(spp), l.z, l.alpha, {1, 1, 1}, d++));
+    }
+  uint64_t n = 0;
+  for (uint32_t y = 0; y < W; ++y)
+    for (uint32_t x = 0; x < W; ++x) n += uint64_t(samples_at_depth(m, x, y, z_query));
+  return double(n) / (double(W) * W * spp);
+}
+/// 6-sigma bound on the mean of M sample indicators with P(1) = p: stratified
+/// (LK, Enderton) and independent (naive) sampling both have variance at most
+/// the binomial p(1 - p) / M, so 6 sqrt(p (1 - p) / M) plus the 2^-32
+/// quantisation of alpha bounds |mean - p| with probability > 1 - 1e-8.
+double bound(double p, double samples) { return 6.0 * std::sqrt(std::max(p * (1 - p), 1e-12) / samples) + 0x1p-31; }
+}  // namespace
+
+TEST(Unbiased, OneSurfaceMeanCoverageIsAlpha) {
+  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive}) {
+    for (float alpha : {0.0f, 1e-6f, 0x1p-9f, 0.25f, 0.61f, 1.0f - 1e-6f, 1.0f}) {
+      const int spp = 16;
+      const uint32_t W = (alpha > 0 && alpha < 1e-3f) || alpha > 0.999f ? 1024 : 256;
+      const double mean = mean_coverage(meth, spp, W, {{0.5f, alpha}}, 0.5f);
+      const double b = bound(alpha, double(W) * W * spp);
+      EXPECT_NEAR(mean, double(alpha), b) << to_string(meth) << " alpha " << alpha << " (bound " << b << ")";
+      if (alpha == 0.0f) EXPECT_EQ(mean, 0.0) << to_string(meth) << ": alpha 0 must never write";
+      if (alpha == 1.0f) EXPECT_EQ(mean, 1.0) << to_string(meth) << ": alpha 1 must always write";
+      if (alpha == 1e-6f) EXPECT_GT(mean, 0.0) << to_string(meth) << ": alpha 1e-6 must still write sometimes";
+    }
+  }
+}
+
+TEST(Unbiased, TwoLayersFarMeanIsAlphaFarTimesOneMinusAlphaNear) {
+  const float a_near = 0.4f, a_far = 0.7f;
+  const double expect = double(a_far) * (1.0 - double(a_near));
+  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive})
+    for (int spp : {4, 16, 64})
+      for (bool near_first : {true, false}) {
+        std::vector<Layer> layers = {{0.2f, a_near}, {0.8f, a_far}};
+        if (!near_first) std::swap(layers[0], layers[1]);
+        const uint32_t W = 192;
+        const double mean = mean_coverage(meth, spp, W, layers, 0.8f);
+        EXPECT_NEAR(mean, expect, bound(expect, double(W) * W * spp))
+            << to_string(meth) << " spp " << spp << (near_first ? " near first" : " far first");
+      }
+}
+
+// Hundreds of layers, with an 8-bit surface id that wraps: still unbiased.
+TEST(Unbiased, HundredsOfLayersWithSurfaceIdWrap) {
+  std::vector<Layer> layers;
+  for (int k = 0; k < 300; ++k) layers.push_back({1.0f - float(k + 1) / 512.0f, 0.01f});  // drawn far to near
+  for (int sid_bits : {8, 32}) {
+    Numerics num;
+    num.surface_id_bits = sid_bits;
+    // Coverage of the nearest layer only: alpha.
+    const double near = mean_coverage(Method::kLk, 16, 48, layers, layers.back().z, num);
+    EXPECT_NEAR(near, 0.01, bound(0.01, 48.0 * 48 * 16)) << "surface id bits " << sid_bits;
+    // Total coverage of all layers: 1 - 0.99^300, from the resolve of white layers over black.
+    TraceHeader h = header(48, 48, 16);
+    StochasticModel m = model(h, Method::kLk, num);
+    for (uint32_t y = 0; y < 48; ++y)
+      for (uint32_t x = 0; x < 48; ++x) {
+        uint32_t d = 0;
+        for (const Layer& l : layers) m.draw(frag(x, y, 0xFFFF, l.z, l.alpha, {1, 1, 1}, d++));
+      }
+    Image img = m.resolve();
+    double sum = 0;
+    for (float v : img.rgb) sum += v;
+    const double mean = sum / img.rgb.size(), expect = 1.0 - std::pow(0.99, 300);
+    EXPECT_NEAR(mean, expect, bound(expect, 48.0 * 48 * 16)) << "surface id bits " << sid_bits;
+    EXPECT_GE(m.counters().surface_id_changes, 48u * 48 * 250) << "each layer should start a new surface";
+  }
+}
+
+// Coplanar surfaces: the later one is in front (LESS_EQUAL), as in the reference.
+TEST(Unbiased, DepthTiesMatchTheReference) {
+  TraceHeader h = header(128, 128, 16);
+  auto run = [&](Method meth) {
+    GoldenConfig c;
+    c.method = meth;
+    auto m = make_functional_model(h, c);
+    for (uint32_t y = 0; y < 128; ++y)
+      for (uint32_t x = 0; x < 128; ++x) {
+        m->draw(frag(x, y, 0xFFFF, 0.5f, 0.5f, {1, 0, 0}, 0));
+        m->draw(frag(x, y, 0xFFFF, 0.5f, 0.5f, {0, 1, 0}, 1));
+      }
+    Image img = m->resolve();
+    std::array<double, 3> mean{};
+    for (size_t i = 0; i < img.rgb.size(); ++i) mean[i % 3] += img.rgb[i] / (128.0 * 128);
+    return mean;
+  };
+  const auto ref = run(Method::kReference);
+  EXPECT_DOUBLE_EQ(ref[0], 0.25);
+  EXPECT_DOUBLE_EQ(ref[1], 0.5);
+  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive}) {
+    const auto got = run(meth);
+    for (int c = 0; c < 2; ++c)
+      EXPECT_NEAR(got[c], ref[c], bound(0.5, 128.0 * 128 * 16)) << to_string(meth) << " channel " << c;
+  }
+}
+
+namespace {
+std::array<double, 3> mean_pixel(const Image& img) {
+  std::array<double, 3> m{};
+  for (size_t i = 0; i < img.rgb.size(); ++i) m[i % 3] += img.rgb[i];
+  for (auto& v : m) v /= double(img.width) * img.height;
+  return m;
+}
+}  // namespace
+
+// Enderton et al. Examples 1 and 2: closed-form pixel values.
+TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
+  struct Ex { const char* scene; std::array<double, 3> exact; };
+  const Ex examples[] = {{"enderton-1", {0.45, 0.2475, 0.3025}}, {"enderton-2", {0.7626953125, 0.7626953125, 0.7626953125}}};
+  for (const auto& ex : examples)
+    for (int spp : {4, 16, 64}) {
+      InputSpec in;
+      in.scene.name = ex.scene;
+      in.scene.spp = spp;
+      GoldenConfig cfg;
+      cfg.method = Method::kReference;
+      FunctionalRun ref = run_functional(in, cfg);
+      for (size_t i = 0; i < ref.image.rgb.size(); ++i) {
+        if (ex.scene == std::string("enderton-2"))
+          ASSERT_EQ(ref.image.rgb[i], float(ex.exact[i % 3])) << ex.scene << ": the reference must be exact";
+        else
+          ASSERT_NEAR(ref.image.rgb[i], ex.exact[i % 3], 2e-8 + 1e-7) << ex.scene << ": reference (alpha = 0.45f)";
+      }
+      for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive}) {
+        cfg.method = meth;
+        FunctionalRun r = run_functional(in, cfg);
+        const auto m = mean_pixel(r.image);
+        const double samples = double(r.header.width) * r.header.height * spp;
+        for (int c = 0; c < 3; ++c) {
+          // The colour is a sum of at most 4 layer indicators in [0, 1]; a 6-sigma
+          // binomial bound on each (p = 1/2, worst case) plus binary16 rounding.
+          const double b = 4 * bound(0.5, samples) + 1e-3;
+          EXPECT_NEAR(m[size_t(c)], ex.exact[size_t(c)], b) << ex.scene << " " << to_string(meth) << " spp " << spp << " channel " << c;
+        }
+      }
+    }
+}
+
+// LK Table 1 on the built-in cloth: lk beats enderton at every spp, and the
+// ratio lk / enderton falls as spp rises (seeds fixed; see docs/results.md).
+TEST(ClothRmse, LkBeatsEndertonAndTheRatioFalls) {
+  double prev_ratio = 1e9;
+  for (int spp : {4, 16, 64}) {
+    InputSpec in;
+    in.scene.name = "cloth";
+    in.scene.spp = spp;
+    GoldenConfig cfg;
+    cfg.method = Method::kLk;
+    FunctionalRun lk = run_functional(in, cfg, true);
+    cfg.method = Method::kEnderton;
+    FunctionalRun en = run_functional(in, cfg, true);
+    const double r_lk = compare_images(lk.image, *lk.reference).rmse_8bit;
+    const double r_en = compare_images(en.image, *en.reference).rmse_8bit;
+    EXPECT_LT(r_lk, r_en) << "spp " << spp << ": lk RMSE " << r_lk << " vs enderton " << r_en;
+    const double ratio = r_lk / r_en;
+    EXPECT_LT(ratio, prev_ratio) << "spp " << spp << ": the ratio lk/enderton must fall as spp rises";
+    prev_ratio = ratio;
+  }
+}
+
+TEST(Methods, AlphaOneIsAPlainZBuffer) {
+  // On opaque geometry lk, enderton, naive and a2c all write exactly what the z-buffer writes.
+  InputSpec in;
+  in.scene.name = "opaque";
+  in.scene.spp = 8;
+  GoldenConfig cfg;
+  cfg.method = Method::kOpaque;
+  const Image zbuf = run_functional(in, cfg).image;
+  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c}) {
+    cfg.method = meth;
+    EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << to_string(meth);
+  }
+  cfg.method = Method::kReference;
+  const Image ref = run_functional(in, cfg).image;
+  EXPECT_LT(compare_images(zbuf, ref).max_error_8bit, 0.26) << "z-buffer vs A-buffer differ beyond binary16 rounding";
+}
+
+TEST(Methods, A2cHasStaticAssignment) {
+  // Two same-alpha surfaces: a2c writes the same samples twice, so the far one
+  // vanishes (the failure LK §1.1 describes); lk keeps alpha_far (1 - alpha_near).
+  const double far_a2c = mean_coverage(Method::kA2c, 16, 64, {{0.2f, 0.5f}, {0.8f, 0.5f}}, 0.8f);
+  EXPECT_EQ(far_a2c, 0.0);
+  const double far_lk = mean_coverage(Method::kLk, 16, 64, {{0.2f, 0.5f}, {0.8f, 0.5f}}, 0.8f);
+  EXPECT_NEAR(far_lk, 0.25, 1e-9);
+  // One surface: a2c coverage is alpha within the dither's resolution.
+  EXPECT_NEAR(mean_coverage(Method::kA2c, 16, 64, {{0.5f, 0.3f}}, 0.5f), 0.3, 1.0 / 32);
+}
+
+TEST(Determinism, SameSeedSameBitsOtherSeedOtherBits) {
+  InputSpec in;
+  in.scene.name = "smoke";
+  in.scene.spp = 4;
+  GoldenConfig cfg;
+  cfg.method = Method::kEnderton;
+  const Image a = run_functional(in, cfg).image, b = run_functional(in, cfg).image;
+  EXPECT_EQ(a.rgb, b.rgb);
+  cfg.seed = 2;
+  EXPECT_NE(run_functional(in, cfg).image.rgb, a.rgb) << "--seed must change the random numbers";
+  in.scene.seed = 7;
+  cfg.seed = 1;
+  EXPECT_NE(run_functional(in, cfg).image.rgb, a.rgb) << "the scene seed must change the scene";
+}
+
+// State exists only for touched tiles: a huge screen costs what it touches.
+TEST(Sparse, StateFollowsTouchedTiles) {
+  TraceHeader h = header(32768, 32768, 64);
+  StochasticModel m = model(h, Method::kLk);
+  for (uint32_t x = 0; x < 8; ++x) m.draw(frag(32760 + x, 32767, ~0ull, 0.5f, 0.5f));
+  m.draw(frag(0, 0, ~0ull, 0.5f, 0.5f));
+  EXPECT_EQ(m.counters().tiles_touched, 2u);
+  EXPECT_LT(m.state_bytes(), 1u << 20) << "two tiles of a 32768^2 screen must not cost the whole screen";
+  // pixelId * spp overflows 32 bits here; the pixel is still exactly stratified.
+  EXPECT_EQ(samples_at_depth(m, 32767, 32767, 0.5f), 32);
+  EXPECT_EQ(m.pixel_view(100, 100).depth, nullptr);
+}
+
+TEST(Sparse, TenPercentOf4kAt64SppFitsInOneGiB) {
+  TraceHeader h = header(3840, 2160, 64);
+  StochasticModel m = model(h, Method::kLk);
+  const uint32_t rows = 216;  // 10 % of the screen
+  for (uint32_t y = 1000; y < 1000 + rows; ++y)
+    for (uint32_t x = 0; x < 3840; ++x) m.draw(frag(x, y, ~0ull, 0.5f, 1.0f));
+  EXPECT_LT(m.state_bytes(), size_t(1) << 30) << "state for 10% of a 4K 64-spp screen";
+  EXPECT_LT(m.state_bytes(), size_t(3840) * 224 * 64 * 10 + (size_t(64) << 20));
+}

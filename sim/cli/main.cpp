@@ -11,6 +11,7 @@
 #include "image_io.h"
 #include "report.h"
 #include "scenes.h"
+#include "tile_map.h"
 #include "trace.h"
 #include "vectors.h"
 
@@ -101,9 +102,14 @@ int cmd_trace_info(const std::string& path, bool validate_only) {
   Fragment f;
   uint64_t covered = 0;
   uint32_t max_draw = 0;
+  // Depth complexity: fragments per touched pixel, in sparse 8x8 tiles.
+  struct Counts { std::array<uint32_t, 64> n{}; };
+  TileMap<Counts> counts(r.header().width, r.header().height);
   while (r.next(f)) {
     covered += __builtin_popcountll(f.coverage);
     max_draw = std::max(max_draw, f.draw_id);
+    if (!validate_only)
+      ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); }).n[(f.y & 7u) * 8 + (f.x & 7u)];
   }
   const uint64_t n = r.records_read();
   if (validate_only) {
@@ -118,6 +124,22 @@ int cmd_trace_info(const std::string& path, bool validate_only) {
              n ? double(covered) / n : 0.0, n ? max_draw + 1 : 0);
   fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
              r.payload_bytes(), n ? double(r.payload_bytes()) / n : 0.0, n ? double(file_bytes) / n : 0.0);
+  std::array<uint64_t, 17> hist{};
+  uint64_t touched = 0, max_n = 0;
+  counts.for_each([&](uint32_t, uint32_t, const Counts& c) {
+    for (uint32_t k : c.n) {
+      if (!k) continue;
+      ++touched;
+      ++hist[std::min<uint32_t>(k, 16)];
+      max_n = std::max<uint64_t>(max_n, k);
+    }
+  });
+  fmt::print("  pixels touched {} ({:.1f}% of the screen), fragments per touched pixel: mean {:.2f}, max {}\n", touched,
+             100.0 * touched / (double(h.width) * h.height), touched ? double(n) / touched : 0.0, max_n);
+  std::string hs;
+  for (int k = 1; k <= 16; ++k)
+    if (hist[k]) hs += fmt::format(" {}{}:{:.1f}%", k, k == 16 ? "+" : "", 100.0 * hist[k] / touched);
+  fmt::print("  depth complexity histogram:{}\n", hs);
   return 0;
 }
 
@@ -126,7 +148,7 @@ int cmd_trace_dump(const std::string& path, uint64_t limit) {
   std::cout << header_to_json(r.header()) << '\n';
   Fragment f;
   uint64_t i = 0;
-  while (r.next(f) && i < limit) std::cout << fragment_to_json(r.header(), f, i++) << '\n';
+  while (i < limit && r.next(f)) std::cout << fragment_to_json(r.header(), f, i++) << '\n';
   return 0;
 }
 
@@ -135,6 +157,10 @@ int cmd_trace_dump(const std::string& path, uint64_t limit) {
 int main(int argc, char** argv) {
   CLI::App app{"ropsim: a simulator of a GPU ROP for stratified stochastic transparency (Laine & Karras 2011)"};
   app.require_subcommand(1);
+  // Every user error is one line: CLI11's default adds a second "Run with --help" line.
+  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+    return "ropsim: error: " + std::string(e.what()) + " (see --help)\n";
+  });
   std::string cmdline;
   for (int i = 0; i < argc; ++i) cmdline += (i ? " " : "") + std::string(argv[i]);
 

@@ -93,6 +93,14 @@ StochasticModel::PixelRef StochasticModel::pixel(uint32_t x, uint32_t y) {
                   t.tracker ? t.tracker.get() + p : nullptr};
 }
 
+StochasticModel::PixelView StochasticModel::pixel_view(uint32_t x, uint32_t y) const {
+  const SampleTile* t = tiles_.find(x, y);
+  if (!t) return {};
+  const int p = pixel_in_tile(x, y), spp = header_.spp;
+  return PixelView{t->depth.get() + size_t(p) * spp, t->rgb.get() + size_t(p) * spp * 3,
+                   t->tracker ? t->tracker.get() + p : nullptr};
+}
+
 inline void StochasticModel::write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16) {
   p.depth[i] = z;
   p.rgb[3 * i] = rgb16[0];

@@ -87,6 +87,15 @@ class StochasticModel : public FunctionalModel {
   Image resolve() const override;
   size_t state_bytes() const override;
   const TileMap<SampleTile>& tiles() const { return tiles_; }
+
+  /// Read-only view of one pixel's state; all pointers null if the pixel's
+  /// tile was never touched (it then holds the clear values).
+  struct PixelView {
+    const float* depth = nullptr;         ///< [spp]
+    const uint16_t* rgb = nullptr;        ///< [spp * 3], binary16
+    const TrackerState* tracker = nullptr;  ///< lk only
+  };
+  PixelView pixel_view(uint32_t x, uint32_t y) const;
   const GoldenConfig& config() const { return cfg_; }
 
  private:

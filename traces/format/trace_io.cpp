@@ -43,6 +43,8 @@ class ByteSource {
   virtual ~ByteSource() = default;
   /// Reads up to n bytes; returns fewer only at the end of the data.
   virtual size_t read(void* dst, size_t n) = 0;
+  /// True when the data ended cleanly (a compressed stream ended with its frame complete).
+  virtual bool complete() const { return true; }
   uint64_t consumed = 0;
 };
 
@@ -54,6 +56,11 @@ class ByteSink {
 };
 
 namespace {
+
+/// An error inside the byte stream; TraceReader::next adds the file and record.
+struct SourceError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 class FileSource : public ByteSource {
  public:
@@ -70,7 +77,7 @@ class FileSource : public ByteSource {
 
 class ZstdSource : public ByteSource {
  public:
-  ZstdSource(FILE* f, std::string path) : f_(f), path_(std::move(path)), in_(kIoChunk), out_(kIoChunk) {
+  explicit ZstdSource(FILE* f) : f_(f), in_(kIoChunk), out_(kIoChunk) {
     ds_ = ZSTD_createDStream();
     ZSTD_initDStream(ds_);
   }
@@ -91,33 +98,41 @@ class ZstdSource : public ByteSource {
     consumed += done;
     return done;
   }
+  bool complete() const override { return frame_done_; }
 
  private:
   bool refill() {
     for (;;) {
-      if (in_pos_ == in_len_) {
-        if (eof_) return false;
+      if (in_pos_ == in_len_ && !eof_) {
         in_len_ = std::fread(in_.data(), 1, in_.size(), f_);
         in_pos_ = 0;
-        if (in_len_ == 0) { eof_ = true; return false; }
+        if (in_len_ == 0) eof_ = true;
       }
+      if (frame_done_) {
+        // The payload is exactly one zstd frame: bytes after it are not trace data.
+        if (in_pos_ < in_len_) throw SourceError("data after the end of the compressed frame");
+        return false;
+      }
+      // At the end of the file the decoder may still hold decoded data: call it
+      // with empty input until it has nothing more to give.
       ZSTD_inBuffer ib{in_.data(), in_len_, in_pos_};
       ZSTD_outBuffer ob{out_.data(), out_.size(), 0};
       size_t r = ZSTD_decompressStream(ds_, &ob, &ib);
       in_pos_ = ib.pos;
-      if (ZSTD_isError(r))
-        throw TraceError(path_ + ": corrupt compressed data: " + ZSTD_getErrorName(r));
+      if (ZSTD_isError(r)) throw SourceError(std::string("corrupt compressed data: ") + ZSTD_getErrorName(r));
+      frame_done_ = r == 0;  // 0: the frame is complete (checksum verified) and fully flushed
       out_len_ = ob.pos;
       out_pos_ = 0;
       if (out_len_ > 0) return true;
+      if (eof_ && in_pos_ == in_len_) return false;  // truncated frame: complete() stays false
     }
   }
   FILE* f_;
-  std::string path_;
   ZSTD_DStream* ds_;
   std::vector<uint8_t> in_, out_;
   size_t in_pos_ = 0, in_len_ = 0, out_pos_ = 0, out_len_ = 0;
   bool eof_ = false;
+  bool frame_done_ = false;
 };
 
 class FileSink : public ByteSink {
@@ -235,7 +250,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   std::unique_ptr<FILE, int (*)(FILE*)> guard(f, &std::fclose);
   uint8_t fixed[kFixedHeaderBytes];
   size_t got = std::fread(fixed, 1, sizeof fixed, f);
-  if (got >= 8 && std::memcmp(fixed, kTraceMagic, 8) != 0)
+  if (std::memcmp(fixed, kTraceMagic, std::min<size_t>(got, 8)) != 0)
     throw TraceError(path + ": header: not a ropsim trace (bad magic)");
   if (got < sizeof fixed) throw TraceError(path + ": header: truncated (" + std::to_string(got) + " of 48 bytes)");
   uint16_t version = get_u16(fixed + 8);
@@ -262,7 +277,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     throw TraceError(path + ": header: truncated in the scene name");
   std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
   if (h.compression == Compression::kZstd)
-    src_ = std::make_unique<ZstdSource>(f, path);
+    src_ = std::make_unique<ZstdSource>(f);
   else
     src_ = std::make_unique<FileSource>(f);
   guard.release();
@@ -286,54 +301,59 @@ void TraceReader::read_exact(void* dst, size_t n, const char* what) {
 
 bool TraceReader::next(Fragment& f) {
   if (ended_) return false;
-  uint8_t tag;
-  if (src_->read(&tag, 1) != 1) fail("truncated: the trace ends without an end record");
-  if (tag == kTagEnd) {
-    uint8_t b[8];
-    read_exact(b, 8, "end record");
-    uint64_t count = get_u64(b);
-    if (count != records_)
-      fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
-    uint8_t extra;
-    if (src_->read(&extra, 1) != 0) fail("data after the end record");
-    ended_ = true;
-    return false;
+  try {
+    uint8_t tag;
+    if (src_->read(&tag, 1) != 1) fail("truncated: the trace ends without an end record");
+    if (tag == kTagEnd) {
+      uint8_t b[8];
+      read_exact(b, 8, "end record");
+      uint64_t count = get_u64(b);
+      if (count != records_)
+        fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
+      uint8_t extra;
+      if (src_->read(&extra, 1) != 0) fail("data after the end record");
+      if (!src_->complete()) fail("truncated: the compressed frame is incomplete");
+      ended_ = true;
+      return false;
+    }
+    if (tag != kTagFragment) fail("unknown record tag " + std::to_string(tag));
+    const TraceHeader& h = header_;
+    uint8_t b[16 + 8 + 256 + 12 + 4];
+    const int cb = coverage_bytes(h.spp);
+    read_exact(b, 12 + cb, "fragment");
+    f.draw_id = get_u32(b);
+    f.prim_id = get_u32(b + 4);
+    f.x = get_u16(b + 8);
+    f.y = get_u16(b + 10);
+    f.coverage = 0;
+    for (int i = 0; i < cb; ++i) f.coverage |= uint64_t(b[12 + i]) << (8 * i);
+    const int covered = __builtin_popcountll(f.coverage);
+    if (h.depth_mode == DepthMode::kPlane) {
+      read_exact(b, 12, "depth plane");
+      f.z0 = get_f32(b);
+      f.dzdx = get_f32(b + 4);
+      f.dzdy = get_f32(b + 8);
+    } else {
+      read_exact(b, 4 * size_t(covered), "sample depths");
+      int k = 0;
+      for (uint64_t m = f.coverage; m; m &= m - 1) f.z[__builtin_ctzll(m)] = get_f32(b + 4 * k++);
+    }
+    if (h.color_format == ColorFormat::kRgbF32) {
+      read_exact(b, 16, "colour");
+      for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(b + 4 * i);
+      f.alpha = get_f32(b + 12);
+    } else {
+      read_exact(b, 7, "colour");
+      for (int i = 0; i < 3; ++i) f.rgb[i] = b[i] / 255.0f;
+      f.alpha = get_f32(b + 3);
+    }
+    std::string err = validate_fragment(h, f);
+    if (!err.empty()) fail(err);
+    ++records_;
+    return true;
+  } catch (const SourceError& e) {  // corrupt or trailing compressed data
+    fail(e.what());
   }
-  if (tag != kTagFragment) fail("unknown record tag " + std::to_string(tag));
-  const TraceHeader& h = header_;
-  uint8_t b[16 + 8 + 256 + 12 + 4];
-  const int cb = coverage_bytes(h.spp);
-  read_exact(b, 12 + cb, "fragment");
-  f.draw_id = get_u32(b);
-  f.prim_id = get_u32(b + 4);
-  f.x = get_u16(b + 8);
-  f.y = get_u16(b + 10);
-  f.coverage = 0;
-  for (int i = 0; i < cb; ++i) f.coverage |= uint64_t(b[12 + i]) << (8 * i);
-  const int covered = __builtin_popcountll(f.coverage);
-  if (h.depth_mode == DepthMode::kPlane) {
-    read_exact(b, 12, "depth plane");
-    f.z0 = get_f32(b);
-    f.dzdx = get_f32(b + 4);
-    f.dzdy = get_f32(b + 8);
-  } else {
-    read_exact(b, 4 * size_t(covered), "sample depths");
-    int k = 0;
-    for (uint64_t m = f.coverage; m; m &= m - 1) f.z[__builtin_ctzll(m)] = get_f32(b + 4 * k++);
-  }
-  if (h.color_format == ColorFormat::kRgbF32) {
-    read_exact(b, 16, "colour");
-    for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(b + 4 * i);
-    f.alpha = get_f32(b + 12);
-  } else {
-    read_exact(b, 7, "colour");
-    for (int i = 0; i < 3; ++i) f.rgb[i] = b[i] / 255.0f;
-    f.alpha = get_f32(b + 3);
-  }
-  std::string err = validate_fragment(h, f);
-  if (!err.empty()) fail(err);
-  ++records_;
-  return true;
 }
 
 // ---------------------------------------------------------------- writer

@@ -115,10 +115,10 @@ void enderton2(Scene& s, SceneRng&) {
 /// diffuse shading; triangles in random order (LK Figure 10 / Table 1).
 void cloth(Scene& s, SceneRng& rng) {
   const double W = s.header.width, H = s.header.height;
-  const int N = 48;
+  const int N = 28;
   auto pos = [&](double u, double v, double out[3]) {
-    out[0] = W * (0.5 + 0.16 * (2 * u - 1) + 0.17 * std::sin(3 * kPi * u + 0.4 * v));
-    out[1] = H * (0.5 + 0.30 * (2 * v - 1) + 0.10 * std::sin(3 * kPi * v + 0.6 * u));
+    out[0] = W * (0.5 + 0.27 * (2 * u - 1) + 0.19 * std::sin(3 * kPi * u + 0.4 * v));
+    out[1] = H * (0.5 + 0.34 * (2 * v - 1) + 0.11 * std::sin(3 * kPi * v + 0.6 * u));
     out[2] = 0.5 + 0.22 * std::cos(3 * kPi * u) + 0.14 * std::cos(3 * kPi * v) + 0.04 * std::sin(5 * u + 3 * v);
   };
   auto shade = [&](double u, double v) {
@@ -140,7 +140,7 @@ void cloth(Scene& s, SceneRng& rng) {
   std::vector<ScreenTriangle> tris;
   for (int j = 0; j < N; ++j)
     for (int i = 0; i < N; ++i) {
-      const Rgb& base = palette[((i / 6) + 2 * (j / 6) + ((i + j) / 3) % 2) % 6];
+      const Rgb& base = palette[((i / 4) + 2 * (j / 4) + ((i + j) / 2) % 2) % 6];
       ScreenVertex c[4];
       const int di[4] = {0, 1, 1, 0}, dj[4] = {0, 0, 1, 1};
       for (int k = 0; k < 4; ++k) {
