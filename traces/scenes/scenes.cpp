@@ -115,11 +115,11 @@ void enderton2(Scene& s, SceneRng&) {
 /// diffuse shading; triangles in random order (LK Figure 10 / Table 1).
 void cloth(Scene& s, SceneRng& rng) {
   const double W = s.header.width, H = s.header.height;
-  const int N = 28;
+  const int N = 36;
   auto pos = [&](double u, double v, double out[3]) {
-    out[0] = W * (0.5 + 0.27 * (2 * u - 1) + 0.19 * std::sin(3 * kPi * u + 0.4 * v));
+    out[0] = W * (0.5 + 0.20 * (2 * u - 1) + 0.21 * std::sin(5 * kPi * u + 0.5 * v));
     out[1] = H * (0.5 + 0.34 * (2 * v - 1) + 0.11 * std::sin(3 * kPi * v + 0.6 * u));
-    out[2] = 0.5 + 0.22 * std::cos(3 * kPi * u) + 0.14 * std::cos(3 * kPi * v) + 0.04 * std::sin(5 * u + 3 * v);
+    out[2] = 0.5 + 0.2 * std::cos(5 * kPi * u + 0.5 * v) + 0.12 * std::cos(3 * kPi * v) + 0.04 * std::sin(5 * u + 3 * v) + 0.08 * (u - 0.5);
   };
   auto shade = [&](double u, double v) {
     const double e = 1e-3;
@@ -159,9 +159,9 @@ void cloth(Scene& s, SceneRng& rng) {
 void smoke(Scene& s, SceneRng& rng) {
   const double W = s.header.width, H = s.header.height;
   s.header.clear_color = {0.05f, 0.07f, 0.12f};
-  const int kBillboards = 64;
+  const int kBillboards = 96;
   for (int b = 0; b < kBillboards; ++b) {
-    double cx = W * (0.5 + 0.16 * rng.normal()), cy = H * (0.55 + 0.14 * rng.normal());
+    double cx = W * (0.5 + 0.12 * rng.normal()), cy = H * (0.55 + 0.11 * rng.normal());
     double r = W * rng.uniform(0.08, 0.2), ang = rng.uniform(0, 2 * kPi), z = rng.uniform(0.1, 0.9);
     float g = static_cast<float>(rng.uniform(0.55, 0.95));
     ScreenVertex c[4];
@@ -198,7 +198,7 @@ const std::vector<Builder>& builders() {
       {{"enderton-1", "red over green, alpha 0.45 each, over blue: exact pixel (0.45, 0.2475, 0.3025)", 64, 64}, enderton1},
       {{"enderton-2", "4 white surfaces, alpha 0.25, over 25% gray: exact pixel 0.7626953125", 64, 64}, enderton2},
       {{"cloth", "folded tessellated coloured sheet, 3-6 layers, alpha 0.4, triangles shuffled (LK Fig. 10)", 256, 256}, cloth},
-      {{"smoke", "64 overlapping billboards, alpha 0.05, unsorted (LK Fig. 8)", 256, 256}, smoke},
+      {{"smoke", "96 overlapping billboards, alpha 0.05, unsorted (LK Fig. 8)", 256, 256}, smoke},
       {{"opaque", "24 interpenetrating opaque triangles", 256, 256}, opaque},
   };
   return b;

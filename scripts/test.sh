@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Quick start 2/2: installs what is missing, builds, runs the whole test suite.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$root/scripts/build.sh"
+cd "$root/build"
+ctest --output-on-failure -j "$(nproc)"
