@@ -180,9 +180,11 @@ TEST(Depth, PlaneTiesAndCanonicalZero) {
   EXPECT_EQ(sample_offset(128), 0.0f);
   EXPECT_EQ(sample_offset(0), -0.5f);
   EXPECT_EQ(plane_depth(0.5f, 0.25f, -0.125f, 0.25f, 0.5f), 0.5f + 0.0625f - 0.0625f);
-  // fma: the product is not rounded before the add.
-  const float z0 = 1.0f - 0x1p-24f, g = 1.0f + 0x1p-23f, o = 0x1p-24f;
-  EXPECT_EQ(plane_depth(z0, g, 0.0f, -o, 0.0f), float(std::fma(double(g), double(-o), double(z0))));
+  // Binary64 evaluation, one rounding to binary32 at the end: z0 + dzdx*ox
+  // is kept exact here where a binary32 evaluation would round it.
+  const float z0 = 0.5f, g = 1.0f + 0x1p-23f, o = 1.0f / 256.0f;
+  EXPECT_EQ(plane_depth(z0, g, 0.0f, o, 0.0f), float(0.5 + double(g) / 256.0));
+  EXPECT_EQ(plane_depth(0.25f, g, -g, o, o), 0.25f) << "the two terms cancel exactly in binary64";
 }
 
 TEST(Half, RoundTripAndRounding) {
@@ -192,4 +194,25 @@ TEST(Half, RoundTripAndRounding) {
   EXPECT_EQ(float_to_half(1.0f + 0x1p-11f + 0x1p-20f), float_to_half(1.0f) + 1);
   EXPECT_EQ(float_to_half(70000.0f), 0x7C00);
   for (uint32_t h = 0; h < 0x7C00; ++h) ASSERT_EQ(float_to_half(half_to_float(uint16_t(h))), h) << h;
+}
+
+TEST(SortOrder, GroupedSortEqualsKeySort) {
+  uint32_t s = 777;
+  for (int trial = 0; trial < 2000; ++trial) {
+    float stored[64];
+    const int distinct = 1 + trial % 9;
+    for (int i = 0; i < 64; ++i) {
+      s = s * 1664525u + 1013904223u;
+      stored[i] = float((s >> 20) % unsigned(distinct)) / 8.0f;
+    }
+    s = s * 1664525u + 1013904223u;
+    const uint64_t mask = (uint64_t(s) << 32 | (s * 2654435761u)) & (trial % 3 ? ~0ull : 0xFFFFull);
+    uint64_t keys[64];
+    int m = 0;
+    for (uint64_t b = mask; b; b &= b - 1) keys[m++] = sort_key(stored[__builtin_ctzll(b)], uint32_t(__builtin_ctzll(b)));
+    sort_keys(keys, m);
+    uint8_t order[64];
+    ASSERT_EQ(sort_by_stored_depth(stored, mask, order), m);
+    for (int k = 0; k < m; ++k) ASSERT_EQ(order[k], sort_key_sample(keys[k])) << "trial " << trial << " position " << k;
+  }
 }

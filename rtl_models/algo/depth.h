@@ -26,15 +26,19 @@ inline uint32_t depth_bits(float z) {
 inline float sample_offset(uint8_t pos) { return (static_cast<float>(pos) - 128.0f) / 256.0f; }
 
 /// Depth of one sample from a fragment's plane: z0 at the pixel centre plus the
-/// per-pixel gradients times the sample offset, evaluated as two fused
-/// multiply-adds (x first), then clamped to [0, 1]. fmaf is correctly rounded,
-/// so every conforming implementation gets the same bits.
+/// per-pixel gradients times the sample offset, evaluated in binary64 in this
+/// order -- (z0 + dzdx*ox) + dzdy*oy -- rounded once to binary32, then clamped
+/// to [0, 1]. The products are exact in binary64 (24-bit x 9-bit significands)
+/// and each IEEE-754 operation is correctly rounded, so every conforming
+/// implementation (no x87 extended precision, no contraction into FMA) gets
+/// the same bits.
 inline float plane_depth(float z0, float dzdx, float dzdy, float ox, float oy) {
-  return canonical_depth(std::fma(dzdy, oy, std::fma(dzdx, ox, z0)));
+  const double x = double(z0) + double(dzdx) * double(ox);
+  return canonical_depth(static_cast<float>(x + double(dzdy) * double(oy)));
 }
 
 /// LK Figure 7 line 2: a sample is removed when s.z > stored; ties pass
 /// (LESS_EQUAL), so a later fragment at equal depth wins.
-inline bool depth_passes(float z, float stored) { return !(z > stored); }
+inline bool depth_passes(float z, float stored) { return z <= stored; }  // no NaN reaches here
 
 }  // namespace ropsim

@@ -11,7 +11,7 @@ namespace ropsim {
 inline uint64_t alpha_to_fixed(float alpha, int bits) {
   if (!(alpha > 0.0f)) return 0;  // 0, -0 (NaN is rejected by the trace reader)
   if (alpha >= 1.0f) return uint64_t{1} << bits;
-  const double scaled = std::ldexp(static_cast<double>(alpha), bits);
+  const double scaled = static_cast<double>(alpha) * static_cast<double>(uint64_t{1} << bits);  // exact
   return static_cast<uint64_t>(std::nearbyint(scaled));  // default rounding: half-even
 }
 

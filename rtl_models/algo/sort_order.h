@@ -32,4 +32,42 @@ inline void sort_keys(uint64_t* keys, int m) {
   }
 }
 
+/// The same order as sort_keys, computed by grouping the samples by stored
+/// depth: a pixel holds few distinct depths (one per visible surface), so this
+/// is O(m x distinct) instead of O(m^2). Writes the sample ids to order[0..m)
+/// and returns m.
+inline int sort_by_stored_depth(const float* stored, uint64_t samples, uint8_t* order) {
+  uint32_t vals[64];
+  uint64_t masks[64];
+  int d = 0;
+  for (uint64_t s = samples; s; s &= s - 1) {
+    const uint32_t v = depth_bits(stored[__builtin_ctzll(s)]);
+    const uint64_t bit = s & (~s + 1);
+    int j = 0;
+    while (j < d && vals[j] != v) ++j;
+    if (j == d) {
+      vals[d] = v;
+      masks[d++] = bit;
+    } else {
+      masks[j] |= bit;
+    }
+  }
+  for (int i = 1; i < d; ++i) {  // insertion sort of the distinct depths
+    const uint32_t v = vals[i];
+    const uint64_t mk = masks[i];
+    int j = i - 1;
+    while (j >= 0 && vals[j] > v) {
+      vals[j + 1] = vals[j];
+      masks[j + 1] = masks[j];
+      --j;
+    }
+    vals[j + 1] = v;
+    masks[j + 1] = mk;
+  }
+  int m = 0;
+  for (int j = 0; j < d; ++j)
+    for (uint64_t s = masks[j]; s; s &= s - 1) order[m++] = static_cast<uint8_t>(__builtin_ctzll(s));
+  return m;
+}
+
 }  // namespace ropsim

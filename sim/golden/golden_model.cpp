@@ -64,6 +64,10 @@ StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
     case Method::kOpaque: draw_fn_ = &StochasticModel::draw_opaque; break;
     case Method::kReference: throw std::logic_error("StochasticModel cannot run the reference method");
   }
+  for (int i = 0; i < h.spp; ++i) {
+    offset_x_[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
+    offset_y_[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
+  }
   // a2c covers the first k samples of the bit-reversed sample order, so any
   // prefix is spread over the pixel.
   const int m = log2_spp(h.spp);
@@ -101,6 +105,33 @@ StochasticModel::PixelView StochasticModel::pixel_view(uint32_t x, uint32_t y) c
                    t->tracker ? t->tracker.get() + p : nullptr};
 }
 
+uint64_t StochasticModel::fixed_alpha(float alpha) {
+  if (alpha != memo_alpha_) {  // consecutive fragments usually share one alpha
+    memo_alpha_ = alpha;
+    memo_alpha_fixed_ = alpha_to_fixed(alpha, cfg_.numerics.alpha_bits);
+  }
+  return memo_alpha_fixed_;
+}
+
+const uint16_t* StochasticModel::half_color(const std::array<float, 3>& rgb) {
+  if (rgb != memo_rgb_) {
+    memo_rgb_ = rgb;
+    for (int c = 0; c < 3; ++c) memo_rgb16_[c] = float_to_half(rgb[c]);
+  }
+  return memo_rgb16_;
+}
+
+inline void StochasticModel::sample_depths(const Fragment& f, float* z) const {
+  if (header_.depth_mode == DepthMode::kPlane) {
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x_[size_t(i)], offset_y_[size_t(i)]);
+    }
+  } else {
+    sample_depths(f, z);
+  }
+}
+
 inline void StochasticModel::write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16) {
   p.depth[i] = z;
   p.rgb[3 * i] = rgb16[0];
@@ -122,12 +153,12 @@ void StochasticModel::draw_lk(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
   PixelRef p = pixel(f.x, f.y);
   float z[64];
-  fragment_sample_depths(header_, f, z);
+  sample_depths(f, z);
   // Lines 1-3: depth test first.
   uint64_t S = 0;
-  for (uint64_t m = f.coverage; m; m &= m - 1) {
+  for (uint64_t m = f.coverage; m; m &= m - 1) {  // branch-free: pass/fail is data-dependent
     const int i = __builtin_ctzll(m);
-    if (depth_passes(z[i], p.depth[i])) S |= uint64_t{1} << i;
+    S |= uint64_t{depth_passes(z[i], p.depth[i])} << i;
   }
   const int m = __builtin_popcountll(S);
   counters_.samples_depth_passed += m;
@@ -137,23 +168,16 @@ void StochasticModel::draw_lk(const Fragment& f) {
   const TrackResult tr = track_surface(*p.tracker, S, num.surface_id_bits);
   counters_.surface_id_changes += tr.new_surface;
   // Line 9: sort the surviving samples by the depth already stored.
-  uint64_t keys[64];
-  int k = 0;
-  for (uint64_t s = S; s; s &= s - 1) {
-    const int i = __builtin_ctzll(s);
-    keys[k++] = sort_key(p.depth[i], uint32_t(i));
-  }
-  if (m > 1) {
-    sort_keys(keys, m);
-    ++counters_.sorts;
-  }
+  uint8_t order[64];
+  sort_by_stored_depth(p.depth, S, order);
+  counters_.sorts += m > 1;
   // Lines 10-17: opacity test against CalcAlphaRef(n, pixelId, surfaceId).
   const uint64_t pixel_id = hilbert_xy2d(hilbert_n_, f.x, f.y);
-  const uint64_t a = alpha_to_fixed(f.alpha, num.alpha_bits);
-  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  const uint64_t a = fixed_alpha(f.alpha);
+  const uint16_t* rgb16 = half_color(f.rgb);
   uint32_t written = 0;
   for (int j = 0; j < m; ++j) {
-    const int i = int(sort_key_sample(keys[j]));
+    const int i = order[j];
     const uint32_t ref = calc_alpha_ref(tr.n + uint32_t(j), pixel_id, tr.surface_id, uint32_t(header_.spp), num.hash_bits);
     if (opacity_passes(a, num.alpha_bits, ref, num.hash_bits)) {
       write_sample(p, i, z[i], rgb16);
@@ -175,7 +199,7 @@ void StochasticModel::draw_enderton(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
   PixelRef p = pixel(f.x, f.y);
   float z[64];
-  fragment_sample_depths(header_, f, z);
+  sample_depths(f, z);
   int list[64], m = 0;
   for (uint64_t c = f.coverage; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);
@@ -184,9 +208,9 @@ void StochasticModel::draw_enderton(const Fragment& f) {
   counters_.samples_depth_passed += m;
   if (!m) return;
   const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
-  const uint64_t a32 = alpha_to_fixed(f.alpha, num.alpha_bits) << (32 - num.alpha_bits);
+  const uint64_t a32 = fixed_alpha(f.alpha) << (32 - num.alpha_bits);
   const uint32_t r = uint32_t((a32 * uint64_t(m) + fragment_random(key, 0)) >> 32);
-  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  const uint16_t* rgb16 = half_color(f.rgb);
   for (uint32_t j = 0; j < r; ++j) {  // partial Fisher-Yates with hashed choices
     const uint32_t pick = j + uint32_t((uint64_t(fragment_random(key, j + 1)) * (uint32_t(m) - j)) >> 32);
     std::swap(list[j], list[pick]);
@@ -203,10 +227,10 @@ void StochasticModel::draw_naive(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
   PixelRef p = pixel(f.x, f.y);
   float z[64];
-  fragment_sample_depths(header_, f, z);
+  sample_depths(f, z);
   const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
-  const uint64_t a = alpha_to_fixed(f.alpha, num.alpha_bits);
-  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  const uint64_t a = fixed_alpha(f.alpha);
+  const uint16_t* rgb16 = half_color(f.rgb);
   uint32_t passed = 0, written = 0;
   for (uint64_t c = f.coverage; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);
@@ -230,12 +254,12 @@ void StochasticModel::draw_naive(const Fragment& f) {
 void StochasticModel::draw_a2c(const Fragment& f) {
   PixelRef p = pixel(f.x, f.y);
   float z[64];
-  fragment_sample_depths(header_, f, z);
-  const uint64_t a32 = alpha_to_fixed(f.alpha, cfg_.numerics.alpha_bits) << (32 - cfg_.numerics.alpha_bits);
+  sample_depths(f, z);
+  const uint64_t a32 = fixed_alpha(f.alpha) << (32 - cfg_.numerics.alpha_bits);
   const uint64_t dither = uint64_t(2 * kBayer4[(f.y & 3u) * 4 + (f.x & 3u)] + 1) << 27;  // (d + 1/2) / 16
   const uint64_t k = std::min<uint64_t>(uint64_t(header_.spp), (a32 * uint64_t(header_.spp) + dither) >> 32);
   const uint64_t mask = f.coverage & a2c_prefix_[k];
-  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  const uint16_t* rgb16 = half_color(f.rgb);
   uint32_t written = 0;
   for (uint64_t c = mask; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);
@@ -254,8 +278,8 @@ void StochasticModel::draw_a2c(const Fragment& f) {
 void StochasticModel::draw_opaque(const Fragment& f) {
   PixelRef p = pixel(f.x, f.y);
   float z[64];
-  fragment_sample_depths(header_, f, z);
-  const uint16_t rgb16[3] = {float_to_half(f.rgb[0]), float_to_half(f.rgb[1]), float_to_half(f.rgb[2])};
+  sample_depths(f, z);
+  const uint16_t* rgb16 = half_color(f.rgb);
   uint32_t written = 0;
   for (uint64_t c = f.coverage; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);

@@ -106,6 +106,9 @@ class StochasticModel : public FunctionalModel {
   };
   PixelRef pixel(uint32_t x, uint32_t y);
   void write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16);
+  void sample_depths(const Fragment& f, float* z) const;     ///< as fragment_sample_depths
+  uint64_t fixed_alpha(float alpha);                          ///< memoised alpha_to_fixed
+  const uint16_t* half_color(const std::array<float, 3>& rgb);  ///< memoised binary16 colour
   void draw_lk(const Fragment& f);
   void draw_enderton(const Fragment& f);
   void draw_naive(const Fragment& f);
@@ -121,6 +124,11 @@ class StochasticModel : public FunctionalModel {
   float clear_depth_;
   uint16_t clear_rgb16_[3];
   void (StochasticModel::*draw_fn_)(const Fragment&);
+  std::array<float, 64> offset_x_{}, offset_y_{};  // sample offsets from the pixel centre
+  float memo_alpha_ = -1.0f;  // never a valid opacity
+  uint64_t memo_alpha_fixed_ = 0;
+  std::array<float, 3> memo_rgb_{-1.0f, -1.0f, -1.0f};
+  uint16_t memo_rgb16_[3] = {};
 };
 
 /// Ground truth: an A-buffer keeping every fragment of every sample, sorted by
