@@ -115,7 +115,7 @@ void enderton2(Scene& s, SceneRng&) {
 /// diffuse shading; triangles in random order (LK Figure 10 / Table 1).
 void cloth(Scene& s, SceneRng& rng) {
   const double W = s.header.width, H = s.header.height;
-  const int N = 36;
+  const int N = 14;
   auto pos = [&](double u, double v, double out[3]) {
     out[0] = W * (0.5 + 0.20 * (2 * u - 1) + 0.21 * std::sin(5 * kPi * u + 0.5 * v));
     out[1] = H * (0.5 + 0.34 * (2 * v - 1) + 0.11 * std::sin(3 * kPi * v + 0.6 * u));
