@@ -1,1 +1,339 @@
+// The ropsim command line, run as a subprocess in a temporary directory:
+// help, the scene -> trace workflow, one-line errors that leave no output
+// behind, determinism of runs, and golden vectors.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "trace.h"
+
+#ifndef ROPSIM_BINARY
+#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CliResult {
+  int code = -1;  ///< exit status, or -1 when killed by a signal
+  std::string out, err;
+  std::string describe() const { return "exit " + std::to_string(code) + "\nstdout:\n" + out + "stderr:\n" + err; }
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::vector<std::string> lines_of(const std::string& s) {
+  std::vector<std::string> v;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+/// A temporary working directory for ropsim (work/) and a separate one for the
+/// captured stdout/stderr (io/), so the working directory holds only what
+/// ropsim wrote. Removed afterwards.
+class CliSandbox {
+ public:
+  CliSandbox() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("ropsim-test-cli-" + std::to_string(::getpid()) + "-" + (info ? std::string(info->name()) : "x"));
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "work");
+    fs::create_directories(root_ / "io");
+  }
+  ~CliSandbox() {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+  fs::path work() const { return root_ / "work"; }
+  std::string path(const std::string& f) const { return (work() / f).string(); }
+
+  /// Runs `ropsim ARGS` in work/ (args are passed through /bin/sh).
+  CliResult run(const std::string& args) const {
+    const fs::path out = root_ / "io" / "stdout", err = root_ / "io" / "stderr";
+    const std::string cmd = "cd '" + work().string() + "' && '" ROPSIM_BINARY "' " + args + " >'" + out.string() +
+                            "' 2>'" + err.string() + "' </dev/null";
+    const int st = std::system(cmd.c_str());
+    CliResult r;
+    r.code = (st != -1 && WIFEXITED(st)) ? WEXITSTATUS(st) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
+  std::set<std::string> files() const {
+    std::set<std::string> s;
+    for (const auto& e : fs::recursive_directory_iterator(work())) s.insert(fs::relative(e.path(), work()).string());
+    return s;
+  }
+
+ private:
+  fs::path root_;
+};
+
+/// ropsim ARGS must fail with exactly one stderr line "ropsim: error: ..."
+/// containing every needle, and create no file in the working directory.
+void expect_cli_error(const CliSandbox& box, const std::string& args, const std::vector<std::string>& needles) {
+  SCOPED_TRACE("ropsim " + args);
+  const auto before = box.files();
+  const CliResult r = box.run(args);
+  EXPECT_NE(r.code, 0) << "a bad input must give a non-zero exit\n" << r.describe();
+  EXPECT_NE(r.code, -1) << "ropsim crashed\n" << r.describe();
+  const auto lines = lines_of(r.err);
+  EXPECT_EQ(lines.size(), 1u) << "stderr must be exactly one line\n" << r.describe();
+  EXPECT_FALSE(r.err.empty() || r.err.back() != '\n') << "stderr must end with a newline\n" << r.describe();
+  if (!lines.empty()) {
+    EXPECT_EQ(lines[0].rfind("ropsim: error: ", 0), 0u) << "stderr must start with \"ropsim: error: \"\n"
+                                                        << r.describe();
+    for (const auto& n : needles)
+      EXPECT_NE(lines[0].find(n), std::string::npos) << "the error does not mention \"" << n << "\"\n" << r.describe();
+  }
+  const auto after = box.files();
+  for (const auto& f : after)
+    EXPECT_TRUE(before.count(f)) << "a failed command left the file " << f << " behind\n" << r.describe();
+}
+
+void expect_ok(const CliResult& r, const std::string& what) {
+  EXPECT_EQ(r.code, 0) << what << " failed\n" << r.describe();
+  EXPECT_TRUE(r.err.empty()) << what << " wrote to stderr\n" << r.describe();
+}
+
+/// The message TraceReader gives for a file (in-process), "" when it is valid.
+std::string reader_error(const std::string& path) {
+  try {
+    ropsim::TraceReader r(path);
+    ropsim::Fragment f;
+    while (r.next(f)) {
+    }
+  } catch (const ropsim::TraceError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string record_of(const std::string& msg) {
+  const auto p = msg.find("record ");
+  if (p == std::string::npos) return "";
+  const auto e = msg.find(':', p);
+  return msg.substr(p, e - p);
+}
+
+// ------------------------------------------------------------------ tests
+
+TEST(Cli, EverySubcommandHasHelp) {
+  CliSandbox box;
+  for (const char* sub : {"", "run", "compare", "scene", "trace", "trace info", "trace validate", "trace dump",
+                          "vectors"}) {
+    const CliResult r = box.run(std::string(sub) + " --help");
+    EXPECT_EQ(r.code, 0) << "ropsim " << sub << " --help\n" << r.describe();
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << "ropsim " << sub << " --help prints no usage\n"
+                                                      << r.describe();
+    EXPECT_TRUE(r.err.empty()) << "ropsim " << sub << " --help\n" << r.describe();
+  }
+  EXPECT_TRUE(box.files().empty()) << "--help wrote files";
+}
+
+TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
+  CliSandbox box;
+  CliResult r = box.run("scene cloth --spp 4 -o cloth4.trace");
+  expect_ok(r, "scene cloth --spp 4 -o cloth4.trace");
+  ASSERT_TRUE(fs::exists(box.path("cloth4.trace"))) << r.describe();
+  EXPECT_FALSE(fs::exists(box.path("cloth4.trace.tmp")));
+  // "wrote cloth4.trace: T triangles, N fragments, S covered samples"
+  const auto p = r.out.find(" triangles, ");
+  ASSERT_NE(p, std::string::npos) << r.describe();
+  const std::string n_frags = r.out.substr(p + 12, r.out.find(' ', p + 12) - (p + 12));
+
+  r = box.run("trace validate cloth4.trace");
+  expect_ok(r, "trace validate");
+  EXPECT_EQ(r.out, "cloth4.trace: valid, " + n_frags + " fragments\n") << r.describe();
+
+  r = box.run("trace info cloth4.trace");
+  expect_ok(r, "trace info");
+  for (const std::string& s : {std::string("scene cloth"), std::string("256x256"), std::string("4 spp"),
+                               std::string("depth plane"), std::string("compression zstd"),
+                               "fragments " + n_frags + " "})
+    EXPECT_NE(r.out.find(s), std::string::npos) << "trace info lacks \"" << s << "\"\n" << r.describe();
+
+  r = box.run("trace dump cloth4.trace --limit 3");
+  expect_ok(r, "trace dump --limit 3");
+  const auto lines = lines_of(r.out);
+  ASSERT_EQ(lines.size(), 4u) << "a header line and 3 fragment lines expected\n" << r.describe();
+  std::vector<nlohmann::json> js;
+  for (const auto& l : lines) {
+    try {
+      js.push_back(nlohmann::json::parse(l));
+    } catch (const std::exception& e) {
+      FAIL() << "not a JSON line: " << l << "\n" << e.what();
+    }
+  }
+  EXPECT_EQ(js[0].value("format", ""), "ropsim-trace") << lines[0];
+  EXPECT_EQ(js[0].value("version", 0), 1) << lines[0];
+  EXPECT_EQ(js[0].value("spp", 0), 4) << lines[0];
+  EXPECT_EQ(js[0].value("width", 0), 256) << lines[0];
+  EXPECT_EQ(js[0].value("scene", ""), "cloth") << lines[0];
+  ASSERT_TRUE(js[0].contains("sample_positions_256ths")) << lines[0];
+  EXPECT_EQ(js[0]["sample_positions_256ths"].size(), 4u) << lines[0];
+  // The fragments are the trace's first three, as the library reads them.
+  ropsim::TraceReader reader(box.path("cloth4.trace"));
+  for (int i = 0; i < 3; ++i) {
+    const auto& j = js[size_t(i) + 1];
+    ropsim::Fragment f;
+    ASSERT_TRUE(reader.next(f));
+    EXPECT_EQ(j.value("record", -1), i) << lines[size_t(i) + 1];
+    EXPECT_EQ(j.value("x", -1), int(f.x)) << lines[size_t(i) + 1];
+    EXPECT_EQ(j.value("y", -1), int(f.y)) << lines[size_t(i) + 1];
+    EXPECT_EQ(j.value("alpha", -1.0), double(f.alpha)) << lines[size_t(i) + 1];
+    for (const char* k : {"draw", "prim", "coverage", "z0", "dzdx", "dzdy", "sample_depth", "rgb"})
+      EXPECT_TRUE(j.contains(k)) << "dump line lacks \"" << k << "\": " << lines[size_t(i) + 1];
+    EXPECT_EQ(j["sample_depth"].size(), size_t(__builtin_popcountll(f.coverage))) << lines[size_t(i) + 1];
+  }
+
+  r = box.run("run --trace cloth4.trace --out o.png --report r.json --quiet");
+  expect_ok(r, "run --trace");
+  EXPECT_TRUE(r.out.empty()) << "--quiet printed\n" << r.describe();
+  EXPECT_TRUE(fs::exists(box.path("o.png")));
+  const auto report = nlohmann::json::parse(slurp(box.path("r.json")));
+  EXPECT_EQ(report["input"].value("trace", ""), "cloth4.trace");
+  EXPECT_EQ(std::to_string(report["counters"].value("fragments", uint64_t{0})), n_frags);
+}
+
+TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
+  CliSandbox box;
+  // A truncated uncompressed trace, and a compressed one missing its last byte.
+  expect_ok(box.run("scene cloth --spp 4 --compression none -o full.trace"), "scene --compression none");
+  expect_ok(box.run("scene enderton-1 --spp 4 -o z.trace"), "scene enderton-1");
+  {
+    const std::string full = slurp(box.path("full.trace"));
+    std::ofstream(box.path("truncated.trace"), std::ios::binary) << full.substr(0, full.size() / 2 + 3);
+    const std::string z = slurp(box.path("z.trace"));
+    std::ofstream(box.path("zcut.trace"), std::ios::binary) << z.substr(0, z.size() - 1);
+    fs::remove(box.path("full.trace"));
+    fs::remove(box.path("z.trace"));
+  }
+  const std::string trunc_err = reader_error(box.path("truncated.trace"));
+  const std::string trunc_rec = record_of(trunc_err);
+  ASSERT_FALSE(trunc_rec.empty()) << "the library does not name a record for the truncated trace: " << trunc_err;
+  const std::string zcut_rec = record_of(reader_error(box.path("zcut.trace")));
+  ASSERT_FALSE(zcut_rec.empty()) << "the library accepts a compressed trace missing its last byte";
+
+  const std::string outs = " --out o.png --out o.exr --report r.json";
+  expect_cli_error(box, "run --trace truncated.trace" + outs, {"truncated.trace", trunc_rec + ":"});
+  expect_cli_error(box, "run --trace zcut.trace" + outs, {"zcut.trace", zcut_rec + ":"});
+  expect_cli_error(box, "trace validate truncated.trace", {"truncated.trace", trunc_rec + ":"});
+  expect_cli_error(box, "trace info zcut.trace", {"zcut.trace", zcut_rec + ":"});
+  expect_cli_error(box, "run --trace nonexistent.trace" + outs, {"nonexistent.trace"});
+  expect_cli_error(box, "trace info nonexistent.trace", {"nonexistent.trace"});
+  expect_cli_error(box, "run --scene enderton-1 --method bogus" + outs, {"--method", "bogus"});
+  expect_cli_error(box, "run --scene bogus" + outs, {"--scene", "bogus"});
+  expect_cli_error(box, "run --scene enderton-1 --spp 3" + outs, {"--spp", "3"});
+  expect_cli_error(box, "run --scene enderton-1 --spp 0" + outs, {"--spp", "0"});
+  expect_cli_error(box, "run --scene enderton-1 --hash-bits 40" + outs, {"--hash-bits", "40"});
+  expect_cli_error(box, "run --scene enderton-1 --out x.jpg --report r.json", {"x.jpg"});
+  expect_cli_error(box, "run --scene enderton-1 --out ok.png --out x.jpg --report r.json", {"x.jpg"});
+  expect_cli_error(box, "scene bogus -o b.trace", {"bogus"});
+  expect_cli_error(box, "scene cloth --spp 3 -o b.trace", {"--spp", "3"});
+  expect_cli_error(box, "vectors bogus-unit -o v.csv", {"bogus-unit"});
+  expect_cli_error(box, "vectors alpha-ref --hash-bits 40 -o v.csv", {"--hash-bits"});
+  expect_cli_error(box, "", {});
+  expect_cli_error(box, "trace", {});
+
+  // compare: two images of different sizes.
+  expect_ok(box.run("run --scene enderton-1 --spp 1 --out small.png --quiet"), "run enderton-1");
+  expect_ok(box.run("run --scene testcard --spp 1 --out big.png --quiet"), "run testcard");
+  expect_cli_error(box, "compare small.png big.png", {"size"});
+  expect_cli_error(box, "compare small.png missing.png", {"missing.png"});
+  const CliResult same = box.run("compare small.png small.png --json");
+  expect_ok(same, "compare an image with itself");
+  EXPECT_EQ(nlohmann::json::parse(same.out).value("rmse_8bit", -1.0), 0.0) << same.describe();
+}
+
+TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
+  CliSandbox box;
+  expect_ok(box.run("scene enderton-1 --spp 4 --compression none -o e.trace"), "scene enderton-1");
+  size_t header_bytes = 0, record_bytes = 0;
+  {
+    ropsim::TraceReader r(box.path("e.trace"));
+    header_bytes = 48 + 2 * size_t(r.header().spp) + r.header().scene_name.size();
+    record_bytes = ropsim::fragment_record_bytes(r.header(), 1);  // plane depth: any coverage
+  }
+  // Records 0..2 complete, record 3 cut short.
+  const std::string full = slurp(box.path("e.trace"));
+  std::ofstream(box.path("cut.trace"), std::ios::binary) << full.substr(0, header_bytes + 3 * record_bytes + 5);
+  const CliResult r = box.run("trace dump cut.trace --limit 3");
+  expect_ok(r, "trace dump --limit 3 of a trace whose record 3 is cut");
+  EXPECT_EQ(lines_of(r.out).size(), 4u) << r.describe();
+  expect_cli_error(box, "trace dump cut.trace --limit 4", {"cut.trace", "record 3:"});
+}
+
+TEST(Cli, SameInputsAndSeedGiveIdenticalOutputs) {
+  CliSandbox a, b;
+  const std::string args = "run --scene enderton-2 --spp 4 --out a.png --report r.json";
+  expect_ok(a.run(args), args);
+  expect_ok(b.run(args), args + " (again)");
+  const std::string png_a = slurp(a.path("a.png")), png_b = slurp(b.path("a.png"));
+  ASSERT_FALSE(png_a.empty()) << "no a.png";
+  EXPECT_TRUE(png_a == png_b) << "two identical runs wrote different a.png (" << png_a.size() << " vs " << png_b.size()
+                              << " bytes)";
+  const auto ra = nlohmann::json::parse(slurp(a.path("r.json")));
+  const auto rb = nlohmann::json::parse(slurp(b.path("r.json")));
+  // Counter names of sim/driver/report.cpp.
+  for (const char* k : {"fragments", "samples_tested", "samples_depth_passed", "samples_opacity_passed",
+                        "samples_written", "surface_id_changes", "sorts", "depth_bytes_read", "depth_bytes_written",
+                        "color_bytes_written", "tracker_bytes_read", "tracker_bytes_written", "state_bytes_read",
+                        "state_bytes_written", "tiles_touched"}) {
+    ASSERT_TRUE(ra["counters"].contains(k)) << "report lacks counters." << k << ": " << ra.dump();
+    EXPECT_TRUE(ra["counters"][k].is_number_unsigned()) << "counters." << k << " = " << ra["counters"][k];
+  }
+  EXPECT_EQ(ra["counters"], rb["counters"]) << "counters differ between identical runs:\n"
+                                            << ra["counters"].dump() << "\n"
+                                            << rb["counters"].dump();
+  EXPECT_GT(ra["counters"].value("fragments", uint64_t{0}), 0u) << ra.dump();
+  EXPECT_EQ(ra.value("tool", ""), "ropsim");
+  EXPECT_EQ(ra.value("method", ""), "lk");
+  EXPECT_EQ(ra.value("seed", 0), 1);
+  EXPECT_EQ(ra["input"].value("scene", ""), "enderton-2");
+  EXPECT_EQ(ra["input"].value("spp", 0), 4);
+  EXPECT_EQ(ra["outputs"], nlohmann::json({"a.png", "r.json"}));
+  EXPECT_EQ(ra["numerics"], rb["numerics"]);
+}
+
+TEST(Cli, AlphaRefVectors) {
+  CliSandbox box;
+  const CliResult r = box.run("vectors alpha-ref --count 10 -o v.csv");
+  expect_ok(r, "vectors alpha-ref --count 10");
+  const auto rows = lines_of(slurp(box.path("v.csv")));
+  ASSERT_EQ(rows.size(), 11u) << "a header row and 10 vectors expected";
+  EXPECT_EQ(rows[0], "sample_id,pixel_id,surface_id,spp,hash_bits,index_hex,ref_hex");
+  bool found = false;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    std::vector<std::string> c;
+    std::istringstream in(rows[i]);
+    for (std::string f; std::getline(in, f, ',');) c.push_back(f);
+    ASSERT_EQ(c.size(), 7u) << "row " << i << ": " << rows[i];
+    if (c[1] == "12345" && c[2] == "678") {
+      found = true;
+      EXPECT_EQ(c[6], "2ed32d8e") << "ref_hex of pixel 12345, surface 678: " << rows[i];
+    }
+  }
+  EXPECT_TRUE(found) << "no row for pixel 12345, surface 678";
+  EXPECT_EQ(box.files(), (std::set<std::string>{"v.csv"})) << "vectors wrote other files";
+}
+
+}  // namespace

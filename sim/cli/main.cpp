@@ -83,15 +83,20 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   }
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
-  for (const auto& p : outs) {
-    ensure_parent_dir(p);
-    write_image(run.image, p);
-    ctx.outputs.push_back(p);
-  }
-  if (!report.empty()) {
-    ensure_parent_dir(report);
-    ctx.outputs.push_back(report);
-    write_text_file_atomic(report, functional_report(ctx, run).dump(2) + "\n");
+  try {  // all outputs or none: a failure removes what this run already wrote
+    for (const auto& p : outs) {
+      ensure_parent_dir(p);
+      ctx.outputs.push_back(p);
+      write_image(run.image, p);
+    }
+    if (!report.empty()) {
+      ensure_parent_dir(report);
+      ctx.outputs.push_back(report);
+      write_text_file_atomic(report, functional_report(ctx, run).dump(2) + "\n");
+    }
+  } catch (...) {
+    for (const auto& p : ctx.outputs) std::remove(p.c_str());
+    throw;
   }
   if (!o.quiet) std::fputs(functional_summary(ctx, run).c_str(), stdout);
   return 0;

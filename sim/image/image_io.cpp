@@ -102,7 +102,12 @@ CompareResult compare_images(const Image& a, const Image& b) {
 }
 
 CompareResult compare_image_files(const std::string& a, const std::string& b) {
-  return compare_images(read_image(a), read_image(b));
+  const Image ia = read_image(a), ib = read_image(b);
+  try {
+    return compare_images(ia, ib);
+  } catch (const ImageError& e) {
+    throw ImageError(a + " vs " + b + ": " + e.what());
+  }
 }
 
 }  // namespace ropsim

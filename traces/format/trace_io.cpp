@@ -377,17 +377,25 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header_.clear_color[i]);
   put_f32(fixed + 36, header_.clear_depth);
   put_u16(fixed + 40, uint16_t(header_.scene_name.size()));
-  FileSink raw(f, path);
-  raw.write(fixed, sizeof fixed);
-  for (int i = 0; i < header_.spp; ++i) {
-    uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
-    raw.write(p, 2);
+  try {  // a failure here must not leak the file or leave PATH.tmp
+    FileSink raw(f, path);
+    raw.write(fixed, sizeof fixed);
+    for (int i = 0; i < header_.spp; ++i) {
+      uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
+      raw.write(p, 2);
+    }
+    raw.write(header_.scene_name.data(), header_.scene_name.size());
+    if (header_.compression == Compression::kZstd)
+      sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
+    else
+      sink_ = std::make_unique<FileSink>(f, path);
+  } catch (...) {
+    sink_.reset();
+    std::fclose(file_);
+    file_ = nullptr;
+    std::remove(tmp_path_.c_str());
+    throw;
   }
-  raw.write(header_.scene_name.data(), header_.scene_name.size());
-  if (header_.compression == Compression::kZstd)
-    sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
-  else
-    sink_ = std::make_unique<FileSink>(f, path);
 }
 
 TraceWriter::~TraceWriter() {
@@ -399,6 +407,7 @@ TraceWriter::~TraceWriter() {
 }
 
 void TraceWriter::write(const Fragment& f) {
+  if (finished_ || !sink_) throw TraceError(path_ + ": write after finish()");
   std::string err = validate_fragment(header_, f);
   if (!err.empty()) throw TraceError(path_ + ": record " + std::to_string(count_) + ": " + err);
   uint8_t b[16 + 8 + 256 + 16];
