@@ -165,9 +165,15 @@ TEST(Unbiased, OneSurfaceMeanCoverageIsAlpha) {
       const double mean = mean_coverage(meth, spp, W, {{0.5f, alpha}}, 0.5f);
       const double b = bound(alpha, double(W) * W * spp);
       EXPECT_NEAR(mean, double(alpha), b) << to_string(meth) << " alpha " << alpha << " (bound " << b << ")";
-      if (alpha == 0.0f) EXPECT_EQ(mean, 0.0) << to_string(meth) << ": alpha 0 must never write";
-      if (alpha == 1.0f) EXPECT_EQ(mean, 1.0) << to_string(meth) << ": alpha 1 must always write";
-      if (alpha == 1e-6f) EXPECT_GT(mean, 0.0) << to_string(meth) << ": alpha 1e-6 must still write sometimes";
+      if (alpha == 0.0f) {
+        EXPECT_EQ(mean, 0.0) << to_string(meth) << ": alpha 0 must never write";
+      }
+      if (alpha == 1.0f) {
+        EXPECT_EQ(mean, 1.0) << to_string(meth) << ": alpha 1 must always write";
+      }
+      if (alpha == 1e-6f) {
+        EXPECT_GT(mean, 0.0) << to_string(meth) << ": alpha 1e-6 must still write sometimes";
+      }
     }
   }
 }
