@@ -216,3 +216,24 @@ TEST(SortOrder, GroupedSortEqualsKeySort) {
     for (int k = 0; k < m; ++k) ASSERT_EQ(order[k], sort_key_sample(keys[k])) << "trial " << trial << " position " << k;
   }
 }
+
+#include "vectors.h"
+
+// Every unit's vectors: a header row, then `count` rows with as many columns.
+TEST(Vectors, EveryUnitWritesWellFormedCsv) {
+  for (const std::string& unit : vector_units()) {
+    const std::string csv = make_vectors(unit, 200, 3, Numerics{});
+    std::vector<std::string> lines;
+    size_t start = 0;
+    for (size_t nl; (nl = csv.find('\n', start)) != std::string::npos; start = nl + 1) lines.push_back(csv.substr(start, nl - start));
+    ASSERT_EQ(lines.size(), 201u) << unit;
+    const auto cols = std::count(lines[0].begin(), lines[0].end(), ',');
+    for (size_t i = 1; i < lines.size(); ++i)
+      ASSERT_EQ(std::count(lines[i].begin(), lines[i].end(), ','), cols) << unit << " row " << i << ": " << lines[i];
+    EXPECT_EQ(make_vectors(unit, 200, 3, Numerics{}), csv) << unit << ": same seed, same vectors";
+  }
+  EXPECT_THROW(make_vectors("bogus", 1, 1, Numerics{}), std::invalid_argument);
+  // The tracker row for a conflict: covered 0x00ff, surviving 0x0180 -> new surface 4, n 0.
+  const std::string t = make_vectors("tracker", 3, 1, Numerics{});
+  EXPECT_NE(t.find("16,32,00000000000000ff,3,0000000000000180,1,0,4,0000000000000180"), std::string::npos) << t;
+}
