@@ -107,12 +107,10 @@ std::string sorter_vectors(uint64_t count, VecRng& rng) {
     float d[64];
     for (int i = 0; i < spp; ++i) d[i] = n == 0 ? 1.0f : rng.depth();  // vector 0: all ties
     const uint64_t s = n < 2 ? ~0ull : rng.mask(spp);
-    uint64_t keys[64];
-    int m = 0;
-    for (uint64_t b = s; b; b &= b - 1) keys[m++] = sort_key(d[__builtin_ctzll(b)], uint32_t(__builtin_ctzll(b)));
-    sort_keys(keys, m);
+    uint8_t order_ids[64];
+    const int m = sort_by_stored_depth(d, s, order_ids);  // the golden model's sorter
     std::string order;
-    for (int k = 0; k < m; ++k) order += (k ? ";" : "") + std::to_string(sort_key_sample(keys[k]));
+    for (int k = 0; k < m; ++k) order += (k ? ";" : "") + std::to_string(order_ids[k]);
     out += fmt::format("{},{},{},{}\n", spp, hex64(s), join_hex_depths(d, spp), order);
   }
   return out;
