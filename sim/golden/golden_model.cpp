@@ -132,6 +132,12 @@ inline void StochasticModel::sample_depths(const Fragment& f, float* z) const {
   }
 }
 
+inline void StochasticModel::count_written(uint32_t n) {
+  counters_.samples_written += n;
+  counters_.depth_bytes_written += 4u * n;  // binary32 depth
+  counters_.color_bytes_written += 6u * n;  // RGB binary16
+}
+
 inline void StochasticModel::write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16) {
   p.depth[i] = z;
   p.rgb[3 * i] = rgb16[0];
@@ -188,9 +194,7 @@ void StochasticModel::draw_lk(const Fragment& f) {
   track_commit(*p.tracker, S);
   counters_.tracker_bytes_written += tracker_bytes_;
   counters_.samples_opacity_passed += written;
-  counters_.samples_written += written;
-  counters_.depth_bytes_written += 4u * written;
-  counters_.color_bytes_written += 6u * written;
+  count_written(written);
 }
 
 // Enderton et al. 2010 with the depth test first (as LK compare against):
@@ -217,9 +221,7 @@ void StochasticModel::draw_enderton(const Fragment& f) {
     write_sample(p, list[j], z[list[j]], rgb16);
   }
   counters_.samples_opacity_passed += r;
-  counters_.samples_written += r;
-  counters_.depth_bytes_written += 4u * r;
-  counters_.color_bytes_written += 6u * r;
+  count_written(r);
 }
 
 // Naive stochastic transparency (LK §1.1): an independent random reference per sample.
@@ -243,9 +245,7 @@ void StochasticModel::draw_naive(const Fragment& f) {
   }
   counters_.samples_depth_passed += passed;
   counters_.samples_opacity_passed += written;
-  counters_.samples_written += written;
-  counters_.depth_bytes_written += 4u * written;
-  counters_.color_bytes_written += 6u * written;
+  count_written(written);
 }
 
 // Alpha-to-coverage as today's hardware: k = floor(alpha * spp + dither) samples
@@ -270,9 +270,7 @@ void StochasticModel::draw_a2c(const Fragment& f) {
   }
   counters_.samples_opacity_passed += __builtin_popcountll(mask);
   counters_.samples_depth_passed += written;
-  counters_.samples_written += written;
-  counters_.depth_bytes_written += 4u * written;
-  counters_.color_bytes_written += 6u * written;
+  count_written(written);
 }
 
 void StochasticModel::draw_opaque(const Fragment& f) {
@@ -290,9 +288,7 @@ void StochasticModel::draw_opaque(const Fragment& f) {
   }
   counters_.samples_depth_passed += written;
   counters_.samples_opacity_passed += written;
-  counters_.samples_written += written;
-  counters_.depth_bytes_written += 4u * written;
-  counters_.color_bytes_written += 6u * written;
+  count_written(written);
 }
 
 Image StochasticModel::resolve() const {

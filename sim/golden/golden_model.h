@@ -106,6 +106,7 @@ class StochasticModel : public FunctionalModel {
   };
   PixelRef pixel(uint32_t x, uint32_t y);
   void write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16);
+  void count_written(uint32_t n);  ///< samples_written and the state bytes they cost
   void sample_depths(const Fragment& f, float* z) const;     ///< as fragment_sample_depths
   uint64_t fixed_alpha(float alpha);                          ///< memoised alpha_to_fixed
   const uint16_t* half_color(const std::array<float, 3>& rgb);  ///< memoised binary16 colour
