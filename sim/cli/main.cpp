@@ -73,7 +73,9 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   std::string report = o.report;
   if (outs.empty() && report.empty()) {
     const std::string stem = in.from_trace() ? std::filesystem::path(o.trace).stem().string() : o.scene;
-    const std::string base = fmt::format("out/run/{}-{}-{}spp", stem, o.method, in.from_trace() ? 0 : o.spp);
+    // A trace's spp is in its header, which is only read by the run: name by stem.
+    const std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
+                                             : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
     outs = {base + ".png", base + ".exr"};
     report = base + ".json";
   }
