@@ -376,3 +376,24 @@ TEST(Sparse, TenPercentOf4kAt64SppFitsInOneGiB) {
   EXPECT_LT(m.state_bytes(), size_t(1) << 30) << "state for 10% of a 4K 64-spp screen";
   EXPECT_LT(m.state_bytes(), size_t(3840) * 224 * 64 * 10 + (size_t(64) << 20));
 }
+
+// Regression: a per-sample-depth trace once sent the model into endless
+// recursion. Both depth encodings of one scene must give the same state.
+TEST(DepthModes, PerSampleTraceGivesThePlaneTracesImage) {
+  const std::string dir = ::testing::TempDir();
+  Image img[2];
+  for (int k = 0; k < 2; ++k) {
+    SceneParams p;
+    p.name = "eight-layers";
+    p.spp = 8;
+    p.depth_mode = k ? DepthMode::kPerSample : DepthMode::kPlane;
+    const std::string path = dir + "/depthmode" + std::to_string(k) + ".rtr";
+    write_scene_trace(p, path);
+    InputSpec in;
+    in.trace_path = path;
+    GoldenConfig c;
+    img[k] = run_functional(in, c).image;
+  }
+  ASSERT_EQ(img[0].rgb.size(), img[1].rgb.size());
+  EXPECT_TRUE(img[0].rgb == img[1].rgb) << "plane and per-sample depth traces of one scene resolve differently";
+}

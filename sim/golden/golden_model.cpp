@@ -128,7 +128,7 @@ inline void StochasticModel::sample_depths(const Fragment& f, float* z) const {
       z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x_[size_t(i)], offset_y_[size_t(i)]);
     }
   } else {
-    sample_depths(f, z);
+    fragment_sample_depths(header_, f, z);
   }
 }
 
