@@ -7,6 +7,7 @@
 #include "depth.h"
 #include "half.h"
 #include "hilbert.h"
+#include "method_kernels.h"
 #include "opacity.h"
 #include "random_hash.h"
 #include "sort_order.h"
@@ -22,10 +23,6 @@ constexpr MethodName kMethods[] = {{Method::kLk, "lk"},         {Method::kEndert
                                    {Method::kNaive, "naive"},   {Method::kA2c, "a2c"},
                                    {Method::kOpaque, "opaque"}, {Method::kReference, "reference"}};
 
-inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
-
-/// a2c: 4x4 ordered-dither thresholds (Bayer), in 1/16 units.
-constexpr uint32_t kBayer4[16] = {0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5};
 }  // namespace
 
 const char* to_string(Method m) {
@@ -52,10 +49,9 @@ const std::vector<std::string>& method_names() {
 // ------------------------------------------------------------ StochasticModel
 
 StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
-    : FunctionalModel(h), cfg_(cfg), tiles_(h.width, h.height), hilbert_n_(hilbert_side(h.width, h.height)),
+    : FunctionalModel(h), cfg_(cfg), store_(h, cfg.method == Method::kLk), hilbert_n_(hilbert_side(h.width, h.height)),
       alpha_one_(uint64_t{1} << cfg.numerics.alpha_bits),
-      tracker_bytes_((h.spp + cfg.numerics.surface_id_bits + 7) / 8), clear_depth_(canonical_depth(h.clear_depth)) {
-  for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+      tracker_bytes_((h.spp + cfg.numerics.surface_id_bits + 7) / 8) {
   switch (cfg.method) {
     case Method::kLk: draw_fn_ = &StochasticModel::draw_lk; break;
     case Method::kEnderton: draw_fn_ = &StochasticModel::draw_enderton; break;
@@ -68,41 +64,7 @@ StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
     offset_x_[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y_[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
   }
-  // a2c covers the first k samples of the bit-reversed sample order, so any
-  // prefix is spread over the pixel.
-  const int m = log2_spp(h.spp);
-  for (int k = 1; k <= h.spp; ++k) {
-    uint32_t j = uint32_t(k - 1), r = 0;
-    for (int b = 0; b < m; ++b) r |= ((j >> b) & 1u) << (m - 1 - b);
-    a2c_prefix_[k] = a2c_prefix_[k - 1] | (uint64_t{1} << r);
-  }
-}
-
-StochasticModel::PixelRef StochasticModel::pixel(uint32_t x, uint32_t y) {
-  const int spp = header_.spp;
-  const bool lk = cfg_.method == Method::kLk;
-  SampleTile& t = tiles_.get(x, y, [&](uint32_t, uint32_t) {
-    auto tile = std::make_unique<SampleTile>();
-    const size_t n = size_t(64) * spp;
-    tile->depth.reset(new float[n]);
-    tile->rgb.reset(new uint16_t[3 * n]);
-    std::fill_n(tile->depth.get(), n, clear_depth_);
-    for (size_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
-    if (lk) tile->tracker.reset(new TrackerState[64]());
-    return tile;
-  });
-  const int p = pixel_in_tile(x, y);
-  return PixelRef{t.depth.get() + size_t(p) * spp, t.rgb.get() + size_t(p) * spp * 3,
-                  t.tracker ? t.tracker.get() + p : nullptr};
-}
-
-StochasticModel::PixelView StochasticModel::pixel_view(uint32_t x, uint32_t y) const {
-  const SampleTile* t = tiles_.find(x, y);
-  if (!t) return {};
-  const int p = pixel_in_tile(x, y), spp = header_.spp;
-  return PixelView{t->depth.get() + size_t(p) * spp, t->rgb.get() + size_t(p) * spp * 3,
-                   t->tracker ? t->tracker.get() + p : nullptr};
+  a2c_prefix_ = a2c_prefix_table(h.spp);
 }
 
 uint64_t StochasticModel::fixed_alpha(float alpha) {
@@ -138,26 +100,19 @@ inline void StochasticModel::count_written(uint32_t n) {
   counters_.color_bytes_written += 6u * n;  // RGB binary16
 }
 
-inline void StochasticModel::write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16) {
-  p.depth[i] = z;
-  p.rgb[3 * i] = rgb16[0];
-  p.rgb[3 * i + 1] = rgb16[1];
-  p.rgb[3 * i + 2] = rgb16[2];
-}
-
 void StochasticModel::draw(const Fragment& f) {
   ++counters_.fragments;
   const int covered = __builtin_popcountll(f.coverage);
   counters_.samples_tested += covered;
   counters_.depth_bytes_read += 4u * covered;
   (this->*draw_fn_)(f);
-  counters_.tiles_touched = tiles_.tiles();
+  counters_.tiles_touched = store_.tiles();
 }
 
 // LK 2011 Figure 7, line for line.
 void StochasticModel::draw_lk(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
-  PixelRef p = pixel(f.x, f.y);
+  PixelRef p = store_.pixel(f.x, f.y);
   float z[64];
   sample_depths(f, z);
   // Lines 1-3: depth test first.
@@ -186,7 +141,7 @@ void StochasticModel::draw_lk(const Fragment& f) {
     const int i = order[j];
     const uint32_t ref = calc_alpha_ref(tr.n + uint32_t(j), pixel_id, tr.surface_id, uint32_t(header_.spp), num.hash_bits);
     if (opacity_passes(a, num.alpha_bits, ref, num.hash_bits)) {
-      write_sample(p, i, z[i], rgb16);
+      p.write_sample(i, z[i], rgb16);
       ++written;
     }
   }
@@ -201,7 +156,7 @@ void StochasticModel::draw_lk(const Fragment& f) {
 // R = floor(alpha * |S'| + xi) samples chosen uniformly among the survivors S'.
 void StochasticModel::draw_enderton(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
-  PixelRef p = pixel(f.x, f.y);
+  PixelRef p = store_.pixel(f.x, f.y);
   float z[64];
   sample_depths(f, z);
   int list[64], m = 0;
@@ -212,14 +167,10 @@ void StochasticModel::draw_enderton(const Fragment& f) {
   counters_.samples_depth_passed += m;
   if (!m) return;
   const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
-  const uint64_t a32 = fixed_alpha(f.alpha) << (32 - num.alpha_bits);
-  const uint32_t r = uint32_t((a32 * uint64_t(m) + fragment_random(key, 0)) >> 32);
+  const uint32_t r = enderton_count(fixed_alpha(f.alpha), num.alpha_bits, uint32_t(m), key);
+  enderton_pick(list, uint32_t(m), r, key);
   const uint16_t* rgb16 = half_color(f.rgb);
-  for (uint32_t j = 0; j < r; ++j) {  // partial Fisher-Yates with hashed choices
-    const uint32_t pick = j + uint32_t((uint64_t(fragment_random(key, j + 1)) * (uint32_t(m) - j)) >> 32);
-    std::swap(list[j], list[pick]);
-    write_sample(p, list[j], z[list[j]], rgb16);
-  }
+  for (uint32_t j = 0; j < r; ++j) p.write_sample(list[j], z[list[j]], rgb16);
   counters_.samples_opacity_passed += r;
   count_written(r);
 }
@@ -227,7 +178,7 @@ void StochasticModel::draw_enderton(const Fragment& f) {
 // Naive stochastic transparency (LK §1.1): an independent random reference per sample.
 void StochasticModel::draw_naive(const Fragment& f) {
   const Numerics& num = cfg_.numerics;
-  PixelRef p = pixel(f.x, f.y);
+  PixelRef p = store_.pixel(f.x, f.y);
   float z[64];
   sample_depths(f, z);
   const uint64_t key = fragment_key(cfg_.seed, f.draw_id, f.prim_id, f.x, f.y);
@@ -239,7 +190,7 @@ void StochasticModel::draw_naive(const Fragment& f) {
     if (!depth_passes(z[i], p.depth[i])) continue;
     ++passed;
     if (opacity_passes(a, num.alpha_bits, fragment_random(key, uint32_t(i) + 1), 32)) {
-      write_sample(p, i, z[i], rgb16);
+      p.write_sample(i, z[i], rgb16);
       ++written;
     }
   }
@@ -252,19 +203,17 @@ void StochasticModel::draw_naive(const Fragment& f) {
 // from a fixed order, dithered with a 4x4 Bayer threshold per pixel; the same
 // alpha always gives the same samples in a pixel (static assignment).
 void StochasticModel::draw_a2c(const Fragment& f) {
-  PixelRef p = pixel(f.x, f.y);
+  PixelRef p = store_.pixel(f.x, f.y);
   float z[64];
   sample_depths(f, z);
-  const uint64_t a32 = fixed_alpha(f.alpha) << (32 - cfg_.numerics.alpha_bits);
-  const uint64_t dither = uint64_t(2 * kBayer4[(f.y & 3u) * 4 + (f.x & 3u)] + 1) << 27;  // (d + 1/2) / 16
-  const uint64_t k = std::min<uint64_t>(uint64_t(header_.spp), (a32 * uint64_t(header_.spp) + dither) >> 32);
+  const uint32_t k = a2c_sample_count(fixed_alpha(f.alpha), cfg_.numerics.alpha_bits, header_.spp, f.x, f.y);
   const uint64_t mask = f.coverage & a2c_prefix_[k];
   const uint16_t* rgb16 = half_color(f.rgb);
   uint32_t written = 0;
   for (uint64_t c = mask; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);
     if (depth_passes(z[i], p.depth[i])) {
-      write_sample(p, i, z[i], rgb16);
+      p.write_sample(i, z[i], rgb16);
       ++written;
     }
   }
@@ -274,7 +223,7 @@ void StochasticModel::draw_a2c(const Fragment& f) {
 }
 
 void StochasticModel::draw_opaque(const Fragment& f) {
-  PixelRef p = pixel(f.x, f.y);
+  PixelRef p = store_.pixel(f.x, f.y);
   float z[64];
   sample_depths(f, z);
   const uint16_t* rgb16 = half_color(f.rgb);
@@ -282,7 +231,7 @@ void StochasticModel::draw_opaque(const Fragment& f) {
   for (uint64_t c = f.coverage; c; c &= c - 1) {
     const int i = __builtin_ctzll(c);
     if (depth_passes(z[i], p.depth[i])) {
-      write_sample(p, i, z[i], rgb16);
+      p.write_sample(i, z[i], rgb16);
       ++written;
     }
   }
@@ -291,33 +240,9 @@ void StochasticModel::draw_opaque(const Fragment& f) {
   count_written(written);
 }
 
-Image StochasticModel::resolve() const {
-  Image img;
-  img.width = header_.width;
-  img.height = header_.height;
-  img.rgb.resize(size_t(img.width) * img.height * 3);
-  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = half_to_float(clear_rgb16_[i % 3]);
-  const int spp = header_.spp;
-  const float inv = 1.0f / float(spp);  // exact: spp is a power of two
-  tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
-    for (int p = 0; p < 64; ++p) {
-      const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
-      if (x >= img.width || y >= img.height) continue;
-      const uint16_t* c = t.rgb.get() + size_t(p) * spp * 3;
-      float sum[3] = {0, 0, 0};
-      for (int s = 0; s < spp; ++s)  // summed in sample order: deterministic
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += half_to_float(c[3 * s + ch]);
-      float* o = img.at(x, y);
-      for (int ch = 0; ch < 3; ++ch) o[ch] = sum[ch] * inv;
-    }
-  });
-  return img;
-}
+Image StochasticModel::resolve() const { return store_.resolve(); }
 
-size_t StochasticModel::state_bytes() const {
-  const size_t per_tile = size_t(64) * header_.spp * (4 + 6) + (cfg_.method == Method::kLk ? 64 * sizeof(TrackerState) : 0);
-  return tiles_.tiles() * per_tile + tiles_.directory_bytes();
-}
+size_t StochasticModel::state_bytes() const { return store_.state_bytes(); }
 
 // ------------------------------------------------------------ ReferenceModel
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "numerics.h"
+#include "sample_store.h"
 #include "tile_map.h"
 #include "tracker.h"
 #include "trace.h"
@@ -45,22 +46,6 @@ struct Counters {
   uint64_t tiles_touched = 0;           ///< 8x8-pixel tiles with allocated state
 };
 
-/// A resolved linear RGB image, row-major, 3 floats per pixel.
-struct Image {
-  uint32_t width = 0, height = 0;
-  std::vector<float> rgb;
-  float* at(uint32_t x, uint32_t y) { return &rgb[(size_t(y) * width + x) * 3]; }
-  const float* at(uint32_t x, uint32_t y) const { return &rgb[(size_t(y) * width + x) * 3]; }
-};
-
-/// The ROP's per-pixel buffers for one 8 x 8 tile: depth (binary32), colour
-/// (RGB binary16) per sample, and the LK tracker per pixel (only for lk).
-struct SampleTile {
-  std::unique_ptr<float[]> depth;          ///< [pixel * spp + sample]
-  std::unique_ptr<uint16_t[]> rgb;         ///< [(pixel * spp + sample) * 3 + channel]
-  std::unique_ptr<TrackerState[]> tracker; ///< [pixel], nullptr unless lk
-};
-
 class FunctionalModel {
  public:
   virtual ~FunctionalModel() = default;
@@ -86,26 +71,14 @@ class StochasticModel : public FunctionalModel {
   void draw(const Fragment& f) override;
   Image resolve() const override;
   size_t state_bytes() const override;
-  const TileMap<SampleTile>& tiles() const { return tiles_; }
-
+  /// The full per-sample state (depth, colour, tracker).
+  const SampleStore& store() const { return store_; }
   /// Read-only view of one pixel's state; all pointers null if the pixel's
   /// tile was never touched (it then holds the clear values).
-  struct PixelView {
-    const float* depth = nullptr;         ///< [spp]
-    const uint16_t* rgb = nullptr;        ///< [spp * 3], binary16
-    const TrackerState* tracker = nullptr;  ///< lk only
-  };
-  PixelView pixel_view(uint32_t x, uint32_t y) const;
+  PixelView pixel_view(uint32_t x, uint32_t y) const { return store_.view(x, y); }
   const GoldenConfig& config() const { return cfg_; }
 
  private:
-  struct PixelRef {
-    float* depth;
-    uint16_t* rgb;
-    TrackerState* tracker;
-  };
-  PixelRef pixel(uint32_t x, uint32_t y);
-  void write_sample(PixelRef& p, int i, float z, const uint16_t* rgb16);
   void count_written(uint32_t n);  ///< samples_written and the state bytes they cost
   void sample_depths(const Fragment& f, float* z) const;     ///< as fragment_sample_depths
   uint64_t fixed_alpha(float alpha);                          ///< memoised alpha_to_fixed
@@ -117,13 +90,11 @@ class StochasticModel : public FunctionalModel {
   void draw_opaque(const Fragment& f);
 
   GoldenConfig cfg_;
-  TileMap<SampleTile> tiles_;
+  SampleStore store_;
   uint32_t hilbert_n_;
   uint64_t alpha_one_;  // 2^alpha_bits
   int tracker_bytes_;
   std::array<uint64_t, 65> a2c_prefix_{};  // a2c: mask of the first k samples in the fixed order
-  float clear_depth_;
-  uint16_t clear_rgb16_[3];
   void (StochasticModel::*draw_fn_)(const Fragment&);
   std::array<float, 64> offset_x_{}, offset_y_{};  // sample offsets from the pixel centre
   float memo_alpha_ = -1.0f;  // never a valid opacity

@@ -1,0 +1,117 @@
+#include "sample_store.h"
+
+#include <cstring>
+#include <sstream>
+
+#include "depth.h"
+#include "half.h"
+
+namespace ropsim {
+
+SampleStore::SampleStore(const TraceHeader& h, bool with_tracker)
+    : header_(h), with_tracker_(with_tracker), tiles_(h.width, h.height), clear_depth_(canonical_depth(h.clear_depth)) {
+  for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+}
+
+PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
+  const int spp = header_.spp;
+  SampleTile& t = tiles_.get(x, y, [&](uint32_t, uint32_t) {
+    auto tile = std::make_unique<SampleTile>();
+    const size_t n = size_t(64) * spp;
+    tile->depth.reset(new float[n]);
+    tile->rgb.reset(new uint16_t[3 * n]);
+    std::fill_n(tile->depth.get(), n, clear_depth_);
+    for (size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
+    if (with_tracker_) tile->tracker.reset(new TrackerState[64]());
+    return tile;
+  });
+  const int p = pixel_in_tile(x, y);
+  return PixelRef{t.depth.get() + size_t(p) * spp, t.rgb.get() + size_t(p) * spp * 3,
+                  t.tracker ? t.tracker.get() + p : nullptr};
+}
+
+PixelView SampleStore::view(uint32_t x, uint32_t y) const {
+  const SampleTile* t = tiles_.find(x, y);
+  if (!t) return {};
+  const int p = pixel_in_tile(x, y), spp = header_.spp;
+  return PixelView{t->depth.get() + size_t(p) * spp, t->rgb.get() + size_t(p) * spp * 3,
+                   t->tracker ? t->tracker.get() + p : nullptr};
+}
+
+Image SampleStore::resolve() const {
+  Image img;
+  img.width = header_.width;
+  img.height = header_.height;
+  img.rgb.resize(size_t(img.width) * img.height * 3);
+  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = half_to_float(clear_rgb16_[i % 3]);
+  const int spp = header_.spp;
+  const float inv = 1.0f / float(spp);  // exact: spp is a power of two
+  tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
+      if (x >= img.width || y >= img.height) continue;
+      const uint16_t* c = t.rgb.get() + size_t(p) * spp * 3;
+      float sum[3] = {0, 0, 0};
+      for (int s = 0; s < spp; ++s)  // summed in sample order: deterministic
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += half_to_float(c[3 * s + ch]);
+      float* o = img.at(x, y);
+      for (int ch = 0; ch < 3; ++ch) o[ch] = sum[ch] * inv;
+    }
+  });
+  return img;
+}
+
+size_t SampleStore::state_bytes() const {
+  const size_t per_tile = size_t(64) * header_.spp * (4 + 6) + (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
+  return tiles_.tiles() * per_tile + tiles_.directory_bytes();
+}
+
+std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
+  const TraceHeader& h = a.header();
+  if (h.width != b.header().width || h.height != b.header().height || h.spp != b.header().spp)
+    return "the stores have different screen sizes or spp";
+  if (a.has_tracker() != b.has_tracker()) return "one store tracks surfaces, the other does not";
+  const int spp = h.spp;
+  const float clear_z = canonical_depth(h.clear_depth);
+  uint16_t clear_c[3];
+  for (int c = 0; c < 3; ++c) clear_c[c] = float_to_half(h.clear_color[c]);
+  std::ostringstream os;
+  auto check_tile = [&](uint32_t x0, uint32_t y0) -> bool {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
+      const PixelView va = a.view(x, y), vb = b.view(x, y);
+      for (int s = 0; s < spp; ++s) {
+        const float za = va.depth ? va.depth[s] : clear_z, zb = vb.depth ? vb.depth[s] : clear_z;
+        if (depth_bits(za) != depth_bits(zb)) {
+          os << "pixel (" << x << ", " << y << ") sample " << s << ": depth " << za << " vs " << zb;
+          return false;
+        }
+        for (int c = 0; c < 3; ++c) {
+          const uint16_t ca = va.rgb ? va.rgb[3 * s + c] : clear_c[c], cb = vb.rgb ? vb.rgb[3 * s + c] : clear_c[c];
+          if (ca != cb) {
+            os << "pixel (" << x << ", " << y << ") sample " << s << " channel " << c << ": colour bits " << ca
+               << " vs " << cb;
+            return false;
+          }
+        }
+      }
+      if (a.has_tracker()) {
+        const TrackerState ta = va.tracker ? *va.tracker : TrackerState{}, tb = vb.tracker ? *vb.tracker : TrackerState{};
+        if (!(ta == tb)) {
+          os << "pixel (" << x << ", " << y << "): tracker (id " << ta.surface_id << ", mask " << std::hex << ta.covered
+             << std::dec << ") vs (id " << tb.surface_id << ", mask " << std::hex << tb.covered << std::dec << ")";
+          return false;
+        }
+      }
+    }
+    return true;
+  };
+  bool same = true;
+  a.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) { if (same) same = check_tile(x0, y0); });
+  if (same)
+    b.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) { if (same) same = check_tile(x0, y0); });
+  return os.str();
+}
+
+}  // namespace ropsim

@@ -1,0 +1,82 @@
+// The ROP's per-pixel buffers, functional view: depth (binary32) and colour
+// (RGB binary16) per sample, and the LK tracker per pixel, in sparse 8 x 8
+// tiles allocated on first touch. Shared by the golden model and the SystemC
+// pipeline, so their final states can be compared sample for sample.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "tile_map.h"
+#include "trace.h"
+#include "tracker.h"
+
+namespace ropsim {
+
+/// A resolved linear RGB image, row-major, 3 floats per pixel.
+struct Image {
+  uint32_t width = 0, height = 0;
+  std::vector<float> rgb;
+  float* at(uint32_t x, uint32_t y) { return &rgb[(size_t(y) * width + x) * 3]; }
+  const float* at(uint32_t x, uint32_t y) const { return &rgb[(size_t(y) * width + x) * 3]; }
+};
+
+/// The buffers of one 8 x 8 tile.
+struct SampleTile {
+  std::unique_ptr<float[]> depth;          ///< [pixel * spp + sample]
+  std::unique_ptr<uint16_t[]> rgb;         ///< [(pixel * spp + sample) * 3 + channel]
+  std::unique_ptr<TrackerState[]> tracker; ///< [pixel], nullptr unless tracking
+};
+
+/// Mutable pointers to one pixel's state.
+struct PixelRef {
+  float* depth;           ///< [spp]
+  uint16_t* rgb;          ///< [spp * 3], binary16
+  TrackerState* tracker;  ///< nullptr unless tracking
+  void write_sample(int i, float z, const uint16_t* rgb16) {
+    depth[i] = z;
+    rgb[3 * i] = rgb16[0];
+    rgb[3 * i + 1] = rgb16[1];
+    rgb[3 * i + 2] = rgb16[2];
+  }
+};
+
+/// Read-only view of one pixel; all pointers null if its tile was never touched.
+struct PixelView {
+  const float* depth = nullptr;
+  const uint16_t* rgb = nullptr;
+  const TrackerState* tracker = nullptr;
+};
+
+inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
+
+class SampleStore {
+ public:
+  /// with_tracker: allocate the LK tracker state (lk only).
+  SampleStore(const TraceHeader& h, bool with_tracker);
+  /// The pixel's state, its tile allocated and cleared on first touch.
+  PixelRef pixel(uint32_t x, uint32_t y);
+  PixelView view(uint32_t x, uint32_t y) const;
+  /// Box-filter resolve of every pixel, samples summed in sample order;
+  /// untouched pixels get the clear colour.
+  Image resolve() const;
+  size_t state_bytes() const;
+  size_t tiles() const { return tiles_.tiles(); }
+  const TileMap<SampleTile>& tile_map() const { return tiles_; }
+  const TraceHeader& header() const { return header_; }
+  bool has_tracker() const { return with_tracker_; }
+
+ private:
+  TraceHeader header_;
+  bool with_tracker_;
+  TileMap<SampleTile> tiles_;
+  float clear_depth_;
+  uint16_t clear_rgb16_[3];
+};
+
+/// The first difference between two stores' full state (every sample's depth
+/// and colour bits, every tracker), as "pixel (x, y) sample s: depth a vs b";
+/// empty if they are identical. Untouched tiles compare as the clear values.
+std::string first_state_difference(const SampleStore& a, const SampleStore& b);
+
+}  // namespace ropsim
