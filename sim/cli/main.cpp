@@ -4,10 +4,16 @@
 #include <fmt/format.h>
 
 #include <cstdio>
+#include <unistd.h>
 #include <filesystem>
+#include <chrono>
 #include <iostream>
+#include <optional>
 
+#include "cycle_report.h"
+#include "cycle_run.h"
 #include "driver.h"
+#include "hw_config.h"
 #include "image_io.h"
 #include "report.h"
 #include "scenes.h"
@@ -42,6 +48,9 @@ void ensure_parent_dir(const std::string& path) {
 
 struct RunOpts {
   std::string trace, scene = "cloth", method = "lk", fidelity = "functional", report;
+  std::string hw, vcd, vcd_window;
+  std::vector<std::string> hw_sets;
+  uint32_t repeat = 1;
   std::vector<std::string> outs;
   int spp = 16;
   uint32_t width = 0, height = 0;
@@ -50,10 +59,81 @@ struct RunOpts {
   bool vs_reference = false, quiet = false;
 };
 
+int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, uint64_t vcd_first,
+                  uint64_t vcd_last, const std::vector<std::string>& outs, const std::string& report,
+                  const std::string& cmdline) {
+  CycleOptions opt;
+  opt.vcd_first = vcd_first;
+  opt.vcd_last = vcd_last;
+  const bool tty = !o.quiet && isatty(fileno(stderr));
+  const auto t0 = std::chrono::steady_clock::now();
+  if (tty)
+    opt.progress = [t0](uint64_t n) {
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n, s > 0 ? n / s / 1e6 : 0.0);
+    };
+  if (!o.vcd.empty()) {
+    ensure_parent_dir(o.vcd);
+    opt.vcd_path = o.vcd;
+  }
+  std::optional<Image> reference;
+  if (o.vs_reference) {
+    GoldenConfig rc = cfg;
+    rc.method = Method::kReference;
+    reference = run_functional(in, rc).image;
+  }
+  CycleRun run = run_cycle(in, cfg, hw, opt);
+  if (tty) std::fputs("\n", stderr);
+  ReportContext ctx{cmdline, in, cfg, {}};
+  if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
+  try {  // all outputs or none
+    for (const auto& p : outs) {
+      ensure_parent_dir(p);
+      ctx.outputs.push_back(p);
+      write_image(run.image, p);
+    }
+    if (!report.empty()) {
+      ensure_parent_dir(report);
+      ctx.outputs.push_back(report);
+      write_text_file_atomic(report, cycle_report(ctx, run, reference).dump(2) + "\n");
+    }
+  } catch (...) {
+    for (const auto& p : ctx.outputs) std::remove(p.c_str());
+    throw;
+  }
+  if (!o.quiet) std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
+  return 0;
+}
+
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
-  if (o.fidelity != "functional")
-    throw UserError("--fidelity " + o.fidelity + ": only the functional golden model is built so far");
+  const bool cycle = o.fidelity == "cycle";
+  if (!cycle)
+    for (const char* f : {"--hw", "--hw-set", "--vcd", "--vcd-window"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
+  if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
+  HwConfig hw;
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};
+  if (cycle) {
+    if (!o.hw.empty()) hw = load_hw_config(o.hw);
+    for (const auto& a : o.hw_sets) apply_hw_override(hw, a);
+    if (!o.hw_sets.empty()) hw.name += " with --hw-set";
+    if (!o.vcd_window.empty()) {
+      const auto colon = o.vcd_window.find(':');
+      char* end = nullptr;
+      bool ok = colon != std::string::npos && colon > 0 && colon + 1 < o.vcd_window.size();
+      if (ok) {
+        vcd_first = std::strtoull(o.vcd_window.c_str(), &end, 10);
+        ok = end == o.vcd_window.c_str() + colon;
+      }
+      if (ok) {
+        vcd_last = std::strtoull(o.vcd_window.c_str() + colon + 1, &end, 10);
+        ok = *end == '\0' && vcd_first <= vcd_last && o.vcd_window[0] != '-' && o.vcd_window[colon + 1] != '-';
+      }
+      if (!ok) throw UserError("--vcd-window " + o.vcd_window + ": expected FIRST:LAST cycles with FIRST <= LAST");
+    }
+  }
   InputSpec in;
+  in.repeat = o.repeat;
   if (!o.trace.empty()) {
     in.trace_path = o.trace;
     for (const char* f : {"--scene", "--spp", "--width", "--height", "--scene-seed"})
@@ -74,14 +154,20 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (outs.empty() && report.empty()) {
     const std::string stem = in.from_trace() ? std::filesystem::path(o.trace).stem().string() : o.scene;
     // A trace's spp is in its header, which is only read by the run: name by stem.
-    const std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
-                                             : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
+    std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
+                                       : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
+    if (cycle) base += "-cycle";
     outs = {base + ".png", base + ".exr"};
     report = base + ".json";
   }
   for (const auto& p : outs) {  // fail before the run, not after
     auto ext = std::filesystem::path(p).extension().string();
     if (ext != ".png" && ext != ".exr") throw UserError("--out " + p + ": use a .png or .exr file name");
+  }
+  if (cycle) {
+    if (cfg.method == Method::kReference)
+      throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
+    return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
   }
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
@@ -189,7 +275,16 @@ int main(int argc, char** argv) {
   run->add_option("--surface-id-bits", ro.num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")->check(CLI::Range(1, 32));
   run->add_option("--out", ro.outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
   run->add_option("--report", ro.report, "JSON report file");
-  run->add_option("--fidelity", ro.fidelity, "functional (golden model)")->check(CLI::IsMember({"functional", "cycle"}));
+  run->add_option("--fidelity", ro.fidelity,
+                  "functional (the golden model, default) or cycle (the cycle-approximate SystemC pipeline)")
+      ->check(CLI::IsMember({"functional", "cycle"}));
+  run->add_option("--hw", ro.hw, "cycle: hardware config file (TOML, docs/config.md; default: built-in defaults)")
+      ->check(CLI::ExistingFile);
+  run->add_option("--hw-set", ro.hw_sets, "cycle: override one parameter, section.key=value; repeatable");
+  run->add_option("--vcd", ro.vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
+  run->add_option("--vcd-window", ro.vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
+  run->add_option("--repeat", ro.repeat, "Draw the input this many times into one frame (default 1)")
+      ->check(CLI::Range(1u, 1000u));
   run->add_flag("--vs-reference", ro.vs_reference, "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--quiet", ro.quiet, "Print nothing on success");
 
@@ -242,6 +337,14 @@ int main(int argc, char** argv) {
   vec->add_option("--hash-bits", vec_num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
   vec->add_option("--surface-id-bits", vec_num.surface_id_bits, "tracker: surface id width (1..32)")->check(CLI::Range(1, 32));
 
+  // config
+  std::string cfg_check;
+  bool cfg_markdown = false;
+  CLI::App* cfgc = app.add_subcommand("config", "Print the hardware config (defaults or a file, resolved) or its parameter table");
+  cfgc->add_option("FILE", cfg_check, "Config file to check and print resolved (default: the built-in defaults)")
+      ->check(CLI::ExistingFile);
+  cfgc->add_flag("--markdown", cfg_markdown, "Print every parameter with unit, default, range and meaning (docs/config.md)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -273,6 +376,15 @@ int main(int argc, char** argv) {
       RasterStats st = write_scene_trace(sp, scene_out);
       fmt::print("wrote {}: {} triangles, {} fragments, {} covered samples\n", scene_out, st.triangles, st.fragments,
                  st.covered_samples);
+      return 0;
+    }
+    if (cfgc->parsed()) {
+      if (cfg_markdown) {
+        std::fputs(hw_params_markdown().c_str(), stdout);
+        return 0;
+      }
+      HwConfig c = cfg_check.empty() ? HwConfig{} : load_hw_config(cfg_check);
+      fmt::print("# ropsim hardware config: {}\n{}", c.name, hw_config_to_toml(c));
       return 0;
     }
     if (tinfo->parsed()) return cmd_trace_info(trace_path, false);

@@ -6,21 +6,24 @@
 namespace ropsim {
 
 std::string InputSpec::describe() const {
-  if (from_trace()) return trace_path;
-  return "scene " + scene.name + " at " + std::to_string(scene.spp) + " spp";
+  const std::string times = repeat > 1 ? ", drawn " + std::to_string(repeat) + " times" : "";
+  if (from_trace()) return trace_path + times;
+  return "scene " + scene.name + " at " + std::to_string(scene.spp) + " spp" + times;
 }
 
 void stream_fragments(const InputSpec& in, const std::function<void(const TraceHeader&)>& begin,
                       const std::function<void(const Fragment&)>& emit) {
   if (in.from_trace()) {
-    TraceReader r(in.trace_path);
-    begin(r.header());
-    Fragment f;
-    while (r.next(f)) emit(f);
+    for (uint32_t pass = 0; pass < in.repeat; ++pass) {
+      TraceReader r(in.trace_path);
+      if (pass == 0) begin(r.header());
+      Fragment f;
+      while (r.next(f)) emit(f);
+    }
   } else {
     Scene s = build_scene(in.scene);
     begin(s.header);
-    rasterize_scene(s, emit);
+    for (uint32_t pass = 0; pass < in.repeat; ++pass) rasterize_scene(s, emit);
   }
 }
 

@@ -16,6 +16,7 @@ namespace ropsim {
 struct InputSpec {
   std::string trace_path;  ///< non-empty: read this trace
   SceneParams scene;       ///< otherwise: build this scene
+  uint32_t repeat = 1;     ///< draw the input this many times into one frame
   bool from_trace() const { return !trace_path.empty(); }
   std::string describe() const;
 };

@@ -1,0 +1,288 @@
+#include "hw_config.h"
+
+#include <cmath>
+#include <functional>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+namespace ropsim {
+
+const char* to_string(SorterKind k) {
+  switch (k) {
+    case SorterKind::kBitonic: return "bitonic";
+    case SorterKind::kRank: return "rank";
+    case SorterKind::kSerial: return "serial";
+  }
+  return "?";
+}
+const char* to_string(Interleave k) { return k == Interleave::kDiagonal ? "diagonal" : "row"; }
+
+namespace {
+
+enum class Kind { kU32, kReal, kBool, kSorter, kInterleave };
+
+struct Param {
+  const char* key;
+  const char* unit;
+  Kind kind;
+  double lo, hi;
+  bool pow2;
+  const char* meaning;
+  std::function<void*(HwConfig&)> field;
+};
+
+#define U32(sec, k, unit, lo, hi, pow2, meaning) \
+  Param{#sec "." #k, unit, Kind::kU32, lo, hi, pow2, meaning, [](HwConfig& c) -> void* { return &c.sec.k; }}
+#define FIELD(sec, k) [](HwConfig& c) -> void* { return &c.sec.k; }
+
+const std::vector<Param>& params() {
+  static const std::vector<Param> p = {
+      {"clock.frequency_ghz", "GHz", Kind::kReal, 0.01, 10.0, false,
+       "ROP clock; converts cycles to frame time and bytes/clock to GB/s", FIELD(clock, frequency_ghz)},
+      U32(source, fragments_per_clock, "fragments/clock", 1, 64, false,
+          "rasterizer-to-ROP interface rate: fragments the trace source delivers per clock"),
+      U32(source, fifo_depth, "entries", 1, 4096, false, "FIFO between the trace source and the distributor"),
+      U32(distributor, rop_units, "units", 1, 64, false, "number of ROP units (each a full pipeline with its cache)"),
+      U32(distributor, tile_pixels, "pixels", 8, 1024, true,
+          "side of the square screen tiles owned by one ROP (a multiple of the 8-pixel memory tile)"),
+      {"distributor.interleave", "-", Kind::kInterleave, 0, 0, false,
+       "tile-to-ROP map: diagonal = (tx + ty) mod N, row = (tx + ty * tiles_x) mod N", FIELD(distributor, interleave)},
+      U32(distributor, fragments_per_clock, "fragments/clock", 1, 64, false,
+          "fragments the distributor routes per clock (in order; a full ROP FIFO blocks it)"),
+      U32(distributor, latency_cycles, "cycles", 1, 64, false, "routing latency, input to ROP FIFO"),
+      U32(distributor, fifo_depth, "entries", 1, 4096, false, "input FIFO of each ROP (distributor to pixel ordering)"),
+      U32(ordering, pixels_in_flight, "pixels", 1, 4096, false,
+          "scoreboard size: distinct pixels between issue and retire in one ROP"),
+      U32(ordering, window, "fragments", 1, 256, false,
+          "fragments the ordering unit looks at; one of another pixel may overtake a blocked one"),
+      U32(ordering, latency_cycles, "cycles", 1, 64, false, "scoreboard lookup latency, issue to depth test"),
+      U32(ordering, fifo_depth, "entries", 1, 4096, false, "FIFO from pixel ordering to the depth test"),
+      U32(depth_test, samples_per_clock, "samples/clock", 1, 64, false,
+          "depth comparators: a fragment with c covered samples occupies ceil(c / this) clocks"),
+      U32(depth_test, latency_cycles, "cycles", 1, 64, false, "compare latency after the stored depth arrives"),
+      U32(depth_test, max_outstanding, "fragments", 1, 1024, false,
+          "fragments waiting for their pixel state from the cache (hit-under-miss window)"),
+      U32(depth_test, fifo_depth, "entries", 1, 4096, false, "FIFO from the depth test to the next unit"),
+      U32(tracker, latency_cycles, "cycles", 1, 64, false, "surface-tracker update latency (one fragment per clock)"),
+      U32(tracker, fifo_depth, "entries", 1, 4096, false, "FIFO from the tracker to the sorter"),
+      {"sorter.kind", "-", Kind::kSorter, 0, 0, false,
+       "bitonic (log2 N (log2 N + 1) / 2 pipelined stages), rank (N^2 comparators, 1 clock) or serial (m clocks)",
+       FIELD(sorter, kind)},
+      U32(sorter, fifo_depth, "entries", 1, 4096, false, "FIFO from the sorter to the alpha-reference generator"),
+      U32(alpha_ref, lanes, "hashes/clock", 1, 64, false, "CalcAlphaRef hash lanes: m references take ceil(m / lanes) clocks"),
+      U32(alpha_ref, pipeline_depth, "cycles", 1, 64, false, "hash pipeline depth (four multiply-xor rounds)"),
+      U32(alpha_ref, fifo_depth, "entries", 1, 4096, false, "FIFO from the alpha-reference generator to writeback"),
+      U32(writeback, samples_per_clock, "samples/clock", 1, 64, false,
+          "opacity tests and sample writes per clock"),
+      U32(writeback, latency_cycles, "cycles", 1, 64, false, "writeback latency; the pixel retires after it"),
+      U32(cache, size_bytes, "bytes", 256, 1u << 30, true, "ROP cache capacity per ROP unit (depth, colour, tracker lines)"),
+      U32(cache, line_bytes, "bytes", 16, 4096, true, "cache line and DRAM burst size"),
+      U32(cache, ways, "ways", 1, 64, false, "set associativity (LRU replacement)"),
+      U32(cache, hit_latency_cycles, "cycles", 1, 1000, false, "tag lookup and data read on a hit"),
+      {"cache.fast_clear", "-", Kind::kBool, 0, 0, false,
+       "lines never written to DRAM read as the clear value without a DRAM access", FIELD(cache, fast_clear)},
+      U32(dram, channels, "channels", 1, 64, false, "independent DRAM channels shared by all ROPs"),
+      U32(dram, bytes_per_clock, "bytes/clock", 1, 1u << 20, false,
+          "peak bytes per ROP clock per channel (GB/s = this x channels x clock GHz)"),
+      U32(dram, latency_cycles, "cycles", 0, 100000, false, "read latency after the data burst"),
+      U32(dram, banks, "banks", 1, 256, false, "banks per channel, each with one open row"),
+      U32(dram, row_bytes, "bytes", 64, 1u << 20, true, "row (page) size per bank"),
+      U32(dram, row_miss_cycles, "cycles", 0, 100000, false, "extra cycles to close and open a row on a row-buffer miss"),
+      U32(dram, interleave_bytes, "bytes", 16, 1u << 20, true, "address interleave granule between channels"),
+  };
+  return p;
+}
+
+const Param* find_param(const std::string& key) {
+  for (const auto& p : params())
+    if (key == p.key) return &p;
+  return nullptr;
+}
+
+std::string section_of(const std::string& key) { return key.substr(0, key.find('.')); }
+
+[[noreturn]] void fail(const std::string& where, const std::string& key, const std::string& what) {
+  throw ConfigError(where + ": " + key + ": " + what);
+}
+
+std::string value_to_string(const Param& p, HwConfig& c) {
+  void* f = p.field(c);
+  std::ostringstream os;
+  switch (p.kind) {
+    case Kind::kU32: os << *static_cast<uint32_t*>(f); break;
+    case Kind::kReal: os << *static_cast<double*>(f); break;
+    case Kind::kBool: os << (*static_cast<bool*>(f) ? "true" : "false"); break;
+    case Kind::kSorter: os << '"' << to_string(*static_cast<SorterKind*>(f)) << '"'; break;
+    case Kind::kInterleave: os << '"' << to_string(*static_cast<Interleave*>(f)) << '"'; break;
+  }
+  return os.str();
+}
+
+std::string range_of(const Param& p) {
+  std::ostringstream os;
+  switch (p.kind) {
+    case Kind::kU32:
+    case Kind::kReal: os << p.lo << " .. " << p.hi << (p.pow2 ? ", power of two" : ""); break;
+    case Kind::kBool: os << "true, false"; break;
+    case Kind::kSorter: os << "bitonic, rank, serial"; break;
+    case Kind::kInterleave: os << "diagonal, row"; break;
+  }
+  return os.str();
+}
+
+// Sets one parameter from either a TOML node or a command-line string.
+void set_u32(const Param& p, HwConfig& c, int64_t v, const std::string& where) {
+  if (double(v) < p.lo || double(v) > p.hi)
+    fail(where, p.key, "value " + std::to_string(v) + " out of range (" + range_of(p) + ")");
+  if (p.pow2 && (v & (v - 1)))
+    fail(where, p.key, "value " + std::to_string(v) + " is not a power of two");
+  *static_cast<uint32_t*>(p.field(c)) = uint32_t(v);
+}
+void set_real(const Param& p, HwConfig& c, double v, const std::string& where) {
+  if (!std::isfinite(v) || v < p.lo || v > p.hi)
+    fail(where, p.key, "value out of range (" + range_of(p) + ")");
+  *static_cast<double*>(p.field(c)) = v;
+}
+void set_name(const Param& p, HwConfig& c, const std::string& s, const std::string& where) {
+  if (p.kind == Kind::kSorter) {
+    for (SorterKind k : {SorterKind::kBitonic, SorterKind::kRank, SorterKind::kSerial})
+      if (s == to_string(k)) { *static_cast<SorterKind*>(p.field(c)) = k; return; }
+  } else {
+    for (Interleave k : {Interleave::kDiagonal, Interleave::kRow})
+      if (s == to_string(k)) { *static_cast<Interleave*>(p.field(c)) = k; return; }
+  }
+  fail(where, p.key, "\"" + s + "\" is not one of " + range_of(p));
+}
+
+}  // namespace
+
+const std::vector<ParamInfo>& hw_params() {
+  static const std::vector<ParamInfo> v = [] {
+    std::vector<ParamInfo> r;
+    HwConfig def;
+    for (const auto& p : params()) r.push_back({p.key, p.unit, p.meaning, range_of(p), value_to_string(p, def)});
+    return r;
+  }();
+  return v;
+}
+
+HwConfig load_hw_config(const std::string& path) {
+  HwConfig c;
+  c.name = path;
+  toml::table doc;
+  try {
+    doc = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << path << ":" << e.source().begin.line << ": " << e.description();
+    throw ConfigError(os.str());
+  }
+  for (auto&& [sec, node] : doc) {
+    const std::string s(sec.str());
+    const toml::table* t = node.as_table();
+    bool known = false;
+    for (const auto& p : params()) known |= section_of(p.key) == s;
+    if (!known) fail(path, s, "unknown section");
+    if (!t) fail(path, s, "must be a table [" + s + "]");
+    for (auto&& [k, v] : *t) {
+      const std::string key = s + "." + std::string(k.str());
+      const Param* p = find_param(key);
+      if (!p) fail(path, key, "unknown key");
+      switch (p->kind) {
+        case Kind::kU32:
+          if (!v.is_integer()) fail(path, key, "must be an integer");
+          set_u32(*p, c, v.as_integer()->get(), path);
+          break;
+        case Kind::kReal:
+          if (v.is_integer()) set_real(*p, c, double(v.as_integer()->get()), path);
+          else if (v.is_floating_point()) set_real(*p, c, v.as_floating_point()->get(), path);
+          else fail(path, key, "must be a number");
+          break;
+        case Kind::kBool:
+          if (!v.is_boolean()) fail(path, key, "must be true or false");
+          *static_cast<bool*>(p->field(c)) = v.as_boolean()->get();
+          break;
+        case Kind::kSorter:
+        case Kind::kInterleave:
+          if (!v.is_string()) fail(path, key, "must be a string (" + range_of(*p) + ")");
+          set_name(*p, c, v.as_string()->get(), path);
+          break;
+      }
+    }
+  }
+  validate_hw_config(c);
+  return c;
+}
+
+void apply_hw_override(HwConfig& c, const std::string& a) {
+  const std::string where = "--hw-set " + a;
+  const auto eq = a.find('=');
+  if (eq == std::string::npos) throw ConfigError(where + ": expected section.key=value");
+  const std::string key = a.substr(0, eq), val = a.substr(eq + 1);
+  const Param* p = find_param(key);
+  if (!p) fail("--hw-set", key, "unknown key");
+  switch (p->kind) {
+    case Kind::kU32: {
+      size_t used = 0;
+      long long v = 0;
+      try { v = std::stoll(val, &used); } catch (...) { used = 0; }
+      if (used != val.size() || val.empty()) fail("--hw-set", key, "\"" + val + "\" is not an integer");
+      set_u32(*p, c, v, "--hw-set");
+      break;
+    }
+    case Kind::kReal: {
+      size_t used = 0;
+      double v = 0;
+      try { v = std::stod(val, &used); } catch (...) { used = 0; }
+      if (used != val.size() || val.empty()) fail("--hw-set", key, "\"" + val + "\" is not a number");
+      set_real(*p, c, v, "--hw-set");
+      break;
+    }
+    case Kind::kBool:
+      if (val != "true" && val != "false") fail("--hw-set", key, "must be true or false");
+      *static_cast<bool*>(p->field(c)) = val == "true";
+      break;
+    default: set_name(*p, c, val, "--hw-set");
+  }
+  validate_hw_config(c);
+}
+
+void validate_hw_config(const HwConfig& c) {
+  const std::string& w = c.name;
+  const uint64_t set_bytes = uint64_t(c.cache.line_bytes) * c.cache.ways;
+  if (c.cache.size_bytes < set_bytes)
+    fail(w, "cache.size_bytes", "smaller than one set (line_bytes x ways = " + std::to_string(set_bytes) + ")");
+  const uint64_t sets = c.cache.size_bytes / set_bytes;
+  if (sets * set_bytes != c.cache.size_bytes || (sets & (sets - 1)))
+    fail(w, "cache.ways", "size_bytes / (line_bytes x ways) must be a power-of-two number of sets");
+  if (c.dram.row_bytes < c.cache.line_bytes) fail(w, "dram.row_bytes", "smaller than cache.line_bytes");
+  if (c.dram.interleave_bytes < c.cache.line_bytes)
+    fail(w, "dram.interleave_bytes", "smaller than cache.line_bytes (a line must not span channels)");
+}
+
+std::string hw_config_to_toml(const HwConfig& cfg) {
+  HwConfig c = cfg;
+  std::ostringstream os;
+  std::string sec;
+  for (const auto& p : params()) {
+    const std::string key(p.key), s = section_of(key);
+    if (s != sec) {
+      os << (sec.empty() ? "" : "\n") << "[" << s << "]\n";
+      sec = s;
+    }
+    os << key.substr(s.size() + 1) << " = " << value_to_string(p, c) << "  # " << p.unit << ": " << p.meaning << "\n";
+  }
+  return os.str();
+}
+
+std::string hw_params_markdown() {
+  std::ostringstream os;
+  os << "| key | unit | default | range | meaning |\n|---|---|---|---|---|\n";
+  for (const auto& p : hw_params())
+    os << "| `" << p.key << "` | " << p.unit << " | " << p.default_value << " | " << p.range << " | " << p.meaning
+       << " |\n";
+  return os.str();
+}
+
+}  // namespace ropsim

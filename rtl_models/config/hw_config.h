@@ -1,0 +1,113 @@
+// The ROP hardware configuration: every parameter declared once with its
+// section, key, unit, range, default and one-line hardware meaning
+// (docs/config.md is generated from the same table: `ropsim config --markdown`).
+// Latencies are cycles of the ROP clock; they are converted to sc_time once,
+// by the Clock of the pipeline.
+#pragma once
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace ropsim {
+
+enum class SorterKind { kBitonic, kRank, kSerial };
+enum class Interleave { kDiagonal, kRow };
+
+const char* to_string(SorterKind k);
+const char* to_string(Interleave k);
+
+struct HwConfig {
+  struct Clock {
+    double frequency_ghz = 1.5;
+  } clock;
+  struct Source {
+    uint32_t fragments_per_clock = 4;
+    uint32_t fifo_depth = 16;
+  } source;
+  struct Distributor {
+    uint32_t rop_units = 4;
+    uint32_t tile_pixels = 16;
+    Interleave interleave = Interleave::kDiagonal;
+    uint32_t fragments_per_clock = 4;
+    uint32_t latency_cycles = 1;
+    uint32_t fifo_depth = 16;
+  } distributor;
+  struct Ordering {
+    uint32_t pixels_in_flight = 128;
+    uint32_t window = 8;
+    uint32_t latency_cycles = 1;
+    uint32_t fifo_depth = 4;
+  } ordering;
+  struct DepthTest {
+    uint32_t samples_per_clock = 16;
+    uint32_t latency_cycles = 2;
+    uint32_t max_outstanding = 32;
+    uint32_t fifo_depth = 4;
+  } depth_test;
+  struct Tracker {
+    uint32_t latency_cycles = 1;
+    uint32_t fifo_depth = 4;
+  } tracker;
+  struct Sorter {
+    SorterKind kind = SorterKind::kBitonic;
+    uint32_t fifo_depth = 4;
+  } sorter;
+  struct AlphaRef {
+    uint32_t lanes = 16;
+    uint32_t pipeline_depth = 4;
+    uint32_t fifo_depth = 4;
+  } alpha_ref;
+  struct Writeback {
+    uint32_t samples_per_clock = 16;
+    uint32_t latency_cycles = 2;
+  } writeback;
+  struct Cache {
+    uint32_t size_bytes = 65536;
+    uint32_t line_bytes = 64;
+    uint32_t ways = 8;
+    uint32_t hit_latency_cycles = 2;
+    bool fast_clear = true;
+  } cache;
+  struct Dram {
+    uint32_t channels = 4;
+    uint32_t bytes_per_clock = 32;
+    uint32_t latency_cycles = 150;
+    uint32_t banks = 16;
+    uint32_t row_bytes = 2048;
+    uint32_t row_miss_cycles = 40;
+    uint32_t interleave_bytes = 256;
+  } dram;
+
+  std::string name = "built-in defaults";  ///< file the config came from
+};
+
+/// A bad configuration file, key or value: the message names the file and key.
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// One declared parameter (for the parser, the docs and the report).
+struct ParamInfo {
+  std::string key;      ///< "section.key"
+  std::string unit;     ///< "cycles", "bytes", "fragments/clock", ...
+  std::string meaning;  ///< one line
+  std::string range;    ///< allowed values, human-readable
+  std::string default_value;
+};
+const std::vector<ParamInfo>& hw_params();
+
+/// Reads a TOML file over the defaults: keys it omits keep their defaults.
+/// Unknown sections or keys, wrong types and out-of-range values throw
+/// ConfigError naming the file and key.
+HwConfig load_hw_config(const std::string& path);
+/// Applies "section.key=value" (as on the command line) to cfg.
+void apply_hw_override(HwConfig& cfg, const std::string& assignment);
+/// Checks cross-parameter constraints (e.g. cache geometry); throws ConfigError.
+void validate_hw_config(const HwConfig& cfg);
+/// The config as TOML text (every key, resolved).
+std::string hw_config_to_toml(const HwConfig& cfg);
+/// docs/config.md's parameter table.
+std::string hw_params_markdown();
+
+}  // namespace ropsim

@@ -1,0 +1,41 @@
+// The ROP clock: converts cycles (the config's unit) to sc_time once, and
+// knows the VCD window. All units of one pipeline share one Clock.
+#pragma once
+#include <systemc>
+
+#include <cmath>
+#include <cstdint>
+
+namespace ropsim {
+
+class Clock {
+ public:
+  /// Call after the simulation context exists (sc_time needs its resolution).
+  explicit Clock(double frequency_ghz)
+      : ghz_(frequency_ghz),
+        ticks_(sc_core::sc_time(double(std::max<long long>(1, std::llround(1000.0 / frequency_ghz))), sc_core::SC_PS)
+                   .value()) {}
+  /// The current cycle.
+  uint64_t now() const { return sc_core::sc_time_stamp().value() / ticks_; }
+  /// A delay of n cycles.
+  sc_core::sc_time cycles(uint64_t n) const { return sc_core::sc_time::from_value(n * ticks_); }
+  double frequency_ghz() const { return ghz_; }
+  /// The period actually simulated, in picoseconds (1000 / GHz, rounded).
+  uint64_t period_ps() const { return ticks_ / sc_core::sc_time(1, sc_core::SC_PS).value(); }
+
+  void set_trace_window(uint64_t first, uint64_t last) {
+    trace_ = true;
+    first_ = first;
+    last_ = last;
+  }
+  /// True while traced variables should follow the model (--vcd-window).
+  bool tracing(uint64_t cycle) const { return trace_ && cycle >= first_ && cycle <= last_; }
+
+ private:
+  double ghz_;
+  uint64_t ticks_;
+  bool trace_ = false;
+  uint64_t first_ = 0, last_ = 0;
+};
+
+}  // namespace ropsim

@@ -1,0 +1,29 @@
+#include "unit.h"
+
+namespace ropsim {
+
+const char* to_string(Activity a) {
+  switch (a) {
+    case Activity::kIdle: return "idle";
+    case Activity::kBusy: return "busy";
+    case Activity::kStarved: return "input_starved";
+    case Activity::kBlocked: return "output_blocked";
+    case Activity::kHazard: return "pixel_hazard";
+    case Activity::kMemory: return "memory";
+  }
+  return "?";
+}
+
+Unit::Unit(const sc_core::sc_module_name& name, const Clock& clk) : sc_module(name), clk_(clk) {
+  SC_METHOD(run);
+  sensitive << wake_;
+  dont_initialize();
+}
+
+void Unit::run() {
+  armed_ = ~uint64_t{0};
+  ++stats_.activations;
+  step(clk_.now());
+}
+
+}  // namespace ropsim

@@ -1,0 +1,58 @@
+// Where the ROP's per-pixel buffers live in memory: three surfaces (depth,
+// colour, tracker), each laid out in 8 x 8-pixel tiles, pixel-major inside a
+// tile and sample-major inside a pixel. Depth is binary32 (4 bytes/sample),
+// colour RGB binary16 (6 bytes/sample), the tracker ceil((spp + id bits) / 8)
+// bytes per pixel. Buffers are 2^48 bytes apart.
+#pragma once
+#include <cstdint>
+
+namespace ropsim {
+
+enum class Buffer : int { kDepth, kColor, kTracker };
+constexpr int kBuffers = 3;
+inline const char* to_string(Buffer b) {
+  return b == Buffer::kDepth ? "depth" : b == Buffer::kColor ? "color" : "tracker";
+}
+
+class AddressMap {
+ public:
+  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes)
+      : tiles_x_((width + 7) / 8), spp_(uint32_t(spp)), tracker_bytes_(tracker_bytes), line_shift_(0) {
+    while ((1u << line_shift_) < line_bytes) ++line_shift_;
+  }
+  uint64_t pixel_index(uint32_t x, uint32_t y) const {
+    return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
+  }
+  static uint64_t base(Buffer b) { return uint64_t(b) << 48; }
+
+  /// Calls f(line_address) once for every cache line holding a sample of the
+  /// mask in the depth or colour buffer, in increasing address order.
+  template <class F>
+  void for_each_sample_line(Buffer b, uint32_t x, uint32_t y, uint64_t mask, F&& f) const {
+    const uint64_t bps = b == Buffer::kDepth ? 4 : 6;
+    const uint64_t start = base(b) + pixel_index(x, y) * spp_ * bps;
+    uint64_t last = ~uint64_t{0};
+    for (; mask; mask &= mask - 1) {
+      const uint64_t a = start + uint64_t(__builtin_ctzll(mask)) * bps;
+      const uint64_t l0 = a >> line_shift_, l1 = (a + bps - 1) >> line_shift_;
+      for (uint64_t l = l0; l <= l1; ++l)
+        if (l != last) {
+          f(l << line_shift_);
+          last = l;
+        }
+    }
+  }
+  /// The same for the pixel's tracker state.
+  template <class F>
+  void for_each_tracker_line(uint32_t x, uint32_t y, F&& f) const {
+    const uint64_t a = base(Buffer::kTracker) + pixel_index(x, y) * tracker_bytes_;
+    for (uint64_t l = a >> line_shift_; l <= (a + tracker_bytes_ - 1) >> line_shift_; ++l) f(l << line_shift_);
+  }
+
+ private:
+  uint64_t tiles_x_;
+  uint64_t spp_, tracker_bytes_;
+  int line_shift_;
+};
+
+}  // namespace ropsim

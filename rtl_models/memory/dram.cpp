@@ -1,0 +1,57 @@
+#include "dram.h"
+
+#include <algorithm>
+
+namespace ropsim {
+
+Dram::Dram(const HwConfig::Dram& cfg) : cfg_(cfg), ch_(cfg.channels) {
+  for (auto& c : ch_) {
+    c.open_row.assign(cfg.banks, ~uint64_t{0});
+    c.bank_free.assign(cfg.banks, 0);
+  }
+}
+
+uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t now) {
+  const uint64_t granule = addr / cfg_.interleave_bytes;
+  // Channel from the granule, folded with higher bits so that the three
+  // buffers (2^48 apart) and tile strides spread over the channels.
+  const uint64_t ch_index = (granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48)) % cfg_.channels;
+  Channel& c = ch_[ch_index];
+  const uint64_t local = (granule / cfg_.channels) * cfg_.interleave_bytes + addr % cfg_.interleave_bytes;
+  const uint64_t row = local / cfg_.row_bytes;
+  const uint64_t bank = (row ^ (addr >> 48)) % cfg_.banks;
+  uint64_t ready = std::max(now, c.bank_free[bank]);  // the bank may still serve an earlier access
+  if (c.open_row[bank] == row) {
+    ++s_.row_hits;
+  } else {
+    ++s_.row_misses;
+    c.open_row[bank] = row;
+    ready += cfg_.row_miss_cycles;  // precharge + activate, in the bank only
+  }
+  const uint64_t transfer = (uint64_t(bytes) + cfg_.bytes_per_clock - 1) / cfg_.bytes_per_clock;
+  const uint64_t start = std::max(ready, c.bus_free);  // the data bus is shared by the banks
+  c.bus_free = start + transfer;
+  c.bank_free[bank] = start + transfer;
+  c.busy += transfer;
+  const uint64_t done = start + transfer + (write ? 0 : cfg_.latency_cycles);
+  if (write) {
+    ++s_.writes;
+    s_.bytes_written[size_t(b)] += bytes;
+  } else {
+    ++s_.reads;
+    s_.bytes_read[size_t(b)] += bytes;
+  }
+  s_.last_completion = std::max(s_.last_completion, done);
+  return done;
+}
+
+DramStats Dram::stats() const {
+  DramStats s = s_;
+  for (const auto& c : ch_) {
+    s.busy_cycles += c.busy;
+    s.max_channel_busy = std::max(s.max_channel_busy, c.busy);
+  }
+  return s;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,47 @@
+// DRAM timing model shared by all ROP units: channels with a data bus of
+// bytes_per_clock, banks with one open row each, a row-miss penalty and a
+// read latency (in the spirit of DRAMsys / ATTILA's memory controller, at
+// burst granularity). Banks work in parallel: a row switch (precharge +
+// activate) occupies its bank, not the channel's data bus, so bank-level
+// parallelism hides row misses until the bus or one bank saturates. A passive model: the caches call it at the current
+// cycle, in simulation-time order, and get the completion cycle back, like a
+// TLM-2 loosely-timed b_transport with an annotated delay. Requests to one
+// channel are served in arrival order (FCFS).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "address_map.h"
+#include "hw_config.h"
+
+namespace ropsim {
+
+struct DramStats {
+  std::array<uint64_t, kBuffers> bytes_read{}, bytes_written{};
+  uint64_t reads = 0, writes = 0, row_hits = 0, row_misses = 0;
+  uint64_t busy_cycles = 0;       ///< sum over channels of data-bus cycles
+  uint64_t max_channel_busy = 0;  ///< the busiest channel's busy cycles
+  uint64_t last_completion = 0;   ///< cycle the last access completes
+};
+
+class Dram {
+ public:
+  explicit Dram(const HwConfig::Dram& cfg);
+  /// One burst of bytes at addr issued at cycle now; returns the cycle its
+  /// data is back (reads) or written (writes).
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t now);
+  DramStats stats() const;
+
+ private:
+  HwConfig::Dram cfg_;
+  struct Channel {
+    uint64_t bus_free = 0, busy = 0;
+    std::vector<uint64_t> open_row;   // per bank, ~0 = closed
+    std::vector<uint64_t> bank_free;  // per bank: cycle its last access ends
+  };
+  std::vector<Channel> ch_;
+  DramStats s_;
+};
+
+}  // namespace ropsim

@@ -1,0 +1,96 @@
+#include "rop_cache.h"
+
+#include <algorithm>
+
+namespace ropsim {
+
+RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, std::unordered_set<uint64_t>& in_dram)
+    : cfg_(cfg), dram_(dram), in_dram_(in_dram), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
+      ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
+  while ((1u << set_shift_) < cfg.line_bytes) ++set_shift_;
+}
+
+RopCache::Way& RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
+  const uint64_t l = line >> set_shift_;
+  const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
+  Way* w = &ways_[size_t(set) * cfg_.ways];
+  Way* victim = w;
+  for (uint32_t i = 0; i < cfg_.ways; ++i) {
+    if (w[i].valid && w[i].tag == line) {
+      hit = true;
+      w[i].lru = ++tick_;
+      return w[i];
+    }
+    if (!w[i].valid) {
+      if (victim->valid) victim = &w[i];
+    } else if (victim->valid && w[i].lru < victim->lru) {
+      victim = &w[i];
+    }
+  }
+  hit = false;
+  evict(*victim, now);
+  victim->valid = true;
+  victim->tag = line;
+  victim->lru = ++tick_;
+  return *victim;
+}
+
+void RopCache::evict(Way& w, uint64_t now) {
+  if (!w.valid) return;
+  ++s_.evictions;
+  if (w.dirty) {
+    ++s_.dirty_evictions;
+    dram_.access(w.tag, cfg_.line_bytes, true, w.buf, now);
+    in_dram_.insert(w.tag);
+  }
+  w.valid = w.dirty = false;
+}
+
+uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
+  bool hit = false;
+  Way& w = lookup(line, hit, now);
+  if (hit) {
+    ++s_.read_hits[size_t(b)];
+    if (w.ready > now + cfg_.hit_latency_cycles) {
+      ++s_.merged;
+      return w.ready;
+    }
+    return now + cfg_.hit_latency_cycles;
+  }
+  ++s_.read_misses[size_t(b)];
+  w.buf = b;
+  w.dirty = false;
+  if (cfg_.fast_clear && !in_dram_.count(line)) {
+    ++s_.clear_fills;
+    w.ready = now + cfg_.hit_latency_cycles;
+  } else {
+    w.ready = dram_.access(line, cfg_.line_bytes, false, b, now) + cfg_.hit_latency_cycles;
+  }
+  return w.ready;
+}
+
+void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
+  bool hit = false;
+  Way& w = lookup(line, hit, now);
+  if (hit) {
+    ++s_.write_hits[size_t(b)];
+  } else {
+    ++s_.write_misses[size_t(b)];
+    w.buf = b;
+    w.ready = now;
+  }
+  w.dirty = true;
+}
+
+uint64_t RopCache::flush(uint64_t now) {
+  uint64_t done = now;
+  for (Way& w : ways_)
+    if (w.valid && w.dirty) {
+      done = std::max(done, dram_.access(w.tag, cfg_.line_bytes, true, w.buf, now));
+      in_dram_.insert(w.tag);
+      w.dirty = false;
+    }
+  return done;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,46 @@
+// Depth test: loads the pixel's stored depths (and, for lk, its tracker
+// state) through the ROP cache, computes the fragment's depth at each covered
+// sample (plane_depth, as the golden model) and removes the samples that fail
+// (z <= stored passes). Up to max_outstanding fragments wait for their data;
+// the first whose data arrives leaves first (hit under miss), which is safe
+// because pixel ordering never lets two fragments of one pixel be in flight.
+// A fragment with no surviving sample retires here.
+#pragma once
+#include <queue>
+#include <vector>
+
+#include "hw_config.h"
+#include "pipe_unit.h"
+#include "rop_cache.h"
+
+namespace ropsim {
+
+class DepthTest : public Unit {
+ public:
+  DepthTest(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::DepthTest& cfg,
+            RopCache& cache, TokenFifo& in, TokenFifo& out);
+  std::vector<Extra> extras() const override;
+
+ protected:
+  void step(uint64_t now) override;
+
+ private:
+  /// The functional depth test; returns the cycle the pixel's state is loaded.
+  uint64_t evaluate(FragToken* t, uint64_t now);
+  struct Pending {
+    uint64_t ready, seq;
+    FragToken* t;
+    bool operator>(const Pending& o) const { return ready != o.ready ? ready > o.ready : seq > o.seq; }
+  };
+  RopContext& ctx_;
+  HwConfig::DepthTest cfg_;
+  RopCache& cache_;
+  TokenFifo& in_;
+  TokenFifo& out_;
+  std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> pending_;
+  uint64_t busy_until_ = 0;
+  bool seen_ = false;
+  uint64_t killed_ = 0, memory_wait_cycles_ = 0;
+};
+
+}  // namespace ropsim

@@ -1,0 +1,35 @@
+// Distributor: routes each fragment to the ROP unit that owns its screen tile
+// (square tiles of tile_pixels, mapped to units by the interleave), up to
+// fragments_per_clock per clock, in order: a full ROP input FIFO blocks it.
+#pragma once
+#include <vector>
+
+#include "hw_config.h"
+#include "pipe_unit.h"
+
+namespace ropsim {
+
+class Distributor : public Unit {
+ public:
+  Distributor(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Distributor& cfg,
+              uint32_t screen_width, TokenFifo& in, std::vector<TokenFifo*> outs);
+  /// The ROP unit owning pixel (x, y).
+  uint32_t rop_of(uint32_t x, uint32_t y) const {
+    const uint32_t tx = x >> tile_shift_, ty = y >> tile_shift_;
+    return cfg_.interleave == Interleave::kDiagonal ? (tx + ty) % cfg_.rop_units
+                                                    : uint32_t((uint64_t(ty) * tiles_x_ + tx) % cfg_.rop_units);
+  }
+
+ protected:
+  void step(uint64_t now) override;
+
+ private:
+  HwConfig::Distributor cfg_;
+  uint32_t tile_shift_ = 0, tiles_x_;
+  TokenFifo& in_;
+  std::vector<TokenFifo*> outs_;
+  uint64_t busy_until_ = 0;
+  bool seen_ = false, closed_ = false;
+};
+
+}  // namespace ropsim

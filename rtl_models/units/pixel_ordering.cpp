@@ -1,0 +1,86 @@
+#include "pixel_ordering.h"
+
+namespace ropsim {
+
+PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Ordering& cfg,
+                             TokenFifo& in, TokenFifo& out)
+    : Unit(name, clk), cfg_(cfg), in_(in), out_(out), in_flight_(cfg.pixels_in_flight) {
+  window_.reserve(cfg.window);
+}
+
+void PixelOrdering::release(uint64_t pixel_key, uint64_t cycle) {
+  releases_.emplace_back(cycle, pixel_key);
+  if (waiting_release_) wake_at(cycle);
+}
+
+void PixelOrdering::step(uint64_t now) {
+  waiting_release_ = false;
+  for (size_t i = 0; i < releases_.size();) {  // retirements that have happened by now
+    if (releases_[i].first <= now) {
+      in_flight_.erase(releases_[i].second);
+      releases_[i] = releases_.back();
+      releases_.pop_back();
+    } else {
+      ++i;
+    }
+  }
+  while (window_.size() < cfg_.window && in_.can_pop(now)) window_.push_back(in_.pop(now));
+  if (now < busy_until_) {
+    wake_at(busy_until_);
+    return;
+  }
+  // The oldest fragment whose pixel is neither in flight nor held by an older
+  // waiting fragment.
+  int pick = -1;
+  if (in_flight_.size() < cfg_.pixels_in_flight) {
+    for (size_t i = 0; i < window_.size() && pick < 0; ++i) {
+      const uint64_t key = window_[i]->pixel_key;
+      if (in_flight_.contains(key)) continue;
+      bool shadowed = false;
+      for (size_t j = 0; j < i && !shadowed; ++j) shadowed = window_[j]->pixel_key == key;
+      if (!shadowed) pick = int(i);
+    }
+  }
+  if (pick >= 0 && out_.can_push(now)) {
+    FragToken* t = window_[size_t(pick)];
+    window_.erase(window_.begin() + pick);
+    overtakes_ += pick > 0;
+    in_flight_.insert(t->pixel_key);
+    if (in_flight_.size() > max_in_flight_) max_in_flight_ = in_flight_.size();
+    out_.push(t, now, now + cfg_.latency_cycles);
+    seen_ = true;
+    ++stats_.fragments;
+    busy_until_ = now + 1;
+    set_activity(Activity::kBusy, now);
+    wake_at(now + 1);
+    return;
+  }
+  if (pick >= 0) {
+    set_activity(Activity::kBlocked, now);
+    out_.wait_for_space();
+  } else if (!window_.empty()) {
+    set_activity(Activity::kHazard, now);
+    waiting_release_ = true;
+    uint64_t next = ~uint64_t{0};
+    for (const auto& r : releases_) next = std::min(next, r.first);
+    if (next != ~uint64_t{0}) wake_at(next);
+  } else if (!in_.empty()) {
+    set_activity(Activity::kStarved, now);
+  } else if (in_.closed()) {
+    if (!out_.closed()) out_.close(now);
+    set_activity(Activity::kIdle, now);
+    return;
+  } else {
+    set_activity(seen_ ? Activity::kStarved : Activity::kIdle, now);
+  }
+  // More input for the window: wake when it becomes visible (a push wakes us
+  // otherwise).
+  if (window_.size() < cfg_.window && !in_.empty()) wake_at(std::max(now + 1, in_.head_visible()));
+}
+
+std::vector<Unit::Extra> PixelOrdering::extras() const {
+  return {{"overtakes", double(overtakes_), "fragments issued ahead of an older waiting fragment"},
+          {"max_pixels_in_flight", double(max_in_flight_), "pixels"}};
+}
+
+}  // namespace ropsim

@@ -1,0 +1,91 @@
+#include "writeback.h"
+
+#include "opacity.h"
+
+namespace ropsim {
+
+Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
+                     const HwConfig::Writeback& cfg, RopCache& cache, TokenFifo& in)
+    : Unit(name, clk), ctx_(ctx), cfg_(cfg), cache_(cache), in_(in) {}
+
+uint32_t Writeback::process(FragToken* t, uint64_t now) {
+  const Numerics& num = ctx_.golden.numerics;
+  const uint16_t* rgb16 = ctx_.half_color(t->f.rgb);
+  Counters& c = ctx_.counters;
+  uint64_t wrote = 0;
+  uint32_t examined = t->m;
+  switch (ctx_.golden.method) {
+    case Method::kLk: {
+      const uint64_t a = ctx_.fixed_alpha(t->f.alpha);
+      for (uint32_t j = 0; j < t->m; ++j)
+        if (opacity_passes(a, num.alpha_bits, t->ref[j], num.hash_bits)) wrote |= uint64_t{1} << t->order[j];
+      c.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+      break;
+    }
+    case Method::kEnderton:
+      for (uint32_t j = 0; j < t->count; ++j) wrote |= uint64_t{1} << t->list[j];
+      c.samples_opacity_passed += t->count;
+      examined = t->count;
+      break;
+    case Method::kNaive: {
+      const uint64_t a = ctx_.fixed_alpha(t->f.alpha);
+      for (uint64_t s = t->survivors; s; s &= s - 1) {
+        const int i = __builtin_ctzll(s);
+        if (opacity_passes(a, num.alpha_bits, t->ref[i], 32)) wrote |= uint64_t{1} << i;
+      }
+      c.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+      break;
+    }
+    case Method::kA2c:
+      wrote = t->survivors;
+      c.samples_depth_passed += t->m;
+      break;
+    case Method::kOpaque:
+      wrote = t->survivors;
+      c.samples_depth_passed += t->m;
+      c.samples_opacity_passed += t->m;
+      break;
+    case Method::kReference: break;
+  }
+  const uint32_t n = uint32_t(__builtin_popcountll(wrote));
+  for (uint64_t s = wrote; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    t->px.write_sample(i, t->z[i], rgb16);
+  }
+  c.samples_written += n;
+  c.depth_bytes_written += 4u * n;
+  c.color_bytes_written += 6u * n;
+  written_ += n;
+  ctx_.amap.for_each_sample_line(Buffer::kDepth, t->f.x, t->f.y, wrote,
+                                 [&](uint64_t line) { cache_.write(line, Buffer::kDepth, now); });
+  ctx_.amap.for_each_sample_line(Buffer::kColor, t->f.x, t->f.y, wrote,
+                                 [&](uint64_t line) { cache_.write(line, Buffer::kColor, now); });
+  return examined;
+}
+
+void Writeback::step(uint64_t now) {
+  if (now < busy_until_) {
+    wake_at(busy_until_);
+    return;
+  }
+  if (!in_.can_pop(now)) {
+    if (!in_.empty()) {
+      set_activity(Activity::kStarved, now);
+      wake_at(in_.head_visible());
+    } else {
+      set_activity(seen_ && !in_.closed() ? Activity::kStarved : Activity::kIdle, now);
+    }
+    return;
+  }
+  FragToken* t = in_.pop(now);
+  seen_ = true;
+  ++stats_.fragments;
+  const uint32_t examined = process(t, now);
+  stats_.samples += examined;
+  busy_until_ = now + std::max<uint32_t>(1, ceil_div(examined, cfg_.samples_per_clock));
+  ctx_.retire(t, now + cfg_.latency_cycles);
+  set_busy(now, busy_until_, Activity::kStarved);
+  if (!in_.empty()) wake_at(std::max(busy_until_, in_.head_visible()));
+}
+
+}  // namespace ropsim

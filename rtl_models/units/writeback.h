@@ -1,0 +1,34 @@
+// Writeback: the opacity test (lk: alpha >= reference, in the fixed-point
+// rule of opacity.h) and the conditional depth and colour writes through the
+// ROP cache. samples_per_clock tests and writes per clock; after the latency
+// the fragment retires and its pixel leaves the scoreboard.
+#pragma once
+#include "hw_config.h"
+#include "pipe_unit.h"
+#include "rop_cache.h"
+
+namespace ropsim {
+
+class Writeback : public Unit {
+ public:
+  Writeback(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::Writeback& cfg,
+            RopCache& cache, TokenFifo& in);
+  std::vector<Extra> extras() const override {
+    return {{"samples_written", double(written_), "samples whose depth and colour were written"}};
+  }
+
+ protected:
+  void step(uint64_t now) override;
+
+ private:
+  /// The functional writeback; returns the samples it examined.
+  uint32_t process(FragToken* t, uint64_t now);
+  RopContext& ctx_;
+  HwConfig::Writeback cfg_;
+  RopCache& cache_;
+  TokenFifo& in_;
+  uint64_t busy_until_ = 0, written_ = 0;
+  bool seen_ = false;
+};
+
+}  // namespace ropsim

@@ -1,0 +1,168 @@
+#include "cycle_run.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "rop_pipeline.h"
+
+namespace ropsim {
+
+namespace {
+
+/// A fresh SystemC kernel for one run: SystemC elaborates once per context.
+class FreshSimContext {
+ public:
+  FreshSimContext() {
+    setenv("SYSTEMC_DISABLE_COPYRIGHT_MESSAGE", "1", 1);
+    ctx_ = new sc_core::sc_simcontext;
+    sc_core::sc_curr_simcontext = ctx_;
+    sc_core::sc_default_global_context = ctx_;
+    sc_core::sc_report_handler::set_actions(sc_core::SC_INFO, sc_core::SC_DO_NOTHING);
+  }
+  ~FreshSimContext() {
+    delete ctx_;
+    sc_core::sc_curr_simcontext = nullptr;
+    sc_core::sc_default_global_context = nullptr;
+  }
+
+ private:
+  sc_core::sc_simcontext* ctx_;
+};
+
+/// Pull-style fragments from the input, repeated in.repeat times.
+TraceSource::Supplier make_supplier(const InputSpec& in, TraceHeader& header) {
+  if (in.from_trace()) {
+    auto reader = std::make_shared<TraceReader>(in.trace_path);
+    header = reader->header();
+    auto pass = std::make_shared<uint32_t>(1);
+    const std::string path = in.trace_path;
+    const uint32_t repeat = in.repeat;
+    return [reader, pass, path, repeat](Fragment& f) mutable {
+      while (!reader->next(f)) {
+        if (*pass >= repeat) return false;
+        ++*pass;
+        reader = std::make_shared<TraceReader>(path);
+      }
+      return true;
+    };
+  }
+  auto list = std::make_shared<FragmentList>(load_fragments(InputSpec{"", in.scene, 1}));
+  header = list->header;
+  const uint64_t total = uint64_t(list->fragments.size()) * in.repeat;
+  auto i = std::make_shared<uint64_t>(0);
+  return [list, i, total](Fragment& f) {
+    if (*i >= total) return false;
+    f = list->fragments[size_t(*i % list->fragments.size())];
+    ++*i;
+    return true;
+  };
+}
+
+std::string classify(const CycleStats& s) {
+  char buf[256];
+  if (s.memory_bound) {
+    std::snprintf(buf, sizeof buf, "memory-bound: the busiest DRAM channel is busy %.0f%% of the cycles (%.1f of %.1f GB/s)",
+                  100 * s.dram_utilization, s.dram_achieved_gbps, s.dram_peak_gbps);
+    return buf;
+  }
+  // The unit kind whose instances are busiest on average.
+  std::string best;
+  double best_busy = 0;
+  std::vector<std::string> kinds;
+  for (const auto& u : s.units)
+    if (std::find(kinds.begin(), kinds.end(), u.kind) == kinds.end()) kinds.push_back(u.kind);
+  for (const auto& k : kinds) {
+    double busy = 0;
+    int n = 0;
+    for (const auto& u : s.units)
+      if (u.kind == k) {
+        busy += double(u.stats.cycles[size_t(Activity::kBusy)]);
+        ++n;
+      }
+    busy /= double(n) * double(std::max<uint64_t>(1, s.total_cycles));
+    if (busy > best_busy) {
+      best_busy = busy;
+      best = k;
+    }
+  }
+  if (best == "trace_source")
+    std::snprintf(buf, sizeof buf, "source-bound: the trace source delivers fragments %.0f%% of the cycles (%u per clock)",
+                  100 * best_busy, s.hw.source.fragments_per_clock);
+  else
+    std::snprintf(buf, sizeof buf, "%s-bound: busiest unit kind, busy %.0f%% of the cycles on average", best.c_str(),
+                  100 * best_busy);
+  return buf;
+}
+
+}  // namespace
+
+CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
+  if (method.method == Method::kReference)
+    throw std::invalid_argument("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
+  if (const char* err = validate(method.numerics)) throw std::invalid_argument(err);
+  validate_hw_config(hw);
+  const auto t0 = std::chrono::steady_clock::now();
+  CycleRun run;
+  FreshSimContext sim;
+  TraceSource::Supplier supplier = make_supplier(in, run.header);
+  auto top = std::make_unique<RopPipeline>("top", run.header, method, hw, std::move(supplier));
+  top->source().on_progress = opt.progress;
+  top->context().retire_hook = opt.retire_hook;
+  std::string vcd_tmp;
+  if (!opt.vcd_path.empty()) {
+    vcd_tmp = opt.vcd_path + ".tmp";
+    top->trace_to(vcd_tmp, opt.vcd_first, opt.vcd_last);
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  try {
+    top->run();
+  } catch (...) {
+    top.reset();
+    if (!vcd_tmp.empty()) std::filesystem::remove(vcd_tmp + ".vcd");
+    throw;
+  }
+  run.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+
+  CycleStats& s = run.stats;
+  s.hw = hw;
+  s.period_ps = top->clock().period_ps();
+  s.total_cycles = top->total_cycles();
+  s.pipeline_cycles = top->pipeline_cycles();
+  s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
+  RopContext& ctx = top->context();
+  const double cyc = double(std::max<uint64_t>(1, s.total_cycles));
+  s.fragments_per_clock = double(ctx.counters.fragments) / cyc;
+  s.samples_per_clock = double(ctx.counters.samples_tested) / cyc;
+  for (const auto& u : top->units()) {
+    s.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), u.unit->extras()});
+    s.activations += u.unit->stats().activations;
+  }
+  for (auto* f : top->fifos()) s.fifos.push_back(f->stats(s.total_cycles));
+  for (const auto& c : top->caches()) s.caches.push_back(c->stats());
+  s.dram = top->dram().stats();
+  s.dram_peak_gbps = double(hw.dram.channels) * hw.dram.bytes_per_clock * hw.clock.frequency_ghz;
+  uint64_t bytes = 0;
+  for (int b = 0; b < kBuffers; ++b) bytes += s.dram.bytes_read[size_t(b)] + s.dram.bytes_written[size_t(b)];
+  s.dram_achieved_gbps = s.frame_time_us > 0 ? double(bytes) / (s.frame_time_us * 1e3) : 0.0;
+  s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
+  s.memory_bound = s.dram_utilization >= 0.8;
+  s.bottleneck = classify(s);
+  s.tokens_allocated = ctx.pool.allocated();
+
+  run.counters = ctx.counters;
+  run.image = ctx.store.resolve();
+  run.state_bytes = ctx.store.state_bytes();
+  run.state = std::make_unique<SampleStore>(std::move(ctx.store));
+  top.reset();  // closes the VCD file
+  if (!vcd_tmp.empty()) std::filesystem::rename(vcd_tmp + ".vcd", opt.vcd_path);
+  run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return run;
+}
+
+}  // namespace ropsim
+
+// libsystemc.so calls sc_main from its own main(); ropsim has its own main()
+// and starts SystemC through run_cycle, so this is never called.
+int sc_main(int, char**) { return 1; }

@@ -1,0 +1,70 @@
+// Runs the cycle-approximate SystemC pipeline over an input, in a fresh
+// SystemC simulation context (so one process can run many), and gathers its
+// statistics. Model code never prints: the report printers format CycleStats.
+#pragma once
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "driver.h"
+#include "dram.h"
+#include "hw_config.h"
+#include "rop_cache.h"
+#include "rop_context.h"
+#include "timed_fifo.h"
+#include "unit.h"
+
+namespace ropsim {
+
+struct CycleOptions {
+  std::string vcd_path;  ///< non-empty: write a VCD waveform here
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycle window of the waveform
+  std::function<void(uint64_t fragments)> progress;  ///< every 65536 fragments
+  std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
+};
+
+struct UnitReport {
+  std::string name;  ///< SystemC instance name
+  std::string kind;  ///< trace_source, distributor, pixel_ordering, depth_test, ...
+  int rop = -1;      ///< ROP index, -1 for shared units
+  UnitStats stats;
+  std::vector<Unit::Extra> extras;
+};
+
+struct CycleStats {
+  HwConfig hw;
+  uint64_t period_ps = 0;        ///< simulated clock period
+  uint64_t total_cycles = 0;     ///< to the end of the final cache flush
+  uint64_t pipeline_cycles = 0;  ///< to the retirement of the last fragment
+  double frame_time_us = 0;      ///< total_cycles at the configured clock
+  double fragments_per_clock = 0, samples_per_clock = 0;  ///< over total_cycles
+  std::vector<UnitReport> units;
+  std::vector<FifoStats> fifos;
+  std::vector<CacheStats> caches;  ///< per ROP
+  DramStats dram;
+  double dram_peak_gbps = 0;      ///< channels x bytes/clock x GHz (GB/s = 1e9 B/s)
+  double dram_achieved_gbps = 0;  ///< bytes moved / frame time
+  double dram_utilization = 0;    ///< busiest channel's busy cycles / total cycles
+  bool memory_bound = false;      ///< dram_utilization >= 0.8
+  std::string bottleneck;         ///< one line: what limits the frame
+  uint64_t activations = 0;       ///< SystemC process activations (host cost)
+  size_t tokens_allocated = 0;    ///< fragment tokens ever in flight at once (upper bound)
+};
+
+struct CycleRun {
+  TraceHeader header;
+  Counters counters;
+  Image image;
+  std::unique_ptr<SampleStore> state;  ///< the final per-sample state
+  CycleStats stats;
+  size_t state_bytes = 0;
+  double wall_seconds = 0;  ///< whole run: input, elaboration, simulation, resolve
+  double sim_seconds = 0;   ///< sc_start alone
+};
+
+/// Throws std::invalid_argument for the reference method (it has no pipeline)
+/// and TraceError for a bad trace.
+CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt = {});
+
+}  // namespace ropsim

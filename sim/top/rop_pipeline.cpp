@@ -1,0 +1,130 @@
+#include "rop_pipeline.h"
+
+#include "alpha_ref_gen.h"
+#include "coverage_tracker.h"
+#include "depth_test.h"
+#include "pixel_ordering.h"
+#include "sample_sorter.h"
+#include "writeback.h"
+
+namespace ropsim {
+
+RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader& header, const GoldenConfig& method,
+                         const HwConfig& hw, TraceSource::Supplier supplier)
+    : sc_module(name), hw_(hw), clk_(hw.clock.frequency_ghz), ctx_(header, method, hw.cache.line_bytes),
+      dram_(hw.dram) {
+  const Method m = method.method;
+  if (m == Method::kReference) throw std::invalid_argument("the reference method has no ROP pipeline");
+  const bool lk = m == Method::kLk;
+  const bool hashes = lk || m == Method::kEnderton || m == Method::kNaive;
+  const int spp = header.spp;
+  const uint32_t n_rops = hw.distributor.rop_units;
+
+  TokenFifo& src_out = make_fifo("source_to_distributor", hw.source.fifo_depth, 1);
+  source_ = &add("trace_source", -1,
+                 std::make_unique<TraceSource>("trace_source", clk_, ctx_, hw.source, std::move(supplier), src_out));
+  std::vector<TokenFifo*> rop_in;
+  for (uint32_t r = 0; r < n_rops; ++r)
+    rop_in.push_back(&make_fifo("rop" + std::to_string(r) + ".input", hw.distributor.fifo_depth,
+                                hw.distributor.latency_cycles));
+  auto& dist = add("distributor", -1,
+                   std::make_unique<Distributor>("distributor", clk_, hw.distributor, header.width, src_out, rop_in));
+  src_out.connect(source_, &dist);
+
+  ctx_.ordering.resize(n_rops);
+  for (uint32_t r = 0; r < n_rops; ++r) {
+    const std::string p = "rop" + std::to_string(r) + ".";   // FIFO names
+    const std::string u = "rop" + std::to_string(r) + "_";   // module names ('.' is the hierarchy separator)
+    const int ri = int(r);
+    caches_.push_back(std::make_unique<RopCache>(hw.cache, dram_, in_dram_));
+    RopCache& cache = *caches_.back();
+
+    TokenFifo& ord_out = make_fifo(p + "ordering_to_depth", hw.ordering.fifo_depth, hw.ordering.latency_cycles);
+    auto& ord = add("pixel_ordering", ri,
+                    std::make_unique<PixelOrdering>((u + "pixel_ordering").c_str(), clk_, hw.ordering, *rop_in[r], ord_out));
+    rop_in[r]->connect(&dist, &ord);
+    ctx_.ordering[r] = &ord;
+
+    TokenFifo& dt_out = make_fifo(p + "depth_out", hw.depth_test.fifo_depth, hw.depth_test.latency_cycles);
+    Unit* prev = &add("depth_test", ri,
+                      std::make_unique<DepthTest>((u + "depth_test").c_str(), clk_, ctx_, hw.depth_test, cache, ord_out,
+                                                  dt_out));
+    ord_out.connect(&ord, prev);
+    TokenFifo* link = &dt_out;
+
+    if (lk) {
+      TokenFifo& tr_out = make_fifo(p + "tracker_to_sorter", hw.tracker.fifo_depth, hw.tracker.latency_cycles);
+      Unit* tr = &add("coverage_tracker", ri,
+                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, ctx_, hw.tracker, cache,
+                                                        *link, tr_out));
+      link->connect(prev, tr);
+      prev = tr;
+      link = &tr_out;
+      auto algo = make_sorter(hw.sorter.kind, spp);
+      TokenFifo& so_out = make_fifo(p + "sorter_to_alpha_ref", hw.sorter.fifo_depth, algo->latency_cycles(spp));
+      Unit* so = &add("sample_sorter", ri,
+                      std::make_unique<SampleSorter>((u + "sample_sorter").c_str(), clk_, ctx_, std::move(algo), *link,
+                                                     so_out));
+      link->connect(prev, so);
+      prev = so;
+      link = &so_out;
+    }
+    if (hashes) {
+      const uint32_t worst = hw.alpha_ref.pipeline_depth + ceil_div(uint32_t(spp) + 1, hw.alpha_ref.lanes) - 1;
+      TokenFifo& ar_out = make_fifo(p + "alpha_ref_to_writeback", hw.alpha_ref.fifo_depth, worst);
+      Unit* ar = &add("alpha_ref_gen", ri,
+                      std::make_unique<AlphaRefGen>((u + "alpha_ref_gen").c_str(), clk_, ctx_, hw.alpha_ref, *link,
+                                                    ar_out));
+      link->connect(prev, ar);
+      prev = ar;
+      link = &ar_out;
+    }
+    Unit* wb = &add("writeback", ri,
+                    std::make_unique<Writeback>((u + "writeback").c_str(), clk_, ctx_, hw.writeback, cache, *link));
+    link->connect(prev, wb);
+  }
+}
+
+RopPipeline::~RopPipeline() {
+  if (vcd_) sc_core::sc_close_vcd_trace_file(vcd_);
+}
+
+TokenFifo& RopPipeline::make_fifo(const std::string& name, uint32_t depth, uint32_t producer_latency) {
+  fifos_.push_back(std::make_unique<TokenFifo>(name, depth + producer_latency, clk_));
+  return *fifos_.back();
+}
+
+template <class U>
+U& RopPipeline::add(const std::string& kind, int rop, std::unique_ptr<U> u) {
+  U& ref = *u;
+  units_.push_back(UnitEntry{kind, rop, u.get()});
+  owned_.push_back(std::move(u));
+  return ref;
+}
+
+std::vector<TokenFifo*> RopPipeline::fifos() const {
+  std::vector<TokenFifo*> v;
+  for (const auto& f : fifos_) v.push_back(f.get());
+  return v;
+}
+
+void RopPipeline::trace_to(const std::string& vcd_base, uint64_t first, uint64_t last) {
+  vcd_ = sc_core::sc_create_vcd_trace_file(vcd_base.c_str());
+  clk_.set_trace_window(first, last);
+  for (const auto& u : units_) sc_core::sc_trace(vcd_, u.unit->trace_activity, std::string(u.unit->name()) + ".activity");
+  for (const auto& f : fifos_) sc_core::sc_trace(vcd_, f->trace_occupancy, f->name() + ".occupancy");
+}
+
+uint64_t RopPipeline::run() {
+  sc_core::sc_start();
+  if (source_->error()) std::rethrow_exception(source_->error());
+  pipeline_cycles_ = std::max(ctx_.last_retire, clk_.now());
+  uint64_t end = pipeline_cycles_;
+  for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
+  total_cycles_ = std::max(end, dram_.stats().last_completion);
+  for (const auto& u : units_) u.unit->close_accounting(total_cycles_);
+  ctx_.counters.tiles_touched = ctx_.store.tiles();
+  return total_cycles_;
+}
+
+}  // namespace ropsim

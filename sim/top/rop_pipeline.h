@@ -1,0 +1,77 @@
+// The top of the cycle-approximate model: elaborates the pipeline for one
+// trace header, method and hardware config. Only the units the method needs
+// exist: lk has all five per ROP; enderton and naive skip the tracker and
+// the sorter; a2c and opaque also skip the alpha-reference generator.
+//
+//   source -> distributor -+-> ordering -> depth test -> [tracker -> sorter] -> [alpha ref] -> writeback
+//                          +-> ... one chain per ROP unit, each with its ROP cache, all sharing the DRAM
+#pragma once
+#include <systemc>
+
+#include <memory>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "clock.h"
+#include "distributor.h"
+#include "dram.h"
+#include "hw_config.h"
+#include "rop_cache.h"
+#include "rop_context.h"
+#include "trace_source.h"
+
+namespace ropsim {
+
+class PixelOrdering;
+
+class RopPipeline : public sc_core::sc_module {
+ public:
+  RopPipeline(const sc_core::sc_module_name& name, const TraceHeader& header, const GoldenConfig& method,
+              const HwConfig& hw, TraceSource::Supplier supplier);
+  ~RopPipeline() override;
+
+  /// Runs to the end of the trace, then flushes the caches; returns the
+  /// total cycles. Rethrows a supplier error (a bad trace record).
+  uint64_t run();
+  /// Writes a VCD waveform of unit activities and FIFO occupancies for the
+  /// cycles [first, last]; call before run(). SystemC appends ".vcd".
+  void trace_to(const std::string& vcd_base, uint64_t first, uint64_t last);
+
+  RopContext& context() { return ctx_; }
+  const Clock& clock() const { return clk_; }
+  TraceSource& source() { return *source_; }
+  const HwConfig& hw() const { return hw_; }
+
+  struct UnitEntry {
+    std::string kind;  ///< "depth_test", ...
+    int rop;           ///< -1 for shared units
+    Unit* unit;
+  };
+  const std::vector<UnitEntry>& units() const { return units_; }
+  std::vector<TokenFifo*> fifos() const;
+  const std::vector<std::unique_ptr<RopCache>>& caches() const { return caches_; }
+  const Dram& dram() const { return dram_; }
+  uint64_t pipeline_cycles() const { return pipeline_cycles_; }
+  uint64_t total_cycles() const { return total_cycles_; }
+
+ private:
+  TokenFifo& make_fifo(const std::string& name, uint32_t depth, uint32_t producer_latency);
+  template <class U>
+  U& add(const std::string& kind, int rop, std::unique_ptr<U> u);
+
+  HwConfig hw_;
+  Clock clk_;
+  RopContext ctx_;
+  Dram dram_;
+  std::unordered_set<uint64_t> in_dram_;
+  std::vector<std::unique_ptr<RopCache>> caches_;
+  std::vector<std::unique_ptr<TokenFifo>> fifos_;
+  std::vector<std::unique_ptr<Unit>> owned_;
+  std::vector<UnitEntry> units_;
+  TraceSource* source_ = nullptr;
+  sc_core::sc_trace_file* vcd_ = nullptr;
+  uint64_t pipeline_cycles_ = 0, total_cycles_ = 0;
+};
+
+}  // namespace ropsim
