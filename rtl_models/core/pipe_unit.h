@@ -44,7 +44,7 @@ class PipeUnit : public Unit {
     }
     if (!out_.can_push(now)) {
       set_activity(Activity::kBlocked, now);
-      out_.wait_for_space();
+      out_.wait_for_space(now);
       return;
     }
     FragToken* t = in_.pop(now);

@@ -73,8 +73,12 @@ class TimedFifo {
     }
     return v;
   }
-  /// The producer found the FIFO full: wake it when a slot frees.
-  void wait_for_space() { producer_waiting_ = true; }
+  /// The producer found the FIFO full at cycle now: wake it when a slot
+  /// frees (at now + 1 if one was freed this very cycle).
+  void wait_for_space(uint64_t now) {
+    if (size_ < cap_) producer_->wake_at(now + 1);
+    else producer_waiting_ = true;
+  }
   /// The producer will push nothing more; the consumer is woken to notice.
   void close(uint64_t now) {
     closed_ = true;

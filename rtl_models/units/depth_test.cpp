@@ -69,7 +69,7 @@ void DepthTest::step(uint64_t now) {
     if (emitted) break;
     if (!out_.can_push(now)) {
       blocked = true;
-      out_.wait_for_space();
+      out_.wait_for_space(now);
       break;
     }
     pending_.pop();

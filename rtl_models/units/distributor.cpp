@@ -21,7 +21,7 @@ void Distributor::step(uint64_t now) {
     const uint32_t r = rop_of(t->f.x, t->f.y);
     if (!outs_[r]->can_push(now)) {
       blocked = true;
-      outs_[r]->wait_for_space();
+      outs_[r]->wait_for_space(now);
       break;
     }
     in_.pop(now);

@@ -57,7 +57,7 @@ void PixelOrdering::step(uint64_t now) {
   }
   if (pick >= 0) {
     set_activity(Activity::kBlocked, now);
-    out_.wait_for_space();
+    out_.wait_for_space(now);
   } else if (!window_.empty()) {
     set_activity(Activity::kHazard, now);
     waiting_release_ = true;

@@ -50,11 +50,11 @@ void TraceSource::step(uint64_t now) {
     wake_at(now + 1);
   } else if (blocked) {
     set_activity(Activity::kBlocked, now);
-    out_.wait_for_space();
+    out_.wait_for_space(now);
   } else {
     set_activity(Activity::kIdle, now);
   }
-  if (blocked && n) out_.wait_for_space();
+  if (blocked && n) out_.wait_for_space(now);
 }
 
 }  // namespace ropsim

@@ -6,30 +6,11 @@
 #include <filesystem>
 
 #include "rop_pipeline.h"
+#include "sim_context.h"
 
 namespace ropsim {
 
 namespace {
-
-/// A fresh SystemC kernel for one run: SystemC elaborates once per context.
-class FreshSimContext {
- public:
-  FreshSimContext() {
-    setenv("SYSTEMC_DISABLE_COPYRIGHT_MESSAGE", "1", 1);
-    ctx_ = new sc_core::sc_simcontext;
-    sc_core::sc_curr_simcontext = ctx_;
-    sc_core::sc_default_global_context = ctx_;
-    sc_core::sc_report_handler::set_actions(sc_core::SC_INFO, sc_core::SC_DO_NOTHING);
-  }
-  ~FreshSimContext() {
-    delete ctx_;
-    sc_core::sc_curr_simcontext = nullptr;
-    sc_core::sc_default_global_context = nullptr;
-  }
-
- private:
-  sc_core::sc_simcontext* ctx_;
-};
 
 /// Pull-style fragments from the input, repeated in.repeat times.
 TraceSource::Supplier make_supplier(const InputSpec& in, TraceHeader& header) {
@@ -67,32 +48,42 @@ std::string classify(const CycleStats& s) {
                   100 * s.dram_utilization, s.dram_achieved_gbps, s.dram_peak_gbps);
     return buf;
   }
-  // The unit kind whose instances are busiest on average.
-  std::string best;
-  double best_busy = 0;
+  // The unit kind whose instances spend the most cycles working or waiting on
+  // their own resources (busy, memory, pixel hazard) rather than on their
+  // neighbours (starved, blocked): the stage that sets the pace.
   std::vector<std::string> kinds;
   for (const auto& u : s.units)
     if (std::find(kinds.begin(), kinds.end(), u.kind) == kinds.end()) kinds.push_back(u.kind);
+  std::string best;
+  double best_own = -1, parts[3] = {0, 0, 0};
+  const double total = double(std::max<uint64_t>(1, s.total_cycles));
   for (const auto& k : kinds) {
-    double busy = 0;
+    double p[3] = {0, 0, 0};
     int n = 0;
     for (const auto& u : s.units)
       if (u.kind == k) {
-        busy += double(u.stats.cycles[size_t(Activity::kBusy)]);
+        p[0] += double(u.stats.cycles[size_t(Activity::kBusy)]);
+        p[1] += double(u.stats.cycles[size_t(Activity::kMemory)]);
+        p[2] += double(u.stats.cycles[size_t(Activity::kHazard)]);
         ++n;
       }
-    busy /= double(n) * double(std::max<uint64_t>(1, s.total_cycles));
-    if (busy > best_busy) {
-      best_busy = busy;
+    for (double& x : p) x /= double(n) * total;
+    if (p[0] + p[1] + p[2] > best_own) {
+      best_own = p[0] + p[1] + p[2];
       best = k;
+      std::copy(p, p + 3, parts);
     }
   }
-  if (best == "trace_source")
+  if (best == "trace_source") {
     std::snprintf(buf, sizeof buf, "source-bound: the trace source delivers fragments %.0f%% of the cycles (%u per clock)",
-                  100 * best_busy, s.hw.source.fragments_per_clock);
-  else
-    std::snprintf(buf, sizeof buf, "%s-bound: busiest unit kind, busy %.0f%% of the cycles on average", best.c_str(),
-                  100 * best_busy);
+                  100 * parts[0], s.hw.source.fragments_per_clock);
+  } else {
+    const char* why = parts[1] >= parts[0] && parts[1] >= parts[2] ? "memory latency"
+                      : parts[2] >= parts[0]                       ? "pixel hazards"
+                                                                   : "throughput";
+    std::snprintf(buf, sizeof buf, "%s-bound (%s): busy %.0f%%, waiting for memory %.0f%%, pixel hazard %.0f%% of the cycles",
+                  best.c_str(), why, 100 * parts[0], 100 * parts[1], 100 * parts[2]);
+  }
   return buf;
 }
 
