@@ -337,3 +337,66 @@ TEST(Cli, AlphaRefVectors) {
 }
 
 }  // namespace
+
+// ------------------------------------------------------------------ cycle fidelity
+
+TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
+  CliSandbox box;
+  expect_ok(box.run("run --scene eight-layers --spp 4 --quiet --out f.exr"), "functional run");
+  expect_ok(box.run("run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR "/configs/narrow.toml' --scene eight-layers --spp 4 "
+                    "--quiet --out c.exr --report c.json --vcd w.vcd --vcd-window 100:400"),
+            "cycle run");
+  const CliResult cmp = box.run("compare c.exr f.exr --json");
+  EXPECT_NE(cmp.out.find("\"rmse_8bit\": 0.000000"), std::string::npos) << cmp.describe();
+  const auto j = nlohmann::json::parse(slurp(box.work() / "c.json"));
+  EXPECT_EQ(j["fidelity"], "cycle");
+  const auto& t = j["timing"];
+  for (const char* k : {"total_cycles", "frame_time_us", "fragments_per_clock", "samples_per_clock", "units", "fifos",
+                        "cache", "dram", "bottleneck", "memory_bound"})
+    EXPECT_TRUE(t.contains(k)) << "timing." << k << " missing";
+  for (const char* b : {"depth", "color", "tracker"}) {
+    EXPECT_TRUE(t["dram"].contains(b)) << "dram bytes per buffer: " << b;
+    EXPECT_TRUE(t["cache"].contains(b)) << "cache hits per buffer: " << b;
+  }
+  for (const auto& u : t["units"])
+    for (const char* a : {"busy", "idle", "input_starved", "output_blocked", "pixel_hazard", "memory"})
+      EXPECT_TRUE(u["cycles"].contains(a)) << u["name"] << " lacks " << a;
+  // The waveform: a VCD with the units' activities, changes only inside the window.
+  const std::string vcd = slurp(box.work() / "w.vcd");
+  EXPECT_NE(vcd.find("$var"), std::string::npos);
+  EXPECT_NE(vcd.find("rop0_depth_test"), std::string::npos);
+  EXPECT_NE(vcd.find(" activity "), std::string::npos);
+  // narrow.toml clocks at 1 GHz: cycle c is at c * 1000 ps. Value changes lie
+  // inside cycles 100..400 (the last time stamp may close the file).
+  std::vector<uint64_t> stamps;
+  for (const auto& l : lines_of(vcd))
+    if (l.size() > 1 && l[0] == '#') stamps.push_back(std::stoull(l.substr(1)));
+  ASSERT_GE(stamps.size(), 3u) << "no value changes in the window";
+  for (size_t i = 0; i + 1 < stamps.size(); ++i)
+    EXPECT_TRUE(stamps[i] >= 100000 && stamps[i] <= 400000) << "VCD change at " << stamps[i] << " ps, outside 100:400";
+  EXPECT_FALSE(box.files().count("w.vcd.tmp.vcd")) << "temporary waveform left behind";
+}
+
+TEST(CliCycle, BadCycleFlagsFailInOneLine) {
+  CliSandbox box;
+  expect_cli_error(box, "run --hw nope.toml --scene testcard --spp 1", {"--hw"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --vcd w.vcd --vcd-window 9:3", {"--vcd-window"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --vcd-window 1:3", {"--vcd"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --hw-set dram.chanels=2", {"dram.chanels"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --hw-set dram.channels=0", {"dram.channels"});
+  expect_cli_error(box, "run --fidelity cycle --method reference --scene testcard --spp 1", {"reference"});
+  expect_cli_error(box, "run --scene testcard --spp 1 --hw-set dram.channels=2", {"--hw-set", "cycle"});
+  {
+    std::ofstream(box.path("bad.toml")) << "[cache]\nways = 3\n";
+  }
+  expect_cli_error(box, "run --fidelity cycle --hw bad.toml --scene testcard --spp 1 --out x.png", {"bad.toml", "cache."});
+}
+
+TEST(CliCycle, ConfigCommandPrintsTheDocumentedTable) {
+  CliSandbox box;
+  const CliResult r = box.run("config --markdown");
+  expect_ok(r, "config --markdown");
+  const std::string doc = slurp(fs::path(ROPSIM_SOURCE_DIR) / "docs" / "config.md");
+  EXPECT_NE(doc.find(r.out), std::string::npos) << "docs/config.md is out of date: regenerate its table with "
+                                                   "`ropsim config --markdown`";
+}
