@@ -16,6 +16,10 @@ for m in reference lk enderton naive a2c; do
   "$ropsim" run --trace "$out/$scene-${spp}spp.trace" --method "$m" --vs-reference \
     --out "$out/$scene-$m.png" --out "$out/$scene-$m.exr" --report "$out/$scene-$m.json" --quiet
 done
+# The same trace through the cycle-approximate SystemC pipeline (default design):
+# the image is the golden one; the report adds cycles, bandwidth and stalls.
+"$ropsim" run --fidelity cycle --hw "$root/configs/default.toml" --trace "$out/$scene-${spp}spp.trace" --method lk \
+  --out "$out/$scene-lk-cycle.png" --report "$out/$scene-lk-cycle.json"
 echo
 echo "RMSE against the A-buffer reference ($scene, $spp spp, 8-bit units):"
 for m in lk enderton naive a2c; do
