@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "cmd_capture.h"
 #include "driver.h"
 #include "image_io.h"
 #include "report.h"
@@ -242,6 +243,8 @@ int main(int argc, char** argv) {
   vec->add_option("--hash-bits", vec_num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
   vec->add_option("--surface-id-bits", vec_num.surface_id_bits, "tracker: surface id width (1..32)")->check(CLI::Range(1, 32));
 
+  auto run_capture = add_capture_command(app);  // capture: sim/cli/cmd_capture.cpp
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -249,6 +252,7 @@ int main(int argc, char** argv) {
   }
 
   try {
+    if (int rc = run_capture(); rc >= 0) return rc;
     if (run->parsed()) return cmd_run(ro, *run, cmdline);
     if (cmp->parsed()) {
       CompareResult c = compare_image_files(cmp_a, cmp_b);

@@ -86,6 +86,11 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
       const int n = __builtin_popcountll(cov);
       double bc[3], bz[3];
       bary(double(sx_sum) / n, double(sy_sum) / n, bc);
+      if (t.perspective) {
+        double q[3], sum = 0;
+        for (int k = 0; k < 3; ++k) sum += (q[k] = bc[k] * v[k]->inv_w);
+        for (int k = 0; k < 3; ++k) bc[k] = q[k] / sum;
+      }
       bary(double(bx) + kScale / 2, double(by) + kScale / 2, bz);
       f.x = static_cast<uint16_t>(px);
       f.y = static_cast<uint16_t>(py);
