@@ -271,7 +271,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
   // Guard band: keep screen coordinates within +-2^20 pixels so that the
   // 8-bit sub-pixel edge functions stay far from int64 overflow.
   const double g = std::ldexp(1.0, 21) / double(std::max(h.width, h.height));
-  const double W = h.width, H = h.height;
+  const float hw = float(h.width) * 0.5f, hh = float(h.height) * 0.5f;
   const uint64_t total = ps.triangles();
   uint64_t done = 0, next_report = 0;
   std::vector<Fragment> pieces;  // fragments of a triangle split by clipping, merged per pixel
@@ -326,14 +326,15 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
         poly = src;
         if (n < 3) { ++st.outside; continue; }
       }
-      // Perspective divide and viewport (y down, depth 0..1).
+      // Perspective divide and viewport (y down, depth 0..1), in binary32 as
+      // GPUs and Mesa do, so that snapping to 1/256 pixel rounds the same values.
       ScreenVertex sv[16];
       for (int k = 0; k < n; ++k) {
-        const double iw = 1.0 / poly[k].p[3];
-        sv[k].x = (poly[k].p[0] * iw * 0.5 + 0.5) * W;
-        sv[k].y = (0.5 - 0.5 * poly[k].p[1] * iw) * H;
-        sv[k].z = poly[k].p[2] * iw;
-        sv[k].inv_w = iw;
+        const float iw = 1.0f / float(poly[k].p[3]);
+        sv[k].x = double(float(poly[k].p[0]) * iw * hw + hw);
+        sv[k].y = double(-(float(poly[k].p[1]) * iw) * hh + hh);
+        sv[k].z = double(float(poly[k].p[2]) * iw);
+        sv[k].inv_w = 1.0 / poly[k].p[3];
         for (int c = 0; c < 3; ++c) sv[k].rgb[size_t(c)] = float(poly[k].rgb[c]);
         sv[k].alpha = float(poly[k].a);
       }
@@ -351,6 +352,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
       t.draw_id = di;
       t.prim_id = ct.prim_id;
       t.perspective = true;
+      t.depth_from_unsnapped = true;
       const uint64_t before = rast.stats().culled_degenerate;
       if (n == 3) {
         t.v = {sv[0], sv[1], sv[2]};

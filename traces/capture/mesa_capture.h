@@ -33,9 +33,12 @@ struct MesaCapture {
 /// no GL 4.5 core context or no such multisampled framebuffer can be made.
 MesaCapture mesa_capture(const PreparedScene& ps, int samples = 4);
 
-/// The depth tolerance of the cross-check: |ropsim z0 - Mesa gl_FragCoord.z|,
-/// in depth units ([0, 1]); docs/capture.md explains the value.
-inline constexpr double kCrossCheckDepthTolerance = 2e-6;
+/// The depth tolerance of the cross-check, |ropsim z0 - Mesa gl_FragCoord.z| <=
+/// kDepthTolAbs + kDepthTolPixels * (|dzdx| + |dzdy|): 1e-6 in depth units
+/// plus the depth change over 1/1000 pixel (binary32 plane set-up of slivers).
+/// docs/capture.md explains the values.
+inline constexpr double kDepthTolAbs = 1e-6;
+inline constexpr double kDepthTolPixels = 1e-3;
 
 struct CrossCheckResult {
   std::string scene, renderer;

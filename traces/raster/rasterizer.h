@@ -25,6 +25,10 @@ struct ScreenTriangle {
   /// Interpolate colour and opacity perspective-correctly (with the vertices'
   /// inv_w) instead of linearly in screen space. Coverage and depth are the same.
   bool perspective = false;
+  /// Take the depth plane from the unsnapped vertex positions (as Mesa's
+  /// llvmpipe does) instead of the ones snapped to 1/256 pixel. Coverage
+  /// always uses the snapped positions.
+  bool depth_from_unsnapped = false;
 };
 
 struct RasterStats {
