@@ -210,11 +210,16 @@ int clip_polygon(const HVert* in, int n, HVert* out, Dist dist) {
     const double da = dist(A), db = dist(B);
     if (da >= 0) out[m++] = A;
     if ((da >= 0) != (db >= 0)) {
-      const double t = da / (da - db);
+      // Always from the inside vertex to the outside one, so that the two
+      // triangles sharing an edge get bit-identical new vertices (watertight).
+      const HVert& I = da >= 0 ? A : B;
+      const HVert& O = da >= 0 ? B : A;
+      const double di = da >= 0 ? da : db, dout = da >= 0 ? db : da;
+      const double t = di / (di - dout);
       HVert c;
-      for (int k = 0; k < 4; ++k) c.p[k] = A.p[k] + t * (B.p[k] - A.p[k]);
-      for (int k = 0; k < 3; ++k) c.rgb[k] = A.rgb[k] + t * (B.rgb[k] - A.rgb[k]);
-      c.a = A.a + t * (B.a - A.a);
+      for (int k = 0; k < 4; ++k) c.p[k] = I.p[k] + t * (O.p[k] - I.p[k]);
+      for (int k = 0; k < 3; ++k) c.rgb[k] = I.rgb[k] + t * (O.rgb[k] - I.rgb[k]);
+      c.a = I.a + t * (O.a - I.a);
       out[m++] = c;
     }
   }
