@@ -280,6 +280,11 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
   const uint64_t total = ps.triangles();
   uint64_t done = 0, next_report = 0;
   std::vector<Fragment> pieces;  // fragments of a triangle split by clipping, merged per pixel
+  const auto emit_counted = [&](const Fragment& f) {
+    ++st.fragments;
+    st.covered_samples += uint64_t(__builtin_popcountll(f.coverage));
+    emit(f);
+  };
   if (progress) progress(0, total);
   for (uint32_t di = 0; di < ps.draws.size(); ++di) {
     const PreparedDraw& d = ps.draws[di];
@@ -361,7 +366,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
       const uint64_t before = rast.stats().culled_degenerate;
       if (n == 3) {
         t.v = {sv[0], sv[1], sv[2]};
-        rast.rasterize(t, emit);
+        rast.rasterize(t, emit_counted);
       } else {
         // A clipped polygon is one primitive: rasterize its fan and merge the
         // pieces' coverage per pixel (the top-left rule keeps them disjoint).
@@ -380,7 +385,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
             for (int s = 0; s < h.spp; ++s)
               if (pieces[j].coverage >> s & 1) f.z[size_t(s)] = pieces[j].z[size_t(s)];
           }
-          emit(f);
+          emit_counted(f);
           i = j;
         }
       }
@@ -388,9 +393,6 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
     }
   }
   if (progress) progress(total, total);
-  const RasterStats& rs = rast.stats();
-  st.fragments = rs.fragments;  // before merging clipped pieces; recounted by the caller if needed
-  st.covered_samples = rs.covered_samples;
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
 }
@@ -402,7 +404,6 @@ CaptureStats capture_to_file(const SceneSpec& spec, const std::string& out_path,
   const TraceHeader h = capture_header(spec);
   TraceWriter w(out_path, h);
   CaptureStats st = rasterize_prepared(ps, h, [&](const Fragment& f) { w.write(f); }, progress);
-  st.fragments = w.fragments();
   if (st.fragments == 0 && !allow_empty)
     throw CaptureError(spec.path + ": nothing visible: " + std::to_string(st.triangles) + " triangles, " +
                        std::to_string(st.outside) + " outside the view frustum, " + std::to_string(st.back_facing) +
