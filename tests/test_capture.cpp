@@ -123,6 +123,35 @@ std::string headon_grid_obj(int spp, uint64_t seed) {
   return o.str();
 }
 
+std::string base64(const std::string& bytes) {
+  static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string enc;
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const size_t n = std::min<size_t>(3, bytes.size() - i);
+    uint32_t v = 0;
+    for (size_t k = 0; k < 3; ++k) v = v << 8 | (k < n ? uint8_t(bytes[i + k]) : 0u);
+    for (size_t k = 0; k < 4; ++k) enc += k <= n ? b64[(v >> (6 * (3 - k))) & 63] : '=';
+  }
+  return enc;
+}
+
+template <class T>
+std::string raw_bytes(const std::vector<T>& v) {
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+
+/// An uncompressed 32-bit TGA (top-left origin), texels as RGBA bytes.
+std::string tga(int w, int h, const std::vector<std::array<uint8_t, 4>>& rgba) {
+  std::string t(18, '\0');
+  t[2] = 2;
+  t[12] = char(w & 0xFF); t[13] = char(w >> 8);
+  t[14] = char(h & 0xFF); t[15] = char(h >> 8);
+  t[16] = 32;
+  t[17] = 0x28;
+  for (const auto& p : rgba) t += std::string{char(p[2]), char(p[1]), char(p[0]), char(p[3])};
+  return t;
+}
+
 std::vector<Fragment> capture_fragments(const SceneSpec& s, CaptureStats* stats = nullptr) {
   const PreparedScene ps = prepare_scene(s);
   std::vector<Fragment> out;
@@ -325,13 +354,7 @@ TEST(CaptureMaterials, GltfAlphaModes) {
   Scratch box;
   // Three triangles side by side (9 float3 positions, 108 bytes), one primitive each.
   std::vector<float> p = {-3, -1, 0, -1, -1, 0, -2, 1, 0, -1, -1, 0, 1, -1, 0, 0, 1, 0, 1, -1, 0, 3, -1, 0, 2, 1, 0};
-  std::string bytes(reinterpret_cast<const char*>(p.data()), p.size() * 4);
-  static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string enc;
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    uint32_t v = uint32_t(uint8_t(bytes[i])) << 16 | uint32_t(uint8_t(bytes[i + 1])) << 8 | uint8_t(bytes[i + 2]);
-    for (int k = 3; k >= 0; --k) enc += b64[(v >> (6 * k)) & 63];
-  }
+  const std::string enc = base64(raw_bytes(p));
   std::string prims, acc;
   for (int i = 0; i < 3; ++i) {
     prims += std::string(i ? "," : "") + "{\"attributes\":{\"POSITION\":" + std::to_string(i) +
@@ -362,6 +385,65 @@ TEST(CaptureMaterials, GltfAlphaModes) {
   EXPECT_NEAR(by_prim[0].first[0], 1.0f, 1e-6);
   EXPECT_NEAR(by_prim[2].second, 1.0f, 1e-6) << "OPAQUE ignores the base colour's alpha";
   EXPECT_NEAR(by_prim[2].first[2], 1.0f, 1e-6);
+}
+
+// Textures: an object texture multiplies colour and opacity, sampled at each
+// fragment's perspective-correct texture coordinates; a glTF MASK material
+// with a base colour texture discards fragments below the cutoff.
+TEST(CaptureTextures, ObjectTextureAndGltfMaskTexture) {
+  Scratch box;
+  // 4 x 1 texels: red transparent, red transparent, green opaque, green opaque.
+  box.write("t.tga", tga(4, 1, {{255, 0, 0, 0}, {255, 0, 0, 0}, {0, 255, 0, 255}, {0, 255, 0, 255}}));
+  box.write("quad.obj", "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                        "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+  // The quad fills x in [16, 48) of a 64 x 64 screen (fov 90, distance 2).
+  auto scene = [&](const std::string& obj) {
+    return box.write("s.toml", "width = 64\nheight = 64\nspp = 4\n[camera]\neye = [0, 0, 2]\ntarget = [0, 0, 0]\n"
+                               "fov_y = 90\nnear = 1\nfar = 10\n" + obj);
+  };
+  const SceneSpec s = load_scene_file(scene("[[object]]\nmesh = \"quad.obj\"\ntexture = \"t.tga\"\nopacity = 0.5\n"
+                                            "shading = \"unlit\"\n"));
+  int left = 0, right = 0;
+  for (const auto& f : capture_fragments(s)) {
+    const double u = (f.x + 0.5 - 16) / 32;
+    if (u > 0.15 && u < 0.35) {  // texels 0 and 1 only (bilinear, repeat)
+      ++left;
+      EXPECT_EQ(f.alpha, 0.0f) << "pixel " << f.x;
+      EXPECT_NEAR(f.rgb[0], 1.0f, 1e-6);
+    }
+    if (u > 0.65 && u < 0.85) {  // texels 2 and 3 only
+      ++right;
+      EXPECT_NEAR(f.alpha, 0.5f, 1e-6) << "opacity 0.5 x texel alpha 1, pixel " << f.x;
+      EXPECT_NEAR(f.rgb[1], 1.0f, 1e-6);
+    }
+  }
+  EXPECT_GT(left, 100);
+  EXPECT_GT(right, 100);
+  // glTF: the same quad, alphaMode MASK, the texture as baseColorTexture.
+  const std::vector<float> pos = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0}, uv = {0, 1, 1, 1, 1, 0, 0, 0};
+  const std::vector<uint16_t> idx = {0, 1, 2, 0, 2, 3};
+  const std::string buf = raw_bytes(pos) + raw_bytes(uv) + raw_bytes(idx);
+  box.write("q.gltf", R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":1},"indices":2,"material":0}]}],
+"materials":[{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1],"baseColorTexture":{"index":0}},
+              "alphaMode":"MASK","alphaCutoff":0.5}],
+"textures":[{"source":0}],"images":[{"uri":"t.tga"}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]},
+             {"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"},
+             {"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}],
+"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":32},
+               {"buffer":0,"byteOffset":80,"byteLength":12}],
+"buffers":[{"byteLength":92,"uri":"data:application/octet-stream;base64,)" + base64(buf) + R"("}]})");
+  const SceneSpec g = load_scene_file(scene("[[object]]\nmesh = \"q.gltf\"\nopacity = \"material\"\n"
+                                            "color = \"material\"\nshading = \"unlit\"\n"));
+  CaptureStats st;
+  const auto frags = capture_fragments(g, &st);
+  EXPECT_GT(st.discarded_fragments, 100u) << "the transparent half is discarded";
+  ASSERT_GT(frags.size(), 100u);
+  for (const auto& f : frags) {
+    EXPECT_EQ(f.alpha, 1.0f) << "MASK fragments that pass are opaque";
+    EXPECT_GE(f.x, 31) << "only the opaque (right) half passes the cutoff";
+  }
 }
 
 // Flat and smooth two-sided diffuse shading, constant colours, and the draw

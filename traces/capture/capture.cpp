@@ -97,10 +97,14 @@ float shade(const ObjectSpec& ob, const LightSpec& light, const Vec3d& l, const 
 
 PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, const Vec3d& l) {
   const ObjectSpec& ob = s.objects[index];
-  const LoadedMesh mesh = load_mesh(ob.mesh);
+  const bool material_textures =
+      ob.texture.empty() && (ob.color_source == ColorSource::kMaterial || ob.opacity_source == OpacitySource::kMaterial);
+  LoadedMesh mesh = load_mesh(ob.mesh, false, material_textures);
   const std::string where = s.path + ": " + ob.name + ": ";
   if (ob.color_source == ColorSource::kVertex && mesh.colors.empty())
     throw CaptureError(where + "color = \"vertex\" but " + ob.mesh + " has no vertex colours");
+  if (!ob.texture.empty() && mesh.uvs.empty())
+    throw CaptureError(where + "texture = " + ob.texture + " but " + ob.mesh + " has no texture coordinates");
   const ObjectTransform xf(ob);
   std::vector<Vec3d> wpos(mesh.positions.size());
   std::vector<std::array<float, 4>> clip(mesh.positions.size());
@@ -111,6 +115,8 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
   PreparedDraw d;
   d.name = ob.name;
   d.back_faces = ob.back_faces;
+  if (!ob.texture.empty()) d.textures.push_back(load_texture_file(ob.texture));
+  else if (!mesh.uvs.empty()) d.textures = std::move(mesh.textures);
   std::vector<size_t> order(mesh.triangles.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   if (ob.order == DrawOrder::kShuffled) shuffle(order, s.seed ^ (uint64_t(index) * 0x9E3779B97F4A7C15ull));
@@ -120,6 +126,21 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
     const MeshMaterial& mat = mesh.materials[mesh.triangle_material[ti]];
     ClipTriangle ct;
     ct.prim_id = uint32_t(d.triangles.size());
+    if (!ob.texture.empty()) {
+      ct.texture = 0;
+      ct.tex_rgb = ct.tex_alpha = true;
+    } else if (mat.texture >= 0 && !mesh.uvs.empty()) {
+      ct.texture = mat.texture;
+      ct.tex_rgb = ob.color_source == ColorSource::kMaterial;
+      ct.tex_alpha = ob.opacity_source == OpacitySource::kMaterial && mat.alpha_mode != AlphaMode::kOpaque;
+    }
+    if (!ct.tex_rgb && !ct.tex_alpha) ct.texture = -1;
+    // Texture coordinates shifted by whole periods (repeat wrap) to be >= 0.
+    double du = 0, dv = 0;
+    if (ct.texture >= 0) {
+      du = -std::floor(std::min({mesh.uvs[tri[0]][0], mesh.uvs[tri[1]][0], mesh.uvs[tri[2]][0]}));
+      dv = -std::floor(std::min({mesh.uvs[tri[0]][1], mesh.uvs[tri[1]][1], mesh.uvs[tri[2]][1]}));
+    }
     const Vec3d fn = normalize(cross(sub(wpos[tri[1]], wpos[tri[0]]), sub(wpos[tri[2]], wpos[tri[0]])));
     for (int k = 0; k < 3; ++k) {
       const uint32_t vi = tri[size_t(k)];
@@ -132,7 +153,15 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
       if (ob.opacity_source == OpacitySource::kMaterial) {
         alpha = mat.alpha_mode == AlphaMode::kBlend ? mat.base[3] : 1.0f;
         if (mat.alpha_mode == AlphaMode::kBlend && !mesh.colors.empty()) alpha *= mesh.colors[vi][3];
-        if (mat.alpha_mode == AlphaMode::kMask && mat.base[3] < mat.alpha_cutoff) ct.discarded = true;
+        if (mat.alpha_mode == AlphaMode::kMask) {
+          if (ct.tex_alpha) {  // per fragment: base alpha x texel alpha against the cutoff
+            alpha = mat.base[3];
+            ct.mask = true;
+            ct.cutoff = mat.alpha_cutoff;
+          } else if (mat.base[3] < mat.alpha_cutoff) {
+            ct.discarded = true;
+          }
+        }
       }
       Vec3d n = fn;
       if (ob.shading == Shading::kSmooth) {
@@ -140,7 +169,12 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
         if (dot(vn, vn) > 0) n = vn;
       }
       const float sh = shade(ob, s.light, l, n);
-      for (int c = 0; c < 3; ++c) cv.rgb[size_t(c)] = std::max(0.0f, base[size_t(c)] * sh);
+      if (ct.texture >= 0) {
+        ct.tint = base;
+        cv.rgb = {float(mesh.uvs[vi][0] + du), float(mesh.uvs[vi][1] + dv), sh};
+      } else {
+        for (int c = 0; c < 3; ++c) cv.rgb[size_t(c)] = std::max(0.0f, base[size_t(c)] * sh);
+      }
       cv.alpha = std::clamp(alpha, 0.0f, 1.0f);
     }
     d.triangles.push_back(ct);
@@ -168,6 +202,7 @@ PreparedDraw prepare_billboards(const SceneSpec& s, size_t index, const Camera& 
   PreparedDraw d;
   d.name = ob.name;
   d.back_faces = true;
+  if (!ob.texture.empty()) d.textures.push_back(load_texture_file(ob.texture));
   d.triangles.reserve(pts.size() * 2);
   for (uint32_t pi : pts) {
     const Vec3d c = xf.point(mesh.positions[pi]);
@@ -180,10 +215,15 @@ PreparedDraw prepare_billboards(const SceneSpec& s, size_t index, const Camera& 
     for (int k = 0; k < 4; ++k) {
       q[k].pos = cam.clip({c[0] + cx[k] * R[0] + cy[k] * U[0], c[1] + cx[k] * R[1] + cy[k] * U[1],
                            c[2] + cx[k] * R[2] + cy[k] * U[2]});
-      q[k].rgb = rgb;
+      q[k].rgb = d.textures.empty() ? rgb : std::array<float, 3>{float(cx[k] + 1) / 2, float(cy[k] + 1) / 2, 1.0f};
       q[k].alpha = ob.opacity;
     }
     ClipTriangle t;
+    if (!d.textures.empty()) {
+      t.texture = 0;
+      t.tint = rgb;
+      t.tex_rgb = t.tex_alpha = true;
+    }
     t.prim_id = uint32_t(d.triangles.size());
     t.v = {q[0], q[1], q[2]};
     d.triangles.push_back(t);
@@ -358,6 +398,20 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
         }
         if (area >= 0) { ++st.back_facing; continue; }
       }
+      const std::function<void(const Fragment&)> emit_tri = [&](const Fragment& in) {
+        if (ct.texture < 0) return emit_counted(in);
+        Fragment f = in;
+        const std::array<float, 4> tx = d.textures[size_t(ct.texture)].sample(in.rgb[0], in.rgb[1]);
+        for (int c = 0; c < 3; ++c)
+          f.rgb[size_t(c)] = ct.tint[size_t(c)] * in.rgb[2] * (ct.tex_rgb ? tx[size_t(c)] : 1.0f);
+        float a = in.alpha * (ct.tex_alpha ? tx[3] : 1.0f);
+        if (ct.mask) {
+          if (a < ct.cutoff) { ++st.discarded_fragments; return; }
+          a = 1.0f;
+        }
+        f.alpha = std::clamp(a, 0.0f, 1.0f);
+        emit_counted(f);
+      };
       ScreenTriangle t;
       t.draw_id = di;
       t.prim_id = ct.prim_id;
@@ -366,7 +420,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
       const uint64_t before = rast.stats().culled_degenerate;
       if (n == 3) {
         t.v = {sv[0], sv[1], sv[2]};
-        rast.rasterize(t, emit_counted);
+        rast.rasterize(t, emit_tri);
       } else {
         // A clipped polygon is one primitive: rasterize its fan and merge the
         // pieces' coverage per pixel (the top-left rule keeps them disjoint).
@@ -385,7 +439,7 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
             for (int s = 0; s < h.spp; ++s)
               if (pieces[j].coverage >> s & 1) f.z[size_t(s)] = pieces[j].z[size_t(s)];
           }
-          emit_counted(f);
+          emit_tri(f);
           i = j;
         }
       }

@@ -11,6 +11,7 @@
 
 #include "rasterizer.h"
 #include "scene_file.h"
+#include "texture.h"
 #include "trace.h"
 
 namespace ropsim {
@@ -27,6 +28,15 @@ struct ClipTriangle {
   std::array<ClipVertex, 3> v;
   uint32_t prim_id = 0;     ///< gl_PrimitiveID: index within the draw, in API order
   bool discarded = false;   ///< alphaMode MASK below the cutoff: drawn, every fragment discarded
+  /// Textured: the vertices' rgb hold (u, v, diffuse shade) instead of a
+  /// colour; each fragment samples texture `texture` of the draw at its
+  /// (u, v) and gets colour = tint x shade x texel.rgb (if tex_rgb), opacity
+  /// = alpha x texel.a (if tex_alpha); with `mask`, fragments below `cutoff`
+  /// are discarded and the others are opaque (glTF alphaMode MASK).
+  int texture = -1;
+  std::array<float, 3> tint{1, 1, 1};
+  bool tex_rgb = false, tex_alpha = false, mask = false;
+  float cutoff = 0.5f;
 };
 
 /// One object = one draw call; triangles in submission order.
@@ -34,6 +44,7 @@ struct PreparedDraw {
   std::string name;
   bool back_faces = true;
   std::vector<ClipTriangle> triangles;
+  std::vector<Texture> textures;
 };
 
 struct PreparedScene {
@@ -51,7 +62,8 @@ TraceHeader capture_header(const SceneSpec& spec);
 
 struct CaptureStats {
   uint64_t triangles = 0;          ///< submitted (discarded ones included)
-  uint64_t discarded = 0;          ///< alphaMode MASK below the cutoff
+  uint64_t discarded = 0;          ///< alphaMode MASK below the cutoff (whole triangles)
+  uint64_t discarded_fragments = 0;  ///< textured alphaMode MASK: fragments below the cutoff
   uint64_t outside = 0;            ///< entirely outside a clip plane
   uint64_t clipped = 0;            ///< crossing a clip plane (near, far or guard band) and split
   uint64_t back_facing = 0;        ///< culled (objects with back_faces = false)

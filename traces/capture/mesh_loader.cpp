@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <map>
 
 #include "scene_file.h"
 
@@ -37,16 +38,57 @@ MeshMaterial read_material(const aiMaterial* m) {
   }
   float cutoff = 0.5f;
   if (m->Get(AI_MATKEY_GLTF_ALPHACUTOFF, cutoff) == AI_SUCCESS) out.alpha_cutoff = cutoff;
-  out.has_alpha_texture = m->GetTextureCount(aiTextureType_BASE_COLOR) + m->GetTextureCount(aiTextureType_DIFFUSE) +
-                              m->GetTextureCount(aiTextureType_OPACITY) > 0;
   for (float& x : out.base) x = std::isfinite(x) ? std::clamp(x, 0.0f, x) : 1.0f;
   out.base[3] = std::min(out.base[3], 1.0f);
   return out;
 }
 
+
+int load_material_texture(const aiScene* sc, const aiMaterial* m, const std::string& mesh_path, LoadedMesh& out,
+                          std::map<std::string, int>& cache) {
+  aiString tp;
+  if (m->GetTexture(aiTextureType_BASE_COLOR, 0, &tp) != AI_SUCCESS &&
+      m->GetTexture(aiTextureType_DIFFUSE, 0, &tp) != AI_SUCCESS)
+    return -1;
+  const std::string key = tp.C_Str();
+  if (auto it = cache.find(key); it != cache.end()) return it->second;
+  Texture t;
+  const std::string name = mesh_path + ": texture " + key;
+  if (const aiTexture* et = sc->GetEmbeddedTexture(key.c_str())) {
+    if (et->mHeight == 0) {
+      t = load_texture_memory(et->pcData, et->mWidth, et->achFormatHint, name);
+    } else {  // raw BGRA8 texels
+      t.name = name;
+      t.width = int(et->mWidth);
+      t.height = int(et->mHeight);
+      for (size_t i = 0; i < size_t(et->mWidth) * et->mHeight; ++i) {
+        const aiTexel& x = et->pcData[i];
+        t.rgba.insert(t.rgba.end(), {x.r / 255.0f, x.g / 255.0f, x.b / 255.0f, x.a / 255.0f});
+      }
+    }
+  } else {
+    const auto file = std::filesystem::path(mesh_path).parent_path() / key;
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(file, ec))
+      throw CaptureError(mesh_path + ": texture " + key + " not found (looked for " + file.string() + ")");
+    t = load_texture_file(file.string());
+  }
+  out.textures.push_back(std::move(t));
+  cache[key] = int(out.textures.size() - 1);
+  return cache[key];
+}
+
 }  // namespace
 
-LoadedMesh load_mesh(const std::string& path, bool points_ok) {
+namespace {
+bool has_uvs(const aiScene* sc) {
+  for (unsigned i = 0; i < sc->mNumMeshes; ++i)
+    if (sc->mMeshes[i]->HasTextureCoords(0)) return true;
+  return false;
+}
+}  // namespace
+
+LoadedMesh load_mesh(const std::string& path, bool points_ok, bool textures) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw CaptureError(path + ": no such mesh file (set --mesh-dir or ROPSIM_MESH_DIR to the folder of the meshes)");
@@ -61,7 +103,12 @@ LoadedMesh load_mesh(const std::string& path, bool points_ok) {
 
   LoadedMesh out;
   out.path = path;
-  for (unsigned i = 0; i < sc->mNumMaterials; ++i) out.materials.push_back(read_material(sc->mMaterials[i]));
+  std::map<std::string, int> texture_cache;
+  for (unsigned i = 0; i < sc->mNumMaterials; ++i) {
+    out.materials.push_back(read_material(sc->mMaterials[i]));
+    if (textures) out.materials.back().texture = load_material_texture(sc, sc->mMaterials[i], path, out, texture_cache);
+  }
+  const bool any_uvs = has_uvs(sc);
   if (out.materials.empty()) out.materials.push_back(MeshMaterial{});
   bool any_colors = false;
   for (unsigned i = 0; i < sc->mNumMeshes; ++i) any_colors |= sc->mMeshes[i]->HasVertexColors(0);
@@ -87,6 +134,10 @@ LoadedMesh load_mesh(const std::string& path, bool points_ok) {
           if (len > 0 && std::isfinite(len)) n = {q.x / len, q.y / len, q.z / len};
         }
         out.normals.push_back(n);
+        if (any_uvs) {
+          const aiVector3D uv = mesh->HasTextureCoords(0) ? mesh->mTextureCoords[0][v] : aiVector3D(0, 0, 0);
+          out.uvs.push_back({std::isfinite(uv.x) ? uv.x : 0.0f, std::isfinite(uv.y) ? uv.y : 0.0f});
+        }
         if (any_colors) {
           if (mesh->HasVertexColors(0)) {
             const aiColor4D c = mesh->mColors[0][v];

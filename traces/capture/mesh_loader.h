@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "texture.h"
+
 namespace ropsim {
 
 enum class AlphaMode { kOpaque, kMask, kBlend };
@@ -16,7 +18,7 @@ struct MeshMaterial {
   std::array<float, 4> base{1, 1, 1, 1};  ///< linear RGBA: glTF baseColorFactor, else diffuse colour and opacity
   AlphaMode alpha_mode = AlphaMode::kOpaque;  ///< glTF alphaMode (OPAQUE for other formats)
   float alpha_cutoff = 0.5f;                  ///< glTF alphaCutoff (MASK)
-  bool has_alpha_texture = false;             ///< a base colour / opacity texture exists (not sampled)
+  int texture = -1;  ///< base colour texture (RGBA: colour and alpha), index into LoadedMesh::textures
 };
 
 struct LoadedMesh {
@@ -24,6 +26,8 @@ struct LoadedMesh {
   std::vector<std::array<double, 3>> positions;  ///< world space
   std::vector<std::array<double, 3>> normals;    ///< per vertex, unit length (same count as positions)
   std::vector<std::array<float, 4>> colors;      ///< per vertex RGBA, empty when the file has none
+  std::vector<std::array<float, 2>> uvs;         ///< per vertex texture coordinates (set 0), empty when none
+  std::vector<Texture> textures;                 ///< loaded only when asked for
   std::vector<std::array<uint32_t, 3>> triangles;
   std::vector<uint32_t> triangle_material;       ///< index into materials, per triangle
   std::vector<uint32_t> points;                  ///< vertices used as point primitives (PLY point clouds)
@@ -31,7 +35,9 @@ struct LoadedMesh {
 };
 
 /// Loads through assimp. Throws CaptureError naming the file: missing,
-/// unreadable, corrupt, no triangles (unless points_ok), or a non-finite vertex.
-LoadedMesh load_mesh(const std::string& path, bool points_ok = false);
+/// unreadable, corrupt, no triangles (unless points_ok), or a non-finite
+/// vertex. With `textures`, materials' base colour textures (glTF
+/// baseColorTexture, OBJ map_Kd; embedded or beside the mesh) are decoded.
+LoadedMesh load_mesh(const std::string& path, bool points_ok = false, bool textures = false);
 
 }  // namespace ropsim

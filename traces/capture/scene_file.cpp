@@ -208,6 +208,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
     auto mesh = ok.string(ob.kind == ObjectKind::kMesh ? "mesh" : "points");
     if (!mesh) ok.fail(nullptr, ob.kind == ObjectKind::kMesh ? "mesh" : "points", "missing: the mesh file");
     ob.mesh = (mesh_dir / *mesh).lexically_normal().string();
+    if (auto tex = ok.string("texture")) ob.texture = (scene_dir / *tex).lexically_normal().string();
     if (const toml::node* op = ok.node("opacity")) {
       if (op->is_string()) {
         if (*op->value<std::string>() != "material") ok.fail(op, "opacity", "must be a number in [0, 1] or \"material\"");

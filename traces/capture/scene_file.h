@@ -34,6 +34,7 @@ struct ObjectSpec {
   std::string name;                 ///< for messages: "object[i]" or its `name`
   ObjectKind kind = ObjectKind::kMesh;
   std::string mesh;                 ///< resolved path of the mesh / point file
+  std::string texture;              ///< resolved path of an RGBA image over the object ("" = none)
   OpacitySource opacity_source = OpacitySource::kConstant;
   float opacity = 1.0f;             ///< alpha when constant
   ColorSource color_source = ColorSource::kConstant;

@@ -1,10 +1,12 @@
 #!/usr/bin/env python3
-"""Writes traces/scenes/mesh/cloth.obj + cloth.mtl: a loosely rolled, wavy
-sheet of printed fabric (64 x 48 quads, 6 colours in 12 x 8 cells) that
-overlaps itself up to ~5 times when seen from the side, the mesh behind
-traces/scenes/mesh/cloth.toml (LK 2011 Figure 10). Deterministic; no inputs.
-usage: scripts/make_cloth_obj.py [OUT_DIR]"""
-import math, os, sys
+"""Writes the generated assets of traces/scenes/mesh/ (deterministic, no inputs):
+* cloth.obj + cloth.mtl: a loosely rolled, wavy sheet of printed fabric
+  (64 x 48 quads, 6 colours in 12 x 8 cells) that overlaps itself up to ~5
+  times when seen from the side, the mesh of cloth.toml (LK 2011 Figure 10);
+* puff.png: a 64 x 64 soft round smoke puff (white, alpha a Gaussian falling
+  to 0 at the border), the billboard texture of smoke.toml (LK Figure 8).
+usage: scripts/make_mesh_assets.py [OUT_DIR]"""
+import math, os, struct, sys, zlib
 
 out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "traces", "scenes", "mesh")
 NU, NV = 64, 48
@@ -34,3 +36,22 @@ with open(os.path.join(out, "cloth.obj"), "w") as f:
             a = j * (NU + 1) + i + 1
             b, c, d = a + 1, a + NU + 2, a + NU + 1
             f.write(f"f {a} {b} {c}\nf {a} {c} {d}\n")
+
+def png(path, w, h, rgba_rows):
+    def chunk(tag, data):
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+    raw = b"".join(b"\x00" + bytes(row) for row in rgba_rows)
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0))
+                + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+N = 64
+rows = []
+for y in range(N):
+    row = []
+    for x in range(N):
+        r2 = ((x + 0.5) / N * 2 - 1) ** 2 + ((y + 0.5) / N * 2 - 1) ** 2
+        a = max(0.0, math.exp(-r2 * 3.0) - math.exp(-3.0)) / (1 - math.exp(-3.0)) if r2 < 1 else 0.0
+        row += [255, 255, 255, int(round(a * 255))]
+    rows.append(row)
+png(os.path.join(out, "puff.png"), N, N, rows)
