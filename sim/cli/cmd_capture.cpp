@@ -97,7 +97,7 @@ std::function<int()> add_capture_command(CLI::App& app) {
   sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
   sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error)");
   sub->add_option("--mesh-dir", o->mesh_dir,
-                  "Folder the scene's mesh paths are relative to (default: $ROPSIM_MESH_DIR, else the scene's mesh_dir)");
+                  "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
   sub->add_option("--spp", o->spp, "Override the scene's samples per pixel: 1, 2, 4, 8, 16, 32 or 64")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(CLI::Range(1u, 32768u));

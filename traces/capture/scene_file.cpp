@@ -152,12 +152,20 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   s.compression = k.choice("compression", "zstd", {"zstd", "none"}) == "zstd" ? Compression::kZstd : Compression::kNone;
   if (auto bg = k.rgb("background")) s.background = *bg;
 
-  // Mesh paths: relative to mesh_dir, which is relative to the scene file's folder.
+  // Mesh paths: looked up in the override folder (--mesh-dir, else
+  // $ROPSIM_MESH_DIR) first, then in mesh_dir (relative to the scene file's folder).
   const fs::path scene_dir = fs::absolute(fs::path(path)).parent_path();
   fs::path mesh_dir = scene_dir;
   if (auto md = k.string("mesh_dir")) mesh_dir = scene_dir / *md;
-  if (const char* env = std::getenv("ROPSIM_MESH_DIR"); env && *env) mesh_dir = env;
-  if (o.mesh_dir) mesh_dir = *o.mesh_dir;
+  std::optional<fs::path> override_dir;
+  if (const char* env = std::getenv("ROPSIM_MESH_DIR"); env && *env) override_dir = fs::path(env);
+  if (o.mesh_dir) override_dir = fs::path(*o.mesh_dir);
+  auto resolve_mesh = [&](const std::string& m) {
+    std::error_code ec;
+    if (override_dir && fs::exists(*override_dir / m, ec)) return (*override_dir / m).lexically_normal().string();
+    if (fs::exists(mesh_dir / m, ec) || !override_dir) return (mesh_dir / m).lexically_normal().string();
+    return (*override_dir / m).lexically_normal().string();  // missing everywhere: name the folder asked for
+  };
 
   // camera
   const toml::table* cam = k.table("camera");
@@ -207,7 +215,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
     ob.kind = ok.choice("type", "mesh", {"mesh", "billboards"}) == "mesh" ? ObjectKind::kMesh : ObjectKind::kBillboards;
     auto mesh = ok.string(ob.kind == ObjectKind::kMesh ? "mesh" : "points");
     if (!mesh) ok.fail(nullptr, ob.kind == ObjectKind::kMesh ? "mesh" : "points", "missing: the mesh file");
-    ob.mesh = (mesh_dir / *mesh).lexically_normal().string();
+    ob.mesh = resolve_mesh(*mesh);
     if (auto tex = ok.string("texture")) ob.texture = (scene_dir / *tex).lexically_normal().string();
     if (const toml::node* op = ok.node("opacity")) {
       if (op->is_string()) {

@@ -78,7 +78,7 @@ struct SceneSpec {
 
 /// Command-line overrides of a scene file's values.
 struct SceneOverrides {
-  std::optional<std::string> mesh_dir;  ///< else $ROPSIM_MESH_DIR, else the file's mesh_dir
+  std::optional<std::string> mesh_dir;  ///< searched before the file's mesh_dir (else $ROPSIM_MESH_DIR)
   std::optional<int> spp;
   std::optional<uint32_t> width, height;
   std::optional<uint64_t> seed;
