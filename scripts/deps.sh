@@ -5,7 +5,8 @@ set -euo pipefail
 ROPSIM_PACKAGES=(
   cmake g++ make pkg-config
   libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev
-  libcli11-dev nlohmann-json3-dev libzstd-dev libtomlplusplus-dev
+  libcli11-dev nlohmann-json3-dev libzstd-dev
+  libtomlplusplus-dev libassimp-dev libosmesa6-dev
   python3-numpy python3-matplotlib
 )
 missing=()

@@ -12,6 +12,7 @@
 
 #include "cycle_report.h"
 #include "cycle_run.h"
+#include "cmd_capture.h"
 #include "driver.h"
 #include "hw_config.h"
 #include "image_io.h"
@@ -344,6 +345,7 @@ int main(int argc, char** argv) {
   cfgc->add_option("FILE", cfg_check, "Config file to check and print resolved (default: the built-in defaults)")
       ->check(CLI::ExistingFile);
   cfgc->add_flag("--markdown", cfg_markdown, "Print every parameter with unit, default, range and meaning (docs/config.md)");
+  auto run_capture = add_capture_command(app);  // capture: sim/cli/cmd_capture.cpp
 
   try {
     app.parse(argc, argv);
@@ -352,6 +354,7 @@ int main(int argc, char** argv) {
   }
 
   try {
+    if (int rc = run_capture(); rc >= 0) return rc;
     if (run->parsed()) return cmd_run(ro, *run, cmdline);
     if (cmp->parsed()) {
       CompareResult c = compare_image_files(cmp_a, cmp_b);

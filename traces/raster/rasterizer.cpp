@@ -56,7 +56,21 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
   bary(kScale, 0, b10);
   bary(0, kScale, b01);
   auto zat = [&](const double b[3]) { return b[0] * v[0]->z + b[1] * v[1]->z + b[2] * v[2]->z; };
-  const double dzdx = zat(b10) - zat(b00), dzdy = zat(b01) - zat(b00);
+  double dzdx = zat(b10) - zat(b00), dzdy = zat(b01) - zat(b00);
+  // Optionally the plane through the unsnapped vertices: z = pz + pa*(x - px) + pb*(y - py), in pixels.
+  bool unsnapped = t.depth_from_unsnapped;
+  double pa = 0, pb = 0;
+  if (unsnapped) {
+    const ScreenVertex &a = t.v[0], &b = t.v[1], &c = t.v[2];
+    const double d = (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
+    pa = ((b.z - a.z) * (c.y - a.y) - (c.z - a.z) * (b.y - a.y)) / d;
+    pb = ((b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z)) / d;
+    unsnapped = d != 0 && std::isfinite(pa) && std::isfinite(pb);
+    if (unsnapped) { dzdx = pa; dzdy = pb; }
+  }
+  auto zplane = [&](double sx, double sy) {  // unsnapped plane at a point in pixels
+    return t.v[0].z + pa * (sx - t.v[0].x) + pb * (sy - t.v[0].y);
+  };
 
   int64_t minx = std::min({x[0], x[1], x[2]}), maxx = std::max({x[0], x[1], x[2]});
   int64_t miny = std::min({y[0], y[1], y[2]}), maxy = std::max({y[0], y[1], y[2]});
@@ -86,18 +100,25 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
       const int n = __builtin_popcountll(cov);
       double bc[3], bz[3];
       bary(double(sx_sum) / n, double(sy_sum) / n, bc);
+      if (t.perspective) {
+        double q[3], sum = 0;
+        for (int k = 0; k < 3; ++k) sum += (q[k] = bc[k] * v[k]->inv_w);
+        for (int k = 0; k < 3; ++k) bc[k] = q[k] / sum;
+      }
       bary(double(bx) + kScale / 2, double(by) + kScale / 2, bz);
       f.x = static_cast<uint16_t>(px);
       f.y = static_cast<uint16_t>(py);
       f.coverage = cov;
-      f.z0 = static_cast<float>(zat(bz));
+      f.z0 = static_cast<float>(unsnapped ? zplane(double(px) + 0.5, double(py) + 0.5) : zat(bz));
       f.dzdx = static_cast<float>(dzdx);
       f.dzdy = static_cast<float>(dzdy);
       for (int s = 0; s < spp && h_.depth_mode == DepthMode::kPerSample; ++s) {
         if (!(cov >> s & 1)) continue;
         double b[3];
         bary(double(bx + h_.positions[s].x), double(by + h_.positions[s].y), b);
-        f.z[s] = static_cast<float>(std::clamp(zat(b), 0.0, 1.0));
+        const double zs = unsnapped ? zplane(double(px) + h_.positions[s].x / kScale, double(py) + h_.positions[s].y / kScale)
+                                    : zat(b);
+        f.z[s] = static_cast<float>(std::clamp(zs, 0.0, 1.0));
       }
       for (int c = 0; c < 3; ++c)
         f.rgb[c] = std::max(0.0f, static_cast<float>(bc[0] * v[0]->rgb[c] + bc[1] * v[1]->rgb[c] + bc[2] * v[2]->rgb[c]));

@@ -15,12 +15,20 @@ struct ScreenVertex {
   double x = 0, y = 0, z = 0;
   std::array<float, 3> rgb{1.0f, 1.0f, 1.0f};
   float alpha = 1.0f;
+  double inv_w = 1.0;  ///< 1 / clip w, used only when the triangle is `perspective`
 };
 
 struct ScreenTriangle {
   std::array<ScreenVertex, 3> v;
   uint32_t draw_id = 0;
   uint32_t prim_id = 0;
+  /// Interpolate colour and opacity perspective-correctly (with the vertices'
+  /// inv_w) instead of linearly in screen space. Coverage and depth are the same.
+  bool perspective = false;
+  /// Take the depth plane from the unsnapped vertex positions (as Mesa's
+  /// llvmpipe does) instead of the ones snapped to 1/256 pixel. Coverage
+  /// always uses the snapped positions.
+  bool depth_from_unsnapped = false;
 };
 
 struct RasterStats {

@@ -1,0 +1,114 @@
+#include "cmd_capture.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "capture.h"
+#include "scene_file.h"
+#ifdef ROPSIM_HAVE_OSMESA
+#include "mesa_capture.h"
+#endif
+
+namespace ropsim {
+
+namespace {
+
+struct CaptureOpts {
+  std::string scene, out, mesh_dir;
+  int spp = 0;
+  uint32_t width = 0, height = 0;
+  uint64_t seed = 0;
+  bool allow_empty = false, quiet = false, cross_check = false;
+};
+
+/// A one-line progress bar on stderr, only when stderr is a terminal.
+class ProgressBar {
+ public:
+  ProgressBar() : tty_(::isatty(2) == 1), t0_(std::chrono::steady_clock::now()) {}
+  ~ProgressBar() { done(); }
+  void update(uint64_t done, uint64_t total) {
+    if (!tty_ || !total) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (done < total && now - last_ < std::chrono::milliseconds(100)) return;
+    last_ = now;
+    const double f = double(done) / double(total);
+    const int w = 40, fill = int(f * w);
+    const double sec = std::chrono::duration<double>(now - t0_).count();
+    std::fprintf(stderr, "\rcapture [%s%s] %5.1f%%  %llu/%llu triangles  %.1f s", std::string(size_t(fill), '#').c_str(),
+                 std::string(size_t(w - fill), ' ').c_str(), 100.0 * f, (unsigned long long)done,
+                 (unsigned long long)total, sec);
+    shown_ = true;
+  }
+  void done() {
+    if (shown_) std::fputs("\n", stderr);
+    shown_ = false;
+  }
+
+ private:
+  bool tty_, shown_ = false;
+  std::chrono::steady_clock::time_point t0_, last_{};
+};
+
+int run_capture(const CaptureOpts& o, const CLI::App& sub) {
+  SceneOverrides ov;
+  if (sub.count("--mesh-dir")) ov.mesh_dir = o.mesh_dir;
+  if (sub.count("--spp")) ov.spp = o.spp;
+  if (sub.count("--width")) ov.width = o.width;
+  if (sub.count("--height")) ov.height = o.height;
+  if (sub.count("--seed")) ov.seed = o.seed;
+  const SceneSpec spec = load_scene_file(o.scene, ov);
+  if (o.cross_check) {
+#ifdef ROPSIM_HAVE_OSMESA
+    const CrossCheckResult r = cross_check_with_mesa(spec);
+    std::fputs(cross_check_summary(r).c_str(), stdout);
+    return 0;
+#else
+    throw CaptureError("--cross-check: this ropsim was built without OSMesa (install libosmesa6-dev)");
+#endif
+  }
+  if (o.out.empty()) throw CaptureError("capture: give -o TRACE");
+  std::filesystem::path p(o.out);
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+  CaptureStats st;
+  {
+    ProgressBar bar;
+    st = capture_to_file(spec, o.out, o.allow_empty, [&](uint64_t d, uint64_t t) { bar.update(d, t); });
+  }
+  if (!o.quiet)
+    fmt::print("wrote {}: {}x{} {} spp, {} triangles ({} outside, {} clipped, {} back-facing, {} discarded), "
+               "{} fragments, {} covered samples, {:.2f} s ({:.2f} M fragments/s)\n",
+               o.out, spec.width, spec.height, spec.spp, st.triangles, st.outside, st.clipped, st.back_facing,
+               st.discarded, st.fragments, st.covered_samples, st.seconds,
+               st.seconds > 0 ? double(st.fragments) / st.seconds / 1e6 : 0.0);
+  return 0;
+}
+
+}  // namespace
+
+std::function<int()> add_capture_command(CLI::App& app) {
+  auto o = std::make_shared<CaptureOpts>();
+  CLI::App* sub = app.add_subcommand(
+      "capture", "Rasterize a mesh scene file (OBJ / glTF meshes, camera, opacity; docs/capture.md) into a trace");
+  sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
+  sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error)");
+  sub->add_option("--mesh-dir", o->mesh_dir,
+                  "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
+  sub->add_option("--spp", o->spp, "Override the scene's samples per pixel: 1, 2, 4, 8, 16, 32 or 64")
+      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
+  sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(CLI::Range(1u, 32768u));
+  sub->add_option("--height", o->height, "Override the scene's height in pixels")->check(CLI::Range(1u, 32768u));
+  sub->add_option("--seed", o->seed, "Override the scene's shuffle seed");
+  sub->add_flag("--allow-empty", o->allow_empty, "Write a trace even when nothing is visible (else an error)");
+  sub->add_flag("--cross-check", o->cross_check,
+                "Instead of writing a trace, capture the scene at 4 spp through Mesa (llvmpipe) and through ropsim "
+                "with Mesa's sample positions, and print how the records agree");
+  sub->add_flag("--quiet", o->quiet, "Print nothing on success");
+  return [o, sub]() { return sub->parsed() ? run_capture(*o, *sub) : -1; };
+}
+
+}  // namespace ropsim
