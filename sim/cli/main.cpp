@@ -60,6 +60,29 @@ struct RunOpts {
   bool vs_reference = false, quiet = false;
 };
 
+/// Writes the images and the report, all or none: a failure removes what
+/// this run already wrote (ctx.outputs may already hold e.g. a waveform).
+/// report_text is called after the images, so it can list them.
+template <class ReportText>
+void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std::string>& outs,
+                   const std::string& report, ReportText report_text) {
+  try {
+    for (const auto& p : outs) {
+      ensure_parent_dir(p);
+      ctx.outputs.push_back(p);
+      write_image(image, p);
+    }
+    if (!report.empty()) {
+      ensure_parent_dir(report);
+      ctx.outputs.push_back(report);
+      write_text_file_atomic(report, report_text() + "\n");
+    }
+  } catch (...) {
+    for (const auto& p : ctx.outputs) std::remove(p.c_str());
+    throw;
+  }
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, uint64_t vcd_first,
                   uint64_t vcd_last, const std::vector<std::string>& outs, const std::string& report,
                   const std::string& cmdline) {
@@ -87,21 +110,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   if (tty) std::fputs("\n", stderr);
   ReportContext ctx{cmdline, in, cfg, {}};
   if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
-  try {  // all outputs or none
-    for (const auto& p : outs) {
-      ensure_parent_dir(p);
-      ctx.outputs.push_back(p);
-      write_image(run.image, p);
-    }
-    if (!report.empty()) {
-      ensure_parent_dir(report);
-      ctx.outputs.push_back(report);
-      write_text_file_atomic(report, cycle_report(ctx, run, reference).dump(2) + "\n");
-    }
-  } catch (...) {
-    for (const auto& p : ctx.outputs) std::remove(p.c_str());
-    throw;
-  }
+  write_outputs(ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); });
   if (!o.quiet) std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
   return 0;
 }
@@ -172,21 +181,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   }
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
-  try {  // all outputs or none: a failure removes what this run already wrote
-    for (const auto& p : outs) {
-      ensure_parent_dir(p);
-      ctx.outputs.push_back(p);
-      write_image(run.image, p);
-    }
-    if (!report.empty()) {
-      ensure_parent_dir(report);
-      ctx.outputs.push_back(report);
-      write_text_file_atomic(report, functional_report(ctx, run).dump(2) + "\n");
-    }
-  } catch (...) {
-    for (const auto& p : ctx.outputs) std::remove(p.c_str());
-    throw;
-  }
+  write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
   if (!o.quiet) std::fputs(functional_summary(ctx, run).c_str(), stdout);
   return 0;
 }
