@@ -17,6 +17,10 @@ class Clock {
                    .value()) {}
   /// The current cycle.
   uint64_t now() const { return sc_core::sc_time_stamp().value() / ticks_; }
+  /// The current cycle as of the running unit activation (set by Unit::run,
+  /// so the division in now() runs once per activation, not per wake-up).
+  uint64_t current() const { return current_; }
+  void set_current(uint64_t cycle) const { current_ = cycle; }
   /// A delay of n cycles.
   sc_core::sc_time cycles(uint64_t n) const { return sc_core::sc_time::from_value(n * ticks_); }
   double frequency_ghz() const { return ghz_; }
@@ -34,6 +38,7 @@ class Clock {
  private:
   double ghz_;
   uint64_t ticks_;
+  mutable uint64_t current_ = 0;
   bool trace_ = false;
   uint64_t first_ = 0, last_ = 0;
 };

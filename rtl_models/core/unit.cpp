@@ -23,7 +23,9 @@ Unit::Unit(const sc_core::sc_module_name& name, const Clock& clk) : sc_module(na
 void Unit::run() {
   armed_ = ~uint64_t{0};
   ++stats_.activations;
-  step(clk_.now());
+  const uint64_t now = clk_.now();
+  clk_.set_current(now);
+  step(now);
 }
 
 }  // namespace ropsim

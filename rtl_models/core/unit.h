@@ -41,7 +41,7 @@ class Unit : public sc_core::sc_module {
   void wake_at(uint64_t cycle) {
     if (cycle >= armed_) return;  // an earlier (or equal) wake is already pending
     armed_ = cycle;
-    const uint64_t n = clk_.now();
+    const uint64_t n = clk_.current();
     wake_.notify(cycle > n ? clk_.cycles(cycle - n) : sc_core::SC_ZERO_TIME);
   }
   /// Charges the cycles up to end to the current activity (end of the run).

@@ -32,7 +32,7 @@ class AddressMap {
     const uint64_t bps = b == Buffer::kDepth ? 4 : 6;
     const uint64_t start = base(b) + pixel_index(x, y) * spp_ * bps;
     uint64_t last = ~uint64_t{0};
-    for (; mask; mask &= mask - 1) {
+    while (mask) {
       const uint64_t a = start + uint64_t(__builtin_ctzll(mask)) * bps;
       const uint64_t l0 = a >> line_shift_, l1 = (a + bps - 1) >> line_shift_;
       for (uint64_t l = l0; l <= l1; ++l)
@@ -40,6 +40,10 @@ class AddressMap {
           f(l << line_shift_);
           last = l;
         }
+      // Samples lying wholly in lines <= l1 need nothing more; a sample that
+      // starts in l1 and crosses into l1 + 1 stays and emits l1 + 1 next.
+      const uint64_t k = (((l1 + 1) << line_shift_) - start) / bps;
+      mask = k >= 64 ? 0 : mask & (~uint64_t{0} << k);
     }
   }
   /// The same for the pixel's tracker state.

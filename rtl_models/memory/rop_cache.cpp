@@ -14,19 +14,17 @@ RopCache::Way& RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
   const uint64_t l = line >> set_shift_;
   const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
   Way* w = &ways_[size_t(set) * cfg_.ways];
-  Way* victim = w;
-  for (uint32_t i = 0; i < cfg_.ways; ++i) {
-    if (w[i].valid && w[i].tag == line) {
+  const uint32_t n = cfg_.ways;
+  for (uint32_t i = 0; i < n; ++i)
+    if (w[i].tag == line && w[i].valid) {
       hit = true;
       w[i].lru = ++tick_;
       return w[i];
     }
-    if (!w[i].valid) {
-      if (victim->valid) victim = &w[i];
-    } else if (victim->valid && w[i].lru < victim->lru) {
-      victim = &w[i];
-    }
-  }
+  // Miss: the first invalid way, else the least recently used.
+  Way* victim = w;
+  for (uint32_t i = 0; i < n && victim->valid; ++i)
+    if (!w[i].valid || w[i].lru < victim->lru) victim = &w[i];
   hit = false;
   evict(*victim, now);
   victim->valid = true;

@@ -51,6 +51,7 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
     j["cycles"] = activity_json(u.stats);
     const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
     j["busy_fraction"] = s.total_cycles ? double(busy) / double(s.total_cycles) : 0.0;
+    j["activations"] = u.stats.activations;
     for (const auto& e : u.extras) j[e.name] = e.value;
     units.push_back(j);
   }
