@@ -18,6 +18,7 @@
 #include "driver.h"
 #include "golden_model.h"
 #include "hw_config.h"
+#include "address_map.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
 #include "sim_context.h"
@@ -46,11 +47,14 @@ GoldenConfig method_config(Method m) {
 
 /// Golden and cycle runs of one input; fails naming the first difference in
 /// the full per-sample state, the image or the counters.
-void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what) {
+void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what,
+                      bool lockstep = false) {
   const FragmentList list = load_fragments(in);
   StochasticModel golden(list.header, method_config(m));
   for (const auto& f : list.fragments) golden.draw(f);
-  const CycleRun cyc = run_cycle(in, method_config(m), hw);
+  CycleOptions opt;
+  opt.lockstep = lockstep;
+  const CycleRun cyc = run_cycle(in, method_config(m), hw, opt);
   const std::string diff = first_state_difference(golden.store(), *cyc.state);
   EXPECT_EQ(diff, "") << what << ": the cycle model's final state differs from the golden model's";
   EXPECT_TRUE(golden.resolve().rgb == cyc.image.rgb) << what << ": resolved images differ";
@@ -122,8 +126,11 @@ TEST(BitExactTiming, ExtremeTimingParametersNeverChangeTheImage) {
       apply_hw_override(hw, a);
       what += a + " ";
     }
-    expect_bit_exact(scene_input("cloth", 8), Method::kLk, hw, what);
-    expect_bit_exact(scene_input("eight-layers", 4), Method::kEnderton, hw, what);
+    for (bool lockstep : {false, true}) {
+      expect_bit_exact(scene_input("cloth", 8), Method::kLk, hw, what + (lockstep ? "lockstep" : ""), lockstep);
+      expect_bit_exact(scene_input("eight-layers", 4), Method::kEnderton, hw, what + (lockstep ? "lockstep" : ""),
+                       lockstep);
+    }
   }
 }
 
@@ -227,11 +234,16 @@ struct Harness {
   }
 };
 
+/// Every UnitAlone test runs each unit in lockstep and decoupled (unit.h):
+/// the cycles at its boundary must not change.
+bool g_decoupled = false;
+
 /// Runs unit U between a script source (tokens visible at `cycles`) and a sink.
 template <class MakeUnit>
 std::vector<uint64_t> run_alone(Harness& h, const std::vector<uint64_t>& push_cycles, int spp, MakeUnit make) {
   ScriptSource src("src", h.clk, *h.in, h.tokens(push_cycles, spp));
   auto unit = make(*h.in, *h.out);
+  unit->set_decoupled(g_decoupled);
   RecordSink sink("sink", h.clk, *h.out);
   h.in->connect(&src, unit.get());
   h.out->connect(unit.get(), &sink);
@@ -249,102 +261,117 @@ std::vector<uint64_t> back_to_back(size_t n) {
 // A token pushed by the source at cycle 0 is visible to the unit at cycle 1;
 // the unit's output must appear at 1 + L, not at L (nothing at L - 1 after entry).
 TEST(UnitAlone, CoverageTrackerLatencyAndThroughput) {
-  for (uint32_t L : {1u, 3u, 7u}) {
-    Harness h(4, Method::kLk);
-    HwConfig::Tracker cfg;
-    cfg.latency_cycles = L;
-    RopCache* cache = nullptr;
-    Dram dram{HwConfig::Dram{}};
-    std::unordered_set<uint64_t> in_dram;
-    RopCache c(HwConfig::Cache{}, dram, in_dram);
-    cache = &c;
-    const auto seen = run_alone(h, back_to_back(50), 4, [&](TokenFifo& in, TokenFifo& out) {
-      return std::make_unique<CoverageTracker>("tracker", h.clk, h.ctx, cfg, *cache, in, out);
-    });
-    ASSERT_EQ(seen.size(), 50u);
-    EXPECT_EQ(seen[0], 1 + L) << "first output must appear exactly L = " << L << " cycles after entry";
-    for (size_t i = 1; i < seen.size(); ++i)
-      EXPECT_EQ(seen[i], seen[i - 1] + 1) << "fully pipelined: one fragment per clock (L = " << L << ")";
+  for (bool decoupled : {false, true}) {
+    g_decoupled = decoupled;
+    SCOPED_TRACE(decoupled ? "decoupled" : "lockstep");
+    for (uint32_t L : {1u, 3u, 7u}) {
+      Harness h(4, Method::kLk);
+      HwConfig::Tracker cfg;
+      cfg.latency_cycles = L;
+      const auto seen = run_alone(h, back_to_back(50), 4, [&](TokenFifo& in, TokenFifo& out) {
+        return std::make_unique<CoverageTracker>("tracker", h.clk, h.ctx, cfg, in, out);
+      });
+      ASSERT_EQ(seen.size(), 50u);
+      EXPECT_EQ(seen[0], 1 + L) << "first output must appear exactly L = " << L << " cycles after entry";
+      for (size_t i = 1; i < seen.size(); ++i)
+        EXPECT_EQ(seen[i], seen[i - 1] + 1) << "fully pipelined: one fragment per clock (L = " << L << ")";
+    }
   }
 }
 
 TEST(UnitAlone, SorterVariantsLatencyAndInterval) {
-  struct Case {
-    SorterKind kind;
-    int spp;
-    uint64_t latency, interval;
-  };
-  // bitonic: log2 N (log2 N + 1) / 2 stages; rank: 1; serial: m clocks, not pipelined.
-  for (const Case c : {Case{SorterKind::kBitonic, 16, 10, 1}, Case{SorterKind::kBitonic, 64, 21, 1},
-                       Case{SorterKind::kBitonic, 4, 3, 1}, Case{SorterKind::kRank, 16, 1, 1},
-                       Case{SorterKind::kSerial, 16, 16, 16}, Case{SorterKind::kSerial, 4, 4, 4}}) {
-    Harness h(c.spp, Method::kLk);
-    const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
-      return std::make_unique<SampleSorter>("sorter", h.clk, h.ctx, make_sorter(c.kind, c.spp), in, out);
-    });
-    ASSERT_EQ(seen.size(), 20u);
-    EXPECT_EQ(seen[0], 1 + c.latency) << to_string(c.kind) << " N=" << c.spp << ": latency";
-    for (size_t i = 1; i < seen.size(); ++i)
-      EXPECT_EQ(seen[i] - seen[i - 1], c.interval) << to_string(c.kind) << " N=" << c.spp << ": initiation interval";
+  for (bool decoupled : {false, true}) {
+    g_decoupled = decoupled;
+    SCOPED_TRACE(decoupled ? "decoupled" : "lockstep");
+    struct Case {
+      SorterKind kind;
+      int spp;
+      uint64_t latency, interval;
+    };
+    // bitonic: log2 N (log2 N + 1) / 2 stages; rank: 1; serial: m clocks, not pipelined.
+    for (const Case c : {Case{SorterKind::kBitonic, 16, 10, 1}, Case{SorterKind::kBitonic, 64, 21, 1},
+                         Case{SorterKind::kBitonic, 4, 3, 1}, Case{SorterKind::kRank, 16, 1, 1},
+                         Case{SorterKind::kSerial, 16, 16, 16}, Case{SorterKind::kSerial, 4, 4, 4}}) {
+      Harness h(c.spp, Method::kLk);
+      const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
+        return std::make_unique<SampleSorter>("sorter", h.clk, h.ctx, make_sorter(c.kind, c.spp), in, out);
+      });
+      ASSERT_EQ(seen.size(), 20u);
+      EXPECT_EQ(seen[0], 1 + c.latency) << to_string(c.kind) << " N=" << c.spp << ": latency";
+      for (size_t i = 1; i < seen.size(); ++i)
+        EXPECT_EQ(seen[i] - seen[i - 1], c.interval) << to_string(c.kind) << " N=" << c.spp << ": initiation interval";
+    }
   }
 }
 
 TEST(UnitAlone, AlphaRefGenLanesAndDepth) {
-  struct Case {
-    uint32_t lanes, depth;
-    int spp;
-  };
-  for (const Case c : {Case{16, 4, 16}, Case{4, 4, 16}, Case{1, 2, 4}, Case{64, 6, 64}}) {
-    Harness h(c.spp, Method::kLk);
-    HwConfig::AlphaRef cfg;
-    cfg.lanes = c.lanes;
-    cfg.pipeline_depth = c.depth;
-    const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
-      return std::make_unique<AlphaRefGen>("alpha_ref", h.clk, h.ctx, cfg, in, out);
-    });
-    const uint64_t interval = (uint64_t(c.spp) + c.lanes - 1) / c.lanes;
-    ASSERT_EQ(seen.size(), 20u);
-    EXPECT_EQ(seen[0], 1 + c.depth + interval - 1) << c.spp << " refs on " << c.lanes << " lanes, depth " << c.depth;
-    for (size_t i = 1; i < seen.size(); ++i)
-      EXPECT_EQ(seen[i] - seen[i - 1], interval) << c.spp << " refs on " << c.lanes << " lanes";
+  for (bool decoupled : {false, true}) {
+    g_decoupled = decoupled;
+    SCOPED_TRACE(decoupled ? "decoupled" : "lockstep");
+    struct Case {
+      uint32_t lanes, depth;
+      int spp;
+    };
+    for (const Case c : {Case{16, 4, 16}, Case{4, 4, 16}, Case{1, 2, 4}, Case{64, 6, 64}}) {
+      Harness h(c.spp, Method::kLk);
+      HwConfig::AlphaRef cfg;
+      cfg.lanes = c.lanes;
+      cfg.pipeline_depth = c.depth;
+      const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
+        return std::make_unique<AlphaRefGen>("alpha_ref", h.clk, h.ctx, cfg, in, out);
+      });
+      const uint64_t interval = (uint64_t(c.spp) + c.lanes - 1) / c.lanes;
+      ASSERT_EQ(seen.size(), 20u);
+      EXPECT_EQ(seen[0], 1 + c.depth + interval - 1) << c.spp << " refs on " << c.lanes << " lanes, depth " << c.depth;
+      for (size_t i = 1; i < seen.size(); ++i)
+        EXPECT_EQ(seen[i] - seen[i - 1], interval) << c.spp << " refs on " << c.lanes << " lanes";
+    }
   }
 }
 
 TEST(UnitAlone, DepthTestHitLatencyPlusCompareLatency) {
-  for (uint32_t hit : {1u, 5u})
-    for (uint32_t L : {1u, 4u}) {
-      Harness h(16, Method::kOpaque);
-      HwConfig::DepthTest cfg;
-      cfg.latency_cycles = L;
-      HwConfig::Cache cc;
-      cc.hit_latency_cycles = hit;
-      Dram dram{HwConfig::Dram{}};
-      std::unordered_set<uint64_t> in_dram;
-      RopCache cache(cc, dram, in_dram);
-      // Depth test needs real fragments: a plane at depth 0.5 over cleared pixels.
-      const auto seen = run_alone(h, back_to_back(40), 16, [&](TokenFifo& in, TokenFifo& out) {
-        return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
-      });
-      ASSERT_EQ(seen.size(), 40u);
-      // Cleared lines come from fast clear at hit latency: entry 1, data at 1 + hit, out at 1 + hit + L.
-      EXPECT_EQ(seen[0], 1 + hit + L) << "hit latency " << hit << ", compare latency " << L;
-      for (size_t i = 1; i < seen.size(); ++i)
-        EXPECT_EQ(seen[i] - seen[i - 1], 1u) << "16 samples at 16 per clock: one fragment per clock";
-    }
+  for (bool decoupled : {false, true}) {
+    g_decoupled = decoupled;
+    SCOPED_TRACE(decoupled ? "decoupled" : "lockstep");
+    for (uint32_t hit : {1u, 5u})
+      for (uint32_t L : {1u, 4u}) {
+        Harness h(16, Method::kOpaque);
+        HwConfig::DepthTest cfg;
+        cfg.latency_cycles = L;
+        HwConfig::Cache cc;
+        cc.hit_latency_cycles = hit;
+        Dram dram{HwConfig::Dram{}};
+        std::unordered_set<uint64_t> in_dram;
+        RopCache cache(cc, dram, in_dram);
+        // Depth test needs real fragments: a plane at depth 0.5 over cleared pixels.
+        const auto seen = run_alone(h, back_to_back(40), 16, [&](TokenFifo& in, TokenFifo& out) {
+          return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
+        });
+        ASSERT_EQ(seen.size(), 40u);
+        // Cleared lines come from fast clear at hit latency: entry 1, data at 1 + hit, out at 1 + hit + L.
+        EXPECT_EQ(seen[0], 1 + hit + L) << "hit latency " << hit << ", compare latency " << L;
+        for (size_t i = 1; i < seen.size(); ++i)
+          EXPECT_EQ(seen[i] - seen[i - 1], 1u) << "16 samples at 16 per clock: one fragment per clock";
+      }
+  }
 }
 
 TEST(UnitAlone, DepthTestSamplesPerClockSetsTheInterval) {
-  Harness h(16, Method::kOpaque);
-  HwConfig::DepthTest cfg;
-  cfg.samples_per_clock = 4;
-  Dram dram{HwConfig::Dram{}};
-  std::unordered_set<uint64_t> in_dram;
-  RopCache cache(HwConfig::Cache{}, dram, in_dram);
-  const auto seen = run_alone(h, back_to_back(10), 16, [&](TokenFifo& in, TokenFifo& out) {
-    return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
-  });
-  ASSERT_EQ(seen.size(), 10u);
-  for (size_t i = 1; i < seen.size(); ++i) EXPECT_EQ(seen[i] - seen[i - 1], 4u) << "16 samples / 4 per clock";
+  for (bool decoupled : {false, true}) {
+    g_decoupled = decoupled;
+    SCOPED_TRACE(decoupled ? "decoupled" : "lockstep");
+    Harness h(16, Method::kOpaque);
+    HwConfig::DepthTest cfg;
+    cfg.samples_per_clock = 4;
+    Dram dram{HwConfig::Dram{}};
+    std::unordered_set<uint64_t> in_dram;
+    RopCache cache(HwConfig::Cache{}, dram, in_dram);
+    const auto seen = run_alone(h, back_to_back(10), 16, [&](TokenFifo& in, TokenFifo& out) {
+      return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
+    });
+    ASSERT_EQ(seen.size(), 10u);
+    for (size_t i = 1; i < seen.size(); ++i) EXPECT_EQ(seen[i] - seen[i - 1], 4u) << "16 samples / 4 per clock";
+  }
 }
 
 // ------------------------------------------------------------ pixel ordering
@@ -571,4 +598,167 @@ TEST(HwConfigFile, OverridesParseStrictly) {
   EXPECT_EQ(hw.sorter.kind, SorterKind::kRank);
   for (const char* bad : {"dram.channels", "dram.channels=x", "dram.channels=3x", "nope.key=1", "cache.fast_clear=yes"})
     EXPECT_THROW(apply_hw_override(hw, bad), ConfigError) << bad;
+}
+
+// ------------------------------------------------------------ temporal decoupling
+
+namespace {
+
+CycleRun run_mode(const InputSpec& in, Method m, const HwConfig& hw, bool lockstep) {
+  CycleOptions opt;
+  opt.lockstep = lockstep;
+  return run_cycle(in, method_config(m), hw, opt);
+}
+
+/// Every timing figure of two runs, activations aside; fails naming the first
+/// that differs.
+void expect_same_timing(const CycleStats& a, const CycleStats& b, const std::string& what) {
+  ASSERT_EQ(a.total_cycles, b.total_cycles) << what;
+  EXPECT_EQ(a.pipeline_cycles, b.pipeline_cycles) << what;
+  ASSERT_EQ(a.units.size(), b.units.size()) << what;
+  for (size_t i = 0; i < a.units.size(); ++i) {
+    const auto &u = a.units[i].stats, &v = b.units[i].stats;
+    for (int k = 0; k < kActivities; ++k)
+      EXPECT_EQ(u.cycles[size_t(k)], v.cycles[size_t(k)])
+          << what << ": " << a.units[i].name << " " << to_string(Activity(k)) << " cycles";
+    EXPECT_EQ(u.fragments, v.fragments) << what << ": " << a.units[i].name;
+    EXPECT_EQ(u.samples, v.samples) << what << ": " << a.units[i].name;
+  }
+  ASSERT_EQ(a.fifos.size(), b.fifos.size()) << what;
+  for (size_t i = 0; i < a.fifos.size(); ++i) {
+    EXPECT_EQ(a.fifos[i].pushes, b.fifos[i].pushes) << what << ": " << a.fifos[i].name;
+    EXPECT_EQ(a.fifos[i].max_occupancy, b.fifos[i].max_occupancy) << what << ": " << a.fifos[i].name;
+    EXPECT_EQ(a.fifos[i].full_cycles, b.fifos[i].full_cycles) << what << ": " << a.fifos[i].name;
+    EXPECT_DOUBLE_EQ(a.fifos[i].mean_occupancy, b.fifos[i].mean_occupancy) << what << ": " << a.fifos[i].name;
+  }
+  for (size_t i = 0; i < a.caches.size(); ++i)
+    for (int k = 0; k < kBuffers; ++k) {
+      EXPECT_EQ(a.caches[i].read_hits[size_t(k)], b.caches[i].read_hits[size_t(k)]) << what;
+      EXPECT_EQ(a.caches[i].write_hits[size_t(k)], b.caches[i].write_hits[size_t(k)]) << what;
+    }
+}
+
+}  // namespace
+
+// With a cache that never evicts nor misses to DRAM, no result depends on the
+// order in which SystemC runs two units in one cycle, so decoupled runs must
+// equal lockstep runs in every timing figure, not just the image.
+TEST(Decoupling, EqualsLockstepExactlyWhenMemoryOrderCannotMatter) {
+  for (const auto& config : config_files()) {
+    HwConfig hw = load_hw_config(config);
+    apply_hw_override(hw, "cache.size_bytes=16777216");
+    apply_hw_override(hw, "cache.fast_clear=true");
+    for (const auto& [scene, spp] : std::vector<std::pair<std::string, int>>{{"cloth", 4}, {"eight-layers", 16}})
+      for (Method m : {Method::kOpaque, Method::kEnderton, Method::kLk}) {
+        const std::string what = scene + " " + std::to_string(spp) + " spp " + to_string(m) + " on " + config;
+        const CycleRun lock = run_mode(scene_input(scene, spp), m, hw, true);
+        const CycleRun dec = run_mode(scene_input(scene, spp), m, hw, false);
+        ASSERT_FALSE(lock.stats.decoupled) << what;
+        ASSERT_TRUE(dec.stats.decoupled) << what;
+        expect_same_timing(dec.stats, lock.stats, what);
+        EXPECT_TRUE(dec.image.rgb == lock.image.rgb) << what;
+        EXPECT_LT(double(dec.stats.activations), (m == Method::kLk ? 0.6 : 0.9) * double(lock.stats.activations))
+            << what << ": decoupling must save SystemC activations";
+      }
+  }
+}
+
+// With real memory, two memory requests in one cycle reach the cache and DRAM
+// in SystemC's run order, which differs between the modes; the image never
+// changes and the cycles agree closely (measured: 0.2-1.3 %).
+TEST(Decoupling, CloseToLockstepWithRealMemoryAndSameImage) {
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    const CycleRun lock = run_mode(scene_input("cloth", 16), Method::kLk, hw, true);
+    const CycleRun dec = run_mode(scene_input("cloth", 16), Method::kLk, hw, false);
+    EXPECT_TRUE(dec.image.rgb == lock.image.rgb) << config;
+    EXPECT_EQ(first_state_difference(*dec.state, *lock.state), "") << config;
+    const double rel = std::abs(double(dec.stats.total_cycles) - double(lock.stats.total_cycles)) /
+                       double(lock.stats.total_cycles);
+    EXPECT_LT(rel, 0.02) << config << ": decoupled " << dec.stats.total_cycles << " vs lockstep "
+                         << lock.stats.total_cycles << " cycles";
+  }
+}
+
+// Occupancy statistics from push and pop cycles that reach the FIFO out of
+// cycle order (one side decoupled) equal those of the same events in order.
+TEST(Decoupling, OccupancyStatsDoNotDependOnHostOrder) {
+  std::mt19937_64 rng(7);
+  for (int trial = 0; trial < 50; ++trial) {
+    const uint32_t cap = 1 + uint32_t(rng() % 6);
+    // A legal schedule: entry i pushed at p[i], popped at q[i] > p[i]; both
+    // non-decreasing; entry i + cap pushed after entry i is popped.
+    std::vector<uint64_t> p, q;
+    uint64_t tp = 0, tq = 0;
+    for (int i = 0; i < 200; ++i) {
+      tp += rng() % 3;
+      if (i >= int(cap)) tp = std::max(tp, q[size_t(i) - cap] + 1);
+      p.push_back(tp);
+      tq = std::max(tq + rng() % 3, tp + 1);
+      q.push_back(tq);
+    }
+    const uint64_t end = q.back() + 5;
+    // In cycle order.
+    OccupancyStats in_order(cap);
+    std::vector<std::pair<uint64_t, int>> ev;
+    for (size_t i = 0; i < p.size(); ++i) ev.push_back({p[i], 1}), ev.push_back({q[i], 0});
+    std::stable_sort(ev.begin(), ev.end(), [](auto& a, auto& b) { return a.first < b.first; });
+    for (auto& e : ev) e.second ? in_order.push(e.first) : in_order.pop(e.first);
+    // Host order: the producer runs ahead by up to `cap` pushes.
+    OccupancyStats ahead(cap);
+    size_t i = 0, j = 0;
+    while (j < q.size()) {
+      if (i < p.size() && i < j + cap && (rng() % 2)) ahead.push(p[i++]);
+      else if (j < i) ahead.pop(q[j++]);
+      else ahead.push(p[i++]);
+    }
+    double m1, m2;
+    uint64_t f1, f2;
+    uint32_t x1, x2;
+    in_order.finish(end, m1, f1, x1);
+    ahead.finish(end, m2, f2, x2);
+    // Brute force over cycles.
+    uint64_t area = 0, full = 0;
+    uint32_t mx = 0;
+    for (uint64_t t = 0; t < end; ++t) {
+      uint32_t occ = 0;
+      for (size_t k = 0; k < p.size(); ++k) occ += p[k] <= t && t < q[k];
+      area += occ;
+      full += occ == cap;
+      mx = std::max(mx, occ);
+    }
+    EXPECT_DOUBLE_EQ(m1, double(area) / double(end)) << "trial " << trial;
+    EXPECT_EQ(f1, full) << "trial " << trial;
+    EXPECT_EQ(x1, mx) << "trial " << trial;
+    EXPECT_DOUBLE_EQ(m2, m1) << "trial " << trial;
+    EXPECT_EQ(f2, f1) << "trial " << trial;
+    EXPECT_EQ(x2, x1) << "trial " << trial;
+  }
+}
+
+// The line walk of the address map visits exactly the lines that hold a
+// sample of the mask, in increasing order, once each.
+TEST(AddressMapLines, LineWalkMatchesAPerSampleWalk) {
+  std::mt19937_64 rng(3);
+  for (int spp : {1, 4, 8, 16, 32, 64})
+    for (uint32_t line : {16u, 32u, 64u, 128u})
+      for (Buffer b : {Buffer::kDepth, Buffer::kColor}) {
+        AddressMap am(40, spp, 3, line);
+        for (int trial = 0; trial < 40; ++trial) {
+          const uint32_t x = uint32_t(rng() % 40), y = uint32_t(rng() % 40);
+          uint64_t mask = rng() & (spp == 64 ? ~0ull : (1ull << spp) - 1);
+          if (trial == 0) mask = spp == 64 ? ~0ull : (1ull << spp) - 1;
+          std::vector<uint64_t> got, want;
+          am.for_each_sample_line(b, x, y, mask, [&](uint64_t l) { got.push_back(l); });
+          const uint64_t bps = b == Buffer::kDepth ? 4 : 6;
+          const uint64_t start = AddressMap::base(b) + am.pixel_index(x, y) * uint64_t(spp) * bps;
+          for (int s = 0; s < spp; ++s)
+            if (mask >> s & 1)
+              for (uint64_t a = start + uint64_t(s) * bps; a < start + uint64_t(s + 1) * bps; ++a) {
+                const uint64_t l = a / line * line;
+                if (want.empty() || want.back() != l) want.push_back(l);
+              }
+          EXPECT_EQ(got, want) << "spp " << spp << " line " << line << " " << to_string(b) << " mask " << mask;
+        }
+      }
 }

@@ -2,8 +2,9 @@
 // fragment when its previous initiation interval has passed, and the fragment
 // appears at the output after the unit's latency. The subclass supplies the
 // function (process) and its timing; this class supplies the protocol and the
-// activity accounting. Used by the tracker, the sorter and the alpha-reference
-// generator.
+// activity accounting. Used by the sorter and the alpha-reference generator
+// and the tracker, whose functions use no timed shared state, so they may run
+// decoupled (unit.h).
 #pragma once
 #include "rop_context.h"
 #include "timed_fifo.h"
@@ -13,55 +14,55 @@ namespace ropsim {
 
 using TokenFifo = TimedFifo<FragToken*>;
 
-class PipeUnit : public Unit {
+class PipeUnit : public DecoupledUnit {
  public:
   PipeUnit(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, TokenFifo& in, TokenFifo& out)
-      : Unit(name, clk), ctx_(ctx), in_(in), out_(out) {}
+      : DecoupledUnit(name, clk), ctx_(ctx), in_(in), out_(out) {}
 
  protected:
   struct Timing {
     uint32_t interval;  ///< cycles before the next fragment may enter (>= 1)
     uint32_t latency;   ///< cycles from entry to the output (>= 1)
   };
-  virtual Timing process(FragToken* t, uint64_t now) = 0;
+  /// The unit's function on one fragment entering at cycle t.
+  virtual Timing process(FragToken* tok, uint64_t t) = 0;
 
-  void step(uint64_t now) override {
-    if (now < busy_until_) {
-      wake_at(busy_until_);
-      return;
-    }
-    if (!in_.can_pop(now)) {
-      if (!in_.empty()) {
-        set_activity(Activity::kStarved, now);
-        wake_at(in_.head_visible());
-      } else if (in_.closed()) {
-        if (!out_.closed()) out_.close(now);
-        set_activity(Activity::kIdle, now);
-      } else {
-        set_activity(seen_ ? Activity::kStarved : Activity::kIdle, now);
+  void advance(uint64_t limit) override {
+    for (;;) {
+      if (in_.empty()) {
+        // Everything is through; after the input closes, so does the output.
+        if (in_.closed() && !out_.closed()) {
+          const uint64_t t = std::max(close_seen_, busy_until_);
+          if (t > limit) return wake_at(t);
+          out_.close(t);
+          set_activity(Activity::kIdle, t);
+        }
+        return;  // a push or a close comes back here
       }
-      return;  // a push or a close wakes the unit
+      // The head enters when it is visible, the interval has passed and the
+      // output has a slot (kBlocked until then; kStarved follows a busy spell).
+      const uint64_t t = std::max({busy_until_, in_.head_visible(), resume_});
+      if (t > limit) return wake_at(t);
+      if (!out_.can_push(t)) {
+        set_activity(Activity::kBlocked, t);
+        const uint64_t s = out_.space_from();
+        if (s == TokenFifo::kUndecided) return out_.wait_for_space(t);
+        resume_ = s;
+        continue;
+      }
+      FragToken* tok = in_.pop(t);
+      ++stats_.fragments;
+      const Timing tm = process(tok, t);
+      out_.push(tok, t, t + tm.latency);
+      busy_until_ = t + tm.interval;
+      set_busy(t, busy_until_, Activity::kStarved);
     }
-    if (!out_.can_push(now)) {
-      set_activity(Activity::kBlocked, now);
-      out_.wait_for_space(now);
-      return;
-    }
-    FragToken* t = in_.pop(now);
-    seen_ = true;
-    ++stats_.fragments;
-    const Timing tm = process(t, now);
-    out_.push(t, now, now + tm.latency);
-    busy_until_ = now + tm.interval;
-    set_busy(now, busy_until_, Activity::kStarved);
-    if (!in_.empty()) wake_at(std::max(busy_until_, in_.head_visible()));  // else a push wakes it
   }
 
   RopContext& ctx_;
   TokenFifo& in_;
   TokenFifo& out_;
   uint64_t busy_until_ = 0;
-  bool seen_ = false;
 };
 
 inline uint32_t ceil_div(uint32_t a, uint32_t b) { return (a + b - 1) / b; }

@@ -21,11 +21,15 @@ Unit::Unit(const sc_core::sc_module_name& name, const Clock& clk) : sc_module(na
 }
 
 void Unit::run() {
-  armed_ = ~uint64_t{0};
   ++stats_.activations;
   const uint64_t now = clk_.now();
   clk_.set_current(now);
+  armed_ = ~uint64_t{0};
+  size_t due = 0;
+  while (due < wakes_.size() && wakes_[due] <= now) ++due;
+  wakes_.erase(wakes_.begin(), wakes_.begin() + ptrdiff_t(due));
   step(now);
+  if (!wakes_.empty() && wakes_.front() < armed_) notify(wakes_.front());
 }
 
 }  // namespace ropsim

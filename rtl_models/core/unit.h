@@ -1,6 +1,18 @@
 // Base of every SystemC unit: one SC_METHOD woken by one event, never by a
 // free-running clock; activity accounting without per-cycle work (the time
 // between two activations is charged to the activity recorded at the first).
+//
+// Temporal decoupling. A unit whose function touches no timed shared state
+// (no cache or DRAM access, no scoreboard) computes the same outputs at the
+// same cycles whether it runs at each cycle or ahead of SystemC time, as long
+// as everything it decides on is already decided: the entries in its input
+// FIFO (with their visible cycles) and the slots of its output FIFO (with the
+// cycles they were freed). Such a unit, when decoupled, does all the work its
+// FIFOs allow the moment a FIFO changes (on_input, on_space, on_close), with
+// no SystemC activation, like a TLM-2.0 loosely-timed initiator that never
+// needs to synchronise. Units that access memory stay in lockstep with
+// SystemC time, so the cache and DRAM see requests in cycle order. Lockstep
+// and decoupled runs give identical results (tests/test_cycle.cpp).
 #pragma once
 #include <systemc>
 
@@ -8,6 +20,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "clock.h"
 
@@ -37,13 +50,29 @@ class Unit : public sc_core::sc_module {
   SC_HAS_PROCESS(Unit);
   Unit(const sc_core::sc_module_name& name, const Clock& clk);
 
-  /// Wakes the unit at the given cycle (now or later); the earliest request wins.
+  /// Wakes the unit at the given cycle (now or later). Every request is kept
+  /// until its cycle has come: SystemC's event holds one notification, so a
+  /// request later than the pending one waits here, and after each
+  /// activation the earliest waiting request is notified.
   void wake_at(uint64_t cycle) {
-    if (cycle >= armed_) return;  // an earlier (or equal) wake is already pending
-    armed_ = cycle;
-    const uint64_t n = clk_.current();
-    wake_.notify(cycle > n ? clk_.cycles(cycle - n) : sc_core::SC_ZERO_TIME);
+    if (cycle == armed_) return;
+    // Keep the requests sorted and distinct (there are rarely more than two).
+    auto it = std::lower_bound(wakes_.begin(), wakes_.end(), cycle);
+    if (it != wakes_.end() && *it == cycle) return;
+    wakes_.insert(it, cycle);
+    if (cycle < armed_ && armed_ != clk_.current()) notify(cycle);  // an activation due now runs first
   }
+  /// A FIFO the unit reads got an entry, visible from cycle `visible`.
+  virtual void on_input(uint64_t visible) { wake_at(visible); }
+  /// The output FIFO the unit waits on has a free slot from `cycle`.
+  virtual void on_space(uint64_t cycle) { wake_at(cycle); }
+  /// A FIFO the unit reads was closed; the unit may notice from `cycle`.
+  virtual void on_close(uint64_t cycle) { wake_at(cycle); }
+  /// A decoupled producer declared more of its input settled (TimedFifo::settle).
+  virtual void on_settle() {}
+  /// Lets a unit that supports it run ahead of SystemC time (see above).
+  void set_decoupled(bool on) { decoupled_ = on; }
+  bool decoupled() const { return decoupled_; }
   /// Charges the cycles up to end to the current activity (end of the run).
   void close_accounting(uint64_t end) { set_activity(Activity::kIdle, end); }
   const UnitStats& stats() const { return stats_; }
@@ -78,6 +107,7 @@ class Unit : public sc_core::sc_module {
   }
   const Clock& clk_;
   UnitStats stats_;
+  bool decoupled_ = false;
 
  private:
   void run();
@@ -94,10 +124,61 @@ class Unit : public sc_core::sc_module {
       since_ = t;
     }
   }
+  void notify(uint64_t cycle) {
+    armed_ = cycle;
+    const uint64_t n = clk_.current();
+    wake_.notify(cycle > n ? clk_.cycles(cycle - n) : sc_core::SC_ZERO_TIME);
+  }
   sc_core::sc_event wake_;
-  uint64_t armed_ = ~uint64_t{0};
+  uint64_t armed_ = ~uint64_t{0};  // cycle of the pending activation (~0: none)
+  std::vector<uint64_t> wakes_;  // requested cycles, ascending
   Activity act_ = Activity::kIdle, after_ = Activity::kIdle;
   uint64_t since_ = 0, busy_end_ = 0;
+};
+
+/// A unit that can run decoupled: its behaviour is advance(limit), which does
+/// everything decided up to cycle `limit` (SystemC's current cycle in lockstep,
+/// kForever when decoupled) and arms a wake-up for what it could not do yet.
+/// The FIFO hooks record what they tell and, when decoupled, advance at once.
+class DecoupledUnit : public Unit {
+ public:
+  static constexpr uint64_t kForever = ~uint64_t{0};
+  using Unit::Unit;
+  void on_input(uint64_t visible) override { decoupled_ ? run_ahead() : wake_at(visible); }
+  void on_space(uint64_t cycle) override {
+    resume_ = std::max(resume_, cycle);
+    decoupled_ ? run_ahead() : wake_at(cycle);
+  }
+  void on_close(uint64_t cycle) override {
+    close_seen_ = cycle;
+    decoupled_ ? run_ahead() : wake_at(cycle);
+  }
+  void on_settle() override {
+    if (decoupled_) run_ahead();
+  }
+
+ protected:
+  virtual void advance(uint64_t limit) = 0;
+  void step(uint64_t now) override { decoupled_ ? run_ahead() : advance(now); }
+  /// Advances to kForever; a hook that fires inside (a pop that frees the
+  /// upstream unit, which pushes again) makes the loop run once more.
+  void run_ahead() {
+    if (advancing_) {
+      again_ = true;
+      return;
+    }
+    advancing_ = true;
+    do {
+      again_ = false;
+      advance(kForever);
+    } while (again_);
+    advancing_ = false;
+  }
+  uint64_t resume_ = 0;      ///< no output slot before this cycle (on_space)
+  uint64_t close_seen_ = 0;  ///< the input's close is seen from this cycle (on_close)
+
+ private:
+  bool advancing_ = false, again_ = false;
 };
 
 }  // namespace ropsim

@@ -2,19 +2,20 @@
 // pixel's surface id and covered mask (track_surface / track_commit, shared
 // with the golden model). A conflict with the covered mask starts a new
 // surface; n = popcount(covered) indexes the alpha references. The updated
-// state is written back through the ROP cache. One fragment per clock.
+// state goes to the ROP cache with the fragment's writeback (writeback.h), so
+// the tracker touches no timed state and may run decoupled. One fragment per
+// clock.
 #pragma once
 #include "hw_config.h"
 #include "pipe_unit.h"
-#include "rop_cache.h"
 
 namespace ropsim {
 
 class CoverageTracker : public PipeUnit {
  public:
   CoverageTracker(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
-                  const HwConfig::Tracker& cfg, RopCache& cache, TokenFifo& in, TokenFifo& out)
-      : PipeUnit(name, clk, ctx, in, out), cfg_(cfg), cache_(cache) {}
+                  const HwConfig::Tracker& cfg, TokenFifo& in, TokenFifo& out)
+      : PipeUnit(name, clk, ctx, in, out), cfg_(cfg) {}
   std::vector<Extra> extras() const override {
     return {{"new_surfaces", double(new_surfaces_), "bitmask conflicts that started a new surface"}};
   }
@@ -24,7 +25,6 @@ class CoverageTracker : public PipeUnit {
 
  private:
   HwConfig::Tracker cfg_;
-  RopCache& cache_;
   uint64_t new_surfaces_ = 0;
 };
 

@@ -98,11 +98,11 @@ void DepthTest::step(uint64_t now) {
     set_activity(Activity::kBlocked, now);
   } else if (full || !pending_.empty()) {
     set_activity(Activity::kMemory, now);
-  } else if (in_.empty() && in_.closed()) {
+  } else if (!in_.occupied(now) && in_.closed_by(now)) {
     if (!out_.closed()) out_.close(now);
     set_activity(Activity::kIdle, now);
   } else {
-    set_activity(seen_ || !in_.empty() ? Activity::kStarved : Activity::kIdle, now);
+    set_activity(seen_ || in_.occupied(now) ? Activity::kStarved : Activity::kIdle, now);
   }
   // 4. The next cycle anything can happen (pushes into in_ also wake the unit).
   if (!pending_.empty() && !blocked) wake_at(std::max(now + (emitted ? 1 : 0), pending_.top().ready));

@@ -1,6 +1,7 @@
 // Distributor: routes each fragment to the ROP unit that owns its screen tile
 // (square tiles of tile_pixels, mapped to units by the interleave), up to
 // fragments_per_clock per clock, in order: a full ROP input FIFO blocks it.
+// It touches no timed shared state, so it may run decoupled (unit.h).
 #pragma once
 #include <vector>
 
@@ -9,7 +10,7 @@
 
 namespace ropsim {
 
-class Distributor : public Unit {
+class Distributor : public DecoupledUnit {
  public:
   Distributor(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Distributor& cfg,
               uint32_t screen_width, TokenFifo& in, std::vector<TokenFifo*> outs);
@@ -21,14 +22,15 @@ class Distributor : public Unit {
   }
 
  protected:
-  void step(uint64_t now) override;
+  void advance(uint64_t limit) override;
 
  private:
   HwConfig::Distributor cfg_;
   uint32_t tile_shift_ = 0, tiles_x_;
   TokenFifo& in_;
   std::vector<TokenFifo*> outs_;
-  uint64_t busy_until_ = 0;
+  uint64_t t_ = 0;  // the clock being decided
+  uint32_t n_ = 0;  // fragments already routed in it
   bool seen_ = false, closed_ = false;
 };
 

@@ -64,9 +64,9 @@ void PixelOrdering::step(uint64_t now) {
     uint64_t next = ~uint64_t{0};
     for (const auto& r : releases_) next = std::min(next, r.first);
     if (next != ~uint64_t{0}) wake_at(next);
-  } else if (!in_.empty()) {
+  } else if (in_.occupied(now)) {
     set_activity(Activity::kStarved, now);
-  } else if (in_.closed()) {
+  } else if (in_.closed_by(now)) {
     if (!out_.closed()) out_.close(now);
     set_activity(Activity::kIdle, now);
     return;

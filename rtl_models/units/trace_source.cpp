@@ -4,57 +4,61 @@ namespace ropsim {
 
 TraceSource::TraceSource(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
                          const HwConfig::Source& cfg, Supplier supplier, TokenFifo& out)
-    : Unit(name, clk), ctx_(ctx), cfg_(cfg), supplier_(std::move(supplier)), out_(out) {}
+    : DecoupledUnit(name, clk), ctx_(ctx), cfg_(cfg), supplier_(std::move(supplier)), out_(out) {}
 
-void TraceSource::step(uint64_t now) {
-  if (done_) {
-    set_activity(Activity::kIdle, now);
-    return;
-  }
-  if (now < busy_until_) {
-    wake_at(busy_until_);
-    return;
-  }
-  uint32_t n = 0;
-  bool blocked = false;
-  while (n < cfg_.fragments_per_clock) {
-    if (!out_.can_push(now)) {
-      blocked = true;
-      break;
+void TraceSource::advance(uint64_t limit) {
+  while (!done_) {
+    const uint64_t t = t_;
+    if (t > limit) return wake_at(t);
+    // Up to fragments_per_clock fragments at clock t, while the FIFO has slots.
+    while (n_ < cfg_.fragments_per_clock && !done_) {
+      if (!out_.can_push(t)) {
+        // Decoupled, a slot the distributor has not yet freed may still free
+        // before t: the clock resumes here when it pops.
+        if (limit == kForever && out_.space_from() == TokenFifo::kUndecided) return out_.notify_on_pop();
+        break;
+      }
+      FragToken* tok = ctx_.pool.get();
+      bool got = false;
+      try {
+        got = supplier_(tok->f);
+      } catch (...) {
+        error_ = std::current_exception();
+        got = false;
+      }
+      if (!got) {
+        ctx_.pool.put(tok);
+        done_ = true;
+        out_.close(t);
+        if (error_) sc_core::sc_stop();
+        break;
+      }
+      tok->seq = seq_++;
+      tok->pixel_key = uint64_t(tok->f.y) * ctx_.header.width + tok->f.x;
+      out_.push(tok, t, t + 1);
+      ++n_;
+      ++stats_.fragments;
+      if (on_progress && seq_ % kProgressEvery == 0) on_progress(seq_);
     }
-    FragToken* t = ctx_.pool.get();
-    bool got = false;
-    try {
-      got = supplier_(t->f);
-    } catch (...) {
-      error_ = std::current_exception();
-      got = false;
+    // Clock t is decided.
+    if (!done_) out_.settle(t + 1);  // later pushes are at t + 1 or after, visible after t + 1
+    if (n_) {
+      set_activity(Activity::kBusy, t);
+      if (done_) set_activity(Activity::kIdle, t + 1);
+      n_ = 0;
+      t_ = t + 1;
+      continue;
     }
-    if (!got) {
-      ctx_.pool.put(t);
-      done_ = true;
-      out_.close(now);
-      if (error_) sc_core::sc_stop();
-      break;
+    if (done_) {
+      set_activity(Activity::kIdle, t);
+      return;
     }
-    t->seq = seq_++;
-    t->pixel_key = uint64_t(t->f.y) * ctx_.header.width + t->f.x;
-    out_.push(t, now, now + 1);
-    ++n;
-    if (on_progress && seq_ % kProgressEvery == 0) on_progress(seq_);
+    // No slot at t.
+    set_activity(Activity::kBlocked, t);
+    const uint64_t s = out_.space_from();
+    if (s == TokenFifo::kUndecided) return out_.wait_for_space(t);
+    t_ = s;
   }
-  stats_.fragments += n;
-  if (n) {
-    busy_until_ = now + 1;
-    set_activity(Activity::kBusy, now);
-    wake_at(now + 1);
-  } else if (blocked) {
-    set_activity(Activity::kBlocked, now);
-    out_.wait_for_space(now);
-  } else {
-    set_activity(Activity::kIdle, now);
-  }
-  if (blocked && n) out_.wait_for_space(now);
 }
 
 }  // namespace ropsim

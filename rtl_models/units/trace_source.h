@@ -1,6 +1,8 @@
 // Trace source: models the rasterizer-to-ROP interface. Pulls fragments (a
 // trace being read, or a scene) and delivers up to fragments_per_clock per
-// clock into its FIFO, in API order.
+// clock into its FIFO, in API order. It touches no timed shared state, so it
+// may run decoupled (unit.h): then it fills its FIFO ahead of SystemC time and
+// refills it the moment the distributor frees a slot.
 #pragma once
 #include <exception>
 #include <functional>
@@ -10,7 +12,7 @@
 
 namespace ropsim {
 
-class TraceSource : public Unit {
+class TraceSource : public DecoupledUnit {
  public:
   /// Fills the fragment and returns true, or returns false at the end.
   using Supplier = std::function<bool(Fragment&)>;
@@ -19,19 +21,24 @@ class TraceSource : public Unit {
   void start_of_simulation() override { wake_at(0); }
   /// An exception the supplier threw (bad record), rethrown after sc_start.
   std::exception_ptr error() const { return error_; }
+  /// The supplier has no more fragments; `produced` were delivered.
+  bool done() const { return done_; }
+  uint64_t produced() const { return seq_; }
   /// Called every progress_every fragments with the count so far.
   std::function<void(uint64_t)> on_progress;
   static constexpr uint64_t kProgressEvery = 1 << 16;
 
  protected:
-  void step(uint64_t now) override;
+  void advance(uint64_t limit) override;
 
  private:
   RopContext& ctx_;
   HwConfig::Source cfg_;
   Supplier supplier_;
   TokenFifo& out_;
-  uint64_t seq_ = 0, busy_until_ = 0;
+  uint64_t seq_ = 0;
+  uint64_t t_ = 0;  // the clock being decided
+  uint32_t n_ = 0;  // fragments already delivered in it
   bool done_ = false;
   std::exception_ptr error_;
 };

@@ -60,6 +60,9 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
                                  [&](uint64_t line) { cache_.write(line, Buffer::kDepth, now); });
   ctx_.amap.for_each_sample_line(Buffer::kColor, t->f.x, t->f.y, wrote,
                                  [&](uint64_t line) { cache_.write(line, Buffer::kColor, now); });
+  // lk: the tracker's updated state (written whatever the opacity test said).
+  if (ctx_.golden.method == Method::kLk)
+    ctx_.amap.for_each_tracker_line(t->f.x, t->f.y, [&](uint64_t line) { cache_.write(line, Buffer::kTracker, now); });
   return examined;
 }
 
@@ -69,11 +72,12 @@ void Writeback::step(uint64_t now) {
     return;
   }
   if (!in_.can_pop(now)) {
-    if (!in_.empty()) {
+    if (in_.occupied(now)) {
       set_activity(Activity::kStarved, now);
       wake_at(in_.head_visible());
     } else {
-      set_activity(seen_ && !in_.closed() ? Activity::kStarved : Activity::kIdle, now);
+      set_activity(seen_ && !in_.closed_by(now) ? Activity::kStarved : Activity::kIdle, now);
+      if (!in_.empty()) wake_at(in_.head_visible());  // pushed ahead by a decoupled producer
     }
     return;
   }

@@ -57,7 +57,7 @@ struct RunOpts {
   uint32_t width = 0, height = 0;
   uint64_t seed = 1, scene_seed = 1;
   Numerics num;
-  bool vs_reference = false, quiet = false;
+  bool vs_reference = false, quiet = false, lockstep = false;
 };
 
 /// Writes the images and the report, all or none: a failure removes what
@@ -89,6 +89,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   CycleOptions opt;
   opt.vcd_first = vcd_first;
   opt.vcd_last = vcd_last;
+  opt.lockstep = o.lockstep;
   const bool tty = !o.quiet && isatty(fileno(stderr));
   const auto t0 = std::chrono::steady_clock::now();
   if (tty)
@@ -118,7 +119,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const bool cycle = o.fidelity == "cycle";
   if (!cycle)
-    for (const char* f : {"--hw", "--hw-set", "--vcd", "--vcd-window"})
+    for (const char* f : {"--hw", "--hw-set", "--vcd", "--vcd-window", "--lockstep"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
   HwConfig hw;
@@ -279,6 +280,9 @@ int main(int argc, char** argv) {
   run->add_option("--hw-set", ro.hw_sets, "cycle: override one parameter, section.key=value; repeatable");
   run->add_option("--vcd", ro.vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
   run->add_option("--vcd-window", ro.vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
+  run->add_flag("--lockstep", ro.lockstep,
+                "cycle: run every unit in lockstep with SystemC time, none decoupled (same results, slower; "
+                "for checking the decoupling)");
   run->add_option("--repeat", ro.repeat, "Draw the input this many times into one frame (default 1)")
       ->check(CLI::Range(1u, 1000u));
   run->add_flag("--vs-reference", ro.vs_reference, "Also run the A-buffer reference on the same stream and report the RMSE");

@@ -117,7 +117,9 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   dram["achieved_gbps"] = s.dram_achieved_gbps;
   dram["busiest_channel_utilization"] = s.dram_utilization;
   t["dram"] = dram;
-  t["host"] = {{"systemc_activations", s.activations}, {"fragment_tokens", s.tokens_allocated}};
+  t["host"] = {{"systemc_activations", s.activations},
+               {"decoupled", s.decoupled},
+               {"fragment_tokens", s.tokens_allocated}};
   return t;
 }
 

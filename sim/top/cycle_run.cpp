@@ -101,6 +101,8 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   auto top = std::make_unique<RopPipeline>("top", run.header, method, hw, std::move(supplier));
   top->source().on_progress = opt.progress;
   top->context().retire_hook = opt.retire_hook;
+  const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
+  top->set_decoupled(decoupled);
   std::string vcd_tmp;
   if (!opt.vcd_path.empty()) {
     vcd_tmp = opt.vcd_path + ".tmp";
@@ -141,6 +143,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   s.memory_bound = s.dram_utilization >= 0.8;
   s.bottleneck = classify(s);
   s.tokens_allocated = ctx.pool.allocated();
+  s.decoupled = decoupled;
 
   run.counters = ctx.counters;
   run.image = ctx.store.resolve();

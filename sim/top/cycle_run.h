@@ -22,6 +22,10 @@ struct CycleOptions {
   uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycle window of the waveform
   std::function<void(uint64_t fragments)> progress;  ///< every 65536 fragments
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
+  /// Runs every unit in lockstep with SystemC time, none decoupled (unit.h).
+  /// The results are identical; it is slower. A --vcd run is always lockstep,
+  /// so traced values change at their own cycles.
+  bool lockstep = false;
 };
 
 struct UnitReport {
@@ -49,6 +53,7 @@ struct CycleStats {
   bool memory_bound = false;      ///< dram_utilization >= 0.8
   std::string bottleneck;         ///< one line: what limits the frame
   uint64_t activations = 0;       ///< SystemC process activations (host cost)
+  bool decoupled = false;         ///< units without timed shared state ran ahead of SystemC time
   size_t tokens_allocated = 0;    ///< fragment tokens ever in flight at once (upper bound)
 };
 

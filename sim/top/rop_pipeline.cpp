@@ -55,8 +55,8 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
     if (lk) {
       TokenFifo& tr_out = make_fifo(p + "tracker_to_sorter", hw.tracker.fifo_depth, hw.tracker.latency_cycles);
       Unit* tr = &add("coverage_tracker", ri,
-                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, ctx_, hw.tracker, cache,
-                                                        *link, tr_out));
+                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, ctx_, hw.tracker, *link,
+                                                        tr_out));
       link->connect(prev, tr);
       prev = tr;
       link = &tr_out;
@@ -83,6 +83,11 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
                     std::make_unique<Writeback>((u + "writeback").c_str(), clk_, ctx_, hw.writeback, cache, *link));
     link->connect(prev, wb);
   }
+}
+
+void RopPipeline::set_decoupled(bool on) {
+  for (const auto& u : units_)
+    if (auto* d = dynamic_cast<DecoupledUnit*>(u.unit)) d->set_decoupled(on);
 }
 
 RopPipeline::~RopPipeline() {
@@ -118,6 +123,17 @@ void RopPipeline::trace_to(const std::string& vcd_base, uint64_t first, uint64_t
 uint64_t RopPipeline::run() {
   sc_core::sc_start();
   if (source_->error()) std::rethrow_exception(source_->error());
+  // SystemC stops when no event is pending: that must be because every
+  // fragment has retired, never because a wake-up was lost.
+  if (!source_->done() || ctx_.retired != source_->produced()) {
+    std::string held;
+    for (const auto& f : fifos_)
+      if (!f->empty()) held += "; " + f->name() + " holds " + std::to_string(f->size());
+    throw std::logic_error("cycle model stalled at cycle " + std::to_string(clk_.now()) + ": " +
+                           std::to_string(ctx_.retired) + " of " + std::to_string(source_->produced()) +
+                           " fragments retired" + (source_->done() ? "" : " and the trace source is not done") +
+                           held + " (a lost wake-up; please report it)");
+  }
   pipeline_cycles_ = std::max(ctx_.last_retire, clk_.now());
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));

@@ -38,6 +38,9 @@ class RopPipeline : public sc_core::sc_module {
   /// cycles [first, last]; call before run(). SystemC appends ".vcd".
   void trace_to(const std::string& vcd_base, uint64_t first, uint64_t last);
 
+  /// Lets the units that can run decoupled (unit.h) do so; call before run().
+  void set_decoupled(bool on);
+
   RopContext& context() { return ctx_; }
   const Clock& clock() const { return clk_; }
   TraceSource& source() { return *source_; }
