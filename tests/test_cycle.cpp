@@ -341,7 +341,7 @@ TEST(UnitAlone, DepthTestHitLatencyPlusCompareLatency) {
         HwConfig::Cache cc;
         cc.hit_latency_cycles = hit;
         Dram dram{HwConfig::Dram{}};
-        std::unordered_set<uint64_t> in_dram;
+        LineSet in_dram{64};
         RopCache cache(cc, dram, in_dram);
         // Depth test needs real fragments: a plane at depth 0.5 over cleared pixels.
         const auto seen = run_alone(h, back_to_back(40), 16, [&](TokenFifo& in, TokenFifo& out) {
@@ -364,7 +364,7 @@ TEST(UnitAlone, DepthTestSamplesPerClockSetsTheInterval) {
     HwConfig::DepthTest cfg;
     cfg.samples_per_clock = 4;
     Dram dram{HwConfig::Dram{}};
-    std::unordered_set<uint64_t> in_dram;
+    LineSet in_dram{64};
     RopCache cache(HwConfig::Cache{}, dram, in_dram);
     const auto seen = run_alone(h, back_to_back(10), 16, [&](TokenFifo& in, TokenFifo& out) {
       return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);

@@ -4,8 +4,25 @@
 
 namespace ropsim {
 
-RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, std::unordered_set<uint64_t>& in_dram)
-    : cfg_(cfg), dram_(dram), in_dram_(in_dram), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
+void PostedWrites::apply(uint64_t before) {
+  // Merge the ROPs' queues in (cycle, ROP) order.
+  for (;;) {
+    Queue* next = nullptr;
+    for (auto& q : q_)
+      if (!q.empty() && (!next || q.front().cycle < next->front().cycle)) next = &q;
+    if (!next || next->front().cycle >= before) {
+      earliest_ = next ? next->front().cycle : ~uint64_t{0};
+      return;
+    }
+    const Write w = next->front();
+    next->pop();
+    w.cache->write(w.line, w.buf, w.cycle);
+  }
+}
+
+RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
+                   PostedWrites* posted, uint32_t rop)
+    : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
       ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
   while ((1u << set_shift_) < cfg.line_bytes) ++set_shift_;
 }
@@ -45,6 +62,7 @@ void RopCache::evict(Way& w, uint64_t now) {
 }
 
 uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
+  if (posted_) posted_->apply_before(now);  // earlier cycles' writes first, in a fixed order
   bool hit = false;
   Way& w = lookup(line, hit, now);
   if (hit) {
@@ -58,7 +76,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   ++s_.read_misses[size_t(b)];
   w.buf = b;
   w.dirty = false;
-  if (cfg_.fast_clear && !in_dram_.count(line)) {
+  if (cfg_.fast_clear && !in_dram_.contains(line)) {
     ++s_.clear_fills;
     w.ready = now + cfg_.hit_latency_cycles;
   } else {
@@ -81,6 +99,7 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
 }
 
 uint64_t RopCache::flush(uint64_t now) {
+  if (posted_) posted_->apply_all();
   uint64_t done = now;
   for (Way& w : ways_)
     if (w.valid && w.dirty) {

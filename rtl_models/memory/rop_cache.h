@@ -7,14 +7,15 @@
 // A passive timing model called by the units at the current cycle; a read of
 // a line whose fill is in flight waits for that fill (MSHR merge).
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cstdint>
-#include <unordered_set>
 #include <vector>
 
 #include "address_map.h"
 #include "dram.h"
 #include "hw_config.h"
+#include "line_set.h"
 
 namespace ropsim {
 
@@ -25,13 +26,78 @@ struct CacheStats {
   uint64_t clear_fills = 0; ///< misses served by fast clear, no DRAM read
 };
 
+class RopCache;
+
+/// Writes posted by the writeback units of all ROPs, applied to their caches
+/// in the order (cycle, ROP, post order) before any memory access at a later
+/// cycle: so a write and a read in the same cycle never depend on the order
+/// SystemC runs their units in, and a decoupled writeback (unit.h) may post
+/// ahead of SystemC time.
+class PostedWrites {
+ public:
+  /// Each ROP posts in non-decreasing cycle order (its writeback is in order).
+  void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b) {
+    if (rop >= q_.size()) q_.resize(rop + 1);
+    q_[rop].push(Write{cycle, cache, line, b});
+    earliest_ = std::min(earliest_, cycle);
+  }
+  /// Applies every write posted for a cycle before `cycle`.
+  void apply_before(uint64_t cycle) {
+    if (earliest_ < cycle) apply(cycle);
+  }
+  void apply_all() { apply(~uint64_t{0}); }
+
+ private:
+  struct Write {
+    uint64_t cycle;
+    RopCache* cache;
+    uint64_t line;
+    Buffer buf;
+  };
+  /// A FIFO of writes (a ring that grows; no allocation in steady state).
+  class Queue {
+   public:
+    bool empty() const { return n_ == 0; }
+    const Write& front() const { return v_[head_]; }
+    void pop() {
+      head_ = (head_ + 1) & (v_.size() - 1);
+      --n_;
+    }
+    void push(const Write& w) {
+      if (n_ == v_.size()) {
+        std::vector<Write> g(v_.size() * 2);
+        for (size_t i = 0; i < n_; ++i) g[i] = v_[(head_ + i) & (v_.size() - 1)];
+        v_.swap(g);
+        head_ = 0;
+      }
+      v_[(head_ + n_) & (v_.size() - 1)] = w;
+      ++n_;
+    }
+
+   private:
+    std::vector<Write> v_ = std::vector<Write>(64);
+    size_t head_ = 0, n_ = 0;
+  };
+  void apply(uint64_t before);
+  std::vector<Queue> q_;  // per ROP
+  uint64_t earliest_ = ~uint64_t{0};
+};
+
 class RopCache {
  public:
-  RopCache(const HwConfig::Cache& cfg, Dram& dram, std::unordered_set<uint64_t>& in_dram);
+  /// `posted` (shared by the ROPs) delays writes as PostedWrites says; without
+  /// it a posted write is applied at once.
+  RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
+           PostedWrites* posted = nullptr, uint32_t rop = 0);
   /// Reads a line at cycle now; returns the cycle its data is available.
   uint64_t read(uint64_t line_addr, Buffer b, uint64_t now);
-  /// Writes (part of) a line at cycle now; posted, never stalls the writer.
+  /// Writes (part of) a line at cycle now; never stalls the writer.
   void write(uint64_t line_addr, Buffer b, uint64_t now);
+  /// Posts a write for cycle `cycle` (see PostedWrites).
+  void post_write(uint64_t line_addr, Buffer b, uint64_t cycle) {
+    if (posted_) posted_->post(cycle, rop_, this, line_addr, b);
+    else write(line_addr, b, cycle);
+  }
   /// Writes every dirty line back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);
   const CacheStats& stats() const { return s_; }
@@ -46,7 +112,9 @@ class RopCache {
   void evict(Way& w, uint64_t now);
   HwConfig::Cache cfg_;
   Dram& dram_;
-  std::unordered_set<uint64_t>& in_dram_;  // lines DRAM holds (shared by all caches)
+  LineSet& in_dram_;  // lines DRAM holds (shared by all caches)
+  PostedWrites* posted_;
+  uint32_t rop_;
   uint32_t sets_, set_shift_;
   std::vector<Way> ways_;
   uint64_t tick_ = 0;

@@ -6,7 +6,7 @@ namespace ropsim {
 
 Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
                      const HwConfig::Writeback& cfg, RopCache& cache, TokenFifo& in)
-    : Unit(name, clk), ctx_(ctx), cfg_(cfg), cache_(cache), in_(in) {}
+    : DecoupledUnit(name, clk), ctx_(ctx), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
   const Numerics& num = ctx_.golden.numerics;
@@ -57,39 +57,37 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   c.color_bytes_written += 6u * n;
   written_ += n;
   ctx_.amap.for_each_sample_line(Buffer::kDepth, t->f.x, t->f.y, wrote,
-                                 [&](uint64_t line) { cache_.write(line, Buffer::kDepth, now); });
+                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now); });
   ctx_.amap.for_each_sample_line(Buffer::kColor, t->f.x, t->f.y, wrote,
-                                 [&](uint64_t line) { cache_.write(line, Buffer::kColor, now); });
+                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now); });
   // lk: the tracker's updated state (written whatever the opacity test said).
   if (ctx_.golden.method == Method::kLk)
-    ctx_.amap.for_each_tracker_line(t->f.x, t->f.y, [&](uint64_t line) { cache_.write(line, Buffer::kTracker, now); });
+    ctx_.amap.for_each_tracker_line(t->f.x, t->f.y, [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now); });
   return examined;
 }
 
-void Writeback::step(uint64_t now) {
-  if (now < busy_until_) {
-    wake_at(busy_until_);
-    return;
-  }
-  if (!in_.can_pop(now)) {
-    if (in_.occupied(now)) {
-      set_activity(Activity::kStarved, now);
-      wake_at(in_.head_visible());
-    } else {
-      set_activity(seen_ && !in_.closed_by(now) ? Activity::kStarved : Activity::kIdle, now);
-      if (!in_.empty()) wake_at(in_.head_visible());  // pushed ahead by a decoupled producer
+void Writeback::advance(uint64_t limit) {
+  for (;;) {
+    if (in_.empty()) {
+      // Everything is through; after the input closes the unit is idle.
+      if (in_.closed() && !closed_) {
+        const uint64_t t = std::max(close_seen_, busy_until_);
+        if (t > limit) return wake_at(t);
+        closed_ = true;
+        set_activity(Activity::kIdle, t);
+      }
+      return;  // a push or a close comes back here
     }
-    return;
+    const uint64_t t = std::max(busy_until_, in_.head_visible());
+    if (t > limit) return wake_at(t);
+    FragToken* tok = in_.pop(t);
+    ++stats_.fragments;
+    const uint32_t examined = process(tok, t);
+    stats_.samples += examined;
+    busy_until_ = t + std::max<uint32_t>(1, ceil_div(examined, cfg_.samples_per_clock));
+    ctx_.retire(tok, t + cfg_.latency_cycles);
+    set_busy(t, busy_until_, Activity::kStarved);
   }
-  FragToken* t = in_.pop(now);
-  seen_ = true;
-  ++stats_.fragments;
-  const uint32_t examined = process(t, now);
-  stats_.samples += examined;
-  busy_until_ = now + std::max<uint32_t>(1, ceil_div(examined, cfg_.samples_per_clock));
-  ctx_.retire(t, now + cfg_.latency_cycles);
-  set_busy(now, busy_until_, Activity::kStarved);
-  if (!in_.empty()) wake_at(std::max(busy_until_, in_.head_visible()));
 }
 
 }  // namespace ropsim

@@ -1,7 +1,9 @@
 // Writeback: the opacity test (lk: alpha >= reference, in the fixed-point
 // rule of opacity.h) and the conditional depth and colour writes through the
 // ROP cache. samples_per_clock tests and writes per clock; after the latency
-// the fragment retires and its pixel leaves the scoreboard.
+// the fragment retires and its pixel leaves the scoreboard. Its cache writes
+// are posted (PostedWrites, rop_cache.h), so it touches no timed state at its
+// own cycle and may run decoupled (unit.h).
 #pragma once
 #include "hw_config.h"
 #include "pipe_unit.h"
@@ -9,7 +11,7 @@
 
 namespace ropsim {
 
-class Writeback : public Unit {
+class Writeback : public DecoupledUnit {
  public:
   Writeback(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::Writeback& cfg,
             RopCache& cache, TokenFifo& in);
@@ -18,7 +20,7 @@ class Writeback : public Unit {
   }
 
  protected:
-  void step(uint64_t now) override;
+  void advance(uint64_t limit) override;
 
  private:
   /// The functional writeback; returns the samples it examined.
@@ -28,7 +30,7 @@ class Writeback : public Unit {
   RopCache& cache_;
   TokenFifo& in_;
   uint64_t busy_until_ = 0, written_ = 0;
-  bool seen_ = false;
+  bool closed_ = false;
 };
 
 }  // namespace ropsim

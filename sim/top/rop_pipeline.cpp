@@ -12,7 +12,7 @@ namespace ropsim {
 RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader& header, const GoldenConfig& method,
                          const HwConfig& hw, TraceSource::Supplier supplier)
     : sc_module(name), hw_(hw), clk_(hw.clock.frequency_ghz), ctx_(header, method, hw.cache.line_bytes),
-      dram_(hw.dram) {
+      dram_(hw.dram), in_dram_(hw.cache.line_bytes) {
   const Method m = method.method;
   if (m == Method::kReference) throw std::invalid_argument("the reference method has no ROP pipeline");
   const bool lk = m == Method::kLk;
@@ -36,7 +36,7 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
     const std::string p = "rop" + std::to_string(r) + ".";   // FIFO names
     const std::string u = "rop" + std::to_string(r) + "_";   // module names ('.' is the hierarchy separator)
     const int ri = int(r);
-    caches_.push_back(std::make_unique<RopCache>(hw.cache, dram_, in_dram_));
+    caches_.push_back(std::make_unique<RopCache>(hw.cache, dram_, in_dram_, &posted_, r));
     RopCache& cache = *caches_.back();
 
     TokenFifo& ord_out = make_fifo(p + "ordering_to_depth", hw.ordering.fifo_depth, hw.ordering.latency_cycles);
@@ -134,7 +134,9 @@ uint64_t RopPipeline::run() {
                            " fragments retired" + (source_->done() ? "" : " and the trace source is not done") +
                            held + " (a lost wake-up; please report it)");
   }
-  pipeline_cycles_ = std::max(ctx_.last_retire, clk_.now());
+  // The last retirement, not SystemC's final time: decoupled units close their
+  // outputs without SystemC time passing, so that differs between the modes.
+  pipeline_cycles_ = ctx_.last_retire;
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
   total_cycles_ = std::max(end, dram_.stats().last_completion);

@@ -10,7 +10,7 @@
 
 #include <memory>
 #include <string>
-#include <unordered_set>
+#include "line_set.h"
 #include <vector>
 
 #include "clock.h"
@@ -67,7 +67,8 @@ class RopPipeline : public sc_core::sc_module {
   Clock clk_;
   RopContext ctx_;
   Dram dram_;
-  std::unordered_set<uint64_t> in_dram_;
+  LineSet in_dram_;
+  PostedWrites posted_;  // before caches_: they point to it
   std::vector<std::unique_ptr<RopCache>> caches_;
   std::vector<std::unique_ptr<TokenFifo>> fifos_;
   std::vector<std::unique_ptr<Unit>> owned_;
