@@ -25,6 +25,22 @@ struct DramStats {
   uint64_t last_completion = 0;   ///< cycle the last access completes
 };
 
+/// x / d and x % d by a shift and a mask when d is a power of two (the
+/// common configs), by the divider otherwise: one access did four divisions.
+class Divisor {
+ public:
+  explicit Divisor(uint64_t d) : d_(d), pow2_((d & (d - 1)) == 0) {
+    while (pow2_ && (uint64_t{1} << shift_) < d) ++shift_;
+  }
+  uint64_t div(uint64_t x) const { return pow2_ ? x >> shift_ : x / d_; }
+  uint64_t mod(uint64_t x) const { return pow2_ ? x & (d_ - 1) : x % d_; }
+
+ private:
+  uint64_t d_;
+  bool pow2_;
+  int shift_ = 0;
+};
+
 class Dram {
  public:
   explicit Dram(const HwConfig::Dram& cfg);
@@ -35,6 +51,7 @@ class Dram {
 
  private:
   HwConfig::Dram cfg_;
+  Divisor interleave_, channels_, row_, banks_, bus_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
     std::vector<uint64_t> open_row;   // per bank, ~0 = closed
