@@ -31,82 +31,63 @@ struct FifoStats {
 
 /// Occupancy over simulated time from push and pop cycles that arrive in
 /// host order: each side's cycles never decrease, but one side may run ahead
-/// of the other. Events older than both sides' latest cycle are final and are
-/// folded into the statistics; the rest wait (at most about two capacities).
+/// of the other (a decoupled unit). Occupancy at cycle t counts the entries
+/// pushed at or before t and popped after t. Entries leave in order, so every
+/// figure is a fact about a few entries at most `capacity` apart, kept in two
+/// small rings:
+///  - entry-cycles: the sum of (pop - push) over the entries;
+///  - cycles at capacity: entry j completes a full FIFO from its push until
+///    entry j - capacity + 1 leaves, counted when the later of the two arrives;
+///  - the maximum: the occupancy after entry j's push is j + 1 - (entries
+///    popped by then), final at the first pop after that cycle.
 class OccupancyStats {
  public:
-  explicit OccupancyStats(uint32_t capacity) : cap_(capacity) {}
+  explicit OccupancyStats(uint32_t capacity) : cap_(capacity), push_t_(capacity), pop_t_(capacity) {}
   void push(uint64_t t) {
-    pushes_.push_back(t);
-    last_push_ = t;
-    fold(std::min(last_push_, last_pop_));
+    const uint64_t j = pushes_++;
+    push_t_[j % cap_] = t;
+    if (j + 1 >= cap_ && j + 1 - cap_ < pops_) {  // entry j - cap + 1 has left: full until then
+      const uint64_t p = pop_t_[(j + 1 - cap_) % cap_];
+      if (p > t) full_ += p - t;
+    }
+    // A consumer ahead in time has already popped, after t, some entries that
+    // were still in at t: the first of them gives the occupancy after this push.
+    if (pend_ == j && pops_ && pop_t_[(pops_ - 1) % cap_] > t) {
+      uint64_t k = pops_;
+      while (k > 0 && k + cap_ > j + 1 && pop_t_[(k - 1) % cap_] > t) --k;
+      max_ = std::max(max_, j + 1 - k);
+      ++pend_;
+    }
   }
   void pop(uint64_t t) {
-    pops_.push_back(t);
-    last_pop_ = t;
-    fold(std::min(last_push_, last_pop_));
+    const uint64_t i = pops_++;
+    area_ += t - push_t_[i % cap_];
+    // Pushes before t now know how many entries had left by their cycle: i.
+    for (; pend_ < pushes_ && push_t_[pend_ % cap_] < t; ++pend_) max_ = std::max(max_, pend_ + 1 - i);
+    if (i + cap_ - 1 < pushes_) {  // entry i + cap - 1 was pushed: the FIFO was full from then until now
+      const uint64_t q = push_t_[(i + cap_ - 1) % cap_];
+      if (t > q) full_ += t - q;
+    }
+    pop_t_[i % cap_] = t;
   }
-  /// Entry-cycles, cycles at capacity and the maximum over [0, end).
-  void finish(uint64_t end, double& mean, uint64_t& full, uint32_t& max) {
-    fold(~uint64_t{0});
-    const uint64_t span = end > since_ ? end - since_ : 0;
-    mean = end ? double(area_ + uint64_t(occ_) * span) / double(end) : 0.0;
-    full = full_ + (occ_ == cap_ ? span : 0);
-    max = max_;
+  /// Time-averaged entries, cycles at capacity and the maximum over [0, end).
+  void finish(uint64_t end, double& mean, uint64_t& full, uint32_t& max) const {
+    uint64_t area = area_, f = full_, m = max_;
+    for (uint64_t i = pops_; i < pushes_; ++i) {  // still in at the end
+      area += end - push_t_[i % cap_];
+      if (i + cap_ - 1 < pushes_ && end > push_t_[(i + cap_ - 1) % cap_]) f += end - push_t_[(i + cap_ - 1) % cap_];
+    }
+    for (uint64_t j = pend_; j < pushes_; ++j) m = std::max(m, j + 1 - pops_);
+    mean = end ? double(area) / double(end) : 0.0;
+    full = f;
+    max = uint32_t(m);
   }
 
  private:
-  /// A queue of cycles (a ring that grows; no allocation in steady state).
-  class Times {
-   public:
-    bool empty() const { return n_ == 0; }
-    uint64_t front() const { return v_[head_]; }
-    void pop_front() {
-      head_ = (head_ + 1) & (v_.size() - 1);
-      --n_;
-    }
-    void push_back(uint64_t t) {
-      if (n_ == v_.size()) grow();
-      v_[(head_ + n_) & (v_.size() - 1)] = t;
-      ++n_;
-    }
-
-   private:
-    void grow() {
-      std::vector<uint64_t> w(v_.size() * 2);
-      for (size_t i = 0; i < n_; ++i) w[i] = v_[(head_ + i) & (v_.size() - 1)];
-      v_.swap(w);
-      head_ = 0;
-    }
-    std::vector<uint64_t> v_ = std::vector<uint64_t>(16);
-    size_t head_ = 0, n_ = 0;
-  };
-  /// Folds every event before cycle h (no later event can precede h).
-  void fold(uint64_t h) {
-    for (;;) {
-      const uint64_t tp = pushes_.empty() ? ~uint64_t{0} : pushes_.front();
-      const uint64_t to = pops_.empty() ? ~uint64_t{0} : pops_.front();
-      const uint64_t t = std::min(tp, to);
-      if (t >= h || t == ~uint64_t{0}) return;
-      area_ += uint64_t(occ_) * (t - since_);
-      if (occ_ == cap_) full_ += t - since_;
-      since_ = t;
-      while (!pushes_.empty() && pushes_.front() == t) {
-        ++occ_;
-        pushes_.pop_front();
-      }
-      while (!pops_.empty() && pops_.front() == t) {
-        --occ_;
-        pops_.pop_front();
-      }
-      max_ = std::max(max_, occ_);
-    }
-  }
-  uint32_t cap_;
-  Times pushes_, pops_;
-  uint64_t last_push_ = 0, last_pop_ = 0;
-  uint32_t occ_ = 0, max_ = 0;
-  uint64_t since_ = 0, area_ = 0, full_ = 0;
+  uint64_t cap_;
+  std::vector<uint64_t> push_t_, pop_t_;  // by entry index mod capacity
+  uint64_t pushes_ = 0, pops_ = 0, pend_ = 0;
+  uint64_t area_ = 0, full_ = 0, max_ = 0;
 };
 
 template <class T>

@@ -10,13 +10,16 @@ PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& c
 
 void PixelOrdering::release(uint64_t pixel_key, uint64_t cycle) {
   releases_.emplace_back(cycle, pixel_key);
-  if (waiting_release_) wake_at(cycle);
+  if (waiting_release_) wake_at(cycle + 1);
 }
 
 void PixelOrdering::step(uint64_t now) {
   waiting_release_ = false;
-  for (size_t i = 0; i < releases_.size();) {  // retirements that have happened by now
-    if (releases_[i].first <= now) {
+  // Retirements before now. A pixel retired at cycle c may issue again from
+  // c + 1 (as a FIFO slot freed at c is reused from c + 1), so a depth-test
+  // kill and this unit in the same cycle never depend on SystemC's run order.
+  for (size_t i = 0; i < releases_.size();) {
+    if (releases_[i].first < now) {
       in_flight_.erase(releases_[i].second);
       releases_[i] = releases_.back();
       releases_.pop_back();
@@ -63,7 +66,7 @@ void PixelOrdering::step(uint64_t now) {
     waiting_release_ = true;
     uint64_t next = ~uint64_t{0};
     for (const auto& r : releases_) next = std::min(next, r.first);
-    if (next != ~uint64_t{0}) wake_at(next);
+    if (next != ~uint64_t{0}) wake_at(next + 1);
   } else if (in_.occupied(now)) {
     set_activity(Activity::kStarved, now);
   } else if (in_.closed_by(now)) {
