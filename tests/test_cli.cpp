@@ -375,6 +375,27 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
   for (size_t i = 0; i + 1 < stamps.size(); ++i)
     EXPECT_TRUE(stamps[i] >= 100000 && stamps[i] <= 400000) << "VCD change at " << stamps[i] << " ps, outside 100:400";
   EXPECT_FALSE(box.files().count("w.vcd.tmp.vcd")) << "temporary waveform left behind";
+  EXPECT_EQ(t["host"]["decoupled"], false) << "a --vcd run must be lockstep, so traced values change at their cycles";
+}
+
+// --lockstep gives the decoupled run's image and report (narrow.toml has one
+// ROP, where the two modes agree in every timing figure), with more activations.
+TEST(CliCycle, LockstepFlagGivesTheSameRun) {
+  CliSandbox box;
+  const std::string common = "run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR
+                             "/configs/narrow.toml' --scene cloth --spp 4 --quiet ";
+  expect_ok(box.run(common + "--out d.exr --report d.json"), "decoupled run");
+  expect_ok(box.run(common + "--lockstep --out l.exr --report l.json"), "lockstep run");
+  const CliResult cmp = box.run("compare d.exr l.exr --json");
+  EXPECT_NE(cmp.out.find("\"rmse_8bit\": 0.000000"), std::string::npos) << cmp.describe();
+  const auto d = nlohmann::json::parse(slurp(box.work() / "d.json"))["timing"];
+  const auto l = nlohmann::json::parse(slurp(box.work() / "l.json"))["timing"];
+  EXPECT_EQ(d["host"]["decoupled"], true);
+  EXPECT_EQ(l["host"]["decoupled"], false);
+  EXPECT_EQ(d["total_cycles"], l["total_cycles"]);
+  EXPECT_EQ(d["dram"], l["dram"]);
+  EXPECT_LT(d["host"]["systemc_activations"].get<double>(), l["host"]["systemc_activations"].get<double>());
+  expect_cli_error(box, "run --lockstep --scene testcard --spp 1", {"--lockstep", "cycle"});
 }
 
 TEST(CliCycle, BadCycleFlagsFailInOneLine) {
