@@ -8,6 +8,8 @@
 
 namespace ropsim {
 
+class Scheduler;
+
 class Clock {
  public:
   /// Call after the simulation context exists (sc_time needs its resolution).
@@ -17,6 +19,9 @@ class Clock {
                    .value()) {}
   /// The current cycle.
   uint64_t now() const { return sc_core::sc_time_stamp().value() / ticks_; }
+  /// The process that runs the units of this clock (scheduler.h).
+  void attach(Scheduler* s) { sched_ = s; }
+  Scheduler* scheduler() const { return sched_; }
   /// The current cycle as of the running unit activation (set by Unit::run,
   /// so the division in now() runs once per activation, not per wake-up).
   uint64_t current() const { return current_; }
@@ -39,6 +44,7 @@ class Clock {
   double ghz_;
   uint64_t ticks_;
   mutable uint64_t current_ = 0;
+  Scheduler* sched_ = nullptr;
   bool trace_ = false;
   uint64_t first_ = 0, last_ = 0;
 };

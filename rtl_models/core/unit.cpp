@@ -1,5 +1,7 @@
 #include "unit.h"
 
+#include <stdexcept>
+
 namespace ropsim {
 
 const char* to_string(Activity a) {
@@ -14,22 +16,14 @@ const char* to_string(Activity a) {
   return "?";
 }
 
-Unit::Unit(const sc_core::sc_module_name& name, const Clock& clk) : sc_module(name), clk_(clk) {
-  SC_METHOD(run);
-  sensitive << wake_;
-  dont_initialize();
+namespace {
+Scheduler& scheduler_of(const Clock& clk) {
+  if (!clk.scheduler()) throw std::logic_error("a Unit needs a Scheduler on its Clock (build the Scheduler first)");
+  return *clk.scheduler();
 }
+}  // namespace
 
-void Unit::run() {
-  ++stats_.activations;
-  const uint64_t now = clk_.now();
-  clk_.set_current(now);
-  armed_ = ~uint64_t{0};
-  size_t due = 0;
-  while (due < wakes_.size() && wakes_[due] <= now) ++due;
-  wakes_.erase(wakes_.begin(), wakes_.begin() + ptrdiff_t(due));
-  step(now);
-  if (!wakes_.empty() && wakes_.front() < armed_) notify(wakes_.front());
-}
+Unit::Unit(const sc_core::sc_module_name& name, const Clock& clk)
+    : sc_module(name), clk_(clk), sched_(scheduler_of(clk)), index_(sched_.add(this)) {}
 
 }  // namespace ropsim

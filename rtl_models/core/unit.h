@@ -1,6 +1,7 @@
-// Base of every SystemC unit: one SC_METHOD woken by one event, never by a
-// free-running clock; activity accounting without per-cycle work (the time
-// between two activations is charged to the activity recorded at the first).
+// Base of every SystemC unit: an sc_module run by its clock's Scheduler
+// (scheduler.h) at the cycles it asks for, never by a free-running clock;
+// activity accounting without per-cycle work (the time between two
+// activations is charged to the activity recorded at the first).
 //
 // Temporal decoupling. A unit whose function touches no timed shared state
 // (no cache or DRAM access, no scoreboard) computes the same outputs at the
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "clock.h"
+#include "scheduler.h"
 
 namespace ropsim {
 
@@ -42,25 +44,26 @@ struct UnitStats {
   std::array<uint64_t, kActivities> cycles{};  ///< cycles per Activity
   uint64_t fragments = 0;  ///< fragments accepted
   uint64_t samples = 0;    ///< samples processed (unit-specific: tested, sorted, hashed, written)
-  uint64_t activations = 0;  ///< SC_METHOD activations (host cost)
+  uint64_t activations = 0;  ///< times the scheduler ran the unit (host cost)
 };
 
 class Unit : public sc_core::sc_module {
  public:
-  SC_HAS_PROCESS(Unit);
+  /// Registers with the clock's scheduler, which must exist.
   Unit(const sc_core::sc_module_name& name, const Clock& clk);
 
-  /// Wakes the unit at the given cycle (now or later). Every request is kept
-  /// until its cycle has come: SystemC's event holds one notification, so a
-  /// request later than the pending one waits here, and after each
-  /// activation the earliest waiting request is notified.
+  /// Runs the unit at the given cycle (now or later). Every request is kept
+  /// until its cycle has come; repeated requests for one cycle run it once.
   void wake_at(uint64_t cycle) {
-    if (cycle == armed_) return;
-    // Keep the requests sorted and distinct (there are rarely more than two).
-    auto it = std::lower_bound(wakes_.begin(), wakes_.end(), cycle);
-    if (it != wakes_.end() && *it == cycle) return;
-    wakes_.insert(it, cycle);
-    if (cycle < armed_ && armed_ != clk_.current()) notify(cycle);  // an activation due now runs first
+    if (cycle == last_request_) return;
+    last_request_ = cycle;
+    sched_.request(index_, cycle);
+  }
+  /// The scheduler runs the unit at cycle now.
+  void activate(uint64_t now) {
+    ++stats_.activations;
+    last_request_ = ~uint64_t{0};
+    step(now);
   }
   /// A FIFO the unit reads got an entry, visible from cycle `visible`.
   virtual void on_input(uint64_t visible) { wake_at(visible); }
@@ -110,7 +113,6 @@ class Unit : public sc_core::sc_module {
   bool decoupled_ = false;
 
  private:
-  void run();
   void charge_to(uint64_t t) {
     if (t <= since_) return;
     if (busy_end_ > since_) {
@@ -124,14 +126,9 @@ class Unit : public sc_core::sc_module {
       since_ = t;
     }
   }
-  void notify(uint64_t cycle) {
-    armed_ = cycle;
-    const uint64_t n = clk_.current();
-    wake_.notify(cycle > n ? clk_.cycles(cycle - n) : sc_core::SC_ZERO_TIME);
-  }
-  sc_core::sc_event wake_;
-  uint64_t armed_ = ~uint64_t{0};  // cycle of the pending activation (~0: none)
-  std::vector<uint64_t> wakes_;  // requested cycles, ascending
+  Scheduler& sched_;
+  uint32_t index_;
+  uint64_t last_request_ = ~uint64_t{0};
   Activity act_ = Activity::kIdle, after_ = Activity::kIdle;
   uint64_t since_ = 0, busy_end_ = 0;
 };

@@ -118,6 +118,7 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   dram["busiest_channel_utilization"] = s.dram_utilization;
   t["dram"] = dram;
   t["host"] = {{"systemc_activations", s.activations},
+               {"unit_runs", s.unit_runs},
                {"decoupled", s.decoupled},
                {"fragment_tokens", s.tokens_allocated}};
   return t;

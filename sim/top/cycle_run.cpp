@@ -130,8 +130,9 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   s.samples_per_clock = double(ctx.counters.samples_tested) / cyc;
   for (const auto& u : top->units()) {
     s.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), u.unit->extras()});
-    s.activations += u.unit->stats().activations;
+    s.unit_runs += u.unit->stats().activations;
   }
+  s.activations = top->activations();
   for (auto* f : top->fifos()) s.fifos.push_back(f->stats(s.total_cycles));
   for (const auto& c : top->caches()) s.caches.push_back(c->stats());
   s.dram = top->dram().stats();

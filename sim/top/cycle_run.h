@@ -52,7 +52,8 @@ struct CycleStats {
   double dram_utilization = 0;    ///< busiest channel's busy cycles / total cycles
   bool memory_bound = false;      ///< dram_utilization >= 0.8
   std::string bottleneck;         ///< one line: what limits the frame
-  uint64_t activations = 0;       ///< SystemC process activations (host cost)
+  uint64_t activations = 0;       ///< SystemC process activations: cycles in which some unit ran (host cost)
+  uint64_t unit_runs = 0;         ///< unit activations summed over the units (decoupled units run inside others')
   bool decoupled = false;         ///< units without timed shared state ran ahead of SystemC time
   size_t tokens_allocated = 0;    ///< fragment tokens ever in flight at once (upper bound)
 };

@@ -15,6 +15,7 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
       dram_(hw.dram), in_dram_(hw.cache.line_bytes) {
   const Method m = method.method;
   if (m == Method::kReference) throw std::invalid_argument("the reference method has no ROP pipeline");
+  sched_ = std::make_unique<Scheduler>("scheduler", clk_);
   const bool lk = m == Method::kLk;
   const bool hashes = lk || m == Method::kEnderton || m == Method::kNaive;
   const int spp = header.spp;

@@ -19,6 +19,7 @@
 #include "hw_config.h"
 #include "rop_cache.h"
 #include "rop_context.h"
+#include "scheduler.h"
 #include "trace_source.h"
 
 namespace ropsim {
@@ -38,6 +39,8 @@ class RopPipeline : public sc_core::sc_module {
   /// cycles [first, last]; call before run(). SystemC appends ".vcd".
   void trace_to(const std::string& vcd_base, uint64_t first, uint64_t last);
 
+  /// SystemC process activations of the run (the scheduler's).
+  uint64_t activations() const { return sched_->activations(); }
   /// Lets the units that can run decoupled (unit.h) do so; call before run().
   void set_decoupled(bool on);
 
@@ -71,6 +74,7 @@ class RopPipeline : public sc_core::sc_module {
   PostedWrites posted_;  // before caches_: they point to it
   std::vector<std::unique_ptr<RopCache>> caches_;
   std::vector<std::unique_ptr<TokenFifo>> fifos_;
+  std::unique_ptr<Scheduler> sched_;  // before owned_: the units register with it
   std::vector<std::unique_ptr<Unit>> owned_;
   std::vector<UnitEntry> units_;
   TraceSource* source_ = nullptr;

@@ -1,0 +1,77 @@
+#include "scheduler.h"
+
+#include "unit.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace ropsim {
+
+Scheduler::Scheduler(const sc_core::sc_module_name& name, Clock& clk) : sc_module(name), clk_(clk) {
+  SC_METHOD(run);
+  sensitive << wake_;
+  dont_initialize();
+  clk.attach(this);
+}
+
+uint32_t Scheduler::add(Unit* u) {
+  if (units_.size() == 256) throw std::length_error("a scheduler runs at most 256 units");
+  units_.push_back(u);
+  wakes_.emplace_back();
+  due_.resize((units_.size() + 63) / 64);
+  return uint32_t(units_.size() - 1);
+}
+
+void Scheduler::request(uint32_t index, uint64_t cycle) {
+  if (running_ && cycle == clk_.current()) {
+    // This cycle: later in this pass if the unit comes later, else another pass.
+    mark_due(index);
+    if (index <= at_) again_ = true;
+    return;
+  }
+  std::vector<uint64_t>& w = wakes_[index];
+  const auto it = std::lower_bound(w.begin(), w.end(), cycle);
+  if (it != w.end() && *it == cycle) return;
+  const bool earliest = it == w.begin();
+  w.insert(it, cycle);
+  if (!earliest) return;
+  next_.push(cycle << 8 | index);
+  if (!running_ && cycle < armed_) notify(cycle);
+}
+
+void Scheduler::notify(uint64_t cycle) {
+  armed_ = cycle;
+  const uint64_t n = clk_.current();
+  wake_.notify(cycle > n ? clk_.cycles(cycle - n) : sc_core::SC_ZERO_TIME);
+}
+
+void Scheduler::run() {
+  ++activations_;
+  const uint64_t now = clk_.now();
+  clk_.set_current(now);
+  armed_ = ~uint64_t{0};
+  while (!next_.empty() && (next_.top() >> 8) <= now) {
+    const uint32_t i = uint32_t(next_.top() & 255);
+    const uint64_t c = next_.top() >> 8;
+    next_.pop();
+    std::vector<uint64_t>& w = wakes_[i];
+    if (w.empty() || w.front() != c) continue;  // stale
+    w.erase(w.begin());
+    mark_due(i);
+    if (!w.empty()) next_.push(w.front() << 8 | i);
+  }
+  running_ = true;
+  do {
+    again_ = false;
+    for (size_t k = 0; k < due_.size(); ++k)
+      while (due_[k]) {
+        at_ = uint32_t(k * 64 + size_t(__builtin_ctzll(due_[k])));
+        due_[k] &= due_[k] - 1;
+        units_[at_]->activate(now);
+      }
+  } while (again_);
+  running_ = false;
+  if (!next_.empty()) notify(next_.top() >> 8);
+}
+
+}  // namespace ropsim
