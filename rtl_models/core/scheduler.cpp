@@ -18,6 +18,7 @@ uint32_t Scheduler::add(Unit* u) {
   if (units_.size() == 256) throw std::length_error("a scheduler runs at most 256 units");
   units_.push_back(u);
   wakes_.emplace_back();
+  earliest_.push_back(~uint64_t{0});
   due_.resize((units_.size() + 63) / 64);
   return uint32_t(units_.size() - 1);
 }
@@ -35,7 +36,7 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
   const bool earliest = it == w.begin();
   w.insert(it, cycle);
   if (!earliest) return;
-  next_.push(cycle << 8 | index);
+  earliest_[index] = cycle;
   if (!running_ && cycle < armed_) notify(cycle);
 }
 
@@ -50,16 +51,13 @@ void Scheduler::run() {
   const uint64_t now = clk_.now();
   clk_.set_current(now);
   armed_ = ~uint64_t{0};
-  while (!next_.empty() && (next_.top() >> 8) <= now) {
-    const uint32_t i = uint32_t(next_.top() & 255);
-    const uint64_t c = next_.top() >> 8;
-    next_.pop();
-    std::vector<uint64_t>& w = wakes_[i];
-    if (w.empty() || w.front() != c) continue;  // stale
-    w.erase(w.begin());
-    mark_due(i);
-    if (!w.empty()) next_.push(w.front() << 8 | i);
-  }
+  for (uint32_t i = 0; i < earliest_.size(); ++i)
+    if (earliest_[i] <= now) {
+      std::vector<uint64_t>& w = wakes_[i];
+      w.erase(w.begin());  // requests are never for a past cycle: the front is now
+      earliest_[i] = w.empty() ? ~uint64_t{0} : w.front();
+      mark_due(i);
+    }
   running_ = true;
   do {
     again_ = false;
@@ -71,7 +69,8 @@ void Scheduler::run() {
       }
   } while (again_);
   running_ = false;
-  if (!next_.empty()) notify(next_.top() >> 8);
+  const uint64_t next = *std::min_element(earliest_.begin(), earliest_.end());
+  if (next != ~uint64_t{0}) notify(next);
 }
 
 }  // namespace ropsim

@@ -16,7 +16,6 @@
 #include <systemc>
 
 #include <cstdint>
-#include <queue>
 #include <utility>
 #include <vector>
 
@@ -47,9 +46,7 @@ class Scheduler : public sc_core::sc_module {
   std::vector<Unit*> units_;
   std::vector<std::vector<uint64_t>> wakes_;  // per unit: requested cycles, ascending, distinct
   std::vector<uint64_t> due_;                 // bit per unit: runs in the current cycle
-  // Each unit's earliest request as (cycle << 8 | unit); an entry that is no
-  // longer its unit's earliest is stale and dropped when it comes up.
-  std::priority_queue<uint64_t, std::vector<uint64_t>, std::greater<uint64_t>> next_;
+  std::vector<uint64_t> earliest_;            // per unit: wakes_.front(), ~0 if none (scanned: few units)
   uint64_t armed_ = ~uint64_t{0};  // cycle of the pending notification (~0: none)
   bool running_ = false, again_ = false;
   uint32_t at_ = 0;  // the unit running now
