@@ -37,7 +37,8 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
   w.insert(it, cycle);
   if (!earliest) return;
   earliest_[index] = cycle;
-  if (!running_ && cycle < armed_) notify(cycle);
+  if (running_) next_ = std::min(next_, cycle);
+  else if (cycle < armed_) notify(cycle);
 }
 
 void Scheduler::notify(uint64_t cycle) {
@@ -51,13 +52,16 @@ void Scheduler::run() {
   const uint64_t now = clk_.now();
   clk_.set_current(now);
   armed_ = ~uint64_t{0};
-  for (uint32_t i = 0; i < earliest_.size(); ++i)
+  next_ = ~uint64_t{0};  // the earliest request after now, kept up to date by request()
+  for (uint32_t i = 0; i < earliest_.size(); ++i) {
     if (earliest_[i] <= now) {
       std::vector<uint64_t>& w = wakes_[i];
       w.erase(w.begin());  // requests are never for a past cycle: the front is now
       earliest_[i] = w.empty() ? ~uint64_t{0} : w.front();
       mark_due(i);
     }
+    next_ = std::min(next_, earliest_[i]);
+  }
   running_ = true;
   do {
     again_ = false;
@@ -69,8 +73,7 @@ void Scheduler::run() {
       }
   } while (again_);
   running_ = false;
-  const uint64_t next = *std::min_element(earliest_.begin(), earliest_.end());
-  if (next != ~uint64_t{0}) notify(next);
+  if (next_ != ~uint64_t{0}) notify(next_);
 }
 
 }  // namespace ropsim

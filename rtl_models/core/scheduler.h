@@ -48,6 +48,7 @@ class Scheduler : public sc_core::sc_module {
   std::vector<uint64_t> due_;                 // bit per unit: runs in the current cycle
   std::vector<uint64_t> earliest_;            // per unit: wakes_.front(), ~0 if none (scanned: few units)
   uint64_t armed_ = ~uint64_t{0};  // cycle of the pending notification (~0: none)
+  uint64_t next_ = ~uint64_t{0};   // while running: the earliest request after now
   bool running_ = false, again_ = false;
   uint32_t at_ = 0;  // the unit running now
   uint64_t activations_ = 0;
