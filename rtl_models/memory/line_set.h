@@ -2,7 +2,7 @@
 // clear consults on every read miss. A node-based hash set of line addresses
 // cost a heap node and a cache miss per insert; this is a bitmap in pages of
 // 4096 lines, allocated only for pages that are touched (state for touched
-// tiles only), with the last page remembered.
+// tiles only), with recent pages remembered.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -31,21 +31,28 @@ class LineSet {
   static constexpr size_t kWords = (size_t{1} << kPageBits) / 64;
   using Page = std::array<uint64_t, kWords>;
   Page* page(uint64_t key, bool create) {
-    if (last_ && key == last_key_) return last_;
+    // A small direct-mapped cache of recent pages (the three buffers and the
+    // ROPs' tiles interleave, so one remembered page is not enough).
+    Recent& r = recent_[(key ^ (key >> 29) ^ (key >> 36)) & (kRecent - 1)];
+    if (r.page && r.key == key) return r.page;
     auto it = pages_.find(key);
     if (it == pages_.end()) {
       if (!create) return nullptr;
       it = pages_.emplace(key, std::make_unique<Page>()).first;
       it->second->fill(0);
     }
-    last_key_ = key;
-    last_ = it->second.get();
-    return last_;
+    r.key = key;
+    r.page = it->second.get();
+    return r.page;
   }
+  struct Recent {
+    uint64_t key = 0;
+    Page* page = nullptr;
+  };
+  static constexpr size_t kRecent = 64;
   int shift_ = 0;
   std::unordered_map<uint64_t, std::unique_ptr<Page>> pages_;
-  uint64_t last_key_ = 0;
-  Page* last_ = nullptr;
+  std::array<Recent, kRecent> recent_{};
 };
 
 }  // namespace ropsim

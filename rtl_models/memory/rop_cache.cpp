@@ -23,48 +23,50 @@ void PostedWrites::apply(uint64_t before) {
 RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
                    PostedWrites* posted, uint32_t rop)
     : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
-      ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
+      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid), ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
   while ((1u << set_shift_) < cfg.line_bytes) ++set_shift_;
 }
 
-RopCache::Way& RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
+size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
   const uint64_t l = line >> set_shift_;
   const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
-  Way* w = &ways_[size_t(set) * cfg_.ways];
+  const size_t base = size_t(set) * cfg_.ways;
+  const uint64_t* tag = &tags_[base];
   const uint32_t n = cfg_.ways;
   for (uint32_t i = 0; i < n; ++i)
-    if (w[i].tag == line && w[i].valid) {
+    if (tag[i] == line) {
       hit = true;
-      w[i].lru = ++tick_;
-      return w[i];
+      ways_[base + i].lru = ++tick_;
+      return base + i;
     }
   // Miss: the first invalid way, else the least recently used.
-  Way* victim = w;
-  for (uint32_t i = 0; i < n && victim->valid; ++i)
-    if (!w[i].valid || w[i].lru < victim->lru) victim = &w[i];
+  size_t victim = base;
+  for (uint32_t i = 0; i < n && tags_[victim] != kInvalid; ++i)
+    if (tag[i] == kInvalid || ways_[base + i].lru < ways_[victim].lru) victim = base + i;
   hit = false;
-  evict(*victim, now);
-  victim->valid = true;
-  victim->tag = line;
-  victim->lru = ++tick_;
-  return *victim;
+  evict(victim, now);
+  tags_[victim] = line;
+  ways_[victim].lru = ++tick_;
+  return victim;
 }
 
-void RopCache::evict(Way& w, uint64_t now) {
-  if (!w.valid) return;
+void RopCache::evict(size_t way, uint64_t now) {
+  if (tags_[way] == kInvalid) return;
   ++s_.evictions;
+  Way& w = ways_[way];
   if (w.dirty) {
     ++s_.dirty_evictions;
-    dram_.access(w.tag, cfg_.line_bytes, true, w.buf, now);
-    in_dram_.insert(w.tag);
+    dram_.access(tags_[way], cfg_.line_bytes, true, w.buf, now);
+    in_dram_.insert(tags_[way]);
   }
-  w.valid = w.dirty = false;
+  tags_[way] = kInvalid;
+  w.dirty = false;
 }
 
 uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   if (posted_) posted_->apply_before(now);  // earlier cycles' writes first, in a fixed order
   bool hit = false;
-  Way& w = lookup(line, hit, now);
+  Way& w = ways_[lookup(line, hit, now)];
   if (hit) {
     ++s_.read_hits[size_t(b)];
     if (w.ready > now + cfg_.hit_latency_cycles) {
@@ -87,7 +89,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
 
 void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
   bool hit = false;
-  Way& w = lookup(line, hit, now);
+  Way& w = ways_[lookup(line, hit, now)];
   if (hit) {
     ++s_.write_hits[size_t(b)];
   } else {
@@ -101,10 +103,10 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
 uint64_t RopCache::flush(uint64_t now) {
   if (posted_) posted_->apply_all();
   uint64_t done = now;
-  for (Way& w : ways_)
-    if (w.valid && w.dirty) {
-      done = std::max(done, dram_.access(w.tag, cfg_.line_bytes, true, w.buf, now));
-      in_dram_.insert(w.tag);
+  for (size_t i = 0; i < ways_.size(); ++i)
+    if (Way& w = ways_[i]; tags_[i] != kInvalid && w.dirty) {
+      done = std::max(done, dram_.access(tags_[i], cfg_.line_bytes, true, w.buf, now));
+      in_dram_.insert(tags_[i]);
       w.dirty = false;
     }
   return done;

@@ -103,19 +103,23 @@ class RopCache {
   const CacheStats& stats() const { return s_; }
 
  private:
+  // A way's tag apart from the rest, so a set's tags share one host cache line.
+  static constexpr uint64_t kInvalid = ~uint64_t{0};  // no line address is all ones
   struct Way {
-    uint64_t tag = 0, lru = 0, ready = 0;
+    uint64_t lru = 0, ready = 0;
     Buffer buf = Buffer::kDepth;
-    bool valid = false, dirty = false;
+    bool dirty = false;
   };
-  Way& lookup(uint64_t line, bool& hit, uint64_t now);
-  void evict(Way& w, uint64_t now);
+  /// The way (index) holding line, allocated (after an eviction) on a miss.
+  size_t lookup(uint64_t line, bool& hit, uint64_t now);
+  void evict(size_t way, uint64_t now);
   HwConfig::Cache cfg_;
   Dram& dram_;
   LineSet& in_dram_;  // lines DRAM holds (shared by all caches)
   PostedWrites* posted_;
   uint32_t rop_;
   uint32_t sets_, set_shift_;
+  std::vector<uint64_t> tags_;  // per way, kInvalid when empty
   std::vector<Way> ways_;
   uint64_t tick_ = 0;
   CacheStats s_;
