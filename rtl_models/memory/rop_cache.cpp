@@ -23,7 +23,7 @@ void PostedWrites::apply(uint64_t before) {
 RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
                    PostedWrites* posted, uint32_t rop)
     : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
-      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid), ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
+      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid), lru_(tags_.size(), 0), ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
   while ((1u << set_shift_) < cfg.line_bytes) ++set_shift_;
 }
 
@@ -36,17 +36,17 @@ size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
   for (uint32_t i = 0; i < n; ++i)
     if (tag[i] == line) {
       hit = true;
-      ways_[base + i].lru = ++tick_;
+      lru_[base + i] = ++tick_;
       return base + i;
     }
   // Miss: the first invalid way, else the least recently used.
   size_t victim = base;
   for (uint32_t i = 0; i < n && tags_[victim] != kInvalid; ++i)
-    if (tag[i] == kInvalid || ways_[base + i].lru < ways_[victim].lru) victim = base + i;
+    if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
   hit = false;
   evict(victim, now);
   tags_[victim] = line;
-  ways_[victim].lru = ++tick_;
+  lru_[victim] = ++tick_;
   return victim;
 }
 

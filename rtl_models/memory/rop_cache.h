@@ -106,7 +106,7 @@ class RopCache {
   // A way's tag apart from the rest, so a set's tags share one host cache line.
   static constexpr uint64_t kInvalid = ~uint64_t{0};  // no line address is all ones
   struct Way {
-    uint64_t lru = 0, ready = 0;
+    uint64_t ready = 0;
     Buffer buf = Buffer::kDepth;
     bool dirty = false;
   };
@@ -120,6 +120,7 @@ class RopCache {
   uint32_t rop_;
   uint32_t sets_, set_shift_;
   std::vector<uint64_t> tags_;  // per way, kInvalid when empty
+  std::vector<uint64_t> lru_;   // per way: last use (tick), next to the tags for the victim search
   std::vector<Way> ways_;
   uint64_t tick_ = 0;
   CacheStats s_;
