@@ -1,5 +1,7 @@
 #include "pixel_ordering.h"
 
+#include <iterator>
+
 namespace ropsim {
 
 PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Ordering& cfg,
@@ -9,7 +11,11 @@ PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& c
 }
 
 void PixelOrdering::release(uint64_t pixel_key, uint64_t cycle) {
-  releases_.emplace_back(cycle, pixel_key);
+  // Usually the latest (writebacks retire in order); a depth-test kill may
+  // come before writebacks already announced.
+  auto it = releases_.end();
+  while (it != releases_.begin() && std::prev(it)->first > cycle) --it;
+  releases_.emplace(it, cycle, pixel_key);
   if (waiting_release_) wake_at(cycle + 1);
 }
 
@@ -18,14 +24,9 @@ void PixelOrdering::step(uint64_t now) {
   // Retirements before now. A pixel retired at cycle c may issue again from
   // c + 1 (as a FIFO slot freed at c is reused from c + 1), so a depth-test
   // kill and this unit in the same cycle never depend on SystemC's run order.
-  for (size_t i = 0; i < releases_.size();) {
-    if (releases_[i].first < now) {
-      in_flight_.erase(releases_[i].second);
-      releases_[i] = releases_.back();
-      releases_.pop_back();
-    } else {
-      ++i;
-    }
+  while (!releases_.empty() && releases_.front().first < now) {
+    in_flight_.erase(releases_.front().second);
+    releases_.pop_front();
   }
   while (window_.size() < cfg_.window && in_.can_pop(now)) window_.push_back(in_.pop(now));
   if (now < busy_until_) {
@@ -64,9 +65,7 @@ void PixelOrdering::step(uint64_t now) {
   } else if (!window_.empty()) {
     set_activity(Activity::kHazard, now);
     waiting_release_ = true;
-    uint64_t next = ~uint64_t{0};
-    for (const auto& r : releases_) next = std::min(next, r.first);
-    if (next != ~uint64_t{0}) wake_at(next + 1);
+    if (!releases_.empty()) wake_at(releases_.front().first + 1);
   } else if (in_.occupied(now)) {
     set_activity(Activity::kStarved, now);
   } else if (in_.closed_by(now)) {

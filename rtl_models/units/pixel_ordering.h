@@ -5,6 +5,7 @@
 // fragment of another pixel in the window may overtake a blocked one.
 // One fragment issues per clock.
 #pragma once
+#include <deque>
 #include <utility>
 #include <vector>
 
@@ -32,7 +33,7 @@ class PixelOrdering : public Unit {
   TokenFifo& out_;
   std::vector<FragToken*> window_;
   FlatSet in_flight_;
-  std::vector<std::pair<uint64_t, uint64_t>> releases_;  // (cycle, pixel)
+  std::deque<std::pair<uint64_t, uint64_t>> releases_;  // (cycle, pixel), by cycle
   uint64_t busy_until_ = 0;
   bool seen_ = false, waiting_release_ = false;
   uint64_t overtakes_ = 0, max_in_flight_ = 0;
