@@ -22,7 +22,7 @@ struct FragToken {
   uint64_t seq = 0;        ///< position in the trace (API order)
   uint32_t rop = 0;        ///< the ROP unit that owns its pixel
   uint64_t pixel_key = 0;  ///< y * width + x
-  PixelRef px{};           ///< the pixel's functional state
+  PixelRef px{};           ///< the pixel's functional state (set by the trace source)
   uint64_t covered = 0;    ///< samples to test (a2c: coverage AND the a2c mask)
   uint64_t survivors = 0;  ///< samples that passed the depth test (S)
   uint32_t m = 0;          ///< popcount(survivors)

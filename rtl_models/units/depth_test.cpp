@@ -13,7 +13,6 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   const Fragment& f = t->f;
   Counters& c = ctx_.counters;
   const Method method = ctx_.golden.method;
-  t->px = ctx_.store.pixel(f.x, f.y);
   const int covered_count = __builtin_popcountll(f.coverage);
   ++c.fragments;
   c.samples_tested += covered_count;

@@ -35,6 +35,16 @@ void TraceSource::advance(uint64_t limit) {
       }
       tok->seq = seq_++;
       tok->pixel_key = uint64_t(tok->f.y) * ctx_.header.width + tok->f.x;
+      // The pixel's state, found (its tile allocated) here and fetched into
+      // the host's caches while the fragment waits in the FIFOs: the depth
+      // test reads it many fragments later. Host speed only; no model effect.
+      tok->px = ctx_.store.pixel(tok->f.x, tok->f.y);
+      const int spp = ctx_.header.spp;
+      __builtin_prefetch(tok->px.depth);
+      __builtin_prefetch(tok->px.depth + spp - 1);
+      __builtin_prefetch(tok->px.rgb);
+      __builtin_prefetch(tok->px.rgb + 3 * spp - 1);
+      if (tok->px.tracker) __builtin_prefetch(tok->px.tracker);
       out_.push(tok, t, t + 1);
       ++n_;
       ++stats_.fragments;
