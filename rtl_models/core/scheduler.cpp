@@ -34,6 +34,7 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
   const auto it = std::lower_bound(w.begin(), w.end(), cycle);
   if (it != w.end() && *it == cycle) return;
   const bool earliest = it == w.begin();
+  if (w.empty()) waiting_.push_back(index);
   w.insert(it, cycle);
   if (!earliest) return;
   earliest_[index] = cycle;
@@ -53,14 +54,21 @@ void Scheduler::run() {
   clk_.set_current(now);
   armed_ = ~uint64_t{0};
   next_ = ~uint64_t{0};  // the earliest request after now, kept up to date by request()
-  for (uint32_t i = 0; i < earliest_.size(); ++i) {
+  for (size_t k = 0; k < waiting_.size();) {
+    const uint32_t i = waiting_[k];
     if (earliest_[i] <= now) {
       std::vector<uint64_t>& w = wakes_[i];
       w.erase(w.begin());  // requests are never for a past cycle: the front is now
       earliest_[i] = w.empty() ? ~uint64_t{0} : w.front();
       mark_due(i);
     }
-    next_ = std::min(next_, earliest_[i]);
+    if (earliest_[i] == ~uint64_t{0}) {
+      waiting_[k] = waiting_.back();
+      waiting_.pop_back();
+    } else {
+      next_ = std::min(next_, earliest_[i]);
+      ++k;
+    }
   }
   running_ = true;
   do {

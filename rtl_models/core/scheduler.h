@@ -46,7 +46,8 @@ class Scheduler : public sc_core::sc_module {
   std::vector<Unit*> units_;
   std::vector<std::vector<uint64_t>> wakes_;  // per unit: requested cycles, ascending, distinct
   std::vector<uint64_t> due_;                 // bit per unit: runs in the current cycle
-  std::vector<uint64_t> earliest_;            // per unit: wakes_.front(), ~0 if none (scanned: few units)
+  std::vector<uint64_t> earliest_;            // per unit: wakes_.front(), ~0 if none
+  std::vector<uint32_t> waiting_;             // the units with a request (decoupled units rarely have one)
   uint64_t armed_ = ~uint64_t{0};  // cycle of the pending notification (~0: none)
   uint64_t next_ = ~uint64_t{0};   // while running: the earliest request after now
   bool running_ = false, again_ = false;

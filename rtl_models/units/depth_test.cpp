@@ -59,7 +59,7 @@ void DepthTest::step(uint64_t now) {
   bool emitted = false, blocked = false;
   while (!pending_.empty() && pending_.top().ready <= now) {
     FragToken* t = pending_.top().t;
-    if (t->survivors == 0) {
+    if (pending_.top().killed) {
       pending_.pop();
       ++killed_;
       ctx_.retire(t, now);
@@ -85,7 +85,7 @@ void DepthTest::step(uint64_t now) {
       seen_ = true;
       ++stats_.fragments;
       const uint64_t ready = evaluate(t, now);
-      pending_.push(Pending{std::max(ready, now), t->seq, t});
+      pending_.push(Pending{std::max(ready, now), t->seq, t, t->survivors == 0});
       busy_until_ = now + std::max<uint32_t>(1, ceil_div(uint32_t(__builtin_popcountll(t->covered)), cfg_.samples_per_clock));
       accepted = true;
     }

@@ -30,6 +30,7 @@ class DepthTest : public Unit {
   struct Pending {
     uint64_t ready, seq;
     FragToken* t;
+    bool killed;  // no surviving sample (kept here: the token is cold by then)
     bool operator>(const Pending& o) const { return ready != o.ready ? ready > o.ready : seq > o.seq; }
   };
   RopContext& ctx_;
