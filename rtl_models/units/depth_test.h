@@ -6,7 +6,8 @@
 // because pixel ordering never lets two fragments of one pixel be in flight.
 // A fragment with no surviving sample retires here.
 #pragma once
-#include <queue>
+#include <deque>
+#include <iterator>
 #include <vector>
 
 #include "hw_config.h"
@@ -38,7 +39,24 @@ class DepthTest : public Unit {
   RopCache& cache_;
   TokenFifo& in_;
   TokenFifo& out_;
-  std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> pending_;
+  /// Fragments waiting for their data, in (ready, seq) order: a short list,
+  /// filled mostly at the back (ready cycles of successive misses increase).
+  class PendingQueue {
+   public:
+    bool empty() const { return q_.empty(); }
+    size_t size() const { return q_.size(); }
+    const Pending& top() const { return q_.front(); }
+    void pop() { q_.pop_front(); }
+    void push(const Pending& p) {
+      auto it = q_.end();
+      while (it != q_.begin() && *std::prev(it) > p) --it;
+      q_.insert(it, p);
+    }
+
+   private:
+    std::deque<Pending> q_;
+  };
+  PendingQueue pending_;
   uint64_t busy_until_ = 0;
   bool seen_ = false;
   uint64_t killed_ = 0, memory_wait_cycles_ = 0;
