@@ -3,6 +3,7 @@
 #include "unit.h"
 
 #include <algorithm>
+#include <functional>
 #include <stdexcept>
 
 namespace ropsim {
@@ -31,9 +32,10 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
     return;
   }
   std::vector<uint64_t>& w = wakes_[index];
-  const auto it = std::lower_bound(w.begin(), w.end(), cycle);
+  // Descending, so the earliest is at the back and leaves without a shift.
+  const auto it = std::lower_bound(w.begin(), w.end(), cycle, std::greater<uint64_t>());
   if (it != w.end() && *it == cycle) return;
-  const bool earliest = it == w.begin();
+  const bool earliest = it == w.end();
   if (w.empty()) waiting_.push_back(index);
   w.insert(it, cycle);
   if (!earliest) return;
@@ -58,8 +60,8 @@ void Scheduler::run() {
     const uint32_t i = waiting_[k];
     if (earliest_[i] <= now) {
       std::vector<uint64_t>& w = wakes_[i];
-      w.erase(w.begin());  // requests are never for a past cycle: the front is now
-      earliest_[i] = w.empty() ? ~uint64_t{0} : w.front();
+      w.pop_back();  // requests are never for a past cycle: the earliest is now
+      earliest_[i] = w.empty() ? ~uint64_t{0} : w.back();
       mark_due(i);
     }
     if (earliest_[i] == ~uint64_t{0}) {

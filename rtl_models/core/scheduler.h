@@ -44,9 +44,9 @@ class Scheduler : public sc_core::sc_module {
   Clock& clk_;
   sc_core::sc_event wake_;
   std::vector<Unit*> units_;
-  std::vector<std::vector<uint64_t>> wakes_;  // per unit: requested cycles, ascending, distinct
+  std::vector<std::vector<uint64_t>> wakes_;  // per unit: requested cycles, descending, distinct
   std::vector<uint64_t> due_;                 // bit per unit: runs in the current cycle
-  std::vector<uint64_t> earliest_;            // per unit: wakes_.front(), ~0 if none
+  std::vector<uint64_t> earliest_;            // per unit: wakes_.back(), ~0 if none
   std::vector<uint32_t> waiting_;             // the units with a request (decoupled units rarely have one)
   uint64_t armed_ = ~uint64_t{0};  // cycle of the pending notification (~0: none)
   uint64_t next_ = ~uint64_t{0};   // while running: the earliest request after now
