@@ -55,8 +55,10 @@ void PixelOrdering::step(uint64_t now) {
     seen_ = true;
     ++stats_.fragments;
     busy_until_ = now + 1;
-    set_activity(Activity::kBusy, now);
-    wake_at(now + 1);
+    set_busy(now, busy_until_, Activity::kStarved);
+    // The next clock matters only if there is something to issue or to close
+    // (a push, a close or a release wakes the unit otherwise).
+    if (!window_.empty() || !in_.empty() || in_.closed()) wake_at(now + 1);
     return;
   }
   if (pick >= 0) {
