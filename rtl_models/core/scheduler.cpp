@@ -31,6 +31,7 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
     if (index <= at_) again_ = true;
     return;
   }
+  if (cycle == earliest_[index]) return;  // the common repeat
   std::vector<uint64_t>& w = wakes_[index];
   // Descending, so the earliest is at the back and leaves without a shift.
   const auto it = std::lower_bound(w.begin(), w.end(), cycle, std::greater<uint64_t>());
