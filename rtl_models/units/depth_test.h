@@ -6,13 +6,12 @@
 // because pixel ordering never lets two fragments of one pixel be in flight.
 // A fragment with no surviving sample retires here.
 #pragma once
-#include <deque>
-#include <iterator>
 #include <vector>
 
 #include "hw_config.h"
 #include "pipe_unit.h"
 #include "rop_cache.h"
+#include "sorted_ring.h"
 
 namespace ropsim {
 
@@ -39,22 +38,21 @@ class DepthTest : public Unit {
   RopCache& cache_;
   TokenFifo& in_;
   TokenFifo& out_;
-  /// Fragments waiting for their data, in (ready, seq) order: a short list,
-  /// filled mostly at the back (ready cycles of successive misses increase).
+  /// Fragments waiting for their data, in (ready, seq) order; filled mostly
+  /// at the back (ready cycles of successive misses increase).
+  struct Earlier {
+    bool operator()(const Pending& a, const Pending& b) const { return b > a; }
+  };
   class PendingQueue {
    public:
     bool empty() const { return q_.empty(); }
     size_t size() const { return q_.size(); }
     const Pending& top() const { return q_.front(); }
     void pop() { q_.pop_front(); }
-    void push(const Pending& p) {
-      auto it = q_.end();
-      while (it != q_.begin() && *std::prev(it) > p) --it;
-      q_.insert(it, p);
-    }
+    void push(const Pending& p) { q_.push(p); }
 
    private:
-    std::deque<Pending> q_;
+    SortedRing<Pending, Earlier> q_;
   };
   PendingQueue pending_;
   uint64_t busy_until_ = 0;

@@ -1,6 +1,5 @@
 #include "pixel_ordering.h"
 
-#include <iterator>
 
 namespace ropsim {
 
@@ -13,9 +12,7 @@ PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& c
 void PixelOrdering::release(uint64_t pixel_key, uint64_t cycle) {
   // Usually the latest (writebacks retire in order); a depth-test kill may
   // come before writebacks already announced.
-  auto it = releases_.end();
-  while (it != releases_.begin() && std::prev(it)->first > cycle) --it;
-  releases_.emplace(it, cycle, pixel_key);
+  releases_.push({cycle, pixel_key});
   if (waiting_release_) wake_at(cycle + 1);
 }
 

@@ -5,13 +5,13 @@
 // fragment of another pixel in the window may overtake a blocked one.
 // One fragment issues per clock.
 #pragma once
-#include <deque>
 #include <utility>
 #include <vector>
 
 #include "flat_set.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
+#include "sorted_ring.h"
 
 namespace ropsim {
 
@@ -33,7 +33,12 @@ class PixelOrdering : public Unit {
   TokenFifo& out_;
   std::vector<FragToken*> window_;
   FlatSet in_flight_;
-  std::deque<std::pair<uint64_t, uint64_t>> releases_;  // (cycle, pixel), by cycle
+  struct EarlierRelease {
+    bool operator()(const std::pair<uint64_t, uint64_t>& a, const std::pair<uint64_t, uint64_t>& b) const {
+      return a.first < b.first;
+    }
+  };
+  SortedRing<std::pair<uint64_t, uint64_t>, EarlierRelease> releases_;  // (cycle, pixel), by cycle
   uint64_t busy_until_ = 0;
   bool seen_ = false, waiting_release_ = false;
   uint64_t overtakes_ = 0, max_in_flight_ = 0;
