@@ -320,7 +320,22 @@ bool TraceReader::next(Fragment& f) {
     const TraceHeader& h = header_;
     uint8_t b[16 + 8 + 256 + 12 + 4];
     const int cb = coverage_bytes(h.spp);
-    read_exact(b, 12 + cb, "fragment");
+    // Plane records have a fixed size: read the record in one call (a short
+    // read still names the part that is missing).
+    const size_t head = 12 + size_t(cb);
+    const bool fixed = h.depth_mode == DepthMode::kPlane;
+    const size_t colour_bytes = h.color_format == ColorFormat::kRgbF32 ? 16 : 7;
+    uint8_t rec[12 + 8 + 12 + 16];
+    if (fixed) {
+      const size_t total = head + 12 + colour_bytes;
+      const size_t got = src_->read(rec, total);
+      if (got != total)
+        fail(std::string("truncated in the ") + (got < head ? "fragment" : got < head + 12 ? "depth plane" : "colour") +
+             " (no end record)");
+      std::memcpy(b, rec, head);
+    } else {
+      read_exact(b, head, "fragment");
+    }
     f.draw_id = get_u32(b);
     f.prim_id = get_u32(b + 4);
     f.x = get_u16(b + 8);
@@ -328,22 +343,23 @@ bool TraceReader::next(Fragment& f) {
     f.coverage = 0;
     for (int i = 0; i < cb; ++i) f.coverage |= uint64_t(b[12 + i]) << (8 * i);
     const int covered = __builtin_popcountll(f.coverage);
-    if (h.depth_mode == DepthMode::kPlane) {
-      read_exact(b, 12, "depth plane");
+    if (fixed) {
+      std::memcpy(b, rec + head, 12 + colour_bytes);
       f.z0 = get_f32(b);
       f.dzdx = get_f32(b + 4);
       f.dzdy = get_f32(b + 8);
+      std::memmove(b, b + 12, colour_bytes);
     } else {
       read_exact(b, 4 * size_t(covered), "sample depths");
       int k = 0;
       for (uint64_t m = f.coverage; m; m &= m - 1) f.z[__builtin_ctzll(m)] = get_f32(b + 4 * k++);
     }
     if (h.color_format == ColorFormat::kRgbF32) {
-      read_exact(b, 16, "colour");
+      if (!fixed) read_exact(b, 16, "colour");
       for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(b + 4 * i);
       f.alpha = get_f32(b + 12);
     } else {
-      read_exact(b, 7, "colour");
+      if (!fixed) read_exact(b, 7, "colour");
       for (int i = 0; i < 3; ++i) f.rgb[i] = b[i] / 255.0f;
       f.alpha = get_f32(b + 3);
     }
