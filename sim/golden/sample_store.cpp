@@ -44,7 +44,10 @@ Image SampleStore::resolve() const {
   img.width = header_.width;
   img.height = header_.height;
   img.rgb.resize(size_t(img.width) * img.height * 3);
-  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = half_to_float(clear_rgb16_[i % 3]);
+  const float clear[3] = {half_to_float(clear_rgb16_[0]), half_to_float(clear_rgb16_[1]),
+                          half_to_float(clear_rgb16_[2])};
+  for (size_t i = 0; i < img.rgb.size(); i += 3)
+    for (int ch = 0; ch < 3; ++ch) img.rgb[i + size_t(ch)] = clear[ch];
   const int spp = header_.spp;
   const float inv = 1.0f / float(spp);  // exact: spp is a power of two
   tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
