@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Prints one line per cycle-model run -- config, method, trace, total cycles and
+# a digest of every timing figure in the report (host figures aside) -- over
+# configs/*.toml x {lk, opaque, enderton} x {cloth 16 spp, cloth 4 spp,
+# eight-layers 16 spp}. A refactor that must not change the model leaves this
+# output unchanged: run it before and after and diff. Extra args go to every
+# `ropsim run` (e.g. --lockstep, which must print the same lines).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$root/scripts/build.sh" >/dev/null
+b="$root/build/ropsim"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+"$b" scene cloth --spp 16 -o "$tmp/cloth16.rtr" >/dev/null
+"$b" scene cloth --spp 4 -o "$tmp/cloth4.rtr" >/dev/null
+"$b" scene eight-layers --spp 16 -o "$tmp/layers16.rtr" >/dev/null
+for cfg in "$root"/configs/*.toml; do
+  for m in lk opaque enderton; do
+    for tr in cloth16 cloth4 layers16; do
+      "$b" run --fidelity cycle --hw "$cfg" --trace "$tmp/$tr.rtr" --method "$m" --quiet \
+        --out "$tmp/o.png" --report "$tmp/r.json" "$@"
+      /usr/bin/python3 - "$tmp/r.json" "$(basename "$cfg" .toml) $m $tr" <<'PY'
+import hashlib, json, sys
+t = json.load(open(sys.argv[1]))["timing"]
+t.pop("host", None)
+for u in t["units"]:
+    u.pop("activations", None)
+print(sys.argv[2], t["total_cycles"], hashlib.sha256(json.dumps(t, sort_keys=True).encode()).hexdigest()[:16])
+PY
+    done
+  done
+done
