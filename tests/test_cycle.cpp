@@ -683,6 +683,14 @@ TEST(Decoupling, EqualsLockstepExactlyWithRealMemory) {
       EXPECT_EQ(first_state_difference(*dec.state, *lock.state), "") << what;
     }
   }
+  // The largest design: 64 ROPs (386 units on one scheduler).
+  HwConfig hw;
+  apply_hw_override(hw, "distributor.rop_units=64");
+  apply_hw_override(hw, "distributor.tile_pixels=8");
+  const CycleRun lock = run_mode(scene_input("cloth", 4), Method::kLk, hw, true);
+  const CycleRun dec = run_mode(scene_input("cloth", 4), Method::kLk, hw, false);
+  ASSERT_EQ(dec.stats.units.size(), 2u + 64u * 6u);
+  expect_same_timing(dec.stats, lock.stats, "64 ROPs");
 }
 
 // Occupancy statistics from push and pop cycles that reach the FIFO out of

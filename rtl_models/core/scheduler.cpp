@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <functional>
-#include <stdexcept>
 
 namespace ropsim {
 
@@ -16,7 +15,6 @@ Scheduler::Scheduler(const sc_core::sc_module_name& name, Clock& clk) : sc_modul
 }
 
 uint32_t Scheduler::add(Unit* u) {
-  if (units_.size() == 256) throw std::length_error("a scheduler runs at most 256 units");
   units_.push_back(u);
   wakes_.emplace_back();
   earliest_.push_back(~uint64_t{0});
