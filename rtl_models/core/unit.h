@@ -75,7 +75,6 @@ class Unit : public sc_core::sc_module {
   virtual void on_settle() {}
   /// Lets a unit that supports it run ahead of SystemC time (see above).
   void set_decoupled(bool on) { decoupled_ = on; }
-  bool decoupled() const { return decoupled_; }
   /// Charges the cycles up to end to the current activity (end of the run).
   void close_accounting(uint64_t end) { set_activity(Activity::kIdle, end); }
   const UnitStats& stats() const { return stats_; }
