@@ -13,27 +13,11 @@ RopContext::RopContext(const TraceHeader& h, const GoldenConfig& g, uint32_t lin
     : header(h), golden(g), store(h, g.method == Method::kLk),
       amap(h.width, h.spp, uint32_t((h.spp + g.numerics.surface_id_bits + 7) / 8), line_bytes),
       hilbert_n(hilbert_side(h.width, h.height)), tracker_bytes((h.spp + g.numerics.surface_id_bits + 7) / 8),
-      a2c_prefix(a2c_prefix_table(h.spp)) {
+      a2c_prefix(a2c_prefix_table(h.spp)), memo_(g.numerics.alpha_bits) {
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
   }
-}
-
-uint64_t RopContext::fixed_alpha(float alpha) {
-  if (alpha != memo_alpha_) {
-    memo_alpha_ = alpha;
-    memo_alpha_fixed_ = alpha_to_fixed(alpha, golden.numerics.alpha_bits);
-  }
-  return memo_alpha_fixed_;
-}
-
-const uint16_t* RopContext::half_color(const std::array<float, 3>& rgb) {
-  if (rgb != memo_rgb_) {
-    memo_rgb_ = rgb;
-    for (int c = 0; c < 3; ++c) memo_rgb16_[c] = float_to_half(rgb[c]);
-  }
-  return memo_rgb16_;
 }
 
 void RopContext::retire(FragToken* t, uint64_t cycle) {

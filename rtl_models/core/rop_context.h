@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "address_map.h"
+#include "conversion_memo.h"
 #include "golden_model.h"
 #include "sample_store.h"
 #include "trace.h"
@@ -75,16 +76,13 @@ struct RopContext {
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;
   uint64_t retired = 0, last_retire = 0;
 
-  uint64_t fixed_alpha(float alpha);
-  const uint16_t* half_color(const std::array<float, 3>& rgb);
+  uint64_t fixed_alpha(float alpha) { return memo_.fixed_alpha(alpha); }
+  const uint16_t* half_color(const std::array<float, 3>& rgb) { return memo_.half_color(rgb); }
   /// The fragment leaves the ROP at cycle: releases its pixel and its token.
   void retire(FragToken* t, uint64_t cycle);
 
  private:
-  float memo_alpha_ = -1.0f;
-  uint64_t memo_alpha_fixed_ = 0;
-  std::array<float, 3> memo_rgb_{-1.0f, -1.0f, -1.0f};
-  uint16_t memo_rgb16_[3] = {};
+  ConversionMemo memo_;
 };
 
 }  // namespace ropsim

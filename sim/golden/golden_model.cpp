@@ -51,7 +51,7 @@ const std::vector<std::string>& method_names() {
 StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
     : FunctionalModel(h), cfg_(cfg), store_(h, cfg.method == Method::kLk), hilbert_n_(hilbert_side(h.width, h.height)),
       alpha_one_(uint64_t{1} << cfg.numerics.alpha_bits),
-      tracker_bytes_((h.spp + cfg.numerics.surface_id_bits + 7) / 8) {
+      tracker_bytes_((h.spp + cfg.numerics.surface_id_bits + 7) / 8), memo_(cfg.numerics.alpha_bits) {
   switch (cfg.method) {
     case Method::kLk: draw_fn_ = &StochasticModel::draw_lk; break;
     case Method::kEnderton: draw_fn_ = &StochasticModel::draw_enderton; break;
@@ -65,22 +65,6 @@ StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg)
     offset_y_[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
   }
   a2c_prefix_ = a2c_prefix_table(h.spp);
-}
-
-uint64_t StochasticModel::fixed_alpha(float alpha) {
-  if (alpha != memo_alpha_) {  // consecutive fragments usually share one alpha
-    memo_alpha_ = alpha;
-    memo_alpha_fixed_ = alpha_to_fixed(alpha, cfg_.numerics.alpha_bits);
-  }
-  return memo_alpha_fixed_;
-}
-
-const uint16_t* StochasticModel::half_color(const std::array<float, 3>& rgb) {
-  if (rgb != memo_rgb_) {
-    memo_rgb_ = rgb;
-    for (int c = 0; c < 3; ++c) memo_rgb16_[c] = float_to_half(rgb[c]);
-  }
-  return memo_rgb16_;
 }
 
 inline void StochasticModel::sample_depths(const Fragment& f, float* z) const {

@@ -13,6 +13,7 @@
 #include "tile_map.h"
 #include "tracker.h"
 #include "trace.h"
+#include "conversion_memo.h"
 
 namespace ropsim {
 
@@ -81,8 +82,8 @@ class StochasticModel : public FunctionalModel {
  private:
   void count_written(uint32_t n);  ///< samples_written and the state bytes they cost
   void sample_depths(const Fragment& f, float* z) const;     ///< as fragment_sample_depths
-  uint64_t fixed_alpha(float alpha);                          ///< memoised alpha_to_fixed
-  const uint16_t* half_color(const std::array<float, 3>& rgb);  ///< memoised binary16 colour
+  uint64_t fixed_alpha(float alpha) { return memo_.fixed_alpha(alpha); }
+  const uint16_t* half_color(const std::array<float, 3>& rgb) { return memo_.half_color(rgb); }
   void draw_lk(const Fragment& f);
   void draw_enderton(const Fragment& f);
   void draw_naive(const Fragment& f);
@@ -97,10 +98,7 @@ class StochasticModel : public FunctionalModel {
   std::array<uint64_t, 65> a2c_prefix_{};  // a2c: mask of the first k samples in the fixed order
   void (StochasticModel::*draw_fn_)(const Fragment&);
   std::array<float, 64> offset_x_{}, offset_y_{};  // sample offsets from the pixel centre
-  float memo_alpha_ = -1.0f;  // never a valid opacity
-  uint64_t memo_alpha_fixed_ = 0;
-  std::array<float, 3> memo_rgb_{-1.0f, -1.0f, -1.0f};
-  uint16_t memo_rgb16_[3] = {};
+  ConversionMemo memo_;
 };
 
 /// Ground truth: an A-buffer keeping every fragment of every sample, sorted by
