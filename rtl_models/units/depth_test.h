@@ -20,6 +20,12 @@ class DepthTest : public Unit {
   DepthTest(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::DepthTest& cfg,
             RopCache& cache, TokenFifo& in, TokenFifo& out);
   std::vector<Extra> extras() const override;
+  /// A new fragment for a full unit waits for the run that frees a slot (an
+  /// emission, always armed when full); a run for it alone would change
+  /// nothing, so it is not asked for.
+  void on_input(uint64_t visible) override {
+    if (pending_.size() < cfg_.max_outstanding) wake_at(visible);
+  }
 
  protected:
   void step(uint64_t now) override;
