@@ -73,6 +73,21 @@ TEST(AlphaRef, NarrowHashStaysInRangeAndStratified) {
   EXPECT_EQ(calc_alpha_ref_index(alpha_ref_index(0, 12345, 1), 678, 32), 0x2ED32D8Eu);
 }
 
+// The batch form equals the single calls, across the 2^32 index wrap and for
+// every hash width.
+TEST(AlphaRef, BatchEqualsSingleCalls) {
+  uint32_t out[64];
+  for (int bits : {8, 12, 16, 24, 31, 32})
+    for (uint32_t first : {0u, 5u, 0xFFFFFFF0u})
+      for (uint64_t pixel : {uint64_t{0}, uint64_t{12345}, (uint64_t{1} << 30) - 1})
+        for (uint32_t spp : {1u, 16u, 64u}) {
+          calc_alpha_refs(first, 64, pixel, 678, spp, bits, out);
+          for (int j = 0; j < 64; ++j)
+            ASSERT_EQ(out[j], calc_alpha_ref(first + uint32_t(j), pixel, 678, spp, bits))
+                << "bits " << bits << " first " << first << " pixel " << pixel << " spp " << spp << " j " << j;
+        }
+}
+
 TEST(Hilbert, MatchesTheCanonicalFourByFour) {
   const uint64_t rows[4][4] = {{0, 1, 14, 15}, {3, 2, 13, 12}, {4, 7, 8, 11}, {5, 6, 9, 10}};
   for (uint32_t y = 0; y < 4; ++y)

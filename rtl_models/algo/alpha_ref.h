@@ -45,4 +45,25 @@ inline uint32_t calc_alpha_ref(uint32_t sample_id, uint64_t pixel_id, uint32_t s
                               hash_bits);
 }
 
+/// calc_alpha_ref for the sample indices first, first + 1, ... (wrapping at
+/// 2^32 as the single calls do), count of them, of one pixel and surface:
+/// the same values, with the per-pixel work done once (LK Figure 7 line 11
+/// over a fragment's sorted samples).
+inline void calc_alpha_refs(uint32_t first, int count, uint64_t pixel_id, uint32_t surface_id, uint32_t spp,
+                            int hash_bits, uint32_t* out) {
+  const uint64_t mask = low_mask(hash_bits);
+  const uint32_t m = static_cast<uint32_t>(mask);
+  const uint64_t pixel_base = pixel_id * uint64_t{spp};
+  const int shift = 32 - hash_bits;
+  uint32_t c[4];
+  for (int r = 0; r < 4; ++r) c[r] = kAlphaRefConstants[r] & m;
+  for (int j = 0; j < count; ++j) {
+    const uint32_t index = static_cast<uint32_t>((uint64_t{first + uint32_t(j)} + pixel_base) & mask);
+    uint32_t x = reverse_bits32(index & m) >> shift;
+    x = (x + surface_id) & m;
+    for (int r = 0; r < 4; ++r) x = (x ^ (x * c[r])) & m;
+    out[j] = x;
+  }
+}
+
 }  // namespace ropsim

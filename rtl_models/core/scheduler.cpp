@@ -51,7 +51,9 @@ void Scheduler::notify(uint64_t cycle) {
 
 void Scheduler::run() {
   ++activations_;
-  const uint64_t now = clk_.now();
+  // The cycle this activation was notified for (the only notifications of
+  // wake_ are notify()'s): no division of sc_time_stamp() per activation.
+  const uint64_t now = armed_;
   clk_.set_current(now);
   armed_ = ~uint64_t{0};
   next_ = ~uint64_t{0};  // the earliest request after now, kept up to date by request()

@@ -14,8 +14,8 @@ PipeUnit::Timing AlphaRefGen::process(FragToken* t, uint64_t) {
   switch (ctx_.golden.method) {
     case Method::kLk: {
       const uint64_t pixel_id = hilbert_xy2d(ctx_.hilbert_n, f.x, f.y);
-      for (uint32_t j = 0; j < t->m; ++j)
-        t->ref[j] = calc_alpha_ref(t->tr.n + j, pixel_id, t->tr.surface_id, uint32_t(ctx_.header.spp), num.hash_bits);
+      calc_alpha_refs(t->tr.n, int(t->m), pixel_id, t->tr.surface_id, uint32_t(ctx_.header.spp), num.hash_bits,
+                      t->ref);
       hashes = t->m;
       break;
     }

@@ -120,11 +120,12 @@ void StochasticModel::draw_lk(const Fragment& f) {
   const uint64_t pixel_id = hilbert_xy2d(hilbert_n_, f.x, f.y);
   const uint64_t a = fixed_alpha(f.alpha);
   const uint16_t* rgb16 = half_color(f.rgb);
+  uint32_t refs[64];
+  calc_alpha_refs(tr.n, m, pixel_id, tr.surface_id, uint32_t(header_.spp), num.hash_bits, refs);
   uint32_t written = 0;
   for (int j = 0; j < m; ++j) {
     const int i = order[j];
-    const uint32_t ref = calc_alpha_ref(tr.n + uint32_t(j), pixel_id, tr.surface_id, uint32_t(header_.spp), num.hash_bits);
-    if (opacity_passes(a, num.alpha_bits, ref, num.hash_bits)) {
+    if (opacity_passes(a, num.alpha_bits, refs[j], num.hash_bits)) {
       p.write_sample(i, z[i], rgb16);
       ++written;
     }
