@@ -42,7 +42,8 @@ class AddressMap {
         }
       // Samples lying wholly in lines <= l1 need nothing more; a sample that
       // starts in l1 and crosses into l1 + 1 stays and emits l1 + 1 next.
-      const uint64_t k = (((l1 + 1) << line_shift_) - start) / bps;
+      const uint64_t past = ((l1 + 1) << line_shift_) - start;
+      const uint64_t k = bps == 4 ? past / 4 : past / 6;  // constant divisors: no divide instruction
       mask = k >= 64 ? 0 : mask & (~uint64_t{0} << k);
     }
   }
