@@ -42,45 +42,48 @@ struct FifoStats {
 ///    popped by then), final at the first pop after that cycle.
 class OccupancyStats {
  public:
-  explicit OccupancyStats(uint32_t capacity) : cap_(capacity), push_t_(capacity), pop_t_(capacity) {}
+  explicit OccupancyStats(uint32_t capacity) : cap_(capacity) {
+    size_t n = 1;
+    while (n < capacity) n <<= 1;  // a power of two >= capacity: index by mask
+    push_t_.resize(n);
+    pop_t_.resize(n);
+    mask_ = n - 1;
+  }
   void push(uint64_t t) {
     const uint64_t j = pushes_;
-    push_t_[ph_] = t;
+    push_t_[j & mask_] = t;
     if (j + 1 >= cap_ && j + 1 - cap_ < pops_) {  // entry j - cap + 1 has left: full until then
-      const uint64_t p = pop_t_[next(ph_)];
+      const uint64_t p = pop_t_[(j + 1 - cap_) & mask_];
       if (p > t) full_ += p - t;
     }
     // A consumer ahead in time has already popped, after t, some entries that
     // were still in at t: the first of them gives the occupancy after this push.
-    if (pend_ == j && pops_ && pop_t_[prev(qh_)] > t) {
+    if (pend_ == j && pops_ && pop_t_[(pops_ - 1) & mask_] > t) {
       uint64_t k = pops_;
-      for (size_t sk = prev(qh_); k > 0 && k + cap_ > j + 1 && pop_t_[sk] > t; sk = prev(sk)) --k;
+      while (k > 0 && k + cap_ > j + 1 && pop_t_[(k - 1) & mask_] > t) --k;
       max_ = std::max(max_, j + 1 - k);
       ++pend_;
-      pp_ = next(pp_);
     }
-    ph_ = next(ph_);
     ++pushes_;
   }
   void pop(uint64_t t) {
     const uint64_t i = pops_;
-    area_ += t - push_t_[qh_];
+    area_ += t - push_t_[i & mask_];
     // Pushes before t now know how many entries had left by their cycle: i.
-    for (; pend_ < pushes_ && push_t_[pp_] < t; ++pend_, pp_ = next(pp_)) max_ = std::max(max_, pend_ + 1 - i);
+    for (; pend_ < pushes_ && push_t_[pend_ & mask_] < t; ++pend_) max_ = std::max(max_, pend_ + 1 - i);
     if (i + cap_ - 1 < pushes_) {  // entry i + cap - 1 was pushed: the FIFO was full from then until now
-      const uint64_t q = push_t_[prev(qh_)];
+      const uint64_t q = push_t_[(i + cap_ - 1) & mask_];
       if (t > q) full_ += t - q;
     }
-    pop_t_[qh_] = t;
-    qh_ = next(qh_);
+    pop_t_[i & mask_] = t;
     ++pops_;
   }
   /// Time-averaged entries, cycles at capacity and the maximum over [0, end).
   void finish(uint64_t end, double& mean, uint64_t& full, uint32_t& max) const {
     uint64_t area = area_, f = full_, m = max_;
     for (uint64_t i = pops_; i < pushes_; ++i) {  // still in at the end
-      area += end - push_t_[i % cap_];
-      if (i + cap_ - 1 < pushes_ && end > push_t_[(i + cap_ - 1) % cap_]) f += end - push_t_[(i + cap_ - 1) % cap_];
+      area += end - push_t_[i & mask_];
+      if (i + cap_ - 1 < pushes_ && end > push_t_[(i + cap_ - 1) & mask_]) f += end - push_t_[(i + cap_ - 1) & mask_];
     }
     for (uint64_t j = pend_; j < pushes_; ++j) m = std::max(m, j + 1 - pops_);
     mean = end ? double(area) / double(end) : 0.0;
@@ -89,12 +92,10 @@ class OccupancyStats {
   }
 
  private:
-  size_t next(size_t s) const { return s + 1 == cap_ ? 0 : s + 1; }
-  size_t prev(size_t s) const { return s == 0 ? cap_ - 1 : s - 1; }
   uint64_t cap_;
-  std::vector<uint64_t> push_t_, pop_t_;  // by entry index mod capacity
+  std::vector<uint64_t> push_t_, pop_t_;  // by entry index mod a power of two >= capacity
+  uint64_t mask_ = 0;
   uint64_t pushes_ = 0, pops_ = 0, pend_ = 0;
-  size_t ph_ = 0, qh_ = 0, pp_ = 0;  // pushes_, pops_, pend_ mod capacity
   uint64_t area_ = 0, full_ = 0, max_ = 0;
 };
 
