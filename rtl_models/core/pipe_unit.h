@@ -41,14 +41,14 @@ class PipeUnit : public DecoupledUnit {
       }
       // The head enters when it is visible, the interval has passed and the
       // output has a slot (kBlocked until then; kStarved follows a busy spell).
-      const uint64_t t = std::max({busy_until_, in_.head_visible(), resume_});
+      uint64_t t = std::max(busy_until_, in_.head_visible());
       if (t > limit) return wake_at(t);
       if (!out_.can_push(t)) {
         set_activity(Activity::kBlocked, t);
         const uint64_t s = out_.space_from();
         if (s == TokenFifo::kUndecided) return out_.wait_for_space(t);
-        resume_ = s;
-        continue;
+        t = s;  // the slot's cycle (> t): blocked until then
+        if (t > limit) return wake_at(t);
       }
       FragToken* tok = in_.pop(t);
       ++stats_.fragments;

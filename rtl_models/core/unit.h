@@ -141,10 +141,7 @@ class DecoupledUnit : public Unit {
   static constexpr uint64_t kForever = ~uint64_t{0};
   using Unit::Unit;
   void on_input(uint64_t visible) override { decoupled_ ? run_ahead() : wake_at(visible); }
-  void on_space(uint64_t cycle) override {
-    resume_ = std::max(resume_, cycle);
-    decoupled_ ? run_ahead() : wake_at(cycle);
-  }
+  void on_space(uint64_t cycle) override { decoupled_ ? run_ahead() : wake_at(cycle); }
   void on_close(uint64_t cycle) override {
     close_seen_ = cycle;
     decoupled_ ? run_ahead() : wake_at(cycle);
@@ -170,7 +167,6 @@ class DecoupledUnit : public Unit {
     } while (again_);
     advancing_ = false;
   }
-  uint64_t resume_ = 0;      ///< no output slot before this cycle (on_space)
   uint64_t close_seen_ = 0;  ///< the input's close is seen from this cycle (on_close)
 
  private:

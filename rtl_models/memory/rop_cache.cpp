@@ -15,7 +15,7 @@ void PostedWrites::apply(uint64_t before) {
       return;
     }
     const Write w = next->front();
-    next->pop();
+    next->pop_front();
     w.cache->write(w.line, w.buf, w.cycle);
   }
 }

@@ -16,6 +16,7 @@
 #include "dram.h"
 #include "hw_config.h"
 #include "line_set.h"
+#include "sorted_ring.h"
 
 namespace ropsim {
 
@@ -54,30 +55,12 @@ class PostedWrites {
     uint64_t line;
     Buffer buf;
   };
-  /// A FIFO of writes (a ring that grows; no allocation in steady state).
-  class Queue {
-   public:
-    bool empty() const { return n_ == 0; }
-    const Write& front() const { return v_[head_]; }
-    void pop() {
-      head_ = (head_ + 1) & (v_.size() - 1);
-      --n_;
-    }
-    void push(const Write& w) {
-      if (n_ == v_.size()) {
-        std::vector<Write> g(v_.size() * 2);
-        for (size_t i = 0; i < n_; ++i) g[i] = v_[(head_ + i) & (v_.size() - 1)];
-        v_.swap(g);
-        head_ = 0;
-      }
-      v_[(head_ + n_) & (v_.size() - 1)] = w;
-      ++n_;
-    }
-
-   private:
-    std::vector<Write> v_ = std::vector<Write>(64);
-    size_t head_ = 0, n_ = 0;
+  struct Earlier {
+    bool operator()(const Write& a, const Write& b) const { return a.cycle < b.cycle; }
   };
+  // Per ROP: its writes in post order, which is cycle order (pushes land at
+  // the back; equal cycles keep their order).
+  using Queue = SortedRing<Write, Earlier>;
   void apply(uint64_t before);
   std::vector<Queue> q_;  // per ROP
   uint64_t earliest_ = ~uint64_t{0};

@@ -57,10 +57,10 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
 void DepthTest::step(uint64_t now) {
   // 1. One fragment whose data has arrived leaves (killed ones just retire).
   bool emitted = false, blocked = false;
-  while (!pending_.empty() && pending_.top().ready <= now) {
-    FragToken* t = pending_.top().t;
-    if (pending_.top().killed) {
-      pending_.pop();
+  while (!pending_.empty() && pending_.front().ready <= now) {
+    FragToken* t = pending_.front().t;
+    if (pending_.front().killed) {
+      pending_.pop_front();
       ++killed_;
       ctx_.retire(t, now);
       continue;
@@ -71,7 +71,7 @@ void DepthTest::step(uint64_t now) {
       out_.wait_for_space(now);
       break;
     }
-    pending_.pop();
+    pending_.pop_front();
     out_.push(t, now, now + cfg_.latency_cycles);
     emitted = true;
   }
@@ -104,7 +104,7 @@ void DepthTest::step(uint64_t now) {
     set_activity(seen_ || in_.occupied(now) ? Activity::kStarved : Activity::kIdle, now);
   }
   // 4. The next cycle anything can happen (pushes into in_ also wake the unit).
-  if (!pending_.empty() && !blocked) wake_at(std::max(now + (emitted ? 1 : 0), pending_.top().ready));
+  if (!pending_.empty() && !blocked) wake_at(std::max(now + (emitted ? 1 : 0), pending_.front().ready));
   if (!in_.empty() && !full) wake_at(std::max({busy_until_, in_.head_visible(), now + 1}));
   if (emitted && !in_.empty() && full) wake_at(now + 1);
 }

@@ -49,21 +49,10 @@ class DepthTest : public Unit {
   struct Earlier {
     bool operator()(const Pending& a, const Pending& b) const { return b > a; }
   };
-  class PendingQueue {
-   public:
-    bool empty() const { return q_.empty(); }
-    size_t size() const { return q_.size(); }
-    const Pending& top() const { return q_.front(); }
-    void pop() { q_.pop_front(); }
-    void push(const Pending& p) { q_.push(p); }
-
-   private:
-    SortedRing<Pending, Earlier> q_;
-  };
-  PendingQueue pending_;
+  SortedRing<Pending, Earlier> pending_;
   uint64_t busy_until_ = 0;
   bool seen_ = false;
-  uint64_t killed_ = 0, memory_wait_cycles_ = 0;
+  uint64_t killed_ = 0;
 };
 
 }  // namespace ropsim

@@ -325,14 +325,12 @@ bool TraceReader::next(Fragment& f) {
     const size_t head = 12 + size_t(cb);
     const bool fixed = h.depth_mode == DepthMode::kPlane;
     const size_t colour_bytes = h.color_format == ColorFormat::kRgbF32 ? 16 : 7;
-    uint8_t rec[12 + 8 + 12 + 16];
     if (fixed) {
       const size_t total = head + 12 + colour_bytes;
-      const size_t got = src_->read(rec, total);
+      const size_t got = src_->read(b, total);
       if (got != total)
         fail(std::string("truncated in the ") + (got < head ? "fragment" : got < head + 12 ? "depth plane" : "colour") +
              " (no end record)");
-      std::memcpy(b, rec, head);
     } else {
       read_exact(b, head, "fragment");
     }
@@ -343,25 +341,24 @@ bool TraceReader::next(Fragment& f) {
     f.coverage = 0;
     for (int i = 0; i < cb; ++i) f.coverage |= uint64_t(b[12 + i]) << (8 * i);
     const int covered = __builtin_popcountll(f.coverage);
+    const uint8_t* colour = b + head + 12;  // plane records: already read
     if (fixed) {
-      std::memcpy(b, rec + head, 12 + colour_bytes);
-      f.z0 = get_f32(b);
-      f.dzdx = get_f32(b + 4);
-      f.dzdy = get_f32(b + 8);
-      std::memmove(b, b + 12, colour_bytes);
+      f.z0 = get_f32(b + head);
+      f.dzdx = get_f32(b + head + 4);
+      f.dzdy = get_f32(b + head + 8);
     } else {
       read_exact(b, 4 * size_t(covered), "sample depths");
       int k = 0;
       for (uint64_t m = f.coverage; m; m &= m - 1) f.z[__builtin_ctzll(m)] = get_f32(b + 4 * k++);
+      read_exact(b, colour_bytes, "colour");
+      colour = b;
     }
     if (h.color_format == ColorFormat::kRgbF32) {
-      if (!fixed) read_exact(b, 16, "colour");
-      for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(b + 4 * i);
-      f.alpha = get_f32(b + 12);
+      for (int i = 0; i < 3; ++i) f.rgb[i] = get_f32(colour + 4 * i);
+      f.alpha = get_f32(colour + 12);
     } else {
-      if (!fixed) read_exact(b, 7, "colour");
-      for (int i = 0; i < 3; ++i) f.rgb[i] = b[i] / 255.0f;
-      f.alpha = get_f32(b + 3);
+      for (int i = 0; i < 3; ++i) f.rgb[i] = colour[i] / 255.0f;
+      f.alpha = get_f32(colour + 3);
     }
     std::string err = validate_fragment(h, f);
     if (!err.empty()) fail(err);
