@@ -1,21 +1,26 @@
 #!/usr/bin/env bash
 # Prints one line per cycle-model run -- config, method, trace, total cycles and
 # a digest of every timing figure in the report (host figures aside) -- over
-# configs/*.toml x {lk, opaque, enderton} x {cloth 16 spp, cloth 4 spp,
-# eight-layers 16 spp}. A refactor that must not change the model leaves this
-# output unchanged: run it before and after and diff. Extra args go to every
+# configs/*.toml x {lk, opaque, enderton, naive, a2c} x {cloth 16 spp, cloth 4
+# spp, eight-layers 16 spp}. A refactor that must not change the model leaves
+# this output unchanged: the ctest TimingDigest.MatchesTheCommittedDigest
+# compares it with tests/data/timing_digest.expected. Extra args go to every
 # `ropsim run` (e.g. --lockstep, which must print the same lines).
+# ROPSIM=path/to/ropsim uses that binary instead of building build/ropsim.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-bash "$root/scripts/build.sh" >/dev/null
-b="$root/build/ropsim"
+if [ -z "${ROPSIM:-}" ]; then
+  bash "$root/scripts/build.sh" >/dev/null
+  ROPSIM="$root/build/ropsim"
+fi
+b="$ROPSIM"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 "$b" scene cloth --spp 16 -o "$tmp/cloth16.rtr" >/dev/null
 "$b" scene cloth --spp 4 -o "$tmp/cloth4.rtr" >/dev/null
 "$b" scene eight-layers --spp 16 -o "$tmp/layers16.rtr" >/dev/null
 for cfg in "$root"/configs/*.toml; do
-  for m in lk opaque enderton; do
+  for m in lk opaque enderton naive a2c; do
     for tr in cloth16 cloth4 layers16; do
       "$b" run --fidelity cycle --hw "$cfg" --trace "$tmp/$tr.rtr" --method "$m" --quiet \
         --out "$tmp/o.png" --report "$tmp/r.json" "$@"
