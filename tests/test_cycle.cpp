@@ -207,9 +207,14 @@ struct Harness {
   Clock clk{1.0};
   Scheduler sched{"sched", clk};
   TraceHeader header;
-  RopContext ctx;
+  FunctionalRop rop;
+  TokenPool pool;
+  Retirement retirement{pool};
+  AddressMap amap;
   std::unique_ptr<TokenFifo> in, out;
-  Harness(int spp, Method m) : header(small_header(spp)), ctx(header, method_config(m), 64) {
+  Harness(int spp, Method m)
+      : header(small_header(spp)), rop(header, method_config(m)),
+        amap(header.width, header.spp, rop.setup().tracker_bytes, 64) {
     in = std::make_unique<TokenFifo>("in", 1024, clk);
     out = std::make_unique<TokenFifo>("out", 1024, clk);
   }
@@ -217,18 +222,18 @@ struct Harness {
   std::vector<std::pair<uint64_t, FragToken*>> tokens(const std::vector<uint64_t>& cycles, int spp) {
     std::vector<std::pair<uint64_t, FragToken*>> v;
     for (size_t i = 0; i < cycles.size(); ++i) {
-      FragToken* t = ctx.pool.get();
+      FragToken* t = pool.get();
       t->f = Fragment{};
       t->f.x = uint16_t(i % 64);
       t->f.coverage = spp == 64 ? ~0ull : (1ull << spp) - 1;
       t->f.alpha = 0.5f;
       t->seq = i;
       t->pixel_key = i;
-      t->px = ctx.store.pixel(t->f.x, 0);
+      rop.fetch(*t);
       t->survivors = t->f.coverage;
       t->m = uint32_t(spp);
-      t->tr = TrackResult{};
-      for (int s = 0; s < spp; ++s) t->order[s] = uint8_t(s);
+      t->lk.track = TrackResult{};
+      for (int s = 0; s < spp; ++s) t->lk.order[s] = uint8_t(s);
       v.emplace_back(cycles[i], t);
     }
     return v;
@@ -270,7 +275,7 @@ TEST(UnitAlone, CoverageTrackerLatencyAndThroughput) {
       HwConfig::Tracker cfg;
       cfg.latency_cycles = L;
       const auto seen = run_alone(h, back_to_back(50), 4, [&](TokenFifo& in, TokenFifo& out) {
-        return std::make_unique<CoverageTracker>("tracker", h.clk, h.ctx, cfg, in, out);
+        return std::make_unique<CoverageTracker>("tracker", h.clk, h.rop, cfg, in, out);
       });
       ASSERT_EQ(seen.size(), 50u);
       EXPECT_EQ(seen[0], 1 + L) << "first output must appear exactly L = " << L << " cycles after entry";
@@ -295,7 +300,7 @@ TEST(UnitAlone, SorterVariantsLatencyAndInterval) {
                          Case{SorterKind::kSerial, 16, 16, 16}, Case{SorterKind::kSerial, 4, 4, 4}}) {
       Harness h(c.spp, Method::kLk);
       const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
-        return std::make_unique<SampleSorter>("sorter", h.clk, h.ctx, make_sorter(c.kind, c.spp), in, out);
+        return std::make_unique<SampleSorter>("sorter", h.clk, h.rop, make_sorter(c.kind, c.spp), in, out);
       });
       ASSERT_EQ(seen.size(), 20u);
       EXPECT_EQ(seen[0], 1 + c.latency) << to_string(c.kind) << " N=" << c.spp << ": latency";
@@ -319,7 +324,7 @@ TEST(UnitAlone, AlphaRefGenLanesAndDepth) {
       cfg.lanes = c.lanes;
       cfg.pipeline_depth = c.depth;
       const auto seen = run_alone(h, back_to_back(20), c.spp, [&](TokenFifo& in, TokenFifo& out) {
-        return std::make_unique<AlphaRefGen>("alpha_ref", h.clk, h.ctx, cfg, in, out);
+        return std::make_unique<AlphaRefGen>("alpha_ref", h.clk, h.rop, cfg, in, out);
       });
       const uint64_t interval = (uint64_t(c.spp) + c.lanes - 1) / c.lanes;
       ASSERT_EQ(seen.size(), 20u);
@@ -346,7 +351,7 @@ TEST(UnitAlone, DepthTestHitLatencyPlusCompareLatency) {
         RopCache cache(cc, dram, in_dram);
         // Depth test needs real fragments: a plane at depth 0.5 over cleared pixels.
         const auto seen = run_alone(h, back_to_back(40), 16, [&](TokenFifo& in, TokenFifo& out) {
-          return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
+          return std::make_unique<DepthTest>("depth", h.clk, h.rop, h.retirement, h.amap, cfg, cache, in, out);
         });
         ASSERT_EQ(seen.size(), 40u);
         // Cleared lines come from fast clear at hit latency: entry 1, data at 1 + hit, out at 1 + hit + L.
@@ -368,7 +373,7 @@ TEST(UnitAlone, DepthTestSamplesPerClockSetsTheInterval) {
     LineSet in_dram{64};
     RopCache cache(HwConfig::Cache{}, dram, in_dram);
     const auto seen = run_alone(h, back_to_back(10), 16, [&](TokenFifo& in, TokenFifo& out) {
-      return std::make_unique<DepthTest>("depth", h.clk, h.ctx, cfg, cache, in, out);
+      return std::make_unique<DepthTest>("depth", h.clk, h.rop, h.retirement, h.amap, cfg, cache, in, out);
     });
     ASSERT_EQ(seen.size(), 10u);
     for (size_t i = 1; i < seen.size(); ++i) EXPECT_EQ(seen[i] - seen[i - 1], 4u) << "16 samples / 4 per clock";

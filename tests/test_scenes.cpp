@@ -166,15 +166,16 @@ TEST(Scenes, EveryScenePerSppIsValidAndDeterministic) {
       InputSpec in;
       in.scene = p;
       auto collect = [&](uint64_t& h, uint64_t& c) {
-        TraceHeader hd;
-        stream_fragments(in, [&](const TraceHeader& x) { hd = x; }, [&](const Fragment& f) {
+        auto src = open_fragments(in);
+        const TraceHeader& hd = src->header();
+        for (Fragment f; src->next(f);) {
           const std::string err = validate_fragment(hd, f);
           ASSERT_TRUE(err.empty()) << info.name << " " << spp << " spp: " << err;
           uint32_t zb;
           std::memcpy(&zb, &f.z0, 4);
           h = mix64(h ^ f.coverage ^ (uint64_t(f.x) << 48) ^ (uint64_t(f.y) << 32) ^ f.prim_id ^ (uint64_t(f.draw_id) << 20) ^ zb);
           ++c;
-        });
+        }
       };
       if (spp == 4) {  // determinism: same seed, same fragments; another seed, others
         uint64_t h2 = 0, c2 = 0;

@@ -6,8 +6,9 @@
 // and the tracker, whose functions use no timed shared state, so they may run
 // decoupled (unit.h).
 #pragma once
-#include "rop_context.h"
+#include "functional_rop.h"
 #include "timed_fifo.h"
+#include "token.h"
 #include "unit.h"
 
 namespace ropsim {
@@ -16,8 +17,8 @@ using TokenFifo = TimedFifo<FragToken*>;
 
 class PipeUnit : public DecoupledUnit {
  public:
-  PipeUnit(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, TokenFifo& in, TokenFifo& out)
-      : DecoupledUnit(name, clk), ctx_(ctx), in_(in), out_(out) {}
+  PipeUnit(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, TokenFifo& in, TokenFifo& out)
+      : DecoupledUnit(name, clk), rop_(rop), in_(in), out_(out) {}
 
  protected:
   struct Timing {
@@ -59,7 +60,7 @@ class PipeUnit : public DecoupledUnit {
     }
   }
 
-  RopContext& ctx_;
+  FunctionalRop& rop_;  ///< the stage this unit runs
   TokenFifo& in_;
   TokenFifo& out_;
   uint64_t busy_until_ = 0;

@@ -11,9 +11,9 @@ namespace ropsim {
 
 class AlphaRefGen : public PipeUnit {
  public:
-  AlphaRefGen(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::AlphaRef& cfg,
+  AlphaRefGen(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, const HwConfig::AlphaRef& cfg,
               TokenFifo& in, TokenFifo& out)
-      : PipeUnit(name, clk, ctx, in, out), cfg_(cfg) {}
+      : PipeUnit(name, clk, rop, in, out), cfg_(cfg) {}
 
  protected:
   Timing process(FragToken* t, uint64_t now) override;

@@ -13,9 +13,9 @@ namespace ropsim {
 
 class CoverageTracker : public PipeUnit {
  public:
-  CoverageTracker(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
+  CoverageTracker(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop,
                   const HwConfig::Tracker& cfg, TokenFifo& in, TokenFifo& out)
-      : PipeUnit(name, clk, ctx, in, out), cfg_(cfg) {}
+      : PipeUnit(name, clk, rop, in, out), cfg_(cfg) {}
   std::vector<Extra> extras() const override {
     return {{"new_surfaces", double(new_surfaces_), "bitmask conflicts that started a new surface"}};
   }

@@ -1,56 +1,22 @@
 #include "depth_test.h"
 
-#include "depth.h"
-#include "method_kernels.h"
 
 namespace ropsim {
 
-DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
-                     const HwConfig::DepthTest& cfg, RopCache& cache, TokenFifo& in, TokenFifo& out)
-    : Unit(name, clk), ctx_(ctx), cfg_(cfg), cache_(cache), in_(in), out_(out) {}
+DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop,
+                     Retirement& retirement, const AddressMap& amap, const HwConfig::DepthTest& cfg, RopCache& cache,
+                     TokenFifo& in, TokenFifo& out)
+    : Unit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in), out_(out) {}
 
 uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
-  const Fragment& f = t->f;
-  Counters& c = ctx_.counters;
-  const Method method = ctx_.golden.method;
-  const int covered_count = __builtin_popcountll(f.coverage);
-  ++c.fragments;
-  c.samples_tested += covered_count;
-  c.depth_bytes_read += 4u * covered_count;
-  t->covered = f.coverage;
-  if (method == Method::kA2c) {
-    const uint32_t k = a2c_sample_count(ctx_.fixed_alpha(f.alpha), ctx_.golden.numerics.alpha_bits,
-                                        ctx_.header.spp, f.x, f.y);
-    t->covered &= ctx_.a2c_prefix[k];
-    c.samples_opacity_passed += __builtin_popcountll(t->covered);
-  }
-  uint64_t s = 0;
-  if (ctx_.header.depth_mode == DepthMode::kPlane) {
-    for (uint64_t m = t->covered; m; m &= m - 1) {
-      const int i = __builtin_ctzll(m);
-      t->z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, ctx_.offset_x[size_t(i)], ctx_.offset_y[size_t(i)]);
-      s |= uint64_t{depth_passes(t->z[i], t->px.depth[i])} << i;
-    }
-  } else {
-    fragment_sample_depths(ctx_.header, f, t->z);
-    for (uint64_t m = t->covered; m; m &= m - 1) {
-      const int i = __builtin_ctzll(m);
-      s |= uint64_t{depth_passes(t->z[i], t->px.depth[i])} << i;
-    }
-  }
-  t->survivors = s;
-  t->m = uint32_t(__builtin_popcountll(s));
-  stats_.samples += uint64_t(__builtin_popcountll(t->covered));
-  if (method == Method::kLk || method == Method::kEnderton || method == Method::kNaive)
-    c.samples_depth_passed += t->m;
-  if (method == Method::kLk) c.tracker_bytes_read += uint64_t(ctx_.tracker_bytes);
+  stats_.samples += rop_.depth().run(*t);
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
-  ctx_.amap.for_each_sample_line(Buffer::kDepth, f.x, f.y, t->covered,
-                                 [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
-  if (method == Method::kLk)
-    ctx_.amap.for_each_tracker_line(
-        f.x, f.y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
+  amap_.for_each_sample_line(Buffer::kDepth, t->f.x, t->f.y, t->covered,
+                             [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
+  if (rop_.traits().tracker)
+    amap_.for_each_tracker_line(
+        t->f.x, t->f.y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
   return ready;
 }
 
@@ -62,7 +28,7 @@ void DepthTest::step(uint64_t now) {
     if (pending_.front().killed) {
       pending_.pop_front();
       ++killed_;
-      ctx_.retire(t, now);
+      retirement_.retire(t, now);
       continue;
     }
     if (emitted) break;

@@ -8,6 +8,7 @@
 #pragma once
 #include <vector>
 
+#include "address_map.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
 #include "rop_cache.h"
@@ -17,8 +18,8 @@ namespace ropsim {
 
 class DepthTest : public Unit {
  public:
-  DepthTest(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::DepthTest& cfg,
-            RopCache& cache, TokenFifo& in, TokenFifo& out);
+  DepthTest(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
+            const AddressMap& amap, const HwConfig::DepthTest& cfg, RopCache& cache, TokenFifo& in, TokenFifo& out);
   std::vector<Extra> extras() const override;
   /// A new fragment for a full unit waits for the run that frees a slot (an
   /// emission, always armed when full); a run for it alone would change
@@ -31,7 +32,7 @@ class DepthTest : public Unit {
   void step(uint64_t now) override;
 
  private:
-  /// The functional depth test; returns the cycle the pixel's state is loaded.
+  /// The depth stage; returns the cycle the pixel's state is loaded.
   uint64_t evaluate(FragToken* t, uint64_t now);
   struct Pending {
     uint64_t ready, seq;
@@ -39,7 +40,9 @@ class DepthTest : public Unit {
     bool killed;  // no surviving sample (kept here: the token is cold by then)
     bool operator>(const Pending& o) const { return ready != o.ready ? ready > o.ready : seq > o.seq; }
   };
-  RopContext& ctx_;
+  FunctionalRop& rop_;
+  Retirement& retirement_;
+  const AddressMap& amap_;
   HwConfig::DepthTest cfg_;
   RopCache& cache_;
   TokenFifo& in_;

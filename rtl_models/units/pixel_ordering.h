@@ -15,13 +15,13 @@
 
 namespace ropsim {
 
-class PixelOrdering : public Unit {
+class PixelOrdering : public Unit, public PixelRelease {
  public:
   PixelOrdering(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Ordering& cfg, TokenFifo& in,
                 TokenFifo& out);
   /// The fragment of this pixel retires at the given cycle (>= now): from the
   /// next cycle on another fragment of the pixel may issue.
-  void release(uint64_t pixel_key, uint64_t cycle);
+  void release(uint64_t pixel_key, uint64_t cycle) override;
   std::vector<Extra> extras() const override;
 
  protected:

@@ -1,16 +1,13 @@
 #include "sample_sorter.h"
 
-#include "sort_order.h"
-
 namespace ropsim {
 
 PipeUnit::Timing SampleSorter::process(FragToken* t, uint64_t) {
-  // The order is sort_order.h's, which every variant's network produces
-  // (SortVariants tests); the variant supplies the timing.
-  const int m = sort_by_stored_depth(t->px.depth, t->survivors, t->order);
-  ctx_.counters.sorts += m > 1;
-  stats_.samples += uint64_t(m);
-  return {algo_->interval_cycles(m), algo_->latency_cycles(m)};
+  // The order is the sort stage's (sort_order.h), which every variant's
+  // network produces (SortVariants tests); the variant supplies the timing.
+  const uint32_t m = rop_.sort().run(*t);
+  stats_.samples += m;
+  return {algo_->interval_cycles(int(m)), algo_->latency_cycles(int(m))};
 }
 
 }  // namespace ropsim

@@ -16,9 +16,9 @@ namespace ropsim {
 
 class SampleSorter : public PipeUnit {
  public:
-  SampleSorter(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, std::unique_ptr<SortAlgorithm> algo,
+  SampleSorter(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, std::unique_ptr<SortAlgorithm> algo,
                TokenFifo& in, TokenFifo& out)
-      : PipeUnit(name, clk, ctx, in, out), algo_(std::move(algo)) {}
+      : PipeUnit(name, clk, rop, in, out), algo_(std::move(algo)) {}
   const SortAlgorithm& algorithm() const { return *algo_; }
   std::vector<Extra> extras() const override {
     return {{"comparators", double(algo_->comparators()), "two-input comparators (" + std::string(algo_->name()) + ")"},

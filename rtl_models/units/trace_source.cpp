@@ -2,9 +2,9 @@
 
 namespace ropsim {
 
-TraceSource::TraceSource(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx,
-                         const HwConfig::Source& cfg, Supplier supplier, TokenFifo& out)
-    : DecoupledUnit(name, clk), ctx_(ctx), cfg_(cfg), supplier_(std::move(supplier)), out_(out) {}
+TraceSource::TraceSource(const sc_core::sc_module_name& name, const Clock& clk, FragmentSource& input,
+                         FunctionalRop& rop, TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out)
+    : DecoupledUnit(name, clk), input_(input), rop_(rop), pool_(pool), cfg_(cfg), out_(out) {}
 
 void TraceSource::advance(uint64_t limit) {
   while (!done_) {
@@ -18,28 +18,28 @@ void TraceSource::advance(uint64_t limit) {
         if (limit == kForever && out_.space_from() == TokenFifo::kUndecided) return out_.notify_on_pop();
         break;
       }
-      FragToken* tok = ctx_.pool.get();
+      FragToken* tok = pool_.get();
       bool got = false;
       try {
-        got = supplier_(tok->f);
+        got = input_.next(tok->f);
       } catch (...) {
         error_ = std::current_exception();
         got = false;
       }
       if (!got) {
-        ctx_.pool.put(tok);
+        pool_.put(tok);
         done_ = true;
         out_.close(t);
         if (error_) sc_core::sc_stop();
         break;
       }
       tok->seq = seq_++;
-      tok->pixel_key = uint64_t(tok->f.y) * ctx_.header.width + tok->f.x;
+      tok->pixel_key = uint64_t(tok->f.y) * rop_.header().width + tok->f.x;
       // The pixel's state, found (its tile allocated) here and fetched into
       // the host's caches while the fragment waits in the FIFOs: the depth
       // test reads it many fragments later. Host speed only; no model effect.
-      tok->px = ctx_.store.pixel(tok->f.x, tok->f.y);
-      const int spp = ctx_.header.spp;
+      rop_.fetch(*tok);
+      const int spp = rop_.header().spp;
       __builtin_prefetch(tok->px.depth);
       __builtin_prefetch(tok->px.depth + spp - 1);
       __builtin_prefetch(tok->px.rgb);

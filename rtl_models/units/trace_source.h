@@ -1,5 +1,5 @@
-// Trace source: models the rasterizer-to-ROP interface. Pulls fragments (a
-// trace being read, or a scene) and delivers up to fragments_per_clock per
+// Trace source: models the rasterizer-to-ROP interface. Pulls fragments from
+// a FragmentSource (a trace being read, or a scene) and delivers up to fragments_per_clock per
 // clock into its FIFO, in API order. It touches no timed shared state, so it
 // may run decoupled (unit.h): then it fills its FIFO ahead of SystemC time and
 // refills it the moment the distributor frees a slot.
@@ -7,6 +7,7 @@
 #include <exception>
 #include <functional>
 
+#include "fragment_source.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
 
@@ -14,14 +15,12 @@ namespace ropsim {
 
 class TraceSource : public DecoupledUnit {
  public:
-  /// Fills the fragment and returns true, or returns false at the end.
-  using Supplier = std::function<bool(Fragment&)>;
-  TraceSource(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::Source& cfg,
-              Supplier supplier, TokenFifo& out);
+  TraceSource(const sc_core::sc_module_name& name, const Clock& clk, FragmentSource& input, FunctionalRop& rop,
+              TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out);
   void start_of_simulation() override { wake_at(0); }
-  /// An exception the supplier threw (bad record), rethrown after sc_start.
+  /// An exception the input threw (bad record), rethrown after sc_start.
   std::exception_ptr error() const { return error_; }
-  /// The supplier has no more fragments; `produced` were delivered.
+  /// The input has no more fragments; `produced` were delivered.
   bool done() const { return done_; }
   uint64_t produced() const { return seq_; }
   /// Called every progress_every fragments with the count so far.
@@ -32,9 +31,10 @@ class TraceSource : public DecoupledUnit {
   void advance(uint64_t limit) override;
 
  private:
-  RopContext& ctx_;
+  FragmentSource& input_;
+  FunctionalRop& rop_;
+  TokenPool& pool_;
   HwConfig::Source cfg_;
-  Supplier supplier_;
   TokenFifo& out_;
   uint64_t seq_ = 0;
   uint64_t t_ = 0;  // the clock being decided

@@ -5,6 +5,7 @@
 // are posted (PostedWrites, rop_cache.h), so it touches no timed state at its
 // own cycle and may run decoupled (unit.h).
 #pragma once
+#include "address_map.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
 #include "rop_cache.h"
@@ -13,8 +14,8 @@ namespace ropsim {
 
 class Writeback : public DecoupledUnit {
  public:
-  Writeback(const sc_core::sc_module_name& name, const Clock& clk, RopContext& ctx, const HwConfig::Writeback& cfg,
-            RopCache& cache, TokenFifo& in);
+  Writeback(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
+            const AddressMap& amap, const HwConfig::Writeback& cfg, RopCache& cache, TokenFifo& in);
   std::vector<Extra> extras() const override {
     return {{"samples_written", double(written_), "samples whose depth and colour were written"}};
   }
@@ -23,9 +24,11 @@ class Writeback : public DecoupledUnit {
   void advance(uint64_t limit) override;
 
  private:
-  /// The functional writeback; returns the samples it examined.
+  /// The write stage and its cache writes; returns the samples it examined.
   uint32_t process(FragToken* t, uint64_t now);
-  RopContext& ctx_;
+  FunctionalRop& rop_;
+  Retirement& retirement_;
+  const AddressMap& amap_;
   HwConfig::Writeback cfg_;
   RopCache& cache_;
   TokenFifo& in_;

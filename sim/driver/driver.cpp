@@ -5,52 +5,29 @@
 
 namespace ropsim {
 
-std::string InputSpec::describe() const {
-  const std::string times = repeat > 1 ? ", drawn " + std::to_string(repeat) + " times" : "";
-  if (from_trace()) return trace_path + times;
-  return "scene " + scene.name + " at " + std::to_string(scene.spp) + " spp" + times;
-}
-
-void stream_fragments(const InputSpec& in, const std::function<void(const TraceHeader&)>& begin,
-                      const std::function<void(const Fragment&)>& emit) {
-  if (in.from_trace()) {
-    for (uint32_t pass = 0; pass < in.repeat; ++pass) {
-      TraceReader r(in.trace_path);
-      if (pass == 0) begin(r.header());
-      Fragment f;
-      while (r.next(f)) emit(f);
-    }
-  } else {
-    Scene s = build_scene(in.scene);
-    begin(s.header);
-    for (uint32_t pass = 0; pass < in.repeat; ++pass) rasterize_scene(s, emit);
-  }
-}
-
 FragmentList load_fragments(const InputSpec& in) {
   FragmentList out;
-  stream_fragments(in, [&](const TraceHeader& h) { out.header = h; },
-                   [&](const Fragment& f) { out.fragments.push_back(f); });
+  auto src = open_fragments(in);
+  out.header = src->header();
+  for (Fragment f; src->next(f);) out.fragments.push_back(f);
   return out;
 }
 
 FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference) {
   const auto t0 = std::chrono::steady_clock::now();
   FunctionalRun run;
-  std::unique_ptr<FunctionalModel> model, ref;
-  GoldenConfig ref_cfg = cfg;
-  ref_cfg.method = Method::kReference;
-  stream_fragments(
-      in,
-      [&](const TraceHeader& h) {
-        run.header = h;
-        model = make_functional_model(h, cfg);
-        if (with_reference && cfg.method != Method::kReference) ref = make_functional_model(h, ref_cfg);
-      },
-      [&](const Fragment& f) {
-        model->draw(f);
-        if (ref) ref->draw(f);
-      });
+  auto src = open_fragments(in);
+  run.header = src->header();
+  std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg), ref;
+  if (with_reference && cfg.method != Method::kReference) {
+    GoldenConfig ref_cfg = cfg;
+    ref_cfg.method = Method::kReference;
+    ref = make_functional_model(run.header, ref_cfg);
+  }
+  for (Fragment f; src->next(f);) {
+    model->draw(f);
+    if (ref) ref->draw(f);
+  }
   run.image = model->resolve();
   run.counters = model->counters();
   run.state_bytes = model->state_bytes();

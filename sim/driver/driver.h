@@ -6,25 +6,11 @@
 #include <optional>
 #include <string>
 
+#include "fragment_source.h"
 #include "golden_model.h"
-#include "scenes.h"
 #include "trace.h"
 
 namespace ropsim {
-
-/// Where fragments come from: a trace file, or a scene rasterized on the fly.
-struct InputSpec {
-  std::string trace_path;  ///< non-empty: read this trace
-  SceneParams scene;       ///< otherwise: build this scene
-  uint32_t repeat = 1;     ///< draw the input this many times into one frame
-  bool from_trace() const { return !trace_path.empty(); }
-  std::string describe() const;
-};
-
-/// Opens the input, calls begin(header) once, then emit(fragment) for every
-/// fragment in API order. Streams: a trace is never held in memory.
-void stream_fragments(const InputSpec& in, const std::function<void(const TraceHeader&)>& begin,
-                      const std::function<void(const Fragment&)>& emit);
 
 /// Reads the whole input into memory (for benchmarks and tests).
 struct FragmentList {

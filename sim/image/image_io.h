@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "golden_model.h"
+#include "image.h"
 
 namespace ropsim {
 

@@ -12,35 +12,6 @@ namespace ropsim {
 
 namespace {
 
-/// Pull-style fragments from the input, repeated in.repeat times.
-TraceSource::Supplier make_supplier(const InputSpec& in, TraceHeader& header) {
-  if (in.from_trace()) {
-    auto reader = std::make_shared<TraceReader>(in.trace_path);
-    header = reader->header();
-    auto pass = std::make_shared<uint32_t>(1);
-    const std::string path = in.trace_path;
-    const uint32_t repeat = in.repeat;
-    return [reader, pass, path, repeat](Fragment& f) mutable {
-      while (!reader->next(f)) {
-        if (*pass >= repeat) return false;
-        ++*pass;
-        reader = std::make_shared<TraceReader>(path);
-      }
-      return true;
-    };
-  }
-  auto list = std::make_shared<FragmentList>(load_fragments(InputSpec{"", in.scene, 1}));
-  header = list->header;
-  const uint64_t total = uint64_t(list->fragments.size()) * in.repeat;
-  auto i = std::make_shared<uint64_t>(0);
-  return [list, i, total](Fragment& f) {
-    if (*i >= total) return false;
-    f = list->fragments[size_t(*i % list->fragments.size())];
-    ++*i;
-    return true;
-  };
-}
-
 std::string classify(const CycleStats& s) {
   char buf[256];
   if (s.memory_bound) {
@@ -97,10 +68,11 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   const auto t0 = std::chrono::steady_clock::now();
   CycleRun run;
   FreshSimContext sim;
-  TraceSource::Supplier supplier = make_supplier(in, run.header);
-  auto top = std::make_unique<RopPipeline>("top", run.header, method, hw, std::move(supplier));
+  std::unique_ptr<FragmentSource> input = open_fragments(in);
+  run.header = input->header();
+  auto top = std::make_unique<RopPipeline>("top", std::move(input), method, hw);
   top->source().on_progress = opt.progress;
-  top->context().retire_hook = opt.retire_hook;
+  top->retirement().hook = opt.retire_hook;
   const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
   top->set_decoupled(decoupled);
   std::string vcd_tmp;
@@ -124,10 +96,11 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   s.total_cycles = top->total_cycles();
   s.pipeline_cycles = top->pipeline_cycles();
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
-  RopContext& ctx = top->context();
+  FunctionalRop& rop = top->functional();
+  run.counters = rop.counters();
   const double cyc = double(std::max<uint64_t>(1, s.total_cycles));
-  s.fragments_per_clock = double(ctx.counters.fragments) / cyc;
-  s.samples_per_clock = double(ctx.counters.samples_tested) / cyc;
+  s.fragments_per_clock = double(run.counters.fragments) / cyc;
+  s.samples_per_clock = double(run.counters.samples_tested) / cyc;
   for (const auto& u : top->units()) {
     s.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), u.unit->extras()});
     s.unit_runs += u.unit->stats().activations;
@@ -143,13 +116,12 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
   s.memory_bound = s.dram_utilization >= 0.8;
   s.bottleneck = classify(s);
-  s.tokens_allocated = ctx.pool.allocated();
+  s.tokens_allocated = top->tokens().allocated();
   s.decoupled = decoupled;
 
-  run.counters = ctx.counters;
-  run.image = ctx.store.resolve();
-  run.state_bytes = ctx.store.state_bytes();
-  run.state = std::make_unique<SampleStore>(std::move(ctx.store));
+  run.image = rop.store().resolve();
+  run.state_bytes = rop.store().state_bytes();
+  run.state = std::make_unique<SampleStore>(std::move(rop.store()));
   top.reset();  // closes the VCD file
   if (!vcd_tmp.empty()) std::filesystem::rename(vcd_tmp + ".vcd", opt.vcd_path);
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -7,12 +7,16 @@
 #include <string>
 #include <vector>
 
-#include "driver.h"
+#include "counters.h"
 #include "dram.h"
+#include "fragment_source.h"
 #include "hw_config.h"
+#include "image.h"
+#include "method.h"
 #include "rop_cache.h"
-#include "rop_context.h"
+#include "sample_store.h"
 #include "timed_fifo.h"
+#include "token.h"
 #include "unit.h"
 
 namespace ropsim {

@@ -9,21 +9,21 @@
 
 namespace ropsim {
 
-RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader& header, const GoldenConfig& method,
-                         const HwConfig& hw, TraceSource::Supplier supplier)
-    : sc_module(name), hw_(hw), clk_(hw.clock.frequency_ghz), ctx_(header, method, hw.cache.line_bytes),
+RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input,
+                         const MethodConfig& method, const HwConfig& hw)
+    : sc_module(name), hw_(hw), clk_(hw.clock.frequency_ghz), input_(std::move(input)),
+      rop_(input_->header(), method), retirement_(pool_),
+      amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes),
       dram_(hw.dram), in_dram_(hw.cache.line_bytes) {
-  const Method m = method.method;
-  if (m == Method::kReference) throw std::invalid_argument("the reference method has no ROP pipeline");
+  const MethodTraits& mt = rop_.traits();
+  const TraceHeader& header = rop_.header();
   sched_ = std::make_unique<Scheduler>("scheduler", clk_);
-  const bool lk = m == Method::kLk;
-  const bool hashes = lk || m == Method::kEnderton || m == Method::kNaive;
   const int spp = header.spp;
   const uint32_t n_rops = hw.distributor.rop_units;
 
   TokenFifo& src_out = make_fifo("source_to_distributor", hw.source.fifo_depth, 1);
   source_ = &add("trace_source", -1,
-                 std::make_unique<TraceSource>("trace_source", clk_, ctx_, hw.source, std::move(supplier), src_out));
+                 std::make_unique<TraceSource>("trace_source", clk_, *input_, rop_, pool_, hw.source, src_out));
   std::vector<TokenFifo*> rop_in;
   for (uint32_t r = 0; r < n_rops; ++r)
     rop_in.push_back(&make_fifo("rop" + std::to_string(r) + ".input", hw.distributor.fifo_depth,
@@ -32,7 +32,6 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
                    std::make_unique<Distributor>("distributor", clk_, hw.distributor, header.width, src_out, rop_in));
   src_out.connect(source_, &dist);
 
-  ctx_.ordering.resize(n_rops);
   for (uint32_t r = 0; r < n_rops; ++r) {
     const std::string p = "rop" + std::to_string(r) + ".";   // FIFO names
     const std::string u = "rop" + std::to_string(r) + "_";   // module names ('.' is the hierarchy separator)
@@ -44,44 +43,47 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, const TraceHeader&
     auto& ord = add("pixel_ordering", ri,
                     std::make_unique<PixelOrdering>((u + "pixel_ordering").c_str(), clk_, hw.ordering, *rop_in[r], ord_out));
     rop_in[r]->connect(&dist, &ord);
-    ctx_.ordering[r] = &ord;
+    retirement_.attach(r, &ord);
 
     TokenFifo& dt_out = make_fifo(p + "depth_out", hw.depth_test.fifo_depth, hw.depth_test.latency_cycles);
     Unit* prev = &add("depth_test", ri,
-                      std::make_unique<DepthTest>((u + "depth_test").c_str(), clk_, ctx_, hw.depth_test, cache, ord_out,
-                                                  dt_out));
+                      std::make_unique<DepthTest>((u + "depth_test").c_str(), clk_, rop_, retirement_, amap_, hw.depth_test,
+                                                  cache, ord_out, dt_out));
     ord_out.connect(&ord, prev);
     TokenFifo* link = &dt_out;
 
-    if (lk) {
+    if (mt.tracker) {
       TokenFifo& tr_out = make_fifo(p + "tracker_to_sorter", hw.tracker.fifo_depth, hw.tracker.latency_cycles);
       Unit* tr = &add("coverage_tracker", ri,
-                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, ctx_, hw.tracker, *link,
+                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, rop_, hw.tracker, *link,
                                                         tr_out));
       link->connect(prev, tr);
       prev = tr;
       link = &tr_out;
+    }
+    if (mt.sorter) {
       auto algo = make_sorter(hw.sorter.kind, spp);
       TokenFifo& so_out = make_fifo(p + "sorter_to_alpha_ref", hw.sorter.fifo_depth, algo->latency_cycles(spp));
       Unit* so = &add("sample_sorter", ri,
-                      std::make_unique<SampleSorter>((u + "sample_sorter").c_str(), clk_, ctx_, std::move(algo), *link,
+                      std::make_unique<SampleSorter>((u + "sample_sorter").c_str(), clk_, rop_, std::move(algo), *link,
                                                      so_out));
       link->connect(prev, so);
       prev = so;
       link = &so_out;
     }
-    if (hashes) {
+    if (mt.reference) {
       const uint32_t worst = hw.alpha_ref.pipeline_depth + ceil_div(uint32_t(spp) + 1, hw.alpha_ref.lanes) - 1;
       TokenFifo& ar_out = make_fifo(p + "alpha_ref_to_writeback", hw.alpha_ref.fifo_depth, worst);
       Unit* ar = &add("alpha_ref_gen", ri,
-                      std::make_unique<AlphaRefGen>((u + "alpha_ref_gen").c_str(), clk_, ctx_, hw.alpha_ref, *link,
+                      std::make_unique<AlphaRefGen>((u + "alpha_ref_gen").c_str(), clk_, rop_, hw.alpha_ref, *link,
                                                     ar_out));
       link->connect(prev, ar);
       prev = ar;
       link = &ar_out;
     }
     Unit* wb = &add("writeback", ri,
-                    std::make_unique<Writeback>((u + "writeback").c_str(), clk_, ctx_, hw.writeback, cache, *link));
+                    std::make_unique<Writeback>((u + "writeback").c_str(), clk_, rop_, retirement_, amap_, hw.writeback,
+                                                  cache, *link));
     link->connect(prev, wb);
   }
 }
@@ -126,23 +128,22 @@ uint64_t RopPipeline::run() {
   if (source_->error()) std::rethrow_exception(source_->error());
   // SystemC stops when no event is pending: that must be because every
   // fragment has retired, never because a wake-up was lost.
-  if (!source_->done() || ctx_.retired != source_->produced()) {
+  if (!source_->done() || retirement_.retired() != source_->produced()) {
     std::string held;
     for (const auto& f : fifos_)
       if (!f->empty()) held += "; " + f->name() + " holds " + std::to_string(f->size());
     throw std::logic_error("cycle model stalled at cycle " + std::to_string(clk_.now()) + ": " +
-                           std::to_string(ctx_.retired) + " of " + std::to_string(source_->produced()) +
+                           std::to_string(retirement_.retired()) + " of " + std::to_string(source_->produced()) +
                            " fragments retired" + (source_->done() ? "" : " and the trace source is not done") +
                            held + " (a lost wake-up; please report it)");
   }
   // The last retirement, not SystemC's final time: decoupled units close their
   // outputs without SystemC time passing, so that differs between the modes.
-  pipeline_cycles_ = ctx_.last_retire;
+  pipeline_cycles_ = retirement_.last_cycle();
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
   total_cycles_ = std::max(end, dram_.stats().last_completion);
   for (const auto& u : units_) u.unit->close_accounting(total_cycles_);
-  ctx_.counters.tiles_touched = ctx_.store.tiles();
   return total_cycles_;
 }
 

@@ -1,7 +1,8 @@
 // The top of the cycle-approximate model: elaborates the pipeline for one
-// trace header, method and hardware config. Only the units the method needs
-// exist: lk has all five per ROP; enderton and naive skip the tracker and
-// the sorter; a2c and opaque also skip the alpha-reference generator.
+// input, method and hardware config. Only the units the method's traits ask
+// for exist (method.h): lk has all five per ROP; enderton and naive skip the
+// tracker and the sorter; a2c and opaque also skip the alpha-reference
+// generator. Every unit runs one stage of the one FunctionalRop.
 //
 //   source -> distributor -+-> ordering -> depth test -> [tracker -> sorter] -> [alpha ref] -> writeback
 //                          +-> ... one chain per ROP unit, each with its ROP cache, all sharing the DRAM
@@ -10,16 +11,19 @@
 
 #include <memory>
 #include <string>
-#include "line_set.h"
 #include <vector>
 
+#include "address_map.h"
 #include "clock.h"
 #include "distributor.h"
 #include "dram.h"
+#include "fragment_source.h"
+#include "functional_rop.h"
 #include "hw_config.h"
+#include "line_set.h"
 #include "rop_cache.h"
-#include "rop_context.h"
 #include "scheduler.h"
+#include "token.h"
 #include "trace_source.h"
 
 namespace ropsim {
@@ -28,12 +32,13 @@ class PixelOrdering;
 
 class RopPipeline : public sc_core::sc_module {
  public:
-  RopPipeline(const sc_core::sc_module_name& name, const TraceHeader& header, const GoldenConfig& method,
-              const HwConfig& hw, TraceSource::Supplier supplier);
+  /// Throws std::invalid_argument for a method without a pipeline.
+  RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input, const MethodConfig& method,
+              const HwConfig& hw);
   ~RopPipeline() override;
 
   /// Runs to the end of the trace, then flushes the caches; returns the
-  /// total cycles. Rethrows a supplier error (a bad trace record).
+  /// total cycles. Rethrows an input error (a bad trace record).
   uint64_t run();
   /// Writes a VCD waveform of unit activities and FIFO occupancies for the
   /// cycles [first, last]; call before run(). SystemC appends ".vcd".
@@ -44,7 +49,9 @@ class RopPipeline : public sc_core::sc_module {
   /// Lets the units that can run decoupled (unit.h) do so; call before run().
   void set_decoupled(bool on);
 
-  RopContext& context() { return ctx_; }
+  FunctionalRop& functional() { return rop_; }
+  Retirement& retirement() { return retirement_; }
+  const TokenPool& tokens() const { return pool_; }
   const Clock& clock() const { return clk_; }
   TraceSource& source() { return *source_; }
   const HwConfig& hw() const { return hw_; }
@@ -68,7 +75,11 @@ class RopPipeline : public sc_core::sc_module {
 
   HwConfig hw_;
   Clock clk_;
-  RopContext ctx_;
+  std::unique_ptr<FragmentSource> input_;
+  FunctionalRop rop_;
+  TokenPool pool_;
+  Retirement retirement_;
+  AddressMap amap_;
   Dram dram_;
   LineSet in_dram_;
   PostedWrites posted_;  // before caches_: they point to it

@@ -7,19 +7,12 @@
 #include <memory>
 #include <string>
 
+#include "image.h"
 #include "tile_map.h"
 #include "trace.h"
 #include "tracker.h"
 
 namespace ropsim {
-
-/// A resolved linear RGB image, row-major, 3 floats per pixel.
-struct Image {
-  uint32_t width = 0, height = 0;
-  std::vector<float> rgb;
-  float* at(uint32_t x, uint32_t y) { return &rgb[(size_t(y) * width + x) * 3]; }
-  const float* at(uint32_t x, uint32_t y) const { return &rgb[(size_t(y) * width + x) * 3]; }
-};
 
 /// The buffers of one 8 x 8 tile.
 struct SampleTile {

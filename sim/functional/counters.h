@@ -1,0 +1,78 @@
+// The event counters of the functional ROP, each declared once with its name,
+// unit and meaning (the reports and docs/reports.md are generated from this
+// list). Each stage of the functional ROP owns the counters it increments;
+// a run's counters are the sum over its stages.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+namespace ropsim {
+
+// X(name, unit, meaning)
+#define ROPSIM_COUNTERS(X)                                                                                         \
+  X(fragments, "fragments", "fragments processed")                                                                 \
+  X(samples_tested, "samples", "covered samples of those fragments")                                               \
+  X(samples_depth_passed, "samples",                                                                               \
+    "samples that passed the depth test (a2c: among the samples its mask kept)")                                   \
+  X(samples_opacity_passed, "samples",                                                                             \
+    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c: the mask)")      \
+  X(samples_written, "samples", "samples whose depth and colour were written")                                     \
+  X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict")                                \
+  X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort")                                  \
+  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth)")                                             \
+  X(depth_bytes_written, "bytes", "4 per written sample")                                                          \
+  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)")                                           \
+  X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment")                             \
+  X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample")                          \
+  X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")
+
+/// Event counts of one run.
+struct Counters {
+#define ROPSIM_X(name, unit, meaning) uint64_t name = 0;
+  ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+
+  Counters& operator+=(const Counters& o) {
+#define ROPSIM_X(name, unit, meaning) name += o.name;
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+    return *this;
+  }
+  bool operator==(const Counters& o) const {
+    bool eq = true;
+#define ROPSIM_X(name, unit, meaning) eq = eq && name == o.name;
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+    return eq;
+  }
+  bool operator!=(const Counters& o) const { return !(*this == o); }
+  /// Per-pixel state bytes moved: depth, colour and tracker, read and written.
+  uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read; }
+  uint64_t state_bytes_written() const { return depth_bytes_written + color_bytes_written + tracker_bytes_written; }
+  /// Calls f(name, value) for every counter, in declaration order.
+  template <class F>
+  void for_each(F&& f) const {
+#define ROPSIM_X(name, unit, meaning) f(#name, name);
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+  }
+};
+
+/// A statistic's description: its name, unit and one-line meaning.
+struct StatDesc {
+  const char* name;
+  const char* unit;
+  const char* meaning;
+};
+
+/// The counters' descriptions, in declaration order.
+inline const std::vector<StatDesc>& counter_descs() {
+  static const std::vector<StatDesc> v = {
+#define ROPSIM_X(name, unit, meaning) {#name, unit, meaning},
+      ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+  };
+  return v;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,45 @@
+// The per-fragment work record of the functional ROP: the fragment, its
+// pixel's state, and what each stage has decided for it so far. The golden
+// model keeps one and runs every stage on it; the cycle model's token carries
+// one through the units, each unit running one stage on it.
+#pragma once
+#include <cstdint>
+
+#include "sample_store.h"
+#include "trace.h"
+#include "tracker.h"
+
+namespace ropsim {
+
+struct FragWork {
+  Fragment f;
+  PixelRef px{};  ///< the pixel's state (FunctionalRop::fetch)
+
+  // Depth test.
+  uint64_t covered = 0;    ///< samples tested: the coverage (a2c: AND its sample mask)
+  uint64_t survivors = 0;  ///< samples that passed the depth test (S)
+  uint32_t m = 0;          ///< popcount(survivors)
+  float z[64];             ///< the fragment's depth at each tested sample
+
+  // Per-method payloads, each filled by the stages its method uses.
+  struct Lk {
+    TrackResult track;  ///< the tracker's decision (n, surface id)
+    uint8_t order[64];  ///< survivors sorted by stored depth (order[0..m))
+    uint32_t ref[64];   ///< alpha reference of the j-th sorted survivor order[j]
+  } lk;
+  struct Enderton {
+    uint32_t count;  ///< R = floor(alpha m + xi): samples to write
+    int list[64];    ///< list[0..count): the chosen samples, in choice order
+  } enderton;
+  struct Naive {
+    uint32_t ref[64];  ///< random reference of survivor sample i, at index i
+  } naive;
+
+  // Opacity test and write.
+  uint64_t written = 0;  ///< samples whose depth and colour were written
+
+  /// No sample survived the depth test: the fragment leaves the ROP there.
+  bool killed() const { return m == 0; }
+};
+
+}  // namespace ropsim

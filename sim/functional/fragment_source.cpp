@@ -1,0 +1,77 @@
+#include "fragment_source.h"
+
+#include <vector>
+
+#include "rasterizer.h"
+
+namespace ropsim {
+
+std::string InputSpec::describe() const {
+  const std::string times = repeat > 1 ? ", drawn " + std::to_string(repeat) + " times" : "";
+  if (from_trace()) return trace_path + times;
+  return "scene " + scene.name + " at " + std::to_string(scene.spp) + " spp" + times;
+}
+
+namespace {
+
+class TraceFragments : public FragmentSource {
+ public:
+  TraceFragments(const std::string& path, uint32_t repeat)
+      : path_(path), repeat_(repeat), reader_(std::make_unique<TraceReader>(path)) {
+    header_ = reader_->header();
+  }
+  bool next(Fragment& f) override {
+    while (!reader_->next(f)) {
+      if (pass_ >= repeat_) return false;
+      ++pass_;
+      reader_ = std::make_unique<TraceReader>(path_);
+    }
+    ++delivered_;
+    return true;
+  }
+
+ private:
+  std::string path_;
+  uint32_t repeat_, pass_ = 1;
+  std::unique_ptr<TraceReader> reader_;
+};
+
+/// Rasterizes one triangle at a time into a small buffer.
+class SceneFragments : public FragmentSource {
+ public:
+  SceneFragments(const SceneParams& p, uint32_t repeat) : scene_(build_scene(p)), repeat_(repeat) {
+    header_ = scene_.header;
+    raster_ = std::make_unique<Rasterizer>(scene_.header);
+  }
+  bool next(Fragment& f) override {
+    while (at_ == buf_.size()) {
+      buf_.clear();
+      at_ = 0;
+      if (tri_ == scene_.triangles.size()) {
+        if (pass_ >= repeat_) return false;
+        ++pass_;
+        tri_ = 0;
+      }
+      raster_->rasterize(scene_.triangles[tri_++], [this](const Fragment& x) { buf_.push_back(x); });
+    }
+    f = buf_[at_++];
+    ++delivered_;
+    return true;
+  }
+
+ private:
+  Scene scene_;
+  std::unique_ptr<Rasterizer> raster_;  // refers to scene_.header
+  uint32_t repeat_, pass_ = 1;
+  size_t tri_ = 0, at_ = 0;
+  std::vector<Fragment> buf_;
+};
+
+}  // namespace
+
+std::unique_ptr<FragmentSource> open_fragments(const InputSpec& in) {
+  if (in.from_trace()) return std::make_unique<TraceFragments>(in.trace_path, in.repeat);
+  return std::make_unique<SceneFragments>(in.scene, in.repeat);
+}
+
+}  // namespace ropsim

@@ -1,0 +1,44 @@
+// Where fragments come from, for every fidelity: a trace file read as it
+// goes, or a built-in scene rasterized a triangle at a time. Both stream (an
+// input is never held in memory whole) and repeat the input when asked, so
+// the golden model and the cycle model see the same fragments in the same
+// order through one protocol: header(), then next() until it returns false.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "scenes.h"
+#include "trace.h"
+
+namespace ropsim {
+
+/// Where fragments come from: a trace file, or a scene rasterized on the fly.
+struct InputSpec {
+  std::string trace_path;  ///< non-empty: read this trace
+  SceneParams scene;       ///< otherwise: build this scene
+  uint32_t repeat = 1;     ///< draw the input this many times into one frame
+  bool from_trace() const { return !trace_path.empty(); }
+  std::string describe() const;
+};
+
+class FragmentSource {
+ public:
+  virtual ~FragmentSource() = default;
+  const TraceHeader& header() const { return header_; }
+  /// The next fragment in API order (the input drawn `repeat` times); false
+  /// at the end. Throws TraceError for a bad trace record.
+  virtual bool next(Fragment& f) = 0;
+  /// Fragments delivered so far.
+  uint64_t delivered() const { return delivered_; }
+
+ protected:
+  TraceHeader header_;
+  uint64_t delivered_ = 0;
+};
+
+/// Opens the input: reads the trace's header, or builds the scene. Throws
+/// TraceError or SceneError for bad input.
+std::unique_ptr<FragmentSource> open_fragments(const InputSpec& in);
+
+}  // namespace ropsim

@@ -1,0 +1,183 @@
+#include "functional_rop.h"
+
+#include <stdexcept>
+
+#include "alpha_ref.h"
+#include "depth.h"
+#include "hilbert.h"
+#include "method_kernels.h"
+#include "opacity.h"
+#include "random_hash.h"
+#include "sort_order.h"
+
+namespace ropsim {
+
+RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
+    : header(h), cfg(c), traits(ropsim::traits(c.method)), spp(h.spp), hilbert_n(hilbert_side(h.width, h.height)),
+      tracker_bytes(uint32_t((h.spp + c.numerics.surface_id_bits + 7) / 8)), a2c_prefix(a2c_prefix_table(h.spp)) {
+  if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
+  for (int i = 0; i < h.spp; ++i) {
+    offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
+    offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
+  }
+}
+
+void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) const {
+  if (header.depth_mode == DepthMode::kPlane) {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x[size_t(i)], offset_y[size_t(i)]);
+    }
+  } else {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      z[i] = canonical_depth(f.z[i]);
+    }
+  }
+}
+
+uint64_t RopSetup::random_key(const Fragment& f) const {
+  return fragment_key(cfg.seed, f.draw_id, f.prim_id, f.x, f.y);
+}
+
+// ------------------------------------------------------------------ stages
+
+uint32_t DepthStage::run(FragWork& w) {
+  const Fragment& f = w.f;
+  const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
+  ++c_.fragments;
+  c_.samples_tested += covered;
+  c_.depth_bytes_read += 4u * covered;  // binary32 depth
+  uint64_t tested = f.coverage;
+  if (s_.traits.coverage_select) {
+    // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
+    // opacity decision, made before the depth test.
+    const uint32_t k =
+        a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
+    tested &= s_.a2c_prefix[k];
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
+  }
+  if (s_.traits.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  s_.sample_depths(f, tested, w.z);
+  uint64_t S = 0;
+  for (uint64_t m = tested; m; m &= m - 1) {  // branch-free: pass/fail is data-dependent
+    const int i = __builtin_ctzll(m);
+    S |= uint64_t{depth_passes(w.z[i], w.px.depth[i])} << i;
+  }
+  w.covered = tested;
+  w.survivors = S;
+  w.m = uint32_t(__builtin_popcountll(S));
+  c_.samples_depth_passed += w.m;
+  return uint32_t(__builtin_popcountll(tested));
+}
+
+void TrackStage::run(FragWork& w) {
+  w.lk.track = track_surface(*w.px.tracker, w.survivors, s_.cfg.numerics.surface_id_bits);
+  track_commit(*w.px.tracker, w.survivors);  // line 18: the state is not read again for this fragment
+  c_.surface_id_changes += w.lk.track.new_surface;
+  c_.tracker_bytes_written += s_.tracker_bytes;
+}
+
+uint32_t SortStage::run(FragWork& w) {
+  const int m = sort_by_stored_depth(w.px.depth, w.survivors, w.lk.order);
+  c_.sorts += m > 1;
+  return uint32_t(m);
+}
+
+uint32_t ReferenceStage::run(FragWork& w) {
+  const Fragment& f = w.f;
+  switch (s_.cfg.method) {
+    case Method::kLk: {
+      const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
+      calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
+                      s_.cfg.numerics.hash_bits, w.lk.ref);
+      return w.m;
+    }
+    case Method::kEnderton: {
+      int n = 0;
+      for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
+      const uint64_t key = s_.random_key(f);
+      w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
+      enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
+      return w.enderton.count + 1;  // the count's hash and one per pick
+    }
+    case Method::kNaive: {
+      const uint64_t key = s_.random_key(f);
+      for (uint64_t s = w.survivors; s; s &= s - 1) {
+        const int i = __builtin_ctzll(s);
+        w.naive.ref[i] = fragment_random(key, uint32_t(i) + 1);
+      }
+      return w.m;
+    }
+    default: return 0;
+  }
+}
+
+uint32_t WriteStage::run(FragWork& w) {
+  const Numerics& num = s_.cfg.numerics;
+  uint64_t wrote = 0;
+  uint32_t examined = w.m;
+  switch (s_.cfg.method) {
+    case Method::kLk: {
+      const uint64_t a = memo_.fixed_alpha(w.f.alpha);
+      for (uint32_t j = 0; j < w.m; ++j)
+        if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) wrote |= uint64_t{1} << w.lk.order[j];
+      c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+      break;
+    }
+    case Method::kEnderton:
+      for (uint32_t j = 0; j < w.enderton.count; ++j) wrote |= uint64_t{1} << w.enderton.list[j];
+      c_.samples_opacity_passed += w.enderton.count;
+      examined = w.enderton.count;
+      break;
+    case Method::kNaive: {
+      const uint64_t a = memo_.fixed_alpha(w.f.alpha);
+      for (uint64_t s = w.survivors; s; s &= s - 1) {
+        const int i = __builtin_ctzll(s);
+        if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) wrote |= uint64_t{1} << i;
+      }
+      c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+      break;
+    }
+    case Method::kA2c:  // its opacity decision was the mask, before the depth test
+      wrote = w.survivors;
+      break;
+    case Method::kOpaque:
+      wrote = w.survivors;
+      c_.samples_opacity_passed += w.m;
+      break;
+    case Method::kReference: break;
+  }
+  const uint16_t* rgb16 = memo_.half_color(w.f.rgb);
+  for (uint64_t s = wrote; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    w.px.write_sample(i, w.z[i], rgb16);
+  }
+  const uint32_t n = uint32_t(__builtin_popcountll(wrote));
+  c_.samples_written += n;
+  c_.depth_bytes_written += 4u * n;  // binary32 depth
+  c_.color_bytes_written += 6u * n;  // RGB binary16
+  w.written = wrote;
+  return examined;
+}
+
+// ------------------------------------------------------------ FunctionalRop
+
+FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
+    : setup_(h, cfg), store_(h, setup_.traits.tracker), depth_(setup_), track_(setup_), sort_(setup_),
+      reference_(setup_), write_(setup_) {
+  if (!setup_.traits.pipeline)
+    throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
+}
+
+Counters FunctionalRop::counters() const {
+  Counters c = depth_.counters();
+  c += track_.counters();
+  c += sort_.counters();
+  c += reference_.counters();
+  c += write_.counters();
+  c.tiles_touched = store_.tiles();
+  return c;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,154 @@
+// The functional ROP: the stages of the raster-operations unit as plain C++,
+// each holding its per-method behaviour and the counters it owns. The golden
+// model calls them in order (FunctionalRop::process); each SystemC unit of
+// the cycle model calls one of them and adds its timing. Nothing here knows
+// about time, so bit-exactness between the fidelities is structural.
+//
+//   fetch -> depth test -> [track] -> [sort] -> [reference] -> write
+//
+// The bracketed stages exist for the methods whose traits ask for them
+// (method.h).
+#pragma once
+#include <array>
+#include <cstdint>
+
+#include "conversion_memo.h"
+#include "counters.h"
+#include "frag_work.h"
+#include "method.h"
+#include "sample_store.h"
+#include "trace.h"
+
+namespace ropsim {
+
+/// What every stage derives from the trace header and the method, computed
+/// once per run.
+struct RopSetup {
+  RopSetup(const TraceHeader& h, const MethodConfig& cfg);
+
+  TraceHeader header;
+  MethodConfig cfg;
+  MethodTraits traits;
+  int spp;
+  uint32_t hilbert_n;       ///< side of the Hilbert curve covering the screen
+  uint32_t tracker_bytes;   ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
+  std::array<float, 64> offset_x{}, offset_y{};  ///< sample offsets from the pixel centre
+  std::array<uint64_t, 65> a2c_prefix{};         ///< a2c: mask of the first k samples
+
+  /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
+  /// from its plane, or its stored per-sample depths.
+  void sample_depths(const Fragment& f, uint64_t mask, float* z) const;
+  /// The key of the fragment's hash-based random numbers (enderton, naive).
+  uint64_t random_key(const Fragment& f) const;
+};
+
+/// A stage's counters; a run's are the sum over the stages.
+class Stage {
+ public:
+  const Counters& counters() const { return c_; }
+
+ protected:
+  explicit Stage(const RopSetup& s) : s_(s) {}
+  const RopSetup& s_;
+  Counters c_;
+};
+
+/// Depth test (LK Figure 7 lines 1-3): the samples whose depth is less than or
+/// equal to the stored one survive. a2c first keeps only its dithered mask.
+/// Loads the pixel's tracker state too (lk), so counts its read.
+class DepthStage : public Stage {
+ public:
+  explicit DepthStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
+  /// Fills covered, z, survivors and m; returns the samples tested.
+  uint32_t run(FragWork& w);
+
+ private:
+  ConversionMemo memo_;
+};
+
+/// Coverage-bitmask surface tracker (lk; Figure 7 lines 4-8 and 18).
+class TrackStage : public Stage {
+ public:
+  explicit TrackStage(const RopSetup& s) : Stage(s) {}
+  /// Decides the surface (lk.track) and commits the survivors to the mask.
+  void run(FragWork& w);
+};
+
+/// Sample ordering (lk; line 9): survivors by the depth already stored.
+class SortStage : public Stage {
+ public:
+  explicit SortStage(const RopSetup& s) : Stage(s) {}
+  /// Fills lk.order; returns the samples sorted (m).
+  uint32_t run(FragWork& w);
+};
+
+/// Reference and selection: lk's alpha references (CalcAlphaRef, lines
+/// 10-17), enderton's count and picks, naive's random reference per sample.
+class ReferenceStage : public Stage {
+ public:
+  explicit ReferenceStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
+  /// Fills the method's payload; returns the hashes computed.
+  uint32_t run(FragWork& w);
+
+ private:
+  ConversionMemo memo_;
+};
+
+/// Opacity test and write: the samples the method keeps get the fragment's
+/// depth and colour (RGB binary16).
+class WriteStage : public Stage {
+ public:
+  explicit WriteStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
+  /// Fills written and writes the pixel's state; returns the samples examined.
+  uint32_t run(FragWork& w);
+
+ private:
+  ConversionMemo memo_;
+};
+
+class FunctionalRop {
+ public:
+  /// Throws std::invalid_argument for bad numerics or a method without a pipeline.
+  FunctionalRop(const TraceHeader& h, const MethodConfig& cfg);
+  FunctionalRop(const FunctionalRop&) = delete;
+  FunctionalRop& operator=(const FunctionalRop&) = delete;
+
+  const RopSetup& setup() const { return setup_; }
+  const MethodTraits& traits() const { return setup_.traits; }
+  const TraceHeader& header() const { return setup_.header; }
+
+  /// The fragment's pixel state (its tile allocated and cleared on first touch).
+  void fetch(FragWork& w) { w.px = store_.pixel(w.f.x, w.f.y); }
+  DepthStage& depth() { return depth_; }
+  TrackStage& track() { return track_; }
+  SortStage& sort() { return sort_; }
+  ReferenceStage& reference() { return reference_; }
+  WriteStage& write() { return write_; }
+
+  /// One fragment through every stage of its method, in order.
+  void process(FragWork& w) {
+    fetch(w);
+    depth_.run(w);
+    if (w.killed()) return;
+    if (setup_.traits.tracker) track_.run(w);
+    if (setup_.traits.sorter) sort_.run(w);
+    if (setup_.traits.reference) reference_.run(w);
+    write_.run(w);
+  }
+
+  /// The stages' counters summed, with the tiles allocated so far.
+  Counters counters() const;
+  SampleStore& store() { return store_; }
+  const SampleStore& store() const { return store_; }
+
+ private:
+  RopSetup setup_;
+  SampleStore store_;
+  DepthStage depth_;
+  TrackStage track_;
+  SortStage sort_;
+  ReferenceStage reference_;
+  WriteStage write_;
+};
+
+}  // namespace ropsim

@@ -1,0 +1,47 @@
+// The transparency methods and their traits: which stages of the functional
+// ROP each one uses. The golden model runs those stages in order; the cycle
+// pipeline instantiates a unit for each of them and no other. One table, read
+// by both (method.cpp).
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "numerics.h"
+
+namespace ropsim {
+
+enum class Method { kLk, kEnderton, kNaive, kA2c, kOpaque, kReference };
+
+/// What a method needs of the ROP. Every method with a pipeline has the depth
+/// test and the writeback (opacity test and write); the rest is per method.
+struct MethodTraits {
+  Method method;
+  const char* name;
+  const char* summary;         ///< one line for --help and the docs
+  bool pipeline;               ///< runs on the ROP (false: the A-buffer ground truth)
+  bool coverage_select;        ///< a2c: a dithered sample mask chosen before the depth test
+  bool tracker;                ///< lk: the coverage-bitmask surface tracker (per-pixel state)
+  bool sorter;                 ///< lk: survivors sorted by the depth already stored
+  bool reference;              ///< lk, enderton, naive: the alpha-reference generator (hashes)
+  bool seeded;                 ///< its random choices depend on the run's seed
+};
+
+/// The traits of every method, in the order of method_names().
+const std::vector<MethodTraits>& method_table();
+const MethodTraits& traits(Method m);
+const char* to_string(Method m);
+/// Parses a method name; returns false for an unknown name.
+bool parse_method(const std::string& s, Method& out);
+const std::vector<std::string>& method_names();
+
+/// A method and what parameterises it.
+struct MethodConfig {
+  Method method = Method::kLk;
+  Numerics numerics;
+  uint64_t seed = 1;  ///< seeds the hash-based random numbers of enderton and naive
+};
+/// The golden model's name for the same configuration.
+using GoldenConfig = MethodConfig;
+
+}  // namespace ropsim
