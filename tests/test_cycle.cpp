@@ -223,14 +223,14 @@ struct Harness {
     std::vector<std::pair<uint64_t, FragToken*>> v;
     for (size_t i = 0; i < cycles.size(); ++i) {
       FragToken* t = pool.get();
-      t->f = Fragment{};
-      t->f.x = uint16_t(i % 64);
-      t->f.coverage = spp == 64 ? ~0ull : (1ull << spp) - 1;
-      t->f.alpha = 0.5f;
+      t->fragment = Fragment{};
+      t->fragment.x = uint16_t(i % 64);
+      t->fragment.coverage = spp == 64 ? ~0ull : (1ull << spp) - 1;
+      t->fragment.alpha = 0.5f;
       t->seq = i;
       t->pixel_key = i;
       rop.fetch(*t);
-      t->survivors = t->f.coverage;
+      t->survivors = t->fragment.coverage;
       t->m = uint32_t(spp);
       t->lk.track = TrackResult{};
       for (int s = 0; s < spp; ++s) t->lk.order[s] = uint8_t(s);

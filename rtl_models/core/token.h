@@ -16,6 +16,10 @@ namespace ropsim {
 
 /// A fragment in flight: its functional work record, and its place in the pipeline.
 struct FragToken : FragWork {
+  FragToken() { f = &fragment; }
+  FragToken(const FragToken&) = delete;
+  FragToken& operator=(const FragToken&) = delete;
+  Fragment fragment;       ///< the fragment, as the input delivered it
   uint64_t seq = 0;        ///< position in the input (API order)
   uint32_t rop = 0;        ///< the ROP unit that owns its pixel
   uint64_t pixel_key = 0;  ///< y * width + x

@@ -12,11 +12,11 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   stats_.samples += rop_.depth().run(*t);
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
-  amap_.for_each_sample_line(Buffer::kDepth, t->f.x, t->f.y, t->covered,
+  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered,
                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
   if (rop_.traits().tracker)
     amap_.for_each_tracker_line(
-        t->f.x, t->f.y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
+        t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
   return ready;
 }
 

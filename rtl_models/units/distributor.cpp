@@ -19,7 +19,7 @@ void Distributor::advance(uint64_t limit) {
     TokenFifo* blocked = nullptr;
     while (n_ < cfg_.fragments_per_clock && in_.can_pop(t)) {
       FragToken* tok = in_.front();
-      const uint32_t r = rop_of(tok->f.x, tok->f.y);
+      const uint32_t r = rop_of(tok->f->x, tok->f->y);
       TokenFifo& o = *outs_[r];
       if (!o.can_push(t)) {
         // Decoupled: a slot the ROP has not yet freed may still free before t.

@@ -21,7 +21,7 @@ void TraceSource::advance(uint64_t limit) {
       FragToken* tok = pool_.get();
       bool got = false;
       try {
-        got = input_.next(tok->f);
+        got = input_.next(tok->fragment);
       } catch (...) {
         error_ = std::current_exception();
         got = false;
@@ -34,7 +34,7 @@ void TraceSource::advance(uint64_t limit) {
         break;
       }
       tok->seq = seq_++;
-      tok->pixel_key = uint64_t(tok->f.y) * rop_.header().width + tok->f.x;
+      tok->pixel_key = uint64_t(tok->fragment.y) * rop_.header().width + tok->fragment.x;
       // The pixel's state, found (its tile allocated) here and fetched into
       // the host's caches while the fragment waits in the FIFOs: the depth
       // test reads it many fragments later. Host speed only; no model effect.

@@ -12,7 +12,7 @@
 namespace ropsim {
 
 struct FragWork {
-  Fragment f;
+  const Fragment* f = nullptr;  ///< the fragment (not copied: the golden model's input, the token's own)
   PixelRef px{};  ///< the pixel's state (FunctionalRop::fetch)
 
   // Depth test.

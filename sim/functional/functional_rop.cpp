@@ -22,34 +22,37 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   }
 }
 
-void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) const {
-  if (header.depth_mode == DepthMode::kPlane) {
-    for (; mask; mask &= mask - 1) {
-      const int i = __builtin_ctzll(mask);
-      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x[size_t(i)], offset_y[size_t(i)]);
-    }
-  } else {
-    for (; mask; mask &= mask - 1) {
-      const int i = __builtin_ctzll(mask);
-      z[i] = canonical_depth(f.z[i]);
-    }
-  }
-}
-
 uint64_t RopSetup::random_key(const Fragment& f) const {
   return fragment_key(cfg.seed, f.draw_id, f.prim_id, f.x, f.y);
 }
 
 // ------------------------------------------------------------------ stages
+//
+// Each stage's behaviour is written once, per method with `if constexpr`; the
+// golden model runs the specialisation of its method (process_as<M>, every
+// stage inlined), the units run the same code through run()'s dispatch.
 
-uint32_t DepthStage::run(FragWork& w) {
-  const Fragment& f = w.f;
+#define ROPSIM_DISPATCH(call)                                   \
+  switch (s_.cfg.method) {                                      \
+    case Method::kLk: return call<Method::kLk>(w);              \
+    case Method::kEnderton: return call<Method::kEnderton>(w);  \
+    case Method::kNaive: return call<Method::kNaive>(w);        \
+    case Method::kA2c: return call<Method::kA2c>(w);            \
+    case Method::kOpaque: return call<Method::kOpaque>(w);      \
+    case Method::kReference: break;                             \
+  }                                                             \
+  return 0;
+
+template <Method M>
+inline uint32_t DepthStage::run_as(FragWork& w) {
+  constexpr MethodTraits kT = traits(M);
+  const Fragment& f = *w.f;
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
   c_.depth_bytes_read += 4u * covered;  // binary32 depth
   uint64_t tested = f.coverage;
-  if (s_.traits.coverage_select) {
+  if constexpr (kT.coverage_select) {
     // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
     // opacity decision, made before the depth test.
     const uint32_t k =
@@ -57,12 +60,24 @@ uint32_t DepthStage::run(FragWork& w) {
     tested &= s_.a2c_prefix[k];
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
-  if (s_.traits.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
-  s_.sample_depths(f, tested, w.z);
+  if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  // Each tested sample's depth (as RopSetup::sample_depths) and its test, in
+  // one pass; branch-free: pass/fail is data-dependent.
   uint64_t S = 0;
-  for (uint64_t m = tested; m; m &= m - 1) {  // branch-free: pass/fail is data-dependent
-    const int i = __builtin_ctzll(m);
-    S |= uint64_t{depth_passes(w.z[i], w.px.depth[i])} << i;
+  float* z = w.z;
+  const float* stored = w.px.depth;
+  if (s_.header.depth_mode == DepthMode::kPlane) {
+    for (uint64_t m = tested; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, s_.offset_x[size_t(i)], s_.offset_y[size_t(i)]);
+      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
+    }
+  } else {
+    for (uint64_t m = tested; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      z[i] = canonical_depth(f.z[i]);
+      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
+    }
   }
   w.covered = tested;
   w.survivors = S;
@@ -70,6 +85,8 @@ uint32_t DepthStage::run(FragWork& w) {
   c_.samples_depth_passed += w.m;
   return uint32_t(__builtin_popcountll(tested));
 }
+
+uint32_t DepthStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 
 void TrackStage::run(FragWork& w) {
   w.lk.track = track_surface(*w.px.tracker, w.survivors, s_.cfg.numerics.surface_id_bits);
@@ -84,71 +101,63 @@ uint32_t SortStage::run(FragWork& w) {
   return uint32_t(m);
 }
 
-uint32_t ReferenceStage::run(FragWork& w) {
-  const Fragment& f = w.f;
-  switch (s_.cfg.method) {
-    case Method::kLk: {
-      const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
-      calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
-                      s_.cfg.numerics.hash_bits, w.lk.ref);
-      return w.m;
+template <Method M>
+inline uint32_t ReferenceStage::run_as(FragWork& w) {
+  const Fragment& f = *w.f;
+  if constexpr (M == Method::kLk) {
+    const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
+    calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
+                    s_.cfg.numerics.hash_bits, w.lk.ref);
+    return w.m;
+  } else if constexpr (M == Method::kEnderton) {
+    int n = 0;
+    for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
+    const uint64_t key = s_.random_key(f);
+    w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
+    enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
+    return w.enderton.count + 1;  // the count's hash and one per pick
+  } else if constexpr (M == Method::kNaive) {
+    const uint64_t key = s_.random_key(f);
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      w.naive.ref[i] = fragment_random(key, uint32_t(i) + 1);
     }
-    case Method::kEnderton: {
-      int n = 0;
-      for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
-      const uint64_t key = s_.random_key(f);
-      w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
-      enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
-      return w.enderton.count + 1;  // the count's hash and one per pick
-    }
-    case Method::kNaive: {
-      const uint64_t key = s_.random_key(f);
-      for (uint64_t s = w.survivors; s; s &= s - 1) {
-        const int i = __builtin_ctzll(s);
-        w.naive.ref[i] = fragment_random(key, uint32_t(i) + 1);
-      }
-      return w.m;
-    }
-    default: return 0;
+    return w.m;
+  } else {
+    return 0;  // no reference stage
   }
 }
 
-uint32_t WriteStage::run(FragWork& w) {
+uint32_t ReferenceStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+template <Method M>
+inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
+  const uint16_t* rgb16 = memo_.half_color(w.f->rgb);
   uint64_t wrote = 0;
   uint32_t examined = w.m;
-  switch (s_.cfg.method) {
-    case Method::kLk: {
-      const uint64_t a = memo_.fixed_alpha(w.f.alpha);
-      for (uint32_t j = 0; j < w.m; ++j)
-        if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) wrote |= uint64_t{1} << w.lk.order[j];
-      c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-      break;
+  if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+    const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    for (uint32_t j = 0; j < w.m; ++j)
+      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) wrote |= uint64_t{1} << w.lk.order[j];
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+  } else if constexpr (M == Method::kEnderton) {
+    for (uint32_t j = 0; j < w.enderton.count; ++j) wrote |= uint64_t{1} << w.enderton.list[j];
+    c_.samples_opacity_passed += w.enderton.count;
+    examined = w.enderton.count;
+  } else if constexpr (M == Method::kNaive) {
+    const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) wrote |= uint64_t{1} << i;
     }
-    case Method::kEnderton:
-      for (uint32_t j = 0; j < w.enderton.count; ++j) wrote |= uint64_t{1} << w.enderton.list[j];
-      c_.samples_opacity_passed += w.enderton.count;
-      examined = w.enderton.count;
-      break;
-    case Method::kNaive: {
-      const uint64_t a = memo_.fixed_alpha(w.f.alpha);
-      for (uint64_t s = w.survivors; s; s &= s - 1) {
-        const int i = __builtin_ctzll(s);
-        if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) wrote |= uint64_t{1} << i;
-      }
-      c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-      break;
-    }
-    case Method::kA2c:  // its opacity decision was the mask, before the depth test
-      wrote = w.survivors;
-      break;
-    case Method::kOpaque:
-      wrote = w.survivors;
-      c_.samples_opacity_passed += w.m;
-      break;
-    case Method::kReference: break;
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+  } else if constexpr (M == Method::kA2c) {  // its opacity decision was the mask, before the depth test
+    wrote = w.survivors;
+  } else {  // opaque
+    wrote = w.survivors;
+    c_.samples_opacity_passed += w.m;
   }
-  const uint16_t* rgb16 = memo_.half_color(w.f.rgb);
   for (uint64_t s = wrote; s; s &= s - 1) {
     const int i = __builtin_ctzll(s);
     w.px.write_sample(i, w.z[i], rgb16);
@@ -161,13 +170,36 @@ uint32_t WriteStage::run(FragWork& w) {
   return examined;
 }
 
+uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+#undef ROPSIM_DISPATCH
+
 // ------------------------------------------------------------ FunctionalRop
+
+template <Method M>
+void FunctionalRop::process_as(FragWork& w) {
+  constexpr MethodTraits kT = ropsim::traits(M);
+  fetch(w);
+  depth_.run_as<M>(w);
+  if (w.killed()) return;
+  if constexpr (kT.tracker) track_.run(w);
+  if constexpr (kT.sorter) sort_.run(w);
+  if constexpr (kT.reference) reference_.run_as<M>(w);
+  write_.run_as<M>(w);
+}
 
 FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     : setup_(h, cfg), store_(h, setup_.traits.tracker), depth_(setup_), track_(setup_), sort_(setup_),
       reference_(setup_), write_(setup_) {
-  if (!setup_.traits.pipeline)
-    throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
+  switch (cfg.method) {
+    case Method::kLk: process_ = &FunctionalRop::process_as<Method::kLk>; break;
+    case Method::kEnderton: process_ = &FunctionalRop::process_as<Method::kEnderton>; break;
+    case Method::kNaive: process_ = &FunctionalRop::process_as<Method::kNaive>; break;
+    case Method::kA2c: process_ = &FunctionalRop::process_as<Method::kA2c>; break;
+    case Method::kOpaque: process_ = &FunctionalRop::process_as<Method::kOpaque>; break;
+    case Method::kReference:
+      throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
+  }
 }
 
 Counters FunctionalRop::counters() const {

@@ -13,6 +13,7 @@
 #include <cstdint>
 
 #include "conversion_memo.h"
+#include "depth.h"
 #include "counters.h"
 #include "frag_work.h"
 #include "method.h"
@@ -42,6 +43,21 @@ struct RopSetup {
   uint64_t random_key(const Fragment& f) const;
 };
 
+inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) const {
+  if (header.depth_mode == DepthMode::kPlane) {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x[size_t(i)], offset_y[size_t(i)]);
+    }
+  } else {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      z[i] = canonical_depth(f.z[i]);
+    }
+  }
+}
+
+
 /// A stage's counters; a run's are the sum over the stages.
 class Stage {
  public:
@@ -61,6 +77,8 @@ class DepthStage : public Stage {
   explicit DepthStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
   /// Fills covered, z, survivors and m; returns the samples tested.
   uint32_t run(FragWork& w);
+  template <Method M>
+  uint32_t run_as(FragWork& w);  ///< run() for method M, specialised at compile time
 
  private:
   ConversionMemo memo_;
@@ -89,6 +107,8 @@ class ReferenceStage : public Stage {
   explicit ReferenceStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
   /// Fills the method's payload; returns the hashes computed.
   uint32_t run(FragWork& w);
+  template <Method M>
+  uint32_t run_as(FragWork& w);
 
  private:
   ConversionMemo memo_;
@@ -101,6 +121,8 @@ class WriteStage : public Stage {
   explicit WriteStage(const RopSetup& s) : Stage(s), memo_(s.cfg.numerics.alpha_bits) {}
   /// Fills written and writes the pixel's state; returns the samples examined.
   uint32_t run(FragWork& w);
+  template <Method M>
+  uint32_t run_as(FragWork& w);
 
  private:
   ConversionMemo memo_;
@@ -118,23 +140,16 @@ class FunctionalRop {
   const TraceHeader& header() const { return setup_.header; }
 
   /// The fragment's pixel state (its tile allocated and cleared on first touch).
-  void fetch(FragWork& w) { w.px = store_.pixel(w.f.x, w.f.y); }
+  void fetch(FragWork& w) { w.px = store_.pixel(w.f->x, w.f->y); }
   DepthStage& depth() { return depth_; }
   TrackStage& track() { return track_; }
   SortStage& sort() { return sort_; }
   ReferenceStage& reference() { return reference_; }
   WriteStage& write() { return write_; }
 
-  /// One fragment through every stage of its method, in order.
-  void process(FragWork& w) {
-    fetch(w);
-    depth_.run(w);
-    if (w.killed()) return;
-    if (setup_.traits.tracker) track_.run(w);
-    if (setup_.traits.sorter) sort_.run(w);
-    if (setup_.traits.reference) reference_.run(w);
-    write_.run(w);
-  }
+  /// One fragment through every stage of its method, in order: fetch, the
+  /// depth test, and unless it killed the fragment, the stages its traits name.
+  void process(FragWork& w) { (this->*process_)(w); }
 
   /// The stages' counters summed, with the tiles allocated so far.
   Counters counters() const;
@@ -149,6 +164,9 @@ class FunctionalRop {
   SortStage sort_;
   ReferenceStage reference_;
   WriteStage write_;
+  template <Method M>
+  void process_as(FragWork& w);
+  void (FunctionalRop::*process_)(FragWork&);  ///< process_as<the run's method>
 };
 
 }  // namespace ropsim

@@ -28,8 +28,26 @@ struct MethodTraits {
 };
 
 /// The traits of every method, in the order of method_names().
-const std::vector<MethodTraits>& method_table();
-const MethodTraits& traits(Method m);
+//                                                  pipeline select tracker sorter reference seeded
+inline constexpr MethodTraits kMethodTable[] = {
+    {Method::kLk, "lk", "Laine & Karras 2011: stratified stochastic transparency", true, false, true, true, true, false},
+    {Method::kEnderton, "enderton", "Enderton et al. 2010: R = floor(alpha m + xi) depth survivors chosen at random",
+     true, false, false, false, true, true},
+    {Method::kNaive, "naive", "naive stochastic transparency: one random reference per sample", true, false, false,
+     false, true, true},
+    {Method::kA2c, "a2c", "alpha-to-coverage: a dithered fixed sample mask", true, true, false, false, false, false},
+    {Method::kOpaque, "opaque", "a plain z-buffer: every covered sample that passes is written", true, false, false,
+     false, false, false},
+    {Method::kReference, "reference", "A-buffer ground truth: every fragment of every sample, sorted", false, false,
+     false, false, false, false},
+};
+
+/// The traits of a method (usable at compile time).
+constexpr const MethodTraits& traits(Method m) {
+  for (const auto& t : kMethodTable)
+    if (t.method == m) return t;
+  return kMethodTable[0];  // unreachable: every enumerator has a row (method.cpp checks)
+}
 const char* to_string(Method m);
 /// Parses a method name; returns false for an unknown name.
 bool parse_method(const std::string& s, Method& out);

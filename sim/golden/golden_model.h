@@ -40,7 +40,7 @@ class StochasticModel : public FunctionalModel {
  public:
   StochasticModel(const TraceHeader& h, const GoldenConfig& cfg);
   void draw(const Fragment& f) override {
-    work_.f = f;
+    work_.f = &f;
     rop_.process(work_);
   }
   Image resolve() const override { return rop_.store().resolve(); }
