@@ -6,6 +6,7 @@
 #include <cstring>
 #include <vector>
 
+#include "bits.h"
 #include "depth.h"
 #include "numerics.h"
 #include "trace.h"
@@ -32,7 +33,7 @@ uint32_t get_u32(const uint8_t* p) {
 uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
 float get_f32(const uint8_t* p) { uint32_t v = get_u32(p); float f; std::memcpy(&f, &v, 4); return f; }
 
-int coverage_bytes(int spp) { return (spp + 7) / 8; }
+int coverage_bytes(int spp) { return int(ceil_div(unsigned(spp), 8u)); }
 
 }  // namespace
 
