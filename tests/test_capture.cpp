@@ -521,6 +521,11 @@ TEST(CaptureBadInput, ErrorsNameTheFileAndKeyAndLeaveNoOutput) {
   expect_capture_error(box, box.write("k.toml", "width = 64\nwidth = 32\n"), {"k.toml:2"});
   expect_capture_error(box, box.write("l.toml", scene_text(obj + "order = \"random\"\n")),
                        {"l.toml", "object[0].order", "\"authored\", \"shuffled\""});
+  // A scene named after a file name that is not UTF-8 (a trace's scene name
+  // must be): the error names the scene file, which can set a name instead.
+  expect_capture_error(box, box.write("caf\xe9.toml", scene_text(obj)), {"caf", ".toml", "not valid UTF-8", "name ="});
+  EXPECT_EQ(load_scene_file(box.write("caf\xe9-named.toml", "name = \"caf\xc3\xa9\"\n" + scene_text(obj))).name,
+            "caf\xc3\xa9");
   // Nothing visible: the camera looks away from the triangle.
   expect_capture_error(box, box.write("m.toml", scene_text(obj, "eye = [0, 0, 5]\ntarget = [0, 0, 10]")),
                        {"m.toml", "nothing visible", "1 outside the view frustum"});
