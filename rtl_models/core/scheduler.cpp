@@ -4,7 +4,6 @@
 #include "unit.h"
 
 #include <algorithm>
-#include <functional>
 
 namespace ropsim {
 
