@@ -5,10 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <set>
 #include <vector>
 
 #include "alpha_ref.h"
+#include "bits.h"
 #include "depth.h"
 #include "half.h"
 #include "hilbert.h"
@@ -17,6 +20,101 @@
 #include "tracker.h"
 
 using namespace ropsim;
+
+// ------------------------------------------------------------ bits.h
+
+// Oracles: the plain loops the helpers replaced, in 64-bit arithmetic.
+namespace {
+int naive_log2_floor(uint64_t x) {
+  int k = 0;
+  while (k < 63 && (uint64_t{2} << k) <= x) ++k;
+  return k;
+}
+int naive_log2_ceil(uint64_t x) {
+  int k = 0;
+  while (k < 64 && (uint64_t{1} << k) < x) ++k;
+  return k;
+}
+template <class T>
+void expect_bits_agree(T x) {
+  const uint64_t v = x;
+  EXPECT_EQ(is_pow2(x), v != 0 && naive_log2_floor(v) == naive_log2_ceil(v)) << v;
+  EXPECT_EQ(log2_floor(x), naive_log2_floor(v)) << v;
+  EXPECT_EQ(log2_ceil(x), naive_log2_ceil(v)) << v;
+  if (naive_log2_ceil(v) < int(8 * sizeof(T))) {
+    const uint64_t p = next_pow2(x);
+    EXPECT_EQ(p, uint64_t{1} << naive_log2_ceil(v)) << v;
+    EXPECT_TRUE(is_pow2(p) && p >= v && (p == 1 || p / 2 < v)) << v;
+  }
+}
+}  // namespace
+
+TEST(Bits, ExhaustiveOver16Bits) {
+  for (uint32_t x = 0; x <= 0xFFFFu; ++x) {
+    expect_bits_agree(uint16_t(x));
+    expect_bits_agree(x);
+    if (x <= 0xFF) expect_bits_agree(uint8_t(x));
+    if (::testing::Test::HasFailure()) return;  // one bad value, not 65536 reports
+  }
+}
+
+TEST(Bits, EdgesOf32And64Bits) {
+  for (int k = 0; k < 64; ++k) {
+    const uint64_t p = uint64_t{1} << k;
+    for (uint64_t x : {p - 1, p, p + 1, p | (p >> 1), ~uint64_t{0} >> (63 - k)}) {
+      expect_bits_agree(x);
+      if (x <= UINT32_MAX) expect_bits_agree(uint32_t(x));
+    }
+    EXPECT_TRUE(is_pow2(p));
+    EXPECT_EQ(log2_floor(p), k);
+    EXPECT_EQ(log2_ceil(p), k);
+    EXPECT_EQ(log2_ceil(p + 1), k + 1);
+    EXPECT_EQ(next_pow2(p), p);
+  }
+  EXPECT_EQ(log2_floor(UINT64_MAX), 63);
+  EXPECT_EQ(log2_ceil(UINT64_MAX), 64);
+  EXPECT_EQ(log2_floor(UINT32_MAX), 31);
+  EXPECT_EQ(log2_ceil(UINT32_MAX), 32);
+  EXPECT_EQ(next_pow2(uint32_t{1} << 31), uint32_t{1} << 31);
+  EXPECT_EQ(next_pow2(size_t{(1u << 20) + 1}), size_t{1} << 21);
+  EXPECT_FALSE(is_pow2(UINT64_MAX));
+  EXPECT_FALSE(is_pow2(uint64_t{0}));
+  // Usable in constant expressions.
+  static_assert(is_pow2(64u) && !is_pow2(0u) && !is_pow2(96u));
+  static_assert(log2_floor(1u) == 0 && log2_floor(9u) == 3 && log2_ceil(9u) == 4 && log2_ceil(0u) == 0);
+  static_assert(next_pow2(0u) == 1u && next_pow2(17u) == 32u && ceil_div(17u, 8u) == 3u);
+  static_assert(low_mask(0) == 0 && low_mask(3) == 7 && low_mask(64) == ~uint64_t{0});
+  static_assert(reverse_low_bits(1, 3) == 4 && reverse_low_bits(6, 3) == 3 && reverse_low_bits(5, 0) == 0);
+}
+
+TEST(Bits, CeilDiv) {
+  for (uint32_t a = 0; a <= 0xFF; ++a)
+    for (uint32_t b = 1; b <= 0xFF; ++b) {
+      ASSERT_EQ(ceil_div(uint8_t(a), uint8_t(b)), (a + b - 1) / b) << a << " / " << b;
+      ASSERT_EQ(ceil_div(a, b), (a + b - 1) / b) << a << " / " << b;
+    }
+  // No overflow at the top of the range, where (a + b - 1) / b wraps.
+  EXPECT_EQ(ceil_div(UINT64_MAX, uint64_t{1}), UINT64_MAX);
+  EXPECT_EQ(ceil_div(UINT64_MAX, uint64_t{2}), uint64_t{1} << 63);
+  EXPECT_EQ(ceil_div(UINT64_MAX, UINT64_MAX), 1u);
+  EXPECT_EQ(ceil_div(UINT32_MAX - 1, UINT32_MAX), 1u);
+  EXPECT_EQ(ceil_div(uint32_t{0}, UINT32_MAX), 0u);
+}
+
+TEST(Bits, LowMaskAndBitReversal) {
+  for (int b = 0; b <= 64; ++b) {
+    const uint64_t m = low_mask(b);
+    EXPECT_EQ(__builtin_popcountll(m), b);
+    EXPECT_TRUE(m == 0 || (m & (m + 1)) == 0) << "low bits only: " << b;
+  }
+  EXPECT_EQ(low_mask(65), ~uint64_t{0});
+  for (int m = 0; m <= 32; ++m)
+    for (uint32_t x : {0u, 1u, 2u, 3u, 5u, 0x12345678u, 0xFFFFFFFFu}) {
+      uint32_t want = 0;  // the bit loop the helper replaced
+      for (int b = 0; b < m; ++b) want |= ((x >> b) & 1u) << (m - 1 - b);
+      EXPECT_EQ(reverse_low_bits(x, m), want) << "x " << x << " m " << m;
+    }
+}
 
 TEST(AlphaRef, ReproducesThePublishedValues) {
   // (sampleId 0, spp 1): (pixel, surface) -> CalcAlphaRef bits (issue #2).
@@ -44,7 +142,7 @@ TEST(AlphaRef, AlignedSpansAreStratified) {
   for (uint32_t spp = 1; spp <= 64; spp *= 2)
     for (uint64_t p : pixels)
       for (uint32_t sid : surfaces) {
-        const int L = log2_spp(int(spp));
+        const int L = log2_floor(spp);
         std::set<uint32_t> strata;
         for (uint32_t s = 0; s < spp; ++s) strata.insert(L ? calc_alpha_ref(s, p, sid, spp) >> (32 - L) : 0);
         EXPECT_EQ(strata.size(), spp) << "spp " << spp << " pixel " << p << " surface " << sid;

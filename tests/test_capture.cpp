@@ -6,6 +6,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -256,7 +258,10 @@ TEST(CaptureWatertight, EdgesThroughSamplesCoverEverySampleOnce) {
 
 // The same with a floor crossing the near and the far plane: the clipped
 // polygons stay watertight (no sample twice), the floor covers every sample
-// well below the far-plane line, and nothing above the horizon.
+// it should up to the far plane and nothing beyond it or above the horizon,
+// and every covered sample carries the floor's depth at that sample (D3D
+// depth of the view-axis distance d: far / (far - near) * (1 - near / d)),
+// in both depth modes of the trace.
 TEST(CaptureClipping, FloorThroughNearAndFarPlanesIsWatertight) {
   Scratch box;  // a floor y = 0 from z = +20 (behind the camera) to z = -2000
   box.write("floor.obj", [] {
@@ -271,44 +276,61 @@ TEST(CaptureClipping, FloorThroughNearAndFarPlanesIsWatertight) {
       }
     return m.str();
   }());
-  const std::string scene = box.write(
-      "s.toml", "width = 80\nheight = 60\nspp = 16\n[camera]\neye = [0, 1, 0]\ntarget = [0, 1, -1]\nfov_y = 60\n"
-                "near = 0.5\nfar = 30\n[[object]]\nmesh = \"floor.obj\"\nopacity = 0.5\n");
-  const SceneSpec s = load_scene_file(scene);
-  CaptureStats st;
-  const auto frags = capture_fragments(s, &st);
-  EXPECT_GT(st.clipped, 0u) << "the floor must cross the near and far planes";
-  const auto n = sample_counts(s, frags);
-  // Ray through screen y hits the floor at distance d = 1 / tan(angle below
-  // the axis); it is visible if near <= depth along the axis <= far.
-  const double t = std::tan(30.0 * 3.14159265358979 / 180.0);
-  const auto pos = standard_sample_positions(16);
-  for (uint32_t y = 0; y < s.height; ++y)
-    for (uint32_t x = 0; x < s.width; ++x)
-      for (int k = 0; k < 16; ++k) {
-        const int c = n[(size_t(y) * s.width + x) * 16 + size_t(k)];
-        ASSERT_LE(c, 1) << "sample covered twice at (" << x << ", " << y << ")";
-        const double ndc_y = 1.0 - 2.0 * (y + pos[size_t(k)].y / 256.0) / s.height;  // + up
-        const double down = -ndc_y * t;                                               // tan of the angle below
-        if (down <= 0) {
-          ASSERT_EQ(c, 0) << "above the horizon at (" << x << ", " << y << ")";
-        } else {
-          const double dist = 1.0 / down;  // view-axis distance of the hit
-          if (dist < 30 * 0.9) {
+  constexpr int kSpp = 16;
+  constexpr double kNear = 0.5, kFar = 30;
+  for (const char* depth : {"plane", "per-sample"}) {
+    SCOPED_TRACE(std::string("depth = ") + depth);
+    const std::string scene = box.write(
+        "s.toml", "width = 80\nheight = 60\nspp = 16\ndepth = \"" + std::string(depth) +
+                      "\"\n[camera]\neye = [0, 1, 0]\ntarget = [0, 1, -1]\nfov_y = 60\nnear = 0.5\nfar = 30\n"
+                      "[[object]]\nmesh = \"floor.obj\"\nopacity = 0.5\n");
+    const SceneSpec s = load_scene_file(scene);
+    ASSERT_EQ(s.spp, kSpp);
+    CaptureStats st;
+    const auto frags = capture_fragments(s, &st);
+    EXPECT_GT(st.clipped, 0u) << "the floor must cross the near and far planes";
+    const auto n = sample_counts(s, frags);
+    // Ray through screen y hits the floor (1 below the eye) at view-axis
+    // distance d = 1 / tan(angle below the axis).
+    const double t = std::tan(30.0 * 3.14159265358979 / 180.0);
+    const auto pos = standard_sample_positions(kSpp);
+    const auto distance = [&](uint32_t y, int k) {  // +inf above the horizon
+      const double ndc_y = 1.0 - 2.0 * (y + pos[size_t(k)].y / 256.0) / s.height;  // + up
+      const double down = -ndc_y * t;                                               // tan of the angle below
+      return down > 0 ? 1.0 / down : HUGE_VAL;
+    };
+    uint64_t visible = 0;
+    for (uint32_t y = 0; y < s.height; ++y)
+      for (uint32_t x = 0; x < s.width; ++x)
+        for (int k = 0; k < kSpp; ++k) {
+          const int c = n[(size_t(y) * s.width + x) * kSpp + size_t(k)];
+          ASSERT_LE(c, 1) << "sample covered twice at (" << x << ", " << y << ")";
+          const double dist = distance(y, k);
+          if (dist < kFar * 0.9) {
             ASSERT_EQ(c, 1) << "floor missing at (" << x << ", " << y << "), distance " << dist;
+            ++visible;
           }
-          if (dist > 30 * 1.1) {
-            ASSERT_EQ(c, 0) << "beyond the far plane at (" << x << ", " << y << ")";
+          if (dist > kFar * 1.1) {
+            ASSERT_EQ(c, 0) << "beyond the far plane or above the horizon at (" << x << ", " << y << ")";
           }
         }
+    EXPECT_GT(visible, uint64_t(s.width) * s.height * kSpp / 3) << "the floor must fill the lower part of the screen";
+    const TraceHeader h = capture_header(s);
+    for (const auto& f : frags) {
+      std::array<float, 64> z;
+      z.fill(std::nanf(""));  // an entry the evaluation does not write fails every comparison below
+      fragment_sample_depths(h, f, z.data());
+      for (uint64_t m = f.coverage; m; m &= m - 1) {
+        const int k = __builtin_ctzll(m);
+        const double dist = distance(f.y, k);
+        ASSERT_TRUE(std::isfinite(dist)) << "sample above the horizon covered at (" << f.x << ", " << f.y << ")";
+        const double want = std::clamp(kFar / (kFar - kNear) * (1.0 - kNear / dist), 0.0, 1.0);
+        ASSERT_TRUE(z[size_t(k)] >= 0.0f && z[size_t(k)] <= 1.0f)
+            << "depth " << z[size_t(k)] << " of sample " << k << " at (" << f.x << ", " << f.y << ")";
+        // The binary32 pipeline (clip coordinates, divide, plane) is off by
+        // under 2e-7 here; another sample of the pixel is over 1e-3 away.
+        ASSERT_NEAR(z[size_t(k)], want, 1e-6) << "sample " << k << " at (" << f.x << ", " << f.y << "), distance " << dist;
       }
-  for (const auto& f : frags) {
-    float z[64];
-    TraceHeader h = capture_header(s);
-    fragment_sample_depths(h, f, z);
-    for (int i = 0; i < __builtin_popcountll(f.coverage); ++i) {
-      ASSERT_GE(z[i], 0.0f);
-      ASSERT_LE(z[i], 1.0f);
     }
   }
 }
@@ -499,6 +521,11 @@ TEST(CaptureBadInput, ErrorsNameTheFileAndKeyAndLeaveNoOutput) {
   expect_capture_error(box, box.write("k.toml", "width = 64\nwidth = 32\n"), {"k.toml:2"});
   expect_capture_error(box, box.write("l.toml", scene_text(obj + "order = \"random\"\n")),
                        {"l.toml", "object[0].order", "\"authored\", \"shuffled\""});
+  // A scene named after a file name that is not UTF-8 (a trace's scene name
+  // must be): the error names the scene file, which can set a name instead.
+  expect_capture_error(box, box.write("caf\xe9.toml", scene_text(obj)), {"caf", ".toml", "not valid UTF-8", "name ="});
+  EXPECT_EQ(load_scene_file(box.write("caf\xe9-named.toml", "name = \"caf\xc3\xa9\"\n" + scene_text(obj))).name,
+            "caf\xc3\xa9");
   // Nothing visible: the camera looks away from the triangle.
   expect_capture_error(box, box.write("m.toml", scene_text(obj, "eye = [0, 0, 5]\ntarget = [0, 0, 10]")),
                        {"m.toml", "nothing visible", "1 outside the view frustum"});

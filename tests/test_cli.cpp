@@ -413,6 +413,20 @@ TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   expect_cli_error(box, "run --fidelity cycle --hw bad.toml --scene testcard --spp 1 --out x.png", {"bad.toml", "cache."});
 }
 
+// --hw-set: a rejected override names itself; the cache shape is checked
+// after the last override, so overrides valid only together are accepted.
+TEST(CliCycle, HwSetOverridesAreCheckedTogether) {
+  CliSandbox box;
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --out x.png --hw-set cache.ways=3",
+                   {"--hw-set cache.ways=3: ", "power-of-two number of sets"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --out x.png --hw-set cache.size_bytes=256",
+                   {"--hw-set cache.size_bytes=256: ", "smaller than one set"});
+  const CliResult r = box.run(
+      "run --fidelity cycle --scene testcard --spp 1 --out x.png --quiet --hw-set cache.size_bytes=256 "
+      "--hw-set cache.ways=4");
+  EXPECT_EQ(r.code, 0) << r.describe();
+}
+
 TEST(CliCycle, ConfigCommandPrintsTheDocumentedTable) {
   CliSandbox box;
   const CliResult r = box.run("config --markdown");

@@ -5,7 +5,9 @@
 // hardware (ROP scaling, memory-bound runs, linear cost in the work).
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <map>
 #include <random>
@@ -607,6 +609,106 @@ TEST(HwConfigFile, OverridesParseStrictly) {
   EXPECT_EQ(hw.sorter.kind, SorterKind::kRank);
   for (const char* bad : {"dram.channels", "dram.channels=x", "dram.channels=3x", "nope.key=1", "cache.fast_clear=yes"})
     EXPECT_THROW(apply_hw_override(hw, bad), ConfigError) << bad;
+}
+
+namespace {
+std::string config_error(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+}  // namespace
+
+// An override is parsed and checked first and applied only when valid: a
+// rejected one leaves the config as it was, and its error names it, not the
+// config it was applied to.
+TEST(HwConfigFile, RejectedOverrideNamesItselfAndChangesNothing) {
+  HwConfig hw;
+  apply_hw_override(hw, "dram.channels=3");
+  const std::string before = hw_config_to_toml(hw);
+  for (const std::string bad :
+       {"cache.ways=65", "cache.ways=0", "cache.ways=-1", "cache.line_bytes=48", "cache.ways=x", "cache.ways= 4",
+        "cache.ways=+4", "cache.ways=4 ", "cache.ways=", "cache.ways=99999999999999999999", "clock.frequency_ghz=nan",
+        "clock.frequency_ghz=inf", "clock.frequency_ghz=1e999", "clock.frequency_ghz=0x1p0", "clock.frequency_ghz=0",
+        "sorter.kind=quick", "cache.fast_clear=1", "cache.wayz=4", "cache.ways"}) {
+    const std::string e = config_error([&] { apply_hw_override(hw, bad); });
+    EXPECT_EQ(e.rfind("--hw-set " + bad + ": ", 0), 0u) << bad << " -> " << e;
+    EXPECT_EQ(e.find("built-in defaults"), std::string::npos) << e;
+    EXPECT_EQ(hw_config_to_toml(hw), before) << bad << " changed the config";
+    EXPECT_EQ(hw.overrides, std::vector<std::string>{"dram.channels=3"}) << bad;
+  }
+  // A valid value for the key that breaks the cache shape: accepted on its own
+  // (other overrides may follow), rejected by the check after the last one,
+  // which names the override, not the defaults it was applied to.
+  apply_hw_override(hw, "cache.ways=3");
+  const std::string e = config_error([&] { validate_hw_config(hw); });
+  EXPECT_EQ(e.rfind("--hw-set cache.ways=3: ", 0), 0u) << e;
+  EXPECT_NE(e.find("power-of-two number of sets"), std::string::npos) << e;
+  const std::string r = config_error([] { resolve_hw_config("", {"dram.channels=2", "cache.ways=3"}); });
+  EXPECT_EQ(r.rfind("--hw-set cache.ways=3: ", 0), 0u) << "names the override that broke it, only that: " << r;
+  const std::string two = config_error([] { resolve_hw_config("", {"cache.line_bytes=256", "dram.row_bytes=128"}); });
+  EXPECT_EQ(two.rfind("--hw-set cache.line_bytes=256, --hw-set dram.row_bytes=128: dram.row_bytes 128 is smaller", 0), 0u)
+      << two;
+}
+
+// The cache shape (and the other cross-key constraints) is checked once,
+// after the design file and every override: overrides valid only together
+// are accepted in either order.
+TEST(HwConfigFile, CacheShapeIsCheckedAfterAllOverrides) {
+  // 64-byte lines: 256 bytes hold one 4-way set, not one 8-way set (the default ways).
+  for (const auto& sets : std::vector<std::vector<std::string>>{{"cache.size_bytes=256", "cache.ways=4"},
+                                                               {"cache.ways=4", "cache.size_bytes=256"},
+                                                               {"cache.size_bytes=256", "cache.line_bytes=16", "cache.ways=16"},
+                                                               {"cache.line_bytes=4096", "dram.row_bytes=4096", "dram.interleave_bytes=4096"}}) {
+    HwConfig hw;
+    ASSERT_NO_THROW(hw = resolve_hw_config("", sets)) << sets[0] << " then " << sets[1];
+    EXPECT_EQ(hw.name, "built-in defaults with --hw-set");
+    EXPECT_EQ(hw.overrides, sets);
+  }
+  const HwConfig hw = resolve_hw_config("", {"cache.size_bytes=256", "cache.ways=4"});
+  EXPECT_EQ(hw.cache.ways, 4u);
+  EXPECT_EQ(hw.cache.size_bytes, 256u);
+  EXPECT_EQ(resolve_hw_config("", {}).name, "built-in defaults");
+  // A design file that is only valid with an override: load_hw_config alone
+  // rejects it naming the file, resolve_hw_config with the override accepts it.
+  const std::string p = write_tmp("small-cache.toml", "[cache]\nsize_bytes = 256\n");
+  const std::string alone = config_error([&] { load_hw_config(p); });
+  EXPECT_EQ(alone.rfind(p + ": cache.size_bytes 256 is smaller than one set", 0), 0u) << alone;
+  EXPECT_EQ(config_error([&] { resolve_hw_config(p, {}); }), alone);
+  const HwConfig fixed = resolve_hw_config(p, {"cache.ways=4"});
+  EXPECT_EQ(fixed.cache.size_bytes, 256u);
+  EXPECT_EQ(fixed.name, p + " with --hw-set");
+  // An override that does not touch the broken keys leaves the blame on the file.
+  EXPECT_EQ(config_error([&] { resolve_hw_config(p, {"dram.channels=2"}); }).rfind(p + ": ", 0), 0u);
+  // A bad override among good ones names itself.
+  EXPECT_EQ(config_error([&] { resolve_hw_config(p, {"cache.ways=4", "dram.banks=0"}); }).rfind("--hw-set dram.banks=0: ", 0),
+            0u);
+}
+
+// The resolved design (the report's hardware.resolved_toml) prints every
+// number so that it reads back as the same value: written out and loaded
+// again it is the same design, bit for bit.
+TEST(HwConfigFile, ResolvedTomlRoundTripsEveryNumber) {
+  for (const char* f : {"1.23456789", "0.30000000000000004", "0.3333333333333333", "2", "9.999999999999998", "0.01",
+                        "1.5", "6.02214076", "1e-2", "3.0000000000000004"}) {
+    HwConfig hw;
+    apply_hw_override(hw, std::string("clock.frequency_ghz=") + f);
+    apply_hw_override(hw, "cache.size_bytes=1073741824");
+    apply_hw_override(hw, "dram.bytes_per_clock=1048575");
+    const std::string toml = hw_config_to_toml(hw);
+    const HwConfig back = load_hw_config(write_tmp("resolved.toml", toml));
+    EXPECT_EQ(std::memcmp(&back.clock.frequency_ghz, &hw.clock.frequency_ghz, sizeof(double)), 0)
+        << f << " read back as " << back.clock.frequency_ghz << " from\n" << toml;
+    EXPECT_EQ(hw_config_to_toml(back), toml) << f;
+  }
+  HwConfig hw;
+  apply_hw_override(hw, "clock.frequency_ghz=1.23456789");
+  EXPECT_NE(hw_config_to_toml(hw).find("frequency_ghz = 1.23456789  #"), std::string::npos) << hw_config_to_toml(hw);
+  apply_hw_override(hw, "clock.frequency_ghz=2");
+  EXPECT_NE(hw_config_to_toml(hw).find("frequency_ghz = 2.0  #"), std::string::npos) << "a TOML float, not an integer";
 }
 
 // ------------------------------------------------------------ temporal decoupling

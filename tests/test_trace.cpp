@@ -20,11 +20,13 @@
 #include <set>
 #include <string>
 #include <tuple>
+#include <unordered_set>
 #include <vector>
 
 #include "depth.h"
 #include "sample_patterns.h"
 #include "trace.h"
+#include "utf8.h"
 
 namespace fs = std::filesystem;
 using namespace ropsim;
@@ -711,6 +713,7 @@ TEST(TraceWriterRefuses, InvalidHeaders) {
       {"NaN clear depth", [](TraceHeader& h) { h.clear_depth = kNaN; }},
       {"negative clear colour", [](TraceHeader& h) { h.clear_color[1] = -1.0f; }},
       {"long scene name", [](TraceHeader& h) { h.scene_name.assign(70000, 'x'); }},
+      {"scene name not UTF-8", [](TraceHeader& h) { h.scene_name = "caf\xe9"; }},
   };
   for (auto& [what, spoil] : cases) {
     TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
@@ -896,6 +899,108 @@ TEST(TraceReaderRefuses, BadHeaders) {
     write_file(text, {'h', 'e', 'l', 'l', 'o', '\n'});
     expect_trace_error(text, -1, "magic", "a short non-trace file");
   }
+}
+
+// A scene name that is not well-formed UTF-8 is refused with the header, in
+// one line naming the file; well-formed names of every sequence length pass.
+TEST(TraceReaderRefuses, SceneNameNotUtf8) {
+  TempDir tmp;
+  const Built b = build_valid(4, DepthMode::kPlane, ColorFormat::kRgbF32, 3);
+  const std::vector<std::pair<const char*, std::string>> bad = {
+      {"Latin-1 byte", "caf\xe9"},
+      {"lone continuation byte", "a\x80z"},
+      {"overlong NUL", std::string("\xc0\x80", 2)},
+      {"overlong slash", "\xc1\xaf"},
+      {"overlong 3-byte", "\xe0\x9f\xbf"},
+      {"overlong 4-byte", "\xf0\x8f\xbf\xbf"},
+      {"high surrogate", "\xed\xa0\x80"},
+      {"low surrogate", "x\xed\xbf\xbf"},
+      {"U+110000", "\xf4\x90\x80\x80"},
+      {"lead F5", "\xf5\x80\x80\x80"},
+      {"byte FF", "\xff"},
+      {"truncated at the end", "euro \xe2\x82"},
+      {"truncated before ASCII", "\xe2\x82x"},
+  };
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    for (const auto& [what, name] : bad) {
+      TraceHeader h = b.h;
+      h.compression = z;
+      h.scene_name = name;
+      const std::string path = tmp.path("name.trace");
+      write_file(path, assemble(h, b.payload));
+      const std::string ctx = std::string(to_string(z)) + ": " + what;
+      expect_trace_error(path, -1, "header: scene name is not valid UTF-8", ctx);
+      EXPECT_EQ(read_all_error(path), path + ": header: scene name is not valid UTF-8") << ctx;
+    }
+    TraceHeader h = b.h;
+    h.compression = z;
+    static const char kGood[] = "nul \0 \xc2\xa9 \xe2\x82\xac \xef\xbf\xbf \xf0\x9f\x8e\xa8 \xf4\x8f\xbf\xbf";
+    h.scene_name = std::string(kGood, sizeof kGood - 1);  // the NUL inside included
+    const std::string path = tmp.path("good-name.trace");
+    write_file(path, assemble(h, b.payload));
+    TraceReader r(path);
+    EXPECT_EQ(r.header().scene_name, h.scene_name);
+  }
+}
+
+namespace {
+std::string utf8_encode(uint32_t cp) {
+  if (cp < 0x80) return std::string(1, char(cp));
+  if (cp < 0x800) return {char(0xC0 | cp >> 6), char(0x80 | (cp & 0x3F))};
+  if (cp < 0x10000) return {char(0xE0 | cp >> 12), char(0x80 | (cp >> 6 & 0x3F)), char(0x80 | (cp & 0x3F))};
+  return {char(0xF0 | cp >> 18), char(0x80 | (cp >> 12 & 0x3F)), char(0x80 | (cp >> 6 & 0x3F)), char(0x80 | (cp & 0x3F))};
+}
+}  // namespace
+
+// The validator against an oracle built from the encoder: a string is valid
+// exactly when it splits into encodings of scalar values (U+0000..U+10FFFF
+// without the surrogates). Every string of up to 3 bytes is checked, and
+// every scalar value's 4-byte encoding and its neighbours.
+TEST(Utf8, AcceptsExactlyTheEncodingsOfScalarValues) {
+  std::unordered_set<std::string> enc;  // encodings of 1 to 3 bytes
+  for (uint32_t cp = 0; cp < 0x10000; ++cp)
+    if (cp < 0xD800 || cp > 0xDFFF) enc.insert(utf8_encode(cp));
+  const auto oracle = [&](const std::string& s) {  // splits into encodings (s up to 3 bytes)
+    std::vector<bool> ok(s.size() + 1, false);
+    ok[0] = true;
+    for (size_t i = 0; i < s.size(); ++i)
+      for (size_t len = 1; ok[i] && len <= 3 && i + len <= s.size(); ++len)
+        if (enc.count(s.substr(i, len))) ok[i + len] = true;
+    return bool(ok[s.size()]);
+  };
+  EXPECT_TRUE(is_valid_utf8(""));
+  for (uint32_t v = 0; v < (1u << 24); ++v) {
+    std::string s = {char(v >> 16), char(v >> 8), char(v)};
+    for (size_t n : {size_t(3), size_t(2), size_t(1)}) {
+      if (n < 3 && (v >> (8 * n)) != 0) break;  // each shorter string once
+      const std::string t = s.substr(3 - n);
+      if (is_valid_utf8(t) != oracle(t)) {
+        ADD_FAILURE() << "bytes " << std::hex << v << " (" << n << "): validator says " << is_valid_utf8(t);
+        return;
+      }
+    }
+  }
+  for (uint32_t cp = 0; cp <= 0x10FFFF; ++cp) {
+    const std::string e = utf8_encode(cp);
+    const bool scalar = cp < 0xD800 || cp > 0xDFFF;
+    if (is_valid_utf8(e) != scalar) {
+      ADD_FAILURE() << "U+" << std::hex << cp;
+      return;
+    }
+    if (e.size() == 4) {
+      ASSERT_FALSE(is_valid_utf8(e.substr(0, 3))) << "truncated U+" << std::hex << cp;
+      ASSERT_FALSE(is_valid_utf8(e.substr(1))) << "lead byte missing, U+" << std::hex << cp;
+    }
+  }
+  // Above U+10FFFF, overlong 4-byte forms, the leads that are never valid.
+  EXPECT_FALSE(is_valid_utf8("\xf4\x90\x80\x80"));
+  EXPECT_FALSE(is_valid_utf8("\xf7\xbf\xbf\xbf"));
+  EXPECT_FALSE(is_valid_utf8("\xf0\x80\x80\x80"));
+  EXPECT_FALSE(is_valid_utf8("\xf0\x8f\xbf\xbf"));
+  EXPECT_TRUE(is_valid_utf8("\xf0\x90\x80\x80"));
+  EXPECT_TRUE(is_valid_utf8("\xf4\x8f\xbf\xbf"));
+  for (int lead = 0xF5; lead <= 0xFF; ++lead)
+    EXPECT_FALSE(is_valid_utf8(std::string{char(lead), '\x80', '\x80', '\x80'})) << std::hex << lead;
 }
 
 TEST(TraceReaderRefuses, BadFragmentRecords) {

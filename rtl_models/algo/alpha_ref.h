@@ -4,20 +4,13 @@
 #pragma once
 #include <cstdint>
 
+#include "bits.h"
 #include "numerics.h"
 
 namespace ropsim {
 
 inline constexpr uint32_t kAlphaRefConstants[4] = {0x6C50B47Cu, 0xB82F1E52u, 0xC7AFE638u,
                                                    0x8D22F6E6u};
-
-inline uint32_t reverse_bits32(uint32_t x) {
-  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
-  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
-  x = ((x >> 4) & 0x0F0F0F0Fu) | ((x & 0x0F0F0F0Fu) << 4);
-  x = ((x >> 8) & 0x00FF00FFu) | ((x & 0x00FF00FFu) << 8);
-  return (x >> 16) | (x << 16);
-}
 
 /// Sequence index of a sample: sampleId + pixelId * spp, kept modulo 2^hash_bits
 /// (the paper's 32-bit unsigned arithmetic; wraps on screens where

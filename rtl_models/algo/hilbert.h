@@ -3,15 +3,12 @@
 #pragma once
 #include <cstdint>
 
+#include "bits.h"
+
 namespace ropsim {
 
 /// Smallest power of two >= max(width, height): the side of the Hilbert grid.
-inline uint32_t hilbert_side(uint32_t width, uint32_t height) {
-  uint32_t m = width > height ? width : height;
-  uint32_t n = 1;
-  while (n < m) n <<= 1;
-  return n;
-}
+inline uint32_t hilbert_side(uint32_t width, uint32_t height) { return next_pow2(width > height ? width : height); }
 
 /// Canonical rotate-quadrant Hilbert index d of (x, y) on an n x n grid
 /// (n a power of two). For n = 4 the rows (y = 0..3) are
@@ -31,9 +28,7 @@ inline uint64_t hilbert_xy2d(uint32_t n, uint32_t x, uint32_t y) {
   };
   uint64_t d = 0;
   uint32_t state = 0;
-  int level = 0;
-  while ((uint32_t{1} << level) < n) ++level;
-  for (int k = level - 1; k >= 0; --k) {
+  for (int k = log2_ceil(n) - 1; k >= 0; --k) {
     const uint32_t e = kStep[state << 2 | ((x >> k) & 1u) << 1 | ((y >> k) & 1u)];
     d = d << 2 | (e >> 2);
     state = e & 3u;

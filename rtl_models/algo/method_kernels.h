@@ -15,12 +15,8 @@ namespace ropsim {
 /// sample order, so any prefix is spread over the pixel.
 inline std::array<uint64_t, 65> a2c_prefix_table(int spp) {
   std::array<uint64_t, 65> t{};
-  const int m = log2_spp(spp);
-  for (int k = 1; k <= spp; ++k) {
-    uint32_t j = uint32_t(k - 1), r = 0;
-    for (int b = 0; b < m; ++b) r |= ((j >> b) & 1u) << (m - 1 - b);
-    t[size_t(k)] = t[size_t(k - 1)] | (uint64_t{1} << r);
-  }
+  const int m = log2_floor(unsigned(spp));
+  for (int k = 1; k <= spp; ++k) t[size_t(k)] = t[size_t(k - 1)] | (uint64_t{1} << reverse_low_bits(uint32_t(k - 1), m));
   return t;
 }
 

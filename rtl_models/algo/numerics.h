@@ -4,6 +4,8 @@
 #pragma once
 #include <cstdint>
 
+#include "bits.h"
+
 namespace ropsim {
 
 inline constexpr int kMaxSpp = 64;
@@ -24,18 +26,7 @@ inline const char* validate(const Numerics& n) {
   return nullptr;
 }
 
-inline constexpr uint64_t low_mask(int bits) {
-  return bits >= 64 ? ~uint64_t{0} : (uint64_t{1} << bits) - 1;
-}
-
-inline bool is_valid_spp(int spp) {
-  return spp >= 1 && spp <= kMaxSpp && (spp & (spp - 1)) == 0;
-}
-
-inline int log2_spp(int spp) {
-  int l = 0;
-  while ((1 << l) < spp) ++l;
-  return l;
-}
+/// 1, 2, 4, 8, 16, 32 or 64 samples per pixel.
+inline bool is_valid_spp(int spp) { return spp >= 1 && spp <= kMaxSpp && is_pow2(unsigned(spp)); }
 
 }  // namespace ropsim

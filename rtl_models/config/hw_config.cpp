@@ -1,10 +1,16 @@
 #include "hw_config.h"
 
+#include <charconv>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <sstream>
+#include <system_error>
+#include <utility>
 
 #include <toml++/toml.h>
+
+#include "bits.h"
 
 namespace ropsim {
 
@@ -105,13 +111,25 @@ std::string section_of(const std::string& key) { return key.substr(0, key.find('
 [[noreturn]] void fail(const std::string& where, const std::string& key, const std::string& what) {
   throw ConfigError(where + ": " + key + ": " + what);
 }
+/// `at` names the source and key: "FILE: section.key" or "--hw-set section.key=value".
+[[noreturn]] void fail_at(const std::string& at, const std::string& what) { throw ConfigError(at + ": " + what); }
+
+/// The shortest decimal that reads back as v (std::to_chars), as a TOML float:
+/// 1.23456789 stays 1.23456789, 2 prints as 2.0.
+std::string real_to_string(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  std::string s(buf, r.ptr);
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";  // n: inf, nan
+  return s;
+}
 
 std::string value_to_string(const Param& p, HwConfig& c) {
   void* f = p.field(c);
   std::ostringstream os;
   switch (p.kind) {
     case Kind::kU32: os << *static_cast<uint32_t*>(f); break;
-    case Kind::kReal: os << *static_cast<double*>(f); break;
+    case Kind::kReal: os << real_to_string(*static_cast<double*>(f)); break;
     case Kind::kBool: os << (*static_cast<bool*>(f) ? "true" : "false"); break;
     case Kind::kSorter: os << '"' << to_string(*static_cast<SorterKind*>(f)) << '"'; break;
     case Kind::kInterleave: os << '"' << to_string(*static_cast<Interleave*>(f)) << '"'; break;
@@ -131,20 +149,19 @@ std::string range_of(const Param& p) {
   return os.str();
 }
 
-// Sets one parameter from either a TOML node or a command-line string.
-void set_u32(const Param& p, HwConfig& c, int64_t v, const std::string& where) {
+// Sets one parameter from either a TOML node or a command-line string, after
+// checking the value; `at` names the source and key for the error.
+void set_u32(const Param& p, HwConfig& c, int64_t v, const std::string& at) {
   if (double(v) < p.lo || double(v) > p.hi)
-    fail(where, p.key, "value " + std::to_string(v) + " out of range (" + range_of(p) + ")");
-  if (p.pow2 && (v & (v - 1)))
-    fail(where, p.key, "value " + std::to_string(v) + " is not a power of two");
+    fail_at(at, "value " + std::to_string(v) + " out of range (" + range_of(p) + ")");
+  if (p.pow2 && !is_pow2(uint64_t(v))) fail_at(at, "value " + std::to_string(v) + " is not a power of two");
   *static_cast<uint32_t*>(p.field(c)) = uint32_t(v);
 }
-void set_real(const Param& p, HwConfig& c, double v, const std::string& where) {
-  if (!std::isfinite(v) || v < p.lo || v > p.hi)
-    fail(where, p.key, "value out of range (" + range_of(p) + ")");
+void set_real(const Param& p, HwConfig& c, double v, const std::string& at) {
+  if (!std::isfinite(v) || v < p.lo || v > p.hi) fail_at(at, "value out of range (" + range_of(p) + ")");
   *static_cast<double*>(p.field(c)) = v;
 }
-void set_name(const Param& p, HwConfig& c, const std::string& s, const std::string& where) {
+void set_name(const Param& p, HwConfig& c, const std::string& s, const std::string& at) {
   if (p.kind == Kind::kSorter) {
     for (SorterKind k : {SorterKind::kBitonic, SorterKind::kRank, SorterKind::kSerial})
       if (s == to_string(k)) { *static_cast<SorterKind*>(p.field(c)) = k; return; }
@@ -152,7 +169,7 @@ void set_name(const Param& p, HwConfig& c, const std::string& s, const std::stri
     for (Interleave k : {Interleave::kDiagonal, Interleave::kRow})
       if (s == to_string(k)) { *static_cast<Interleave*>(p.field(c)) = k; return; }
   }
-  fail(where, p.key, "\"" + s + "\" is not one of " + range_of(p));
+  fail_at(at, "\"" + s + "\" is not one of " + range_of(p));
 }
 
 }  // namespace
@@ -167,7 +184,10 @@ const std::vector<ParamInfo>& hw_params() {
   return v;
 }
 
-HwConfig load_hw_config(const std::string& path) {
+namespace {
+
+// A design file over the defaults, each key checked on its own.
+HwConfig read_hw_file(const std::string& path) {
   HwConfig c;
   c.name = path;
   toml::table doc;
@@ -189,14 +209,15 @@ HwConfig load_hw_config(const std::string& path) {
       const std::string key = s + "." + std::string(k.str());
       const Param* p = find_param(key);
       if (!p) fail(path, key, "unknown key");
+      const std::string at = path + ": " + key;
       switch (p->kind) {
         case Kind::kU32:
           if (!v.is_integer()) fail(path, key, "must be an integer");
-          set_u32(*p, c, v.as_integer()->get(), path);
+          set_u32(*p, c, v.as_integer()->get(), at);
           break;
         case Kind::kReal:
-          if (v.is_integer()) set_real(*p, c, double(v.as_integer()->get()), path);
-          else if (v.is_floating_point()) set_real(*p, c, v.as_floating_point()->get(), path);
+          if (v.is_integer()) set_real(*p, c, double(v.as_integer()->get()), at);
+          else if (v.is_floating_point()) set_real(*p, c, v.as_floating_point()->get(), at);
           else fail(path, key, "must be a number");
           break;
         case Kind::kBool:
@@ -206,59 +227,106 @@ HwConfig load_hw_config(const std::string& path) {
         case Kind::kSorter:
         case Kind::kInterleave:
           if (!v.is_string()) fail(path, key, "must be a string (" + range_of(*p) + ")");
-          set_name(*p, c, v.as_string()->get(), path);
+          set_name(*p, c, v.as_string()->get(), at);
           break;
       }
     }
   }
+  return c;
+}
+
+}  // namespace
+
+HwConfig load_hw_config(const std::string& path) {
+  HwConfig c = read_hw_file(path);
   validate_hw_config(c);
   return c;
 }
 
-void apply_hw_override(HwConfig& c, const std::string& a) {
-  const std::string where = "--hw-set " + a;
+HwConfig resolve_hw_config(const std::string& path, const std::vector<std::string>& overrides) {
+  HwConfig c = path.empty() ? HwConfig{} : read_hw_file(path);
+  for (const auto& a : overrides) apply_hw_override(c, a);
+  validate_hw_config(c);
+  if (!overrides.empty()) c.name += " with --hw-set";
+  return c;
+}
+
+void apply_hw_override(HwConfig& cfg, const std::string& a) {
+  const std::string at = "--hw-set " + a;
   const auto eq = a.find('=');
-  if (eq == std::string::npos) throw ConfigError(where + ": expected section.key=value");
+  if (eq == std::string::npos) fail_at(at, "expected section.key=value");
   const std::string key = a.substr(0, eq), val = a.substr(eq + 1);
   const Param* p = find_param(key);
-  if (!p) fail("--hw-set", key, "unknown key");
+  if (!p) fail_at(at, "unknown key " + key);
+  // The whole text must be the number: no spaces, no sign '+', no suffix.
+  const char* const first = val.data();
+  const char* const last = val.data() + val.size();
+  HwConfig c = cfg;  // applied to cfg only once accepted
   switch (p->kind) {
     case Kind::kU32: {
-      size_t used = 0;
       long long v = 0;
-      try { v = std::stoll(val, &used); } catch (...) { used = 0; }
-      if (used != val.size() || val.empty()) fail("--hw-set", key, "\"" + val + "\" is not an integer");
-      set_u32(*p, c, v, "--hw-set");
+      const auto r = std::from_chars(first, last, v);
+      if (r.ec == std::errc::result_out_of_range) fail_at(at, "value out of range (" + range_of(*p) + ")");
+      if (r.ec != std::errc() || r.ptr != last) fail_at(at, "\"" + val + "\" is not an integer");
+      set_u32(*p, c, v, at);
       break;
     }
     case Kind::kReal: {
-      size_t used = 0;
       double v = 0;
-      try { v = std::stod(val, &used); } catch (...) { used = 0; }
-      if (used != val.size() || val.empty()) fail("--hw-set", key, "\"" + val + "\" is not a number");
-      set_real(*p, c, v, "--hw-set");
+      const auto r = std::from_chars(first, last, v);
+      if (r.ec == std::errc::result_out_of_range) fail_at(at, "value out of range (" + range_of(*p) + ")");
+      if (r.ec != std::errc() || r.ptr != last) fail_at(at, "\"" + val + "\" is not a number");
+      set_real(*p, c, v, at);
       break;
     }
     case Kind::kBool:
-      if (val != "true" && val != "false") fail("--hw-set", key, "must be true or false");
+      if (val != "true" && val != "false") fail_at(at, "must be true or false");
       *static_cast<bool*>(p->field(c)) = val == "true";
       break;
-    default: set_name(*p, c, val, "--hw-set");
+    default: set_name(*p, c, val, at);
   }
-  validate_hw_config(c);
+  c.overrides.push_back(a);
+  cfg = std::move(c);
 }
 
+namespace {
+
+/// Where a constraint over `keys` was broken: the overrides that set any of
+/// them ("--hw-set a, --hw-set b"), or else the file (or the defaults).
+std::string origin_of(const HwConfig& c, std::initializer_list<const char*> keys) {
+  std::string w;
+  for (const auto& a : c.overrides) {
+    const std::string key = a.substr(0, a.find('='));
+    for (const char* k : keys)
+      if (key == k) {
+        w += (w.empty() ? "--hw-set " : ", --hw-set ") + a;
+        break;
+      }
+  }
+  return w.empty() ? c.name : w;
+}
+
+}  // namespace
+
 void validate_hw_config(const HwConfig& c) {
-  const std::string& w = c.name;
-  const uint64_t set_bytes = uint64_t(c.cache.line_bytes) * c.cache.ways;
-  if (c.cache.size_bytes < set_bytes)
-    fail(w, "cache.size_bytes", "smaller than one set (line_bytes x ways = " + std::to_string(set_bytes) + ")");
-  const uint64_t sets = c.cache.size_bytes / set_bytes;
-  if (sets * set_bytes != c.cache.size_bytes || (sets & (sets - 1)))
-    fail(w, "cache.ways", "size_bytes / (line_bytes x ways) must be a power-of-two number of sets");
-  if (c.dram.row_bytes < c.cache.line_bytes) fail(w, "dram.row_bytes", "smaller than cache.line_bytes");
-  if (c.dram.interleave_bytes < c.cache.line_bytes)
-    fail(w, "dram.interleave_bytes", "smaller than cache.line_bytes (a line must not span channels)");
+  const auto n = [](uint64_t v) { return std::to_string(v); };
+  const uint64_t size = c.cache.size_bytes, line = c.cache.line_bytes, ways = c.cache.ways;
+  const uint64_t set_bytes = line * ways;
+  if (size < set_bytes)
+    fail_at(origin_of(c, {"cache.size_bytes", "cache.line_bytes", "cache.ways"}),
+            "cache.size_bytes " + n(size) + " is smaller than one set (cache.line_bytes x cache.ways = " + n(line) +
+                " x " + n(ways) + " = " + n(set_bytes) + ")");
+  if (size % set_bytes != 0 || !is_pow2(size / set_bytes))
+    fail_at(origin_of(c, {"cache.size_bytes", "cache.line_bytes", "cache.ways"}),
+            "cache.size_bytes / (cache.line_bytes x cache.ways) = " + n(size) + " / (" + n(line) + " x " +
+                n(ways) + ") must be a power-of-two number of sets");
+  if (c.dram.row_bytes < line)
+    fail_at(origin_of(c, {"dram.row_bytes", "cache.line_bytes"}),
+            "dram.row_bytes " + n(c.dram.row_bytes) + " is smaller than cache.line_bytes " + n(line));
+  if (c.dram.interleave_bytes < line)
+    fail_at(origin_of(c, {"dram.interleave_bytes", "cache.line_bytes"}),
+            "dram.interleave_bytes " + n(c.dram.interleave_bytes) + " is smaller than cache.line_bytes " + n(line) +
+                " (a line must not span channels)");
 }
 
 std::string hw_config_to_toml(const HwConfig& cfg) {

@@ -80,6 +80,9 @@ struct HwConfig {
   } dram;
 
   std::string name = "built-in defaults";  ///< file the config came from
+  /// The "section.key=value" overrides applied over `name`, in order (so that
+  /// a constraint they break names them).
+  std::vector<std::string> overrides;
 };
 
 /// A bad configuration file, key or value: the message names the file and key.
@@ -97,15 +100,29 @@ struct ParamInfo {
 };
 const std::vector<ParamInfo>& hw_params();
 
-/// Reads a TOML file over the defaults: keys it omits keep their defaults.
-/// Unknown sections or keys, wrong types and out-of-range values throw
+/// Reads a TOML file over the defaults (keys it omits keep their defaults) and
+/// checks the result as a whole (validate_hw_config). Unknown sections or
+/// keys, wrong types, out-of-range values and broken constraints throw
 /// ConfigError naming the file and key.
 HwConfig load_hw_config(const std::string& path);
-/// Applies "section.key=value" (as on the command line) to cfg.
+/// The design of a run: the design file `path` (the built-in defaults when
+/// empty), then every "section.key=value" override in order, then the
+/// cross-parameter constraints once, on the result -- so overrides that are
+/// only valid together (cache.size_bytes and cache.ways) are accepted. A bad
+/// override's error names it ("--hw-set cache.ways=3: ..."). With overrides,
+/// the name is "PATH with --hw-set".
+HwConfig resolve_hw_config(const std::string& path, const std::vector<std::string>& overrides);
+/// Parses and range-checks one "section.key=value" (as on the command line)
+/// and only then applies it to cfg, recording it in cfg.overrides; a rejected
+/// override throws ConfigError naming it and leaves cfg unchanged. The
+/// cross-parameter constraints are not checked here: call validate_hw_config
+/// after the last override (resolve_hw_config does).
 void apply_hw_override(HwConfig& cfg, const std::string& assignment);
-/// Checks cross-parameter constraints (e.g. cache geometry); throws ConfigError.
+/// Checks cross-parameter constraints (e.g. cache geometry); throws ConfigError
+/// naming the overrides that set the keys involved, or else cfg.name.
 void validate_hw_config(const HwConfig& cfg);
-/// The config as TOML text (every key, resolved).
+/// The config as TOML text (every key, resolved); numbers print with the
+/// fewest digits that read back as the same value.
 std::string hw_config_to_toml(const HwConfig& cfg);
 /// docs/config.md's parameter table.
 std::string hw_params_markdown();

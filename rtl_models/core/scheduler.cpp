@@ -1,9 +1,9 @@
 #include "scheduler.h"
 
+#include "bits.h"
 #include "unit.h"
 
 #include <algorithm>
-#include <functional>
 
 namespace ropsim {
 
@@ -18,7 +18,7 @@ uint32_t Scheduler::add(Unit* u) {
   units_.push_back(u);
   wakes_.emplace_back();
   earliest_.push_back(~uint64_t{0});
-  due_.resize((units_.size() + 63) / 64);
+  due_.resize(ceil_div(units_.size(), size_t{64}));
   return uint32_t(units_.size() - 1);
 }
 

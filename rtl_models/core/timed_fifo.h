@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "bits.h"
 #include "unit.h"
 
 namespace ropsim {
@@ -43,8 +44,7 @@ struct FifoStats {
 class OccupancyStats {
  public:
   explicit OccupancyStats(uint32_t capacity) : cap_(capacity) {
-    size_t n = 1;
-    while (n < capacity) n <<= 1;  // a power of two >= capacity: index by mask
+    const size_t n = next_pow2(size_t{capacity});  // index by mask
     push_t_.resize(n);
     pop_t_.resize(n);
     mask_ = n - 1;

@@ -6,6 +6,8 @@
 #pragma once
 #include <cstdint>
 
+#include "bits.h"
+
 namespace ropsim {
 
 enum class Buffer : int { kDepth, kColor, kTracker };
@@ -17,9 +19,8 @@ inline const char* to_string(Buffer b) {
 class AddressMap {
  public:
   AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes)
-      : tiles_x_((width + 7) / 8), spp_(uint32_t(spp)), tracker_bytes_(tracker_bytes), line_shift_(0) {
-    while ((1u << line_shift_) < line_bytes) ++line_shift_;
-  }
+      : tiles_x_(ceil_div(width, 8u)), spp_(uint32_t(spp)), tracker_bytes_(tracker_bytes),
+        line_shift_(log2_ceil(line_bytes)) {}
   uint64_t pixel_index(uint32_t x, uint32_t y) const {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
   }

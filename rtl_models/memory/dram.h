@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "address_map.h"
+#include "bits.h"
 #include "hw_config.h"
 
 namespace ropsim {
@@ -29,16 +30,14 @@ struct DramStats {
 /// common configs), by the divider otherwise: one access did four divisions.
 class Divisor {
  public:
-  explicit Divisor(uint64_t d) : d_(d), pow2_((d & (d - 1)) == 0) {
-    while (pow2_ && (uint64_t{1} << shift_) < d) ++shift_;
-  }
+  explicit Divisor(uint64_t d) : d_(d), pow2_(is_pow2(d)), shift_(log2_floor(d)) {}
   uint64_t div(uint64_t x) const { return pow2_ ? x >> shift_ : x / d_; }
   uint64_t mod(uint64_t x) const { return pow2_ ? x & (d_ - 1) : x % d_; }
 
  private:
   uint64_t d_;
   bool pow2_;
-  int shift_ = 0;
+  int shift_;
 };
 
 class Dram {

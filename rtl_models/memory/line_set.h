@@ -9,13 +9,13 @@
 #include <memory>
 #include <unordered_map>
 
+#include "bits.h"
+
 namespace ropsim {
 
 class LineSet {
  public:
-  explicit LineSet(uint32_t line_bytes) {
-    while ((1u << shift_) < line_bytes) ++shift_;
-  }
+  explicit LineSet(uint32_t line_bytes) : shift_(log2_ceil(line_bytes)) {}
   void insert(uint64_t line_addr) {
     const uint64_t i = line_addr >> shift_;
     (*page(i >> kPageBits, true))[(i >> 6) & (kWords - 1)] |= uint64_t{1} << (i & 63);
@@ -50,7 +50,7 @@ class LineSet {
     Page* page = nullptr;
   };
   static constexpr size_t kRecent = 64;
-  int shift_ = 0;
+  int shift_;
   std::unordered_map<uint64_t, std::unique_ptr<Page>> pages_;
   std::array<Recent, kRecent> recent_{};
 };

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "bits.h"
+
 namespace ropsim {
 
 void PostedWrites::apply(uint64_t before) {
@@ -22,9 +24,8 @@ void PostedWrites::apply(uint64_t before) {
 
 RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
                    PostedWrites* posted, uint32_t rop)
-    : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(0),
+    : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
       tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid), lru_(tags_.size(), 0), ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
-  while ((1u << set_shift_) < cfg.line_bytes) ++set_shift_;
 }
 
 size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {

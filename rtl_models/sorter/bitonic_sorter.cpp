@@ -3,20 +3,15 @@
 // pipelined. Unused inputs hold the largest key and sink to the end.
 #include <algorithm>
 
+#include "bits.h"
 #include "sort_algorithm.h"
 
 namespace ropsim {
 namespace {
 
-int log2_ceil(int n) {
-  int k = 0;
-  while ((1 << k) < n) ++k;
-  return k;
-}
-
 class BitonicSorter final : public SortAlgorithm {
  public:
-  explicit BitonicSorter(int width) : SortAlgorithm(width), k_(log2_ceil(width)) {}
+  explicit BitonicSorter(int width) : SortAlgorithm(width), k_(log2_ceil(unsigned(width))) {}
   const char* name() const override { return "bitonic"; }
   void sort(uint64_t* keys, int m) const override {
     const int n = 1 << k_;

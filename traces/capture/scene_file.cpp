@@ -8,6 +8,8 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include "utf8.h"
+
 namespace ropsim {
 
 namespace fs = std::filesystem;
@@ -129,6 +131,8 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   s.path = path;
   Keys k(root, path, "");
   s.name = k.string("name").value_or(fs::path(path).stem().string());
+  if (!is_valid_utf8(s.name))  // a TOML string is UTF-8: the file name is not
+    throw CaptureError(path + ": the file name is not valid UTF-8: give the scene a name (name = \"...\")");
   if (auto w = k.integer("width")) {
     if (*w < 1 || *w > kMaxScreenSide) k.fail(k.node("width"), "width", "must be in 1 .. 32768 pixels");
     s.width = uint32_t(*w);

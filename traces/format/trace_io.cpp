@@ -6,9 +6,11 @@
 #include <cstring>
 #include <vector>
 
+#include "bits.h"
 #include "depth.h"
 #include "numerics.h"
 #include "trace.h"
+#include "utf8.h"
 
 namespace ropsim {
 
@@ -32,7 +34,7 @@ uint32_t get_u32(const uint8_t* p) {
 uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
 float get_f32(const uint8_t* p) { uint32_t v = get_u32(p); float f; std::memcpy(&f, &v, 4); return f; }
 
-int coverage_bytes(int spp) { return (spp + 7) / 8; }
+int coverage_bytes(int spp) { return int(ceil_div(unsigned(spp), 8u)); }
 
 }  // namespace
 
@@ -196,6 +198,7 @@ std::string validate_header(const TraceHeader& h) {
     if (!std::isfinite(c) || c < 0.0f) return "clear colour must be finite and non-negative";
   if (!(h.clear_depth >= 0.0f && h.clear_depth <= 1.0f)) return "clear depth must be in [0, 1]";
   if (h.scene_name.size() > 65535) return "scene name longer than 65535 bytes";
+  if (!is_valid_utf8(h.scene_name)) return "scene name is not valid UTF-8";
   return "";
 }
 
@@ -275,6 +278,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   h.scene_name.resize(name_len);
   if (name_len && std::fread(h.scene_name.data(), 1, name_len, f) != name_len)
     throw TraceError(path + ": header: truncated in the scene name");
+  if (!is_valid_utf8(h.scene_name)) throw TraceError(path + ": header: scene name is not valid UTF-8");
   std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
   if (h.compression == Compression::kZstd)
     src_ = std::make_unique<ZstdSource>(f);

@@ -34,12 +34,11 @@ std::array<SamplePos, 64> standard_sample_positions(int spp) {
     case 64: {
       // Hammersley (0, m, 2)-net: x = (i + 1/2) / N, y = (rev_m(i) + 1/2) / N.
       // Every 1/N-wide column and row holds exactly one sample.
-      const int m = log2_spp(spp);
+      const int m = log2_floor(unsigned(spp));
       const int cell = 256 / spp;
       std::array<SamplePos, 64> out{};
       for (int i = 0; i < spp; ++i) {
-        int r = 0;
-        for (int b = 0; b < m; ++b) r |= ((i >> b) & 1) << (m - 1 - b);
+        const int r = int(reverse_low_bits(uint32_t(i), m));
         out[i] = SamplePos{static_cast<uint8_t>(cell * i + cell / 2), static_cast<uint8_t>(cell * r + cell / 2)};
       }
       return out;

@@ -2,9 +2,12 @@
 // shift deletion, no tombstones): the pixel scoreboard inserts and erases one
 // key per fragment, which std::unordered_set pays for with a heap node each.
 #pragma once
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include "bits.h"
 
 namespace ropsim {
 
@@ -12,8 +15,7 @@ class FlatSet {
  public:
   /// Holds up to max_size keys; the table is at most half full.
   explicit FlatSet(size_t max_size) {
-    size_t n = 16;
-    while (n < 2 * max_size) n <<= 1;
+    const size_t n = std::max<size_t>(16, next_pow2(2 * max_size));
     slots_.assign(n, kEmpty);
     mask_ = n - 1;
   }
