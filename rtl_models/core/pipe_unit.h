@@ -6,6 +6,7 @@
 // and the tracker, whose functions use no timed shared state, so they may run
 // decoupled (unit.h).
 #pragma once
+#include "bits.h"
 #include "functional_rop.h"
 #include "timed_fifo.h"
 #include "token.h"
@@ -65,7 +66,5 @@ class PipeUnit : public DecoupledUnit {
   TokenFifo& out_;
   uint64_t busy_until_ = 0;
 };
-
-inline uint32_t ceil_div(uint32_t a, uint32_t b) { return (a + b - 1) / b; }
 
 }  // namespace ropsim

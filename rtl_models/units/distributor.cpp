@@ -5,8 +5,8 @@ namespace ropsim {
 Distributor::Distributor(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Distributor& cfg,
                          uint32_t screen_width, TokenFifo& in, std::vector<TokenFifo*> outs)
     : DecoupledUnit(name, clk), cfg_(cfg), in_(in), outs_(std::move(outs)) {
-  while ((1u << tile_shift_) < cfg.tile_pixels) ++tile_shift_;
-  tiles_x_ = (screen_width + cfg.tile_pixels - 1) / cfg.tile_pixels;
+  tile_shift_ = uint32_t(log2_ceil(cfg.tile_pixels));
+  tiles_x_ = ceil_div(screen_width, cfg.tile_pixels);
 }
 
 void Distributor::advance(uint64_t limit) {

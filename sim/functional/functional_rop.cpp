@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "alpha_ref.h"
+#include "bits.h"
 #include "depth.h"
 #include "hilbert.h"
 #include "method_kernels.h"
@@ -14,7 +15,7 @@ namespace ropsim {
 
 RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
     : header(h), cfg(c), traits(ropsim::traits(c.method)), spp(h.spp), hilbert_n(hilbert_side(h.width, h.height)),
-      tracker_bytes(uint32_t((h.spp + c.numerics.surface_id_bits + 7) / 8)), a2c_prefix(a2c_prefix_table(h.spp)) {
+      tracker_bytes(ceil_div(uint32_t(h.spp + c.numerics.surface_id_bits), 8u)), a2c_prefix(a2c_prefix_table(h.spp)) {
   if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# A/B host-speed benchmark (not a test): builds git revision BASE (default:
+# the first parent of HEAD) beside this checkout and runs both sides'
+# benchmarks alternately, ROUNDS times (default 5), on the same trace in one
+# run: the cycle model's and the golden model's simulated fragments per host
+# second on cloth at 16 spp (ropsim_bench_cycle, default config) and the
+# golden model alone on in-memory fragments (ropsim_bench, BM_Golden).
+# Prints min / median / max of each figure per side and the median ratio.
+#   scripts/bench_ab.sh edd19d5 7
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+base_rev="${1:-HEAD~1}"
+rounds="${2:-5}"
+base_sha="$(git -C "$root" rev-parse --short=12 "$base_rev")"
+bash "$root/scripts/build.sh" >/dev/null
+ab="$root/build-ab/$base_sha"
+if [ ! -x "$ab/build/ropsim_bench_cycle" ]; then
+  rm -rf "$ab/src"
+  mkdir -p "$ab"
+  git -C "$root" archive "$base_sha" | (mkdir -p "$ab/src" && tar -x -C "$ab/src")
+  cmake -S "$ab/src" -B "$ab/build" -DCMAKE_BUILD_TYPE=Release -DROPSIM_BUILD_TESTS=OFF >/dev/null
+  cmake --build "$ab/build" -j "$(nproc)" --target ropsim_bench ropsim_bench_cycle >/dev/null
+fi
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+for ((i = 0; i < rounds; ++i)); do
+  for side in base head; do
+    dir="$root/build"
+    [ "$side" = base ] && dir="$ab/build"
+    "$dir/ropsim_bench_cycle" --benchmark_filter=bitonic --benchmark_format=json >"$out/$side-cycle-$i.json" 2>/dev/null
+    "$dir/ropsim_bench" --benchmark_filter='Golden/(lk|opaque)/(16|64)' --benchmark_format=json \
+      >"$out/$side-golden-$i.json" 2>/dev/null
+  done
+done
+/usr/bin/python3 - "$out" "$rounds" "$base_sha" "$(git -C "$root" rev-parse --short=12 HEAD)" <<'PY'
+import json, statistics, sys, glob, os
+out, rounds, base, head = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+def figures(side):
+    f = {}
+    for i in range(rounds):
+        for kind in ("cycle", "golden"):
+            for b in json.load(open(os.path.join(out, f"{side}-{kind}-{i}.json")))["benchmarks"]:
+                if kind == "cycle":
+                    f.setdefault("cycle model, cloth 16 spp [M frag/s]", []).append(b["cycle_frag_per_s"] / 1e6)
+                    f.setdefault("golden model from the trace file [M frag/s]", []).append(b["functional_frag_per_s"] / 1e6)
+                else:
+                    f.setdefault(f"{b['name']} in memory [M frag/s]", []).append(b["fragments_per_s"] / 1e6)
+    return f
+a, b = figures("base"), figures("head")
+print(f"A/B over {rounds} alternating rounds: base {base}, head {head}")
+print(f"{'figure':52} {'base min/med/max':>22} {'head min/med/max':>22} {'head/base':>9}")
+for k in a:
+    fa, fb = a[k], b[k]
+    s = lambda v: f"{min(v):6.2f} {statistics.median(v):6.2f} {max(v):6.2f}"
+    print(f"{k:52} {s(fa):>22} {s(fb):>22} {statistics.median(fb) / statistics.median(fa):9.3f}")
+PY
