@@ -79,10 +79,12 @@ class Unit : public sc_core::sc_module {
   void close_accounting(uint64_t end) { set_activity(Activity::kIdle, end); }
   const UnitStats& stats() const { return stats_; }
   /// Unit-specific figures for the report: name, value, unit.
+  /// A unit-specific statistic: its name, value, unit and one-line meaning.
   struct Extra {
     std::string name;
     double value;
     std::string unit;
+    std::string meaning;
   };
   virtual std::vector<Extra> extras() const { return {}; }
   int trace_activity = 0;  ///< the Activity, for sc_trace inside --vcd-window

@@ -24,6 +24,18 @@ struct DramStats {
   uint64_t busy_cycles = 0;       ///< sum over channels of data-bus cycles
   uint64_t max_channel_busy = 0;  ///< the busiest channel's busy cycles
   uint64_t last_completion = 0;   ///< cycle the last access completes
+
+  /// Bytes read (written) over every buffer.
+  uint64_t total_bytes_read() const {
+    uint64_t n = 0;
+    for (uint64_t b : bytes_read) n += b;
+    return n;
+  }
+  uint64_t total_bytes_written() const {
+    uint64_t n = 0;
+    for (uint64_t b : bytes_written) n += b;
+    return n;
+  }
 };
 
 /// x / d and x % d by a shift and a mask when d is a power of two (the

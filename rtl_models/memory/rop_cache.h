@@ -25,6 +25,33 @@ struct CacheStats {
   uint64_t merged = 0;      ///< reads of a line whose fill was still in flight
   uint64_t evictions = 0, dirty_evictions = 0;
   uint64_t clear_fills = 0; ///< misses served by fast clear, no DRAM read
+
+  /// Sums another cache's counts into this one (the ROP caches' total).
+  CacheStats& operator+=(const CacheStats& o) {
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      read_hits[b] += o.read_hits[b];
+      read_misses[b] += o.read_misses[b];
+      write_hits[b] += o.write_hits[b];
+      write_misses[b] += o.write_misses[b];
+    }
+    merged += o.merged;
+    evictions += o.evictions;
+    dirty_evictions += o.dirty_evictions;
+    clear_fills += o.clear_fills;
+    return *this;
+  }
+  /// Read and write hits (misses) over every buffer.
+  uint64_t hits() const {
+    uint64_t n = 0;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) n += read_hits[b] + write_hits[b];
+    return n;
+  }
+  uint64_t misses() const {
+    uint64_t n = 0;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) n += read_misses[b] + write_misses[b];
+    return n;
+  }
+  double hit_rate() const { return hits() + misses() ? double(hits()) / double(hits() + misses()) : 0.0; }
 };
 
 class RopCache;

@@ -17,7 +17,7 @@ class CoverageTracker : public PipeUnit {
                   const HwConfig::Tracker& cfg, TokenFifo& in, TokenFifo& out)
       : PipeUnit(name, clk, rop, in, out), cfg_(cfg) {}
   std::vector<Extra> extras() const override {
-    return {{"new_surfaces", double(new_surfaces_), "bitmask conflicts that started a new surface"}};
+    return {{"new_surfaces", double(new_surfaces_), "events", "bitmask conflicts that started a new surface"}};
   }
 
  protected:

@@ -76,7 +76,7 @@ void DepthTest::step(uint64_t now) {
 }
 
 std::vector<Unit::Extra> DepthTest::extras() const {
-  return {{"killed", double(killed_), "fragments with no surviving sample, retired here"}};
+  return {{"killed", double(killed_), "fragments", "fragments with no surviving sample, retired here"}};
 }
 
 }  // namespace ropsim

@@ -80,8 +80,8 @@ void PixelOrdering::step(uint64_t now) {
 }
 
 std::vector<Unit::Extra> PixelOrdering::extras() const {
-  return {{"overtakes", double(overtakes_), "fragments issued ahead of an older waiting fragment"},
-          {"max_pixels_in_flight", double(max_in_flight_), "pixels"}};
+  return {{"overtakes", double(overtakes_), "fragments", "fragments issued ahead of an older waiting fragment"},
+          {"max_pixels_in_flight", double(max_in_flight_), "pixels", "most pixels in flight at once (scoreboard)"}};
 }
 
 }  // namespace ropsim

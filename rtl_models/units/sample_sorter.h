@@ -21,8 +21,10 @@ class SampleSorter : public PipeUnit {
       : PipeUnit(name, clk, rop, in, out), algo_(std::move(algo)) {}
   const SortAlgorithm& algorithm() const { return *algo_; }
   std::vector<Extra> extras() const override {
-    return {{"comparators", double(algo_->comparators()), "two-input comparators (" + std::string(algo_->name()) + ")"},
-            {"latency_cycles", double(algo_->latency_cycles(algo_->width())), "cycles for a full pixel"}};
+    return {{"comparators", double(algo_->comparators()), "comparators",
+             "two-input comparators of the sorter variant (area proxy)"},
+            {"latency_cycles", double(algo_->latency_cycles(algo_->width())), "cycles",
+             "the sorter variant's latency for a full pixel"}};
   }
 
  protected:

@@ -17,7 +17,7 @@ class Writeback : public DecoupledUnit {
   Writeback(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
             const AddressMap& amap, const HwConfig::Writeback& cfg, RopCache& cache, TokenFifo& in);
   std::vector<Extra> extras() const override {
-    return {{"samples_written", double(written_), "samples whose depth and colour were written"}};
+    return {{"samples_written", double(written_), "samples", "samples whose depth and colour were written"}};
   }
 
  protected:

@@ -345,6 +345,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   cfgc->add_flag("--markdown", cfg_markdown, "Print every parameter with unit, default, range and meaning (docs/config.md)");
   auto run_capture = add_capture_command(app);  // capture: sim/cli/cmd_capture.cpp
+  bool rf_markdown = false;
+  CLI::App* rfc = app.add_subcommand("report-fields", "List every report field with its unit and meaning");
+  rfc->add_flag("--markdown", rf_markdown, "As the Markdown table of docs/reports.md");
 
   try {
     app.parse(argc, argv);
@@ -387,6 +390,15 @@ int main(int argc, char** argv) {
       }
       HwConfig c = cfg_check.empty() ? HwConfig{} : load_hw_config(cfg_check);
       fmt::print("# ropsim hardware config: {}\n{}", c.name, hw_config_to_toml(c));
+      return 0;
+    }
+    if (rfc->parsed()) {
+      const auto docs = report_field_docs();
+      if (rf_markdown) {
+        std::fputs(fields_markdown(docs).c_str(), stdout);
+      } else {
+        for (const auto& d : docs) fmt::print("{:<52} {:<12} {}\n", d.path, d.unit, d.meaning);
+      }
       return 0;
     }
     if (tinfo->parsed()) return cmd_trace_info(trace_path, false);

@@ -21,119 +21,169 @@ FunctionalRun as_functional(const CycleRun& run, const std::optional<Image>& ref
   return f;
 }
 
-nlohmann::ordered_json activity_json(const UnitStats& u) {
-  nlohmann::ordered_json j;
-  for (int a = 0; a < kActivities; ++a) j[to_string(Activity(a))] = u.cycles[size_t(a)];
-  return j;
+const char* activity_meaning(Activity a) {
+  switch (a) {
+    case Activity::kIdle: return "cycles before its first or after its last fragment";
+    case Activity::kBusy: return "cycles working";
+    case Activity::kStarved: return "cycles waiting for input";
+    case Activity::kBlocked: return "cycles waiting for space in the FIFO behind it";
+    case Activity::kHazard: return "ordering: cycles with every waiting fragment's pixel in flight, or the scoreboard full";
+    case Activity::kMemory: return "cycles waiting for the ROP cache or DRAM";
+  }
+  return "";
 }
 
 }  // namespace
 
+std::string format_bottleneck(const CycleStats& s) {
+  const Bottleneck& b = s.bottleneck;
+  switch (b.kind) {
+    case Bottleneck::Kind::kMemory:
+      return fmt::format("memory-bound: the busiest DRAM channel is busy {:.0f}% of the cycles ({:.1f} of {:.1f} GB/s)",
+                         100 * s.dram_utilization, s.dram_achieved_gbps, s.dram_peak_gbps);
+    case Bottleneck::Kind::kSource:
+      return fmt::format("source-bound: the trace source delivers fragments {:.0f}% of the cycles ({} per clock)",
+                         100 * b.busy, s.hw.source.fragments_per_clock);
+    case Bottleneck::Kind::kUnit: break;
+  }
+  return fmt::format("{}-bound ({}): busy {:.0f}%, waiting for memory {:.0f}%, pixel hazard {:.0f}% of the cycles",
+                     b.unit_kind, b.reason, 100 * b.busy, 100 * b.memory, 100 * b.hazard);
+}
+
+void put_cycle_stats(Fields t, const CycleStats& s) {
+  t.put("clock_ghz", s.hw.clock.frequency_ghz, "GHz", "the ROP clock");
+  t.put("clock_period_ps", s.period_ps, "ps", "the simulated clock period (1000 / GHz, rounded)");
+  t.put("total_cycles", s.total_cycles, "cycles", "to the end of the final cache flush");
+  t.put("pipeline_cycles", s.pipeline_cycles, "cycles", "to the retirement of the last fragment");
+  t.put("frame_time_us", s.frame_time_us, "µs", "total_cycles at the clock");
+  t.put("fragments_per_clock", s.fragments_per_clock, "1/clock", "fragments over total_cycles");
+  t.put("samples_per_clock", s.samples_per_clock, "1/clock", "covered samples over total_cycles");
+  t.put("bottleneck", format_bottleneck(s), "-",
+        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
+        "waits on its own resources most, and why");
+  t.put("memory_bound", s.memory_bound, "bool", "the busiest DRAM channel's utilization >= 0.8");
+  t.empty_array("units");
+  for (const auto& u : s.units) {
+    Fields j = t.item("units");
+    j.put("name", u.name, "-", "the unit instance (SystemC name)");
+    j.put("kind", u.kind, "-", "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
+                               "alpha_ref_gen or writeback");
+    j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
+    j.put("fragments", u.stats.fragments, "fragments", "fragments it accepted");
+    j.put("samples", u.stats.samples, "samples",
+          "unit-specific: tested (depth test), tracked, sorted, hashed (alpha-ref gen), examined (writeback)");
+    Fields c = j.obj("cycles");
+    for (int a = 0; a < kActivities; ++a)
+      c.put(to_string(Activity(a)), u.stats.cycles[size_t(a)], "cycles",
+            std::string(activity_meaning(Activity(a))) + " (the activities sum to total_cycles)");
+    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
+    j.put("busy_fraction", s.total_cycles ? double(busy) / double(s.total_cycles) : 0.0, "fraction",
+          "busy cycles / total_cycles");
+    j.put("activations", u.stats.activations, "-",
+          "times the scheduler ran the unit (0 for a decoupled unit, which runs inside its neighbours' runs)");
+    for (const auto& e : u.extras) j.put(e.name, e.value, e.unit, u.kind + ": " + e.meaning);
+  }
+  t.empty_array("fifos");
+  for (const auto& f : s.fifos) {
+    Fields j = t.item("fifos");
+    j.put("name", f.name, "-", "the FIFO (producer to consumer)");
+    j.put("capacity_entries", f.capacity, "entries", "its depth plus the producer's latency (pipeline registers)");
+    j.put("pushes", f.pushes, "entries", "entries pushed");
+    j.put("mean_occupancy_entries", f.mean_occupancy, "entries", "time-averaged occupancy");
+    j.put("max_occupancy_entries", f.max_occupancy, "entries", "largest occupancy");
+    j.put("full_cycles", f.full_cycles, "cycles", "cycles at capacity");
+  }
+  // Caches: the sum over the ROPs.
+  CacheStats sum;
+  for (const auto& c : s.caches) sum += c;
+  Fields cache = t.obj("cache");
+  for (int b = 0; b < kBuffers; ++b) {
+    const size_t i = size_t(b);
+    const std::string buf = to_string(Buffer(b));
+    Fields x = cache.obj(buf);
+    x.put("read_hits", sum.read_hits[i], "accesses", buf + " line reads that hit, over the ROP caches");
+    x.put("read_misses", sum.read_misses[i], "accesses", buf + " line reads that missed");
+    x.put("write_hits", sum.write_hits[i], "accesses", buf + " line writes that hit");
+    x.put("write_misses", sum.write_misses[i], "accesses", buf + " line writes that missed (allocated without a fill)");
+  }
+  cache.put("hits", sum.hits(), "accesses", "read and write hits over every buffer");
+  cache.put("misses", sum.misses(), "accesses", "read and write misses over every buffer");
+  cache.put("hit_rate", sum.hit_rate(), "fraction", "hits / (hits + misses)");
+  cache.put("merged_reads", sum.merged, "accesses", "reads of a line whose fill was in flight");
+  cache.put("evictions", sum.evictions, "lines", "lines evicted");
+  cache.put("dirty_evictions", sum.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
+  cache.put("fast_clear_fills", sum.clear_fills, "accesses", "misses served as the clear value, without DRAM");
+  Fields dram = t.obj("dram");
+  for (int b = 0; b < kBuffers; ++b) {
+    const std::string buf = to_string(Buffer(b));
+    Fields x = dram.obj(buf);
+    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes", "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
+    x.put("bytes_written", s.dram.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
+  }
+  dram.put("bytes_read", s.dram.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
+  dram.put("bytes_written", s.dram.total_bytes_written(), "bytes", "DRAM bytes written, every buffer");
+  dram.put("reads", s.dram.reads, "bursts", "read bursts");
+  dram.put("writes", s.dram.writes, "bursts", "write bursts");
+  dram.put("row_hits", s.dram.row_hits, "bursts", "bursts to the open row");
+  dram.put("row_misses", s.dram.row_misses, "bursts", "bursts that opened a row");
+  dram.put("peak_gbps", s.dram_peak_gbps, "GB/s", "channels x bytes/clock x GHz (GB/s = 10^9 B/s)");
+  dram.put("achieved_gbps", s.dram_achieved_gbps, "GB/s", "bytes moved / frame time");
+  dram.put("busiest_channel_utilization", s.dram_utilization, "fraction",
+           "data-bus busy cycles of the busiest channel / total_cycles");
+  Fields host = t.obj("host");
+  host.put("systemc_activations", s.activations, "-",
+           "SystemC process activations: cycles in which some unit ran (rtl_models/core/scheduler.h)");
+  host.put("unit_runs", s.unit_runs, "-", "the units' runs summed (host cost of event-driven simulation)");
+  host.put("decoupled", s.decoupled, "bool",
+           "the units without timed shared state ran ahead of SystemC time (false with --lockstep or --vcd)");
+  host.put("fragment_tokens", s.tokens_allocated, "-", "fragment records allocated (bounded by FIFOs and windows)");
+}
+
 nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   nlohmann::ordered_json t;
-  t["clock_ghz"] = s.hw.clock.frequency_ghz;
-  t["clock_period_ps"] = s.period_ps;
-  t["total_cycles"] = s.total_cycles;
-  t["pipeline_cycles"] = s.pipeline_cycles;
-  t["frame_time_us"] = s.frame_time_us;
-  t["fragments_per_clock"] = s.fragments_per_clock;
-  t["samples_per_clock"] = s.samples_per_clock;
-  t["bottleneck"] = s.bottleneck;
-  t["memory_bound"] = s.memory_bound;
-  nlohmann::ordered_json units = nlohmann::ordered_json::array();
-  for (const auto& u : s.units) {
-    nlohmann::ordered_json j;
-    j["name"] = u.name;
-    j["kind"] = u.kind;
-    j["rop"] = u.rop;
-    j["fragments"] = u.stats.fragments;
-    j["samples"] = u.stats.samples;
-    j["cycles"] = activity_json(u.stats);
-    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
-    j["busy_fraction"] = s.total_cycles ? double(busy) / double(s.total_cycles) : 0.0;
-    j["activations"] = u.stats.activations;
-    for (const auto& e : u.extras) j[e.name] = e.value;
-    units.push_back(j);
-  }
-  t["units"] = units;
-  nlohmann::ordered_json fifos = nlohmann::ordered_json::array();
-  for (const auto& f : s.fifos)
-    fifos.push_back({{"name", f.name},
-                     {"capacity_entries", f.capacity},
-                     {"pushes", f.pushes},
-                     {"mean_occupancy_entries", f.mean_occupancy},
-                     {"max_occupancy_entries", f.max_occupancy},
-                     {"full_cycles", f.full_cycles}});
-  t["fifos"] = fifos;
-  // Caches: the sum over ROPs, per buffer.
-  nlohmann::ordered_json cache;
-  CacheStats sum;
-  for (const auto& c : s.caches)
-    for (int b = 0; b < kBuffers; ++b) {
-      sum.read_hits[size_t(b)] += c.read_hits[size_t(b)];
-      sum.read_misses[size_t(b)] += c.read_misses[size_t(b)];
-      sum.write_hits[size_t(b)] += c.write_hits[size_t(b)];
-      sum.write_misses[size_t(b)] += c.write_misses[size_t(b)];
-    }
-  for (const auto& c : s.caches) {
-    sum.merged += c.merged;
-    sum.evictions += c.evictions;
-    sum.dirty_evictions += c.dirty_evictions;
-    sum.clear_fills += c.clear_fills;
-  }
-  for (int b = 0; b < kBuffers; ++b)
-    cache[to_string(Buffer(b))] = {{"read_hits", sum.read_hits[size_t(b)]},
-                                   {"read_misses", sum.read_misses[size_t(b)]},
-                                   {"write_hits", sum.write_hits[size_t(b)]},
-                                   {"write_misses", sum.write_misses[size_t(b)]}};
-  uint64_t hits = 0, misses = 0;
-  for (int b = 0; b < kBuffers; ++b) {
-    hits += sum.read_hits[size_t(b)] + sum.write_hits[size_t(b)];
-    misses += sum.read_misses[size_t(b)] + sum.write_misses[size_t(b)];
-  }
-  cache["hits"] = hits;
-  cache["misses"] = misses;
-  cache["hit_rate"] = hits + misses ? double(hits) / double(hits + misses) : 0.0;
-  cache["merged_reads"] = sum.merged;
-  cache["evictions"] = sum.evictions;
-  cache["dirty_evictions"] = sum.dirty_evictions;
-  cache["fast_clear_fills"] = sum.clear_fills;
-  t["cache"] = cache;
-  nlohmann::ordered_json dram;
-  uint64_t rd = 0, wr = 0;
-  for (int b = 0; b < kBuffers; ++b) {
-    dram[to_string(Buffer(b))] = {{"bytes_read", s.dram.bytes_read[size_t(b)]},
-                                  {"bytes_written", s.dram.bytes_written[size_t(b)]}};
-    rd += s.dram.bytes_read[size_t(b)];
-    wr += s.dram.bytes_written[size_t(b)];
-  }
-  dram["bytes_read"] = rd;
-  dram["bytes_written"] = wr;
-  dram["reads"] = s.dram.reads;
-  dram["writes"] = s.dram.writes;
-  dram["row_hits"] = s.dram.row_hits;
-  dram["row_misses"] = s.dram.row_misses;
-  dram["peak_gbps"] = s.dram_peak_gbps;
-  dram["achieved_gbps"] = s.dram_achieved_gbps;
-  dram["busiest_channel_utilization"] = s.dram_utilization;
-  t["dram"] = dram;
-  t["host"] = {{"systemc_activations", s.activations},
-               {"unit_runs", s.unit_runs},
-               {"decoupled", s.decoupled},
-               {"fragment_tokens", s.tokens_allocated}};
+  put_cycle_stats(Fields(t, nullptr), s);
   return t;
 }
 
-nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference) {
-  nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference));
-  j["fidelity"] = "cycle";
-  j["hardware"] = {{"config", run.stats.hw.name}};
-  j["hardware"]["resolved_toml"] = hw_config_to_toml(run.stats.hw);
-  j["timing"] = cycle_stats_to_json(run.stats);
-  j["host"]["sim_seconds"] = run.sim_seconds;
-  j["host"]["simulated_fragments_per_second"] =
-      run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0;
+nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference,
+                                    FieldSink* sink) {
+  nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
+  Fields r(j, sink);
+  r.put("fidelity", "cycle", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
+  Fields hw = r.obj("hardware");
+  hw.put("config", run.stats.hw.name, "-",
+         "cycle: the design file (or \"built-in defaults\"), \"with --hw-set\" when overridden");
+  hw.put("resolved_toml", hw_config_to_toml(run.stats.hw), "-", "cycle: every hardware parameter as simulated, as TOML");
+  put_cycle_stats(r.obj("timing"), run.stats);
+  Fields host = r.obj("host");
+  host.put("sim_seconds", run.sim_seconds, "s", "cycle: sc_start alone");
+  host.put("simulated_fragments_per_second",
+           run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0, "1/s",
+           "cycle: fragments over sim_seconds");
   return j;
+}
+
+std::vector<FieldDoc> report_field_docs() {
+  // The fields are described where they are written, so list them by writing
+  // the reports of small runs that emit every field: lk (every unit) on a
+  // scene, with the reference; a trace input's fields come from the context.
+  FieldSink sink;
+  InputSpec in;
+  in.scene.name = "eight-layers";
+  in.scene.spp = 4;
+  in.scene.width = 16;
+  in.scene.height = 16;
+  MethodConfig m;
+  ReportContext ctx;
+  ctx.command_line = "ropsim run ...";
+  ctx.input = in;
+  ctx.config = m;
+  const FunctionalRun f = run_functional(in, m, true);
+  functional_report(ctx, f, &sink);
+  const CycleRun c = run_cycle(in, m, HwConfig{});
+  ctx.input.trace_path = "scene.rtr";
+  cycle_report(ctx, c, f.reference, &sink);
+  return sink.docs();
 }
 
 std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference) {
@@ -142,14 +192,10 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
   out += fmt::format("  cycle model ({}): {} cycles = {:.2f} us at {} GHz; {:.3f} fragments/clock, {:.2f} samples/clock\n",
                      s.hw.name, s.total_cycles, s.frame_time_us, s.hw.clock.frequency_ghz, s.fragments_per_clock,
                      s.samples_per_clock);
-  uint64_t rd = 0, wr = 0;
-  for (int b = 0; b < kBuffers; ++b) {
-    rd += s.dram.bytes_read[size_t(b)];
-    wr += s.dram.bytes_written[size_t(b)];
-  }
-  out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n", rd, wr,
+  out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
+                     s.dram.total_bytes_read(), s.dram.total_bytes_written(),
                      s.dram_achieved_gbps, s.dram_peak_gbps, 100 * s.dram_utilization);
-  out += "  " + s.bottleneck + "\n";
+  out += "  " + format_bottleneck(s) + "\n";
   out += fmt::format("  host: {:.3f} s simulated, {:.2f} M fragments/s\n", run.sim_seconds,
                      run.sim_seconds > 0 ? run.counters.fragments / run.sim_seconds / 1e6 : 0.0);
   return out;

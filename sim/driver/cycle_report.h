@@ -3,6 +3,7 @@
 #pragma once
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -11,9 +12,18 @@
 
 namespace ropsim {
 
+/// The "timing" section: every timing figure with its unit and meaning.
+void put_cycle_stats(Fields t, const CycleStats& s);
 nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s);
-/// reference: the A-buffer image when --vs-reference was asked for.
-nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference);
+/// The bottleneck as one line.
+std::string format_bottleneck(const CycleStats& s);
+/// reference: the A-buffer image when --vs-reference was asked for; with a
+/// sink, also each field's description.
+nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference,
+                                    FieldSink* sink = nullptr);
+/// Every report field, functional and cycle, with its unit and meaning, in
+/// report order (docs/reports.md).
+std::vector<FieldDoc> report_field_docs();
 std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference);
 
 }  // namespace ropsim

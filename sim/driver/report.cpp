@@ -8,72 +8,67 @@
 #include <stdexcept>
 
 #include "image_io.h"
+#include "report_fields.h"
 
 namespace ropsim {
 
 nlohmann::ordered_json counters_to_json(const Counters& c) {
   nlohmann::ordered_json j;
-  j["fragments"] = c.fragments;
-  j["samples_tested"] = c.samples_tested;
-  j["samples_depth_passed"] = c.samples_depth_passed;
-  j["samples_opacity_passed"] = c.samples_opacity_passed;
-  j["samples_written"] = c.samples_written;
-  j["surface_id_changes"] = c.surface_id_changes;
-  j["sorts"] = c.sorts;
-  j["depth_bytes_read"] = c.depth_bytes_read;
-  j["depth_bytes_written"] = c.depth_bytes_written;
-  j["color_bytes_written"] = c.color_bytes_written;
-  j["tracker_bytes_read"] = c.tracker_bytes_read;
-  j["tracker_bytes_written"] = c.tracker_bytes_written;
-  j["state_bytes_read"] = c.depth_bytes_read + c.tracker_bytes_read;
-  j["state_bytes_written"] = c.depth_bytes_written + c.color_bytes_written + c.tracker_bytes_written;
-  j["tiles_touched"] = c.tiles_touched;
+  put_counters(Fields(j, nullptr), c);
   return j;
+}
+
+void put_numerics(Fields f, const Numerics& n) {
+  f.put("hash_bits", n.hash_bits, "bits", "width of the alpha-reference hash datapath (docs/numerics.md)");
+  f.put("alpha_bits", n.alpha_bits, "bits", "fixed-point precision of the fragment opacity");
+  f.put("surface_id_bits", n.surface_id_bits, "bits", "width of the per-pixel surface id register (wraps)");
 }
 
 nlohmann::ordered_json numerics_to_json(const Numerics& n) {
   nlohmann::ordered_json j;
-  j["hash_bits"] = n.hash_bits;
-  j["alpha_bits"] = n.alpha_bits;
-  j["surface_id_bits"] = n.surface_id_bits;
+  put_numerics(Fields(j, nullptr), n);
   return j;
 }
 
-nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run) {
+nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run, FieldSink* sink) {
   nlohmann::ordered_json j;
-  j["tool"] = "ropsim";
-  j["report_version"] = 1;
-  j["command"] = ctx.command_line;
-  j["fidelity"] = "functional";
-  nlohmann::ordered_json in;
+  Fields r(j, sink);
+  r.put("tool", "ropsim", "-", "`ropsim`");
+  r.put("report_version", 1, "-", "the report format's version");
+  r.put("command", ctx.command_line, "-", "the command line");
+  r.put("fidelity", "functional", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
+  Fields in = r.obj("input");
   if (ctx.input.from_trace()) {
-    in["trace"] = ctx.input.trace_path;
+    in.put("trace", ctx.input.trace_path, "-", "the trace file read (a trace input)");
   } else {
-    in["scene"] = ctx.input.scene.name;
-    in["scene_seed"] = ctx.input.scene.seed;
+    in.put("scene", ctx.input.scene.name, "-", "the built-in scene (a scene input)");
+    in.put("scene_seed", ctx.input.scene.seed, "-", "the scene's seed (a scene input)");
   }
-  in["scene_name"] = run.header.scene_name;
-  in["width"] = run.header.width;
-  in["height"] = run.header.height;
-  in["spp"] = run.header.spp;
-  j["input"] = in;
-  j["method"] = to_string(ctx.config.method);
-  j["seed"] = ctx.config.seed;
-  j["numerics"] = numerics_to_json(ctx.config.numerics);
-  j["counters"] = counters_to_json(run.counters);
-  nlohmann::ordered_json host;
-  host["wall_seconds"] = run.wall_seconds;
-  host["samples_per_second"] = run.wall_seconds > 0 ? double(run.counters.samples_tested) / run.wall_seconds : 0.0;
-  host["fragments_per_second"] = run.wall_seconds > 0 ? double(run.counters.fragments) / run.wall_seconds : 0.0;
-  host["state_bytes"] = run.state_bytes;
-  host["peak_rss_bytes"] = peak_rss_bytes();
-  j["host"] = host;
+  in.put("scene_name", run.header.scene_name, "-", "the scene name in the header");
+  in.put("width", run.header.width, "pixels", "screen width");
+  in.put("height", run.header.height, "pixels", "screen height");
+  in.put("spp", run.header.spp, "samples", "samples per pixel");
+  r.put("method", to_string(ctx.config.method), "-", "the transparency method");
+  r.put("seed", ctx.config.seed, "-", "the seed of the method's hash-based random numbers (enderton, naive)");
+  put_numerics(r.obj("numerics"), ctx.config.numerics);
+  put_counters(r.obj("counters"), run.counters);
+  Fields host = r.obj("host");
+  host.put("wall_seconds", run.wall_seconds, "s", "the whole run: input, model(s), resolve");
+  host.put("samples_per_second", run.wall_seconds > 0 ? double(run.counters.samples_tested) / run.wall_seconds : 0.0,
+           "1/s", "samples tested over wall time");
+  host.put("fragments_per_second", run.wall_seconds > 0 ? double(run.counters.fragments) / run.wall_seconds : 0.0,
+           "1/s", "fragments over wall time");
+  host.put("state_bytes", run.state_bytes, "bytes", "host memory of the per-pixel state");
+  host.put("peak_rss_bytes", peak_rss_bytes(), "bytes", "peak resident set of the process (VmHWM)");
   if (run.reference) {
-    CompareResult c = compare_images(run.image, *run.reference);
-    j["vs_reference"] = {{"rmse_8bit", c.rmse_8bit}, {"psnr_db", std::isfinite(c.psnr_db) ? c.psnr_db : 999.0},
-                         {"max_error_8bit", c.max_error_8bit}};
+    const CompareResult c = compare_images(run.image, *run.reference);
+    Fields v = r.obj("vs_reference");
+    v.put("rmse_8bit", c.rmse_8bit, "8-bit units",
+          "with --vs-reference: RMSE of the image against the A-buffer reference of the same stream (linear, x 255)");
+    v.put("psnr_db", std::isfinite(c.psnr_db) ? c.psnr_db : 999.0, "dB", "PSNR against the reference (999: identical)");
+    v.put("max_error_8bit", c.max_error_8bit, "8-bit units", "largest channel error against the reference");
   }
-  j["outputs"] = ctx.outputs;
+  r.put("outputs", ctx.outputs, "-", "files written");
   return j;
 }
 
@@ -85,8 +80,8 @@ std::string functional_summary(const ReportContext& ctx, const FunctionalRun& ru
                    c.samples_depth_passed, c.samples_written);
   if (ctx.config.method == Method::kLk)
     s += fmt::format("  surface-id changes {}  sorts {}\n", c.surface_id_changes, c.sorts);
-  s += fmt::format("  state traffic: {} B read, {} B written; {} tiles touched\n", c.depth_bytes_read + c.tracker_bytes_read,
-                   c.depth_bytes_written + c.color_bytes_written + c.tracker_bytes_written, c.tiles_touched);
+  s += fmt::format("  state traffic: {} B read, {} B written; {} tiles touched\n", c.state_bytes_read(),
+                   c.state_bytes_written(), c.tiles_touched);
   s += fmt::format("  wall {:.3f} s, {:.1f} M samples/s\n", run.wall_seconds,
                    run.wall_seconds > 0 ? c.samples_tested / run.wall_seconds / 1e6 : 0.0);
   if (run.reference) {

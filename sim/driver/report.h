@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "driver.h"
+#include "report_fields.h"
 
 namespace ropsim {
 
@@ -20,7 +21,9 @@ struct ReportContext {
   std::vector<std::string> outputs;
 };
 
-nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run);
+/// The functional report; with a sink, also each field's description.
+nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run,
+                                         FieldSink* sink = nullptr);
 
 /// A short human summary of a functional run (a few lines).
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);

@@ -12,12 +12,11 @@ namespace ropsim {
 
 namespace {
 
-std::string classify(const CycleStats& s) {
-  char buf[256];
+Bottleneck classify(const CycleStats& s) {
+  Bottleneck b;
   if (s.memory_bound) {
-    std::snprintf(buf, sizeof buf, "memory-bound: the busiest DRAM channel is busy %.0f%% of the cycles (%.1f of %.1f GB/s)",
-                  100 * s.dram_utilization, s.dram_achieved_gbps, s.dram_peak_gbps);
-    return buf;
+    b.kind = Bottleneck::Kind::kMemory;
+    return b;
   }
   // The unit kind whose instances spend the most cycles working or waiting on
   // their own resources (busy, memory, pixel hazard) rather than on their
@@ -25,7 +24,6 @@ std::string classify(const CycleStats& s) {
   std::vector<std::string> kinds;
   for (const auto& u : s.units)
     if (std::find(kinds.begin(), kinds.end(), u.kind) == kinds.end()) kinds.push_back(u.kind);
-  std::string best;
   double best_own = -1, parts[3] = {0, 0, 0};
   const double total = double(std::max<uint64_t>(1, s.total_cycles));
   for (const auto& k : kinds) {
@@ -41,21 +39,22 @@ std::string classify(const CycleStats& s) {
     for (double& x : p) x /= double(n) * total;
     if (p[0] + p[1] + p[2] > best_own) {
       best_own = p[0] + p[1] + p[2];
-      best = k;
+      b.unit_kind = k;
       std::copy(p, p + 3, parts);
     }
   }
-  if (best == "trace_source") {
-    std::snprintf(buf, sizeof buf, "source-bound: the trace source delivers fragments %.0f%% of the cycles (%u per clock)",
-                  100 * parts[0], s.hw.source.fragments_per_clock);
+  b.busy = parts[0];
+  b.memory = parts[1];
+  b.hazard = parts[2];
+  if (b.unit_kind == "trace_source") {
+    b.kind = Bottleneck::Kind::kSource;
   } else {
-    const char* why = parts[1] >= parts[0] && parts[1] >= parts[2] ? "memory latency"
-                      : parts[2] >= parts[0]                       ? "pixel hazards"
-                                                                   : "throughput";
-    std::snprintf(buf, sizeof buf, "%s-bound (%s): busy %.0f%%, waiting for memory %.0f%%, pixel hazard %.0f%% of the cycles",
-                  best.c_str(), why, 100 * parts[0], 100 * parts[1], 100 * parts[2]);
+    b.kind = Bottleneck::Kind::kUnit;
+    b.reason = parts[1] >= parts[0] && parts[1] >= parts[2] ? "memory latency"
+               : parts[2] >= parts[0]                       ? "pixel hazards"
+                                                            : "throughput";
   }
-  return buf;
+  return b;
 }
 
 }  // namespace
@@ -110,8 +109,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   for (const auto& c : top->caches()) s.caches.push_back(c->stats());
   s.dram = top->dram().stats();
   s.dram_peak_gbps = double(hw.dram.channels) * hw.dram.bytes_per_clock * hw.clock.frequency_ghz;
-  uint64_t bytes = 0;
-  for (int b = 0; b < kBuffers; ++b) bytes += s.dram.bytes_read[size_t(b)] + s.dram.bytes_written[size_t(b)];
+  const uint64_t bytes = s.dram.total_bytes_read() + s.dram.total_bytes_written();
   s.dram_achieved_gbps = s.frame_time_us > 0 ? double(bytes) / (s.frame_time_us * 1e3) : 0.0;
   s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
   s.memory_bound = s.dram_utilization >= 0.8;

@@ -40,6 +40,18 @@ struct UnitReport {
   std::vector<Unit::Extra> extras;
 };
 
+/// What limits the frame: the DRAM, the trace source, or the unit kind whose
+/// instances spend the most cycles working or waiting on their own resources.
+struct Bottleneck {
+  enum class Kind { kMemory, kSource, kUnit };
+  Kind kind = Kind::kUnit;
+  std::string unit_kind;        ///< the pacing unit kind (kSource: "trace_source")
+  /// kUnit: "throughput", "memory latency" or "pixel hazards", whichever of
+  /// busy, memory and hazard is largest.
+  std::string reason;
+  double busy = 0, memory = 0, hazard = 0;  ///< fractions of total_cycles, averaged over the kind's instances
+};
+
 struct CycleStats {
   HwConfig hw;
   uint64_t period_ps = 0;        ///< simulated clock period
@@ -55,7 +67,7 @@ struct CycleStats {
   double dram_achieved_gbps = 0;  ///< bytes moved / frame time
   double dram_utilization = 0;    ///< busiest channel's busy cycles / total cycles
   bool memory_bound = false;      ///< dram_utilization >= 0.8
-  std::string bottleneck;         ///< one line: what limits the frame
+  Bottleneck bottleneck;          ///< what limits the frame (the report formats it)
   uint64_t activations = 0;       ///< SystemC process activations: cycles in which some unit ran (host cost)
   uint64_t unit_runs = 0;         ///< unit activations summed over the units (decoupled units run inside others')
   bool decoupled = false;         ///< units without timed shared state ran ahead of SystemC time
