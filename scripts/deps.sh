@@ -7,7 +7,7 @@ ROPSIM_PACKAGES=(
   libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libzstd-dev
   libtomlplusplus-dev libassimp-dev libosmesa6-dev
-  python3-numpy python3-matplotlib
+  clang-format python3-numpy python3-matplotlib
 )
 missing=()
 for p in "${ROPSIM_PACKAGES[@]}"; do

@@ -156,3 +156,34 @@ TEST(Layers, TheScanCatchesWhatItMustOnASyntheticTree) {
 }
 
 }  // namespace
+
+namespace {
+
+int run(const std::string& cmd, std::string& out) {
+  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return -1;
+  char buf[4096];
+  for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
+  return pclose(p);
+}
+
+// Every C++ source follows .clang-format (scripts/format.sh formats them).
+TEST(Format, EverySourceIsClangFormatted) {
+  std::string out;
+  const int st = run("bash '" ROPSIM_SOURCE_DIR "/scripts/format.sh' --check", out);
+  EXPECT_EQ(st, 0) << out;
+}
+
+// The check sees a file that is not formatted (so the test above can fail).
+TEST(Format, TheCheckRejectsAnUnformattedFile) {
+  const fs::path dir = fs::temp_directory_path() / ("ropsim-format-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(ROPSIM_SOURCE_DIR "/.clang-format", dir / ".clang-format");
+  std::ofstream(dir / "bad.cpp") << "int  f( int x ){return x;}\n";
+  std::string out;
+  const int st = run("cd '" + dir.string() + "' && clang-format --dry-run --Werror bad.cpp", out);
+  fs::remove_all(dir);
+  EXPECT_NE(st, 0) << "clang-format accepted an unformatted file: " << out;
+}
+
+}  // namespace
