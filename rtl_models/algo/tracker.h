@@ -6,6 +6,12 @@
 
 namespace ropsim {
 
+/// Bytes of one pixel's tracker state in the ROP's buffer: the covered mask
+/// (spp bits) and the surface id, rounded up to whole bytes.
+constexpr uint32_t tracker_state_bytes(int spp, int surface_id_bits) {
+  return uint32_t(spp + surface_id_bits + 7) / 8u;
+}
+
 /// Per-pixel tracker state: the current surface id and the samples it covers.
 struct TrackerState {
   uint64_t covered = 0;

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "bits.h"
+#include "numerics.h"
 
 namespace ropsim {
 
@@ -30,7 +31,7 @@ class AddressMap {
   /// mask in the depth or colour buffer, in increasing address order.
   template <class F>
   void for_each_sample_line(Buffer b, uint32_t x, uint32_t y, uint64_t mask, F&& f) const {
-    const uint64_t bps = b == Buffer::kDepth ? 4 : 6;
+    const uint64_t bps = b == Buffer::kDepth ? kDepthSampleBytes : kColorSampleBytes;
     const uint64_t start = base(b) + pixel_index(x, y) * spp_ * bps;
     uint64_t last = ~uint64_t{0};
     while (mask) {
@@ -44,7 +45,7 @@ class AddressMap {
       // Samples lying wholly in lines <= l1 need nothing more; a sample that
       // starts in l1 and crosses into l1 + 1 stays and emits l1 + 1 next.
       const uint64_t past = ((l1 + 1) << line_shift_) - start;
-      const uint64_t k = bps == 4 ? past / 4 : past / 6;  // constant divisors: no divide instruction
+      const uint64_t k = bps == kDepthSampleBytes ? past / kDepthSampleBytes : past / kColorSampleBytes;  // constant divisors
       mask = k >= 64 ? 0 : mask & (~uint64_t{0} << k);
     }
   }

@@ -3,7 +3,6 @@
 #include <stdexcept>
 
 #include "alpha_ref.h"
-#include "bits.h"
 #include "depth.h"
 #include "hilbert.h"
 #include "method_kernels.h"
@@ -15,7 +14,7 @@ namespace ropsim {
 
 RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
     : header(h), cfg(c), traits(ropsim::traits(c.method)), spp(h.spp), hilbert_n(hilbert_side(h.width, h.height)),
-      tracker_bytes(ceil_div(uint32_t(h.spp + c.numerics.surface_id_bits), 8u)), a2c_prefix(a2c_prefix_table(h.spp)) {
+      tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)), a2c_prefix(a2c_prefix_table(h.spp)) {
   if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
@@ -51,7 +50,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
-  c_.depth_bytes_read += 4u * covered;  // binary32 depth
+  c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
   if constexpr (kT.coverage_select) {
     // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
@@ -165,8 +164,8 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   }
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
   c_.samples_written += n;
-  c_.depth_bytes_written += 4u * n;  // binary32 depth
-  c_.color_bytes_written += 6u * n;  // RGB binary16
+  c_.depth_bytes_written += kDepthSampleBytes * n;
+  c_.color_bytes_written += kColorSampleBytes * n;
   w.written = wrote;
   return examined;
 }

@@ -5,6 +5,7 @@
 
 #include "depth.h"
 #include "half.h"
+#include "numerics.h"
 
 namespace ropsim {
 
@@ -66,7 +67,7 @@ Image SampleStore::resolve() const {
 }
 
 size_t SampleStore::state_bytes() const {
-  const size_t per_tile = size_t(64) * header_.spp * (4 + 6) + (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
+  const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) + (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
   return tiles_.tiles() * per_tile + tiles_.directory_bytes();
 }
 
