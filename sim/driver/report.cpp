@@ -8,6 +8,8 @@
 #include <stdexcept>
 
 #include "image_io.h"
+#include "output_file.h"
+#include "version.h"
 
 namespace ropsim {
 
@@ -42,6 +44,7 @@ nlohmann::ordered_json numerics_to_json(const Numerics& n) {
 nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run) {
   nlohmann::ordered_json j;
   j["tool"] = "ropsim";
+  j["ropsim"] = {{"version", ropsim_version()}, {"commit", ropsim_commit()}};
   j["report_version"] = 1;
   j["command"] = ctx.command_line;
   j["fidelity"] = "functional";
@@ -97,16 +100,6 @@ std::string functional_summary(const ReportContext& ctx, const FunctionalRun& ru
   return s;
 }
 
-void write_text_file_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot create: " + std::strerror(errno));
-  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  ok = (std::fclose(f) == 0) && ok;
-  if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": write failed");
-  }
-}
+void write_text_file_atomic(const std::string& path, const std::string& text) { write_text_output(path, text); }
 
 }  // namespace ropsim
