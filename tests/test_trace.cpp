@@ -315,7 +315,8 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
     EXPECT_EQ(w.raw_bytes(), expect_raw) << "writer's raw byte count disagrees with fragment_record_bytes";
   }
   ASSERT_TRUE(fs::exists(path)) << "finish() did not create " << path;
-  EXPECT_FALSE(fs::exists(path + ".tmp")) << "finish() left " << path << ".tmp";
+  for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+    EXPECT_NE(e.path().filename().string()[0], '.') << "finish() left " << e.path();
 
   TraceReader r(path);
   const TraceHeader& g = r.header();
