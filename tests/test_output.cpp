@@ -490,4 +490,64 @@ TEST(OutputFile, UncommittedOutputLeavesNothingAndCommitReplaces) {
   EXPECT_TRUE(box.leftovers().empty());
 }
 
+TEST(OutputFile, ByNameAndThroughAPipeForLibraryWriters) {
+  Box box;
+  // The pipe's private folder goes to $TMPDIR: the box's, restored on any exit.
+  struct TmpdirGuard {
+    std::string old;
+    bool had;
+    explicit TmpdirGuard(const std::string& dir) : had(std::getenv("TMPDIR") != nullptr) {
+      if (had) old = std::getenv("TMPDIR");
+      ::setenv("TMPDIR", dir.c_str(), 1);
+    }
+    ~TmpdirGuard() { had ? (void)::setenv("TMPDIR", old.c_str(), 1) : (void)::unsetenv("TMPDIR"); }
+  } guard(box.tmp().string());
+  const auto write_by_name = [](const std::string& name, const std::string& text) {
+    FILE* f = std::fopen(name.c_str(), "w");  // as SystemC or an image library would
+    ASSERT_NE(f, nullptr) << name;
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+  };
+  for (bool pipe : {false, true}) {
+    SCOPED_TRACE(pipe ? "via_pipe" : "named");
+    ropsim::OutputFile::Options o;
+    o.named = true;
+    o.via_pipe = pipe;
+    o.suffix = ".vcd";
+    const std::string p = box.path(pipe ? "p.vcd" : "n.vcd");
+    {
+      ropsim::OutputFile f(p, o);
+      EXPECT_EQ(f.write_name().substr(f.write_name().size() - 4), ".vcd");
+      write_by_name(f.write_name(), "$enddefinitions $end\n#0\n");
+      f.commit();
+    }
+    EXPECT_EQ(slurp(p), "$enddefinitions $end\n#0\n");
+    {  // never opened by the library, then discarded: nothing left, no hang
+      ropsim::OutputFile f(box.path("never.vcd"), o);
+    }
+    EXPECT_FALSE(fs::exists(box.path("never.vcd")));
+    // In place: a FIFO target receives the bytes and stays a FIFO.
+    const std::string fifo = box.path(pipe ? "pf" : "nf");
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::string got;
+    std::thread reader([&] {
+      std::ifstream in(fifo, std::ios::binary);
+      std::ostringstream ss;
+      ss << in.rdbuf();
+      got = ss.str();
+    });
+    {
+      ropsim::OutputFile f(fifo, o);
+      EXPECT_TRUE(f.in_place());
+      write_by_name(f.write_name(), "in place");
+      f.commit();
+    }
+    reader.join();
+    EXPECT_EQ(got, "in place");
+    EXPECT_TRUE(is_fifo(fifo));
+  }
+  const auto left = box.leftovers();
+  EXPECT_TRUE(left.empty()) << left[0];
+}
+
 }  // namespace
