@@ -317,7 +317,8 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
     EXPECT_EQ(w.raw_bytes(), expect_raw) << "writer's raw byte count disagrees with fragment_record_bytes";
   }
   ASSERT_TRUE(fs::exists(path)) << "finish() did not create " << path;
-  EXPECT_FALSE(fs::exists(path + ".tmp")) << "finish() left " << path << ".tmp";
+  for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+    EXPECT_NE(e.path().filename().string()[0], '.') << "finish() left " << e.path();
 
   TraceReader r(path);
   const TraceHeader& g = r.header();
@@ -692,11 +693,17 @@ TEST(TraceWriterRefuses, InvalidFragmentsAndLeavesNoFile) {
         EXPECT_EQ(m.find('\n'), std::string::npos) << m;
       }
       EXPECT_EQ(w.fragments(), 2u) << "a refused fragment must not be counted";
-      EXPECT_TRUE(fs::exists(path + ".tmp")) << "the writer should be writing to PATH.tmp";
+      // The writer writes to a unique temporary file .refused.trace.XXXXXX.
+      int temps = 0;
+      for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+        temps += e.path().filename().string().rfind(".refused.trace.", 0) == 0;
+      EXPECT_EQ(temps, 1) << "the writer should be writing to one temporary file .refused.trace.XXXXXX";
+      EXPECT_FALSE(fs::exists(path)) << "the final name must not exist before finish()";
       // destroyed without finish()
     }
     EXPECT_FALSE(fs::exists(path)) << "a writer destroyed without finish() left " << path;
-    EXPECT_FALSE(fs::exists(path + ".tmp")) << "a writer destroyed without finish() left " << path << ".tmp";
+    for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+      EXPECT_NE(e.path().filename().string()[0], '.') << "a writer destroyed without finish() left " << e.path();
   }
 }
 

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "capture.h"
+#include "output_file.h"
 #include "scene_file.h"
 #ifdef ROPSIM_HAVE_OSMESA
 #include "mesa_capture.h"
@@ -72,8 +73,7 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
 #endif
   }
   if (o.out.empty()) throw CaptureError("capture: give -o TRACE");
-  std::filesystem::path p(o.out);
-  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+  ensure_parent_dir(o.out);
   CaptureStats st;
   {
     ProgressBar bar;
@@ -95,7 +95,7 @@ std::function<int()> add_capture_command(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "capture", "Rasterize a mesh scene file (OBJ / glTF meshes, camera, opacity; docs/capture.md) into a trace");
   sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
-  sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error)");
+  sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error; docs/outputs.md)");
   sub->add_option("--mesh-dir", o->mesh_dir,
                   "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
   sub->add_option("--spp", o->spp, "Override the scene's samples per pixel: 1, 2, 4, 8, 16, 32 or 64")

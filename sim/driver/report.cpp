@@ -9,6 +9,8 @@
 
 #include "image_io.h"
 #include "report_fields.h"
+#include "output_file.h"
+#include "version.h"
 
 namespace ropsim {
 
@@ -34,6 +36,9 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   nlohmann::ordered_json j;
   Fields r(j, sink);
   r.put("tool", "ropsim", "-", "`ropsim`");
+  Fields v = r.obj("ropsim");
+  v.put("version", ropsim_version(), "-", "the ropsim version that wrote the report");
+  v.put("commit", ropsim_commit(), "-", "the source commit it was built from (git describe; \"unknown\" outside git)");
   r.put("report_version", 1, "-", "the report format's version");
   r.put("command", ctx.command_line, "-", "the command line");
   r.put("fidelity", "functional", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
@@ -92,16 +97,6 @@ std::string functional_summary(const ReportContext& ctx, const FunctionalRun& ru
   return s;
 }
 
-void write_text_file_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) throw std::runtime_error(path + ": cannot create: " + std::strerror(errno));
-  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  ok = (std::fclose(f) == 0) && ok;
-  if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": write failed");
-  }
-}
+void write_text_file_atomic(const std::string& path, const std::string& text) { write_text_output(path, text); }
 
 }  // namespace ropsim

@@ -2,12 +2,15 @@
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <vector>
+
+#include "output_file.h"
 
 namespace ropsim {
 
@@ -37,36 +40,45 @@ float linear_to_srgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
-void write_image(const Image& img, const std::string& path) {
+std::vector<unsigned char> encode_image(const Image& img, const std::string& path) {
   const std::string ext = extension_of(path);
   if (ext != "exr" && ext != "png")
     throw ImageError(path + ": unsupported image extension '." + ext + "' (use .exr or .png)");
   auto out = OIIO::ImageOutput::create(path);
   if (!out) throw ImageError(path + ": cannot create an image writer: " + OIIO::geterror());
-  const std::string tmp = path + ".tmp";
-  bool ok;
+  if (!out->supports("ioproxy")) throw ImageError(path + ": this OpenImageIO cannot encode ." + ext + " into memory");
+  const OIIO::TypeDesc type = ext == "exr" ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+  OIIO::ImageSpec spec(int(img.width), int(img.height), 3, type);
+  std::vector<uint8_t> px;
+  const void* data = img.rgb.data();
   if (ext == "exr") {
-    OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::FLOAT);
     spec.attribute("oiio:ColorSpace", "Linear");
     spec.attribute("compression", "zip");
-    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::FLOAT, img.rgb.data());
   } else {
-    OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
-    std::vector<uint8_t> px(img.rgb.size());
+    px.resize(img.rgb.size());
     for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(std::lround(linear_to_srgb(img.rgb[i]) * 255.0f));
-    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
+    data = px.data();
   }
+  // No wall-clock time in the metadata, so the same run gives the same bytes:
+  // without a DateTime, OpenImageIO's EXR writer stores the current time as
+  // capDate; an empty DateTime is stored as an empty capDate.
+  spec.attribute("DateTime", "");
+  OIIO::Filesystem::IOVecOutput mem;
+  if (!out->set_ioproxy(&mem)) throw ImageError(path + ": cannot encode into memory: " + out->geterror());
+  bool ok = out->open(path, spec) && out->write_image(type, data);
   ok = out->close() && ok;
-  if (!ok) {
-    std::string err = out->geterror();
-    std::remove(tmp.c_str());
-    throw ImageError(path + ": write failed: " + err);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw ImageError(path + ": cannot rename the temporary file");
-  }
+  if (!ok || mem.buffer().empty())
+    throw ImageError(path + ": cannot encode the image: " + (ok ? std::string("no bytes") : out->geterror()));
+  return std::move(mem.buffer());
+}
+
+void write_image(const Image& img, const std::string& path) {
+  const std::vector<unsigned char> bytes = encode_image(img, path);
+  // Every write checked (OpenImageIO's PNG writer ignores write errors).
+  OutputFile file(path);
+  file.write(bytes.data(), bytes.size());
+  file.commit();
 }
 
 Image read_image(const std::string& path) {

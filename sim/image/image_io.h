@@ -1,8 +1,10 @@
-// Image output through OpenImageIO: linear EXR and sRGB PNG, written to a
-// temporary name and renamed, so a failure leaves no partial file.
+// Image output through OpenImageIO: linear EXR and sRGB PNG, encoded in
+// memory and written through OutputFile (util/output_file.h), so a failure
+// (a full disk included) is an error and leaves no partial file.
 #pragma once
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "image.h"
 
@@ -13,7 +15,12 @@ class ImageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Writes img by extension: .exr (linear binary32 RGB) or .png (sRGB 8-bit).
+/// Encodes img by the extension of path (.exr: linear binary32 RGB, zip;
+/// .png: sRGB 8-bit) into memory, with no timestamp in its metadata (the same
+/// image gives the same bytes). Throws ImageError.
+std::vector<unsigned char> encode_image(const Image& img, const std::string& path);
+
+/// encode_image, then written through OutputFile (UserError on a write error).
 void write_image(const Image& img, const std::string& path);
 
 /// Reads any OpenImageIO-readable image as float RGB, values as stored

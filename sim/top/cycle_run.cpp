@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "output_file.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
 
@@ -66,6 +67,10 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   validate_hw_config(hw);
   const auto t0 = std::chrono::steady_clock::now();
   CycleRun run;
+  // Declared before top: top's destructor closes SystemC's file, which the
+  // writer waits for. SystemC ignores write errors, so the VCD goes through a
+  // FIFO whose bytes OutputFile writes with every write checked.
+  std::unique_ptr<OutputFile> vcd;
   FreshSimContext sim;
   std::unique_ptr<FragmentSource> input = open_fragments(in);
   run.header = input->header();
@@ -74,17 +79,19 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   top->retirement().hook = opt.retire_hook;
   const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
   top->set_decoupled(decoupled);
-  std::string vcd_tmp;
   if (!opt.vcd_path.empty()) {
-    vcd_tmp = opt.vcd_path + ".tmp";
-    top->trace_to(vcd_tmp, opt.vcd_first, opt.vcd_last);
+    OutputFile::Options vo;
+    vo.named = vo.via_pipe = true;
+    vo.suffix = ".vcd";  // SystemC appends it to the name it is given
+    vcd = std::make_unique<OutputFile>(opt.vcd_path, vo);
+    const std::string& name = vcd->write_name();
+    top->trace_to(name.substr(0, name.size() - vo.suffix.size()), opt.vcd_first, opt.vcd_last);
   }
   const auto t1 = std::chrono::steady_clock::now();
   try {
     top->run();
   } catch (...) {
-    top.reset();
-    if (!vcd_tmp.empty()) std::filesystem::remove(vcd_tmp + ".vcd");
+    top.reset();  // then vcd's destructor discards the waveform
     throw;
   }
   run.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
@@ -121,7 +128,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   run.state_bytes = rop.store().state_bytes();
   run.state = std::make_unique<SampleStore>(std::move(rop.store()));
   top.reset();  // closes the VCD file
-  if (!vcd_tmp.empty()) std::filesystem::rename(vcd_tmp + ".vcd", opt.vcd_path);
+  if (vcd) vcd->commit();
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;
 }

@@ -75,6 +75,7 @@ void fragment_sample_depths(const TraceHeader& h, const Fragment& f, float* z_ou
 
 class ByteSource;
 class ByteSink;
+class OutputFile;
 
 /// Streams a trace file. Every record is validated as it is read.
 class TraceReader {
@@ -105,9 +106,11 @@ class TraceReader {
   bool ended_ = false;
 };
 
-/// Writes a trace to PATH.tmp and renames it to PATH on finish(); a writer
-/// destroyed without finish() removes the temporary file, so a failed run
-/// leaves no partial output.
+/// Writes a trace through an OutputFile (util/output_file.h): a unique
+/// temporary file renamed onto PATH on finish() after every write succeeded
+/// (or a FIFO / device written in place). A writer destroyed without finish()
+/// removes the temporary file, so a failed run leaves no partial output. A
+/// write error (full disk, file size limit) throws UserError "PATH: reason".
 class TraceWriter {
  public:
   TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level = 3);
@@ -122,10 +125,10 @@ class TraceWriter {
   uint64_t raw_bytes() const { return raw_bytes_; }
 
  private:
-  std::string path_, tmp_path_;
+  std::string path_;
   TraceHeader header_;
+  std::unique_ptr<OutputFile> out_;
   std::unique_ptr<ByteSink> sink_;
-  FILE* file_ = nullptr;
   uint64_t count_ = 0;
   uint64_t raw_bytes_ = 0;
   bool finished_ = false;

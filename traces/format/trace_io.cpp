@@ -12,6 +12,9 @@
 #include "trace.h"
 #include "utf8.h"
 
+#include "errors.h"
+#include "output_file.h"
+
 namespace ropsim {
 
 const char* to_string(DepthMode m) { return m == DepthMode::kPlane ? "plane" : "per-sample"; }
@@ -141,7 +144,7 @@ class FileSink : public ByteSink {
  public:
   FileSink(FILE* f, std::string path) : f_(f), path_(std::move(path)) {}
   void write(const void* src, size_t n) override {
-    if (std::fwrite(src, 1, n, f_) != n) throw TraceError(path_ + ": write failed: " + std::strerror(errno));
+    if (n && std::fwrite(src, 1, n, f_) != n) throw UserError(path_ + ": " + std::strerror(errno ? errno : EIO));
   }
   void close() override {}
 
@@ -376,12 +379,11 @@ bool TraceReader::next(Fragment& f) {
 // ---------------------------------------------------------------- writer
 
 TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level)
-    : path_(path), tmp_path_(path + ".tmp"), header_(header) {
+    : path_(path), header_(header) {
   std::string err = validate_header(header_);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
-  FILE* f = std::fopen(tmp_path_.c_str(), "wb");
-  if (!f) throw TraceError(path + ": cannot create: " + std::strerror(errno));
-  file_ = f;
+  out_ = std::make_unique<OutputFile>(path);
+  FILE* f = out_->stream();
   uint8_t fixed[kFixedHeaderBytes] = {};
   std::memcpy(fixed, kTraceMagic, 8);
   put_u16(fixed + 8, kTraceVersion);
@@ -394,33 +396,23 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header_.clear_color[i]);
   put_f32(fixed + 36, header_.clear_depth);
   put_u16(fixed + 40, uint16_t(header_.scene_name.size()));
-  try {  // a failure here must not leak the file or leave PATH.tmp
-    FileSink raw(f, path);
-    raw.write(fixed, sizeof fixed);
-    for (int i = 0; i < header_.spp; ++i) {
-      uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
-      raw.write(p, 2);
-    }
-    raw.write(header_.scene_name.data(), header_.scene_name.size());
-    if (header_.compression == Compression::kZstd)
-      sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
-    else
-      sink_ = std::make_unique<FileSink>(f, path);
-  } catch (...) {
-    sink_.reset();
-    std::fclose(file_);
-    file_ = nullptr;
-    std::remove(tmp_path_.c_str());
-    throw;
+  // A failure here destroys out_, which removes the temporary file.
+  FileSink raw(f, path);
+  raw.write(fixed, sizeof fixed);
+  for (int i = 0; i < header_.spp; ++i) {
+    uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
+    raw.write(p, 2);
   }
+  raw.write(header_.scene_name.data(), header_.scene_name.size());
+  if (header_.compression == Compression::kZstd)
+    sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
+  else
+    sink_ = std::make_unique<FileSink>(f, path);
 }
 
 TraceWriter::~TraceWriter() {
-  if (!finished_) {
-    sink_.reset();
-    if (file_) std::fclose(file_);
-    std::remove(tmp_path_.c_str());
-  }
+  sink_.reset();
+  out_.reset();  // discards the temporary file unless finish() committed it
 }
 
 void TraceWriter::write(const Fragment& f) {
@@ -463,13 +455,7 @@ void TraceWriter::finish() {
   raw_bytes_ += 9;
   sink_->close();
   sink_.reset();
-  FILE* f = file_;
-  file_ = nullptr;
-  if (std::fclose(f) != 0) { std::remove(tmp_path_.c_str()); throw TraceError(path_ + ": write failed"); }
-  if (std::rename(tmp_path_.c_str(), path_.c_str()) != 0) {
-    std::remove(tmp_path_.c_str());
-    throw TraceError(path_ + ": cannot rename the temporary file: " + std::strerror(errno));
-  }
+  out_->commit();  // flush, fsync, close, rename: UserError on any failure
   finished_ = true;
 }
 

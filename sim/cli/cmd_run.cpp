@@ -1,0 +1,211 @@
+// `ropsim run`: replay a trace or a built-in scene through the functional or
+// the cycle model; write images, a JSON report (and a VCD waveform).
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+
+#include "cli_common.h"
+#include "cycle_report.h"
+#include "cycle_run.h"
+#include "driver.h"
+#include "hw_config.h"
+#include "image_io.h"
+#include "report.h"
+
+namespace ropsim {
+
+namespace {
+
+struct RunOpts {
+  std::string trace, scene = "cloth", method = "lk", fidelity = "functional", report;
+  std::string hw, vcd, vcd_window;
+  std::vector<std::string> hw_sets;
+  uint32_t repeat = 1;
+  std::vector<std::string> outs;
+  int spp = 16;
+  uint32_t width = 0, height = 0;
+  uint64_t seed = 1, scene_seed = 1;
+  Numerics num;
+  bool vs_reference = false, quiet = false, lockstep = false;
+};
+
+/// Writes the images and the report, all or none: every output is staged in
+/// its own temporary file first, then all are committed (renamed). A failure
+/// while staging leaves nothing; main removes outputs this run created (e.g.
+/// a waveform) when it fails. report_text is called after the images are
+/// staged, so it can list them. A report to "-" (stdout) is written last.
+template <class ReportText>
+void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std::string>& outs,
+                   const std::string& report, ReportText report_text) {
+  std::vector<std::unique_ptr<OutputFile>> staged;
+  for (const auto& p : outs) {
+    const std::vector<unsigned char> bytes = encode_image(image, p);
+    ensure_parent_dir(p);
+    staged.push_back(std::make_unique<OutputFile>(p));
+    staged.back()->write(bytes.data(), bytes.size());
+    ctx.outputs.push_back(p);
+  }
+  std::unique_ptr<OutputFile> rep;
+  if (!report.empty()) {
+    ensure_parent_dir(report);
+    OutputFile::Options o;
+    o.allow_stdout = true;
+    rep = std::make_unique<OutputFile>(report, o);
+    if (!rep->to_stdout()) ctx.outputs.push_back(report);
+    const std::string text = report_text() + "\n";
+    if (!rep->to_stdout()) rep->write(text);
+    for (auto& f : staged) f->commit();
+    if (rep->to_stdout()) rep->write(text);
+    rep->commit();
+    return;
+  }
+  for (auto& f : staged) f->commit();
+}
+
+int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, uint64_t vcd_first,
+                  uint64_t vcd_last, const std::vector<std::string>& outs, const std::string& report,
+                  const std::string& cmdline) {
+  CycleOptions opt;
+  opt.vcd_first = vcd_first;
+  opt.vcd_last = vcd_last;
+  opt.lockstep = o.lockstep;
+  const bool tty = !o.quiet && isatty(fileno(stderr));
+  const auto t0 = std::chrono::steady_clock::now();
+  if (tty)
+    opt.progress = [t0](uint64_t n) {
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n, s > 0 ? n / s / 1e6 : 0.0);
+    };
+  if (!o.vcd.empty()) {
+    ensure_parent_dir(o.vcd);
+    opt.vcd_path = o.vcd;
+  }
+  std::optional<Image> reference;
+  if (o.vs_reference) {
+    GoldenConfig rc = cfg;
+    rc.method = Method::kReference;
+    reference = run_functional(in, rc).image;
+  }
+  CycleRun run = run_cycle(in, cfg, hw, opt);
+  if (tty) std::fputs("\n", stderr);
+  ReportContext ctx{cmdline, in, cfg, {}};
+  if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
+  write_outputs(ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
+  return 0;
+}
+
+int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
+  const bool cycle = o.fidelity == "cycle";
+  if (!cycle)
+    for (const char* f : {"--hw", "--hw-set", "--vcd", "--vcd-window", "--lockstep"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
+  if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
+  HwConfig hw;
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};
+  if (cycle) {
+    hw = resolve_hw_config(o.hw, o.hw_sets);
+    if (!o.vcd_window.empty()) {
+      const auto colon = o.vcd_window.find(':');
+      char* end = nullptr;
+      bool ok = colon != std::string::npos && colon > 0 && colon + 1 < o.vcd_window.size();
+      if (ok) {
+        vcd_first = std::strtoull(o.vcd_window.c_str(), &end, 10);
+        ok = end == o.vcd_window.c_str() + colon;
+      }
+      if (ok) {
+        vcd_last = std::strtoull(o.vcd_window.c_str() + colon + 1, &end, 10);
+        ok = *end == '\0' && vcd_first <= vcd_last && o.vcd_window[0] != '-' && o.vcd_window[colon + 1] != '-';
+      }
+      if (!ok) throw UserError("--vcd-window " + o.vcd_window + ": expected FIRST:LAST cycles with FIRST <= LAST");
+    }
+  }
+  if (o.vcd == "-") throw UserError("--vcd -: the waveform cannot go to standard output; give a file name");
+  InputSpec in;
+  in.repeat = o.repeat;
+  if (!o.trace.empty()) {
+    in.trace_path = o.trace;
+    for (const char* f : {"--scene", "--spp", "--width", "--height", "--scene-seed"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --scene, not --trace");
+  } else {
+    in.scene.name = o.scene;
+    in.scene.spp = o.spp;
+    in.scene.width = o.width;
+    in.scene.height = o.height;
+    in.scene.seed = o.scene_seed;
+  }
+  GoldenConfig cfg;
+  parse_method(o.method, cfg.method);
+  cfg.numerics = o.num;
+  cfg.seed = o.seed;
+  std::vector<std::string> outs = o.outs;
+  std::string report = o.report;
+  if (outs.empty() && report.empty()) {
+    const std::string stem = in.from_trace() ? std::filesystem::path(o.trace).stem().string() : o.scene;
+    // A trace's spp is in its header, which is only read by the run: name by stem.
+    std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
+                                       : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
+    if (cycle) base += "-cycle";
+    outs = {base + ".png", base + ".exr"};
+    report = base + ".json";
+  }
+  for (const auto& p : outs) {  // fail before the run, not after
+    auto ext = std::filesystem::path(p).extension().string();
+    if (ext != ".png" && ext != ".exr") throw UserError("--out " + p + ": use a .png or .exr file name");
+  }
+  if (cycle) {
+    if (cfg.method == Method::kReference)
+      throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
+    return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
+  }
+  FunctionalRun run = run_functional(in, cfg, o.vs_reference);
+  ReportContext ctx{cmdline, in, cfg, {}};
+  write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(functional_summary(ctx, run).c_str(), stdout);
+  return 0;
+}
+
+}  // namespace
+
+VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
+  auto ro = std::make_shared<RunOpts>();
+  CLI::App* run = app.add_subcommand("run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
+  auto* opt_trace = run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
+  run->add_option("--scene", ro->scene, "Built-in scene (default cloth): " + join(scene_names()))
+      ->check(CLI::IsMember(scene_names()))->excludes(opt_trace);
+  run->add_option("--method", ro->method, "Method: " + join(method_names()) + " (default lk)")->check(CLI::IsMember(method_names()));
+  run->add_option("--spp", ro->spp, "Samples per pixel for --scene: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
+      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
+  run->add_option("--width", ro->width, "Scene width in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--height", ro->height, "Scene height in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
+  run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
+  run->add_option("--hash-bits", ro->num.hash_bits, "Alpha-reference hash datapath width, bits (8..32, default 32)")->check(CLI::Range(8, 32));
+  run->add_option("--alpha-bits", ro->num.alpha_bits, "Opacity fixed-point precision, bits (1..32, default 32)")->check(CLI::Range(1, 32));
+  run->add_option("--surface-id-bits", ro->num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")->check(CLI::Range(1, 32));
+  run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
+  run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
+  run->add_option("--fidelity", ro->fidelity,
+                  "functional (the golden model, default) or cycle (the cycle-approximate SystemC pipeline)")
+      ->check(CLI::IsMember({"functional", "cycle"}));
+  run->add_option("--hw", ro->hw, "cycle: hardware config file (TOML, docs/config.md; default: built-in defaults)")
+      ->check(CLI::ExistingFile);
+  run->add_option("--hw-set", ro->hw_sets, "cycle: override one parameter, section.key=value; repeatable");
+  run->add_option("--vcd", ro->vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
+  run->add_option("--vcd-window", ro->vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
+  run->add_flag("--lockstep", ro->lockstep,
+                "cycle: run every unit in lockstep with SystemC time, none decoupled (same results, slower; "
+                "for checking the decoupling)");
+  run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
+      ->check(CLI::Range(1u, 1000u));
+  run->add_flag("--vs-reference", ro->vs_reference, "Also run the A-buffer reference on the same stream and report the RMSE");
+  run->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
+}
+
+}  // namespace ropsim

@@ -1,0 +1,105 @@
+// `ropsim trace info|validate|dump FILE`: inspect a trace file.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <memory>
+
+#include "cli_common.h"
+#include "tile_map.h"
+#include "trace.h"
+
+namespace ropsim {
+
+namespace {
+
+struct TraceOpts {
+  std::string path, out = "-";
+  uint64_t dump_limit = UINT64_MAX;
+};
+
+int cmd_trace_info(const std::string& path, bool validate_only) {
+  TraceReader r(path);
+  Fragment f;
+  uint64_t covered = 0;
+  uint32_t max_draw = 0;
+  // Depth complexity: fragments per touched pixel, in sparse 8x8 tiles.
+  struct Counts { std::array<uint32_t, 64> n{}; };
+  TileMap<Counts> counts(r.header().width, r.header().height);
+  while (r.next(f)) {
+    covered += __builtin_popcountll(f.coverage);
+    max_draw = std::max(max_draw, f.draw_id);
+    if (!validate_only)
+      ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); }).n[(f.y & 7u) * 8 + (f.x & 7u)];
+  }
+  const uint64_t n = r.records_read();
+  if (validate_only) {
+    fmt::print("{}: valid, {} fragments\n", path, n);
+    return 0;
+  }
+  const auto& h = r.header();
+  const auto file_bytes = std::filesystem::file_size(path);
+  fmt::print("{}\n  scene {}  {}x{}  {} spp\n  depth {}  colour {}  compression {}\n", path, h.scene_name, h.width,
+             h.height, h.spp, to_string(h.depth_mode), to_string(h.color_format), to_string(h.compression));
+  fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered,
+             n ? double(covered) / n : 0.0, n ? max_draw + 1 : 0);
+  fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
+             r.payload_bytes(), n ? double(r.payload_bytes()) / n : 0.0, n ? double(file_bytes) / n : 0.0);
+  std::array<uint64_t, 17> hist{};
+  uint64_t touched = 0, max_n = 0;
+  counts.for_each([&](uint32_t, uint32_t, const Counts& c) {
+    for (uint32_t k : c.n) {
+      if (!k) continue;
+      ++touched;
+      ++hist[std::min<uint32_t>(k, 16)];
+      max_n = std::max<uint64_t>(max_n, k);
+    }
+  });
+  fmt::print("  pixels touched {} ({:.1f}% of the screen), fragments per touched pixel: mean {:.2f}, max {}\n", touched,
+             100.0 * touched / (double(h.width) * h.height), touched ? double(n) / touched : 0.0, max_n);
+  std::string hs;
+  for (int k = 1; k <= 16; ++k)
+    if (hist[k]) hs += fmt::format(" {}{}:{:.1f}%", k, k == 16 ? "+" : "", 100.0 * hist[k] / touched);
+  fmt::print("  depth complexity histogram:{}\n", hs);
+  return 0;
+}
+
+/// JSON lines to `out` ("-": standard output) through OutputFile.
+int cmd_trace_dump(const std::string& path, const std::string& out_path, uint64_t limit) {
+  TraceReader r(path);
+  ensure_parent_dir(out_path);
+  OutputFile::Options o;
+  o.allow_stdout = true;
+  OutputFile out(out_path, o);
+  out.write(header_to_json(r.header()) + '\n');
+  Fragment f;
+  uint64_t i = 0;
+  while (i < limit && r.next(f)) out.write(fragment_to_json(r.header(), f, i++) + '\n');
+  out.commit();
+  return 0;
+}
+
+}  // namespace
+
+VerbRunner add_trace_command(CLI::App& app) {
+  auto o = std::make_shared<TraceOpts>();
+  CLI::App* trc = app.add_subcommand("trace", "Inspect a trace file");
+  trc->require_subcommand(1);
+  CLI::App* tinfo = trc->add_subcommand("info", "Header and statistics (streams the whole trace)");
+  tinfo->add_option("FILE", o->path, "Trace file")->required();
+  CLI::App* tval = trc->add_subcommand("validate", "Check every record; exit 1 naming the first bad one");
+  tval->add_option("FILE", o->path, "Trace file")->required();
+  CLI::App* tdump = trc->add_subcommand("dump", "Header and fragments as JSON lines");
+  tdump->add_option("FILE", o->path, "Trace file")->required();
+  tdump->add_option("--limit", o->dump_limit, "Dump at most this many fragments");
+  tdump->add_option("-o,--output", o->out, "File to write (default -: standard output)");
+  return [o, tinfo, tval, tdump]() {
+    if (tinfo->parsed()) return cmd_trace_info(o->path, false);
+    if (tval->parsed()) return cmd_trace_info(o->path, true);
+    if (tdump->parsed()) return cmd_trace_dump(o->path, o->out, o->dump_limit);
+    return -1;
+  };
+}
+
+}  // namespace ropsim

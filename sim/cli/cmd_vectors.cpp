@@ -1,0 +1,42 @@
+// `ropsim vectors UNIT -o CSV`: golden test vectors for RTL verification.
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "cli_common.h"
+#include "vectors.h"
+
+namespace ropsim {
+
+namespace {
+
+struct VectorOpts {
+  std::string unit, out;
+  uint64_t count = 1000, seed = 1;
+  Numerics num;
+};
+
+int cmd_vectors(const VectorOpts& o) {
+  if (const char* err = validate(o.num)) throw UserError(err);
+  std::string csv = make_vectors(o.unit, o.count, o.seed, o.num);
+  ensure_parent_dir(o.out);
+  write_text_output(o.out, csv, /*allow_stdout=*/true);
+  if (o.out != "-") fmt::print("wrote {}: {} vectors for {}\n", o.out, o.count, o.unit);
+  return 0;
+}
+
+}  // namespace
+
+VerbRunner add_vectors_command(CLI::App& app) {
+  auto o = std::make_shared<VectorOpts>();
+  CLI::App* vec = app.add_subcommand("vectors", "Golden test vectors (CSV) for one unit, for RTL verification");
+  vec->add_option("UNIT", o->unit, "Unit: " + join(vector_units()))->required()->check(CLI::IsMember(vector_units()));
+  vec->add_option("--count", o->count, "Number of vectors (default 1000)")->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
+  vec->add_option("-o,--output", o->out, "CSV file to write (- for standard output)")->required();
+  vec->add_option("--seed", o->seed, "Seed of the random cases (default 1)");
+  vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
+  vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker: surface id width (1..32)")->check(CLI::Range(1, 32));
+  return [o, vec]() { return vec->parsed() ? cmd_vectors(*o) : -1; };
+}
+
+}  // namespace ropsim

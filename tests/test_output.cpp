@@ -1,0 +1,553 @@
+// The output writer (util/output_file.h) and the exit statuses (README "Exit
+// status"), tested through the real ropsim binary run with fork/exec in a
+// private folder, with a private $TMPDIR. Nothing here writes to /dev/null
+// through the writer (a failing test could replace it): device-like targets
+// are FIFOs made by the test.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "errors.h"
+#include "image_io.h"
+#include "output_file.h"
+#include "trace.h"
+
+#ifndef ROPSIM_BINARY
+#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
+#endif
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+std::vector<std::string> lines_of(const std::string& s) {
+  std::vector<std::string> v;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+struct Result {
+  int code = -1;    ///< exit status; -1 when killed by a signal
+  int signal = 0;   ///< the signal that killed it
+  std::string out, err, cmd;
+  std::string describe() const {
+    return cmd + "\n" + (signal ? "killed by signal " + std::to_string(signal) : "exit " + std::to_string(code)) +
+           "\nstdout:\n" + out.substr(0, 2000) + "stderr:\n" + err.substr(0, 2000);
+  }
+};
+
+struct RunOptions {
+  long fsize_limit = -1;  ///< RLIMIT_FSIZE in bytes for the child
+  std::vector<std::string> env;
+};
+
+/// A private folder: work/ (ropsim's working directory: only what it writes),
+/// io/ (captured stdout and stderr), tmp/ (ropsim's $TMPDIR).
+class Box {
+ public:
+  Box() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("ropsim-test-output-" + std::to_string(::getpid()) + "-" + (info ? std::string(info->name()) : "x"));
+    fs::remove_all(root_);
+    for (const char* d : {"work", "io", "tmp"}) fs::create_directories(root_ / d);
+  }
+  ~Box() {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+  fs::path work() const { return root_ / "work"; }
+  fs::path tmp() const { return root_ / "tmp"; }
+  std::string path(const std::string& f) const { return (work() / f).string(); }
+
+  using Options = RunOptions;
+
+  /// Starts ropsim ARGS in work/; stdout and stderr go to io/<tag>.out/.err.
+  pid_t start(const std::vector<std::string>& args, const std::string& tag, const Options& o = Options()) const {
+    std::vector<std::string> argv_s = {ROPSIM_BINARY};
+    argv_s.insert(argv_s.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : argv_s) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    std::vector<std::string> env_s;
+    for (char** e = environ; *e; ++e)
+      if (std::strncmp(*e, "TMPDIR=", 7) != 0 && std::strncmp(*e, "ROPSIM_TEST_INTERNAL_ERROR=", 27) != 0)
+        env_s.push_back(*e);
+    env_s.push_back("TMPDIR=" + tmp().string());
+    env_s.insert(env_s.end(), o.env.begin(), o.env.end());
+    std::vector<char*> envp;
+    for (auto& e : env_s) envp.push_back(e.data());
+    envp.push_back(nullptr);
+    const std::string wd = work().string(), out = (root_ / "io" / (tag + ".out")).string(),
+                      err = (root_ / "io" / (tag + ".err")).string();
+    const pid_t pid = ::fork();
+    if (pid == 0) {  // only async-signal-safe calls from here
+      if (::chdir(wd.c_str()) != 0) ::_exit(126);
+      const int in = ::open("/dev/null", O_RDONLY);
+      const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (in < 0 || fo < 0 || fe < 0) ::_exit(126);
+      ::dup2(in, 0);
+      ::dup2(fo, 1);
+      ::dup2(fe, 2);
+      if (o.fsize_limit >= 0) {
+        struct rlimit rl;
+        rl.rlim_cur = rl.rlim_max = rlim_t(o.fsize_limit);
+        ::setrlimit(RLIMIT_FSIZE, &rl);
+      }
+      ::execve(argv[0], argv.data(), envp.data());
+      ::_exit(127);
+    }
+    return pid;
+  }
+
+  Result wait(pid_t pid, const std::string& tag, const std::vector<std::string>& args) const {
+    Result r;
+    int st = 0;
+    while (::waitpid(pid, &st, 0) < 0 && errno == EINTR) {
+    }
+    if (WIFEXITED(st)) r.code = WEXITSTATUS(st);
+    if (WIFSIGNALED(st)) r.signal = WTERMSIG(st);
+    r.out = slurp(root_ / "io" / (tag + ".out"));
+    r.err = slurp(root_ / "io" / (tag + ".err"));
+    r.cmd = "ropsim";
+    for (const auto& a : args) r.cmd += " " + a;
+    return r;
+  }
+
+  Result run(const std::vector<std::string>& args, const Options& o = Options()) const {
+    return wait(start(args, "run", o), "run", args);
+  }
+
+  /// Names in work/ and tmp/ that look like the writer's temporary files.
+  std::vector<std::string> leftovers() const {
+    std::vector<std::string> v;
+    for (const auto& e : fs::recursive_directory_iterator(work()))
+      if (e.path().filename().string()[0] == '.') v.push_back(e.path().string());
+    for (const auto& e : fs::directory_iterator(tmp())) v.push_back(e.path().string());
+    return v;
+  }
+
+ private:
+  fs::path root_;
+};
+
+const std::vector<std::string> kSmall = {"--width", "64", "--height", "64", "--spp", "4"};
+
+std::vector<std::string> cat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+/// "" when path is a complete, valid trace; else the reader's message.
+std::string trace_problem(const std::string& path) {
+  try {
+    ropsim::TraceReader r(path);
+    ropsim::Fragment f;
+    while (r.next(f)) {
+    }
+    if (r.records_read() == 0) return "no records";
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string json_problem(const std::string& text) {
+  try {
+    auto j = nlohmann::json::parse(text);
+    if (!j.contains("counters")) return "no counters";
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string image_problem(const std::string& path) {
+  try {
+    ropsim::Image img = ropsim::read_image(path);
+    if (img.width != 64 || img.height != 64) return "wrong size";
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+bool is_fifo(const std::string& p) {
+  struct stat st;
+  return ::lstat(p.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+}
+
+// ------------------------------------------------------------ targets
+
+TEST(Output, FifoTargetReceivesTheReportAndStaysAFifo) {
+  Box box;
+  const std::string fifo = box.path("report.json");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  std::string got;
+  std::thread reader([&] {
+    const int fd = ::open(fifo.c_str(), O_RDONLY);
+    if (fd < 0) return;
+    char buf[4096];
+    for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) got.append(buf, size_t(n));
+    ::close(fd);
+  });
+  const auto args = cat({"run", "--scene", "cloth", "--report", "report.json", "--quiet"}, kSmall);
+  const Result r = box.run(args);
+  // Unblock the reader if ropsim never opened the FIFO.
+  const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+  if (fd >= 0) ::close(fd);
+  reader.join();
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_TRUE(is_fifo(fifo)) << "the FIFO was replaced by a regular file";
+  EXPECT_EQ(json_problem(got), "") << "the FIFO's reader got:\n" << got.substr(0, 500);
+  EXPECT_TRUE(box.leftovers().empty()) << box.leftovers()[0];
+}
+
+TEST(Output, SymlinkTargetKeepsTheLinkAndGetsNewContents) {
+  Box box;
+  fs::create_directories(box.work() / "real");
+  std::ofstream(box.path("real/r.json")) << "old";
+  std::ofstream(box.path("real/t.trace")) << "old";
+  fs::create_symlink("real/r.json", box.path("link.json"));  // relative links,
+  fs::create_symlink("link.json", box.path("chain.json"));   // and a chain
+  fs::create_symlink(box.path("real/t.trace"), box.path("abs.trace"));  // an absolute one
+  const Result r = box.run(cat({"run", "--scene", "cloth", "--report", "chain.json", "--quiet"}, kSmall));
+  EXPECT_EQ(r.code, 0) << r.describe();
+  const Result s = box.run(cat({"scene", "cloth", "-o", "abs.trace"}, kSmall));
+  EXPECT_EQ(s.code, 0) << s.describe();
+  EXPECT_TRUE(fs::is_symlink(box.path("chain.json")));
+  EXPECT_TRUE(fs::is_symlink(box.path("link.json")));
+  EXPECT_TRUE(fs::is_symlink(box.path("abs.trace")));
+  EXPECT_EQ(fs::read_symlink(box.path("link.json")), "real/r.json");
+  EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(box.path("real/r.json"))));
+  EXPECT_EQ(json_problem(slurp(box.path("real/r.json"))), "") << "the link's target did not get the report";
+  EXPECT_EQ(trace_problem(box.path("real/t.trace")), "") << "the link's target did not get the trace";
+  EXPECT_TRUE(box.leftovers().empty()) << box.leftovers()[0];
+}
+
+TEST(Output, DashWritesTheReportAndTheDumpToStandardOutput) {
+  Box box;
+  const Result r = box.run(cat({"run", "--scene", "cloth", "--report", "-", "--out", "a.png"}, kSmall));
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(json_problem(r.out), "") << "stdout is not the report alone:\n" << r.out.substr(0, 500);
+  const auto j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded());
+  // Every report carries the version and the source commit.
+  EXPECT_TRUE(j.contains("ropsim") && j["ropsim"]["version"].is_string() && j["ropsim"]["commit"].is_string() &&
+              !j["ropsim"]["commit"].get<std::string>().empty())
+      << j.dump().substr(0, 300);
+  EXPECT_FALSE(fs::exists(box.path("-"))) << "a file named '-' was written";
+  EXPECT_EQ(image_problem(box.path("a.png")), "");
+  ASSERT_EQ(box.run(cat({"scene", "cloth", "-o", "s.trace"}, kSmall)).code, 0);
+  for (const auto& args : std::vector<std::vector<std::string>>{{"trace", "dump", "s.trace", "--limit", "3"},
+                                                                {"trace", "dump", "s.trace", "--limit", "3", "-o", "-"}}) {
+    const Result d = box.run(args);
+    EXPECT_EQ(d.code, 0) << d.describe();
+    EXPECT_EQ(lines_of(d.out).size(), 4u) << "header + 3 fragments expected\n" << d.describe();
+  }
+  EXPECT_FALSE(fs::exists(box.path("-")));
+}
+
+// ------------------------------------------------------------ concurrency
+
+TEST(Output, ConcurrentRunsOnOnePathNeverLeaveAPartialFile) {
+  Box box;
+  for (int round = 0; round < 20; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    // Two pairs at once: two scene writers on one trace, two runs on one report and image.
+    std::vector<std::vector<std::string>> cmds;
+    for (int k = 0; k < 2; ++k) {
+      cmds.push_back(cat({"scene", "cloth", "--seed", std::to_string(k + 1), "-o", "same.trace"}, kSmall));
+      cmds.push_back(cat({"run", "--scene", "cloth", "--seed", std::to_string(k + 1), "--report", "same.json", "--out",
+                          "same.png", "--quiet"},
+                         kSmall));
+    }
+    std::vector<pid_t> pids;
+    for (size_t i = 0; i < cmds.size(); ++i) pids.push_back(box.start(cmds[i], "c" + std::to_string(i)));
+    for (size_t i = 0; i < cmds.size(); ++i) {
+      const Result r = box.wait(pids[i], "c" + std::to_string(i), cmds[i]);
+      EXPECT_EQ(r.signal, 0) << r.describe();
+      if (r.code != 0) {  // an error is allowed, but as one line
+        EXPECT_EQ(r.err.rfind("ropsim: error: ", 0), 0u) << r.describe();
+      }
+    }
+    EXPECT_EQ(trace_problem(box.path("same.trace")), "");
+    EXPECT_EQ(json_problem(slurp(box.path("same.json"))), "");
+    EXPECT_EQ(image_problem(box.path("same.png")), "");
+    const auto left = box.leftovers();
+    EXPECT_TRUE(left.empty()) << left[0];
+    if (::testing::Test::HasFailure()) break;
+  }
+}
+
+// ------------------------------------------------------------ write errors
+
+TEST(Output, FileSizeLimitIsAUserErrorForEveryKindAndLeavesNoFile) {
+  Box box;
+  struct Case {
+    const char* kind;
+    std::vector<std::string> args;
+    std::vector<std::string> must_not_exist;
+  };
+  const std::vector<Case> cases = {
+      {"png", cat({"run", "--scene", "cloth", "--out", "x.png", "--quiet"}, kSmall), {"x.png"}},
+      {"exr", cat({"run", "--scene", "cloth", "--out", "x.exr", "--quiet"}, kSmall), {"x.exr"}},
+      {"report", cat({"run", "--scene", "cloth", "--report", "x.json", "--quiet"}, kSmall), {"x.json"}},
+      {"trace", cat({"scene", "cloth", "-o", "x.trace"}, kSmall), {"x.trace"}},
+      {"vcd", cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "x.vcd", "--out", "v.png", "--quiet"}, kSmall),
+       {"x.vcd", "v.png"}},
+  };
+  Box::Options lim;
+  lim.fsize_limit = 512;  // bytes: every output above is larger
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.kind);
+    const Result r = box.run(c.args, lim);
+    EXPECT_EQ(r.signal, 0) << "killed (SIGXFSZ must be ignored)\n" << r.describe();
+    EXPECT_EQ(r.code, 1) << r.describe();
+    const auto lines = lines_of(r.err);
+    EXPECT_EQ(lines.size(), 1u) << r.describe();
+    EXPECT_EQ(r.err.rfind("ropsim: error: " + c.must_not_exist[0] + ": ", 0), 0u) << r.describe();
+    EXPECT_NE(r.err.find(std::strerror(EFBIG)), std::string::npos) << r.describe();
+    for (const auto& f : c.must_not_exist) EXPECT_FALSE(fs::exists(box.path(f))) << f << " exists after the error";
+    const auto left = box.leftovers();
+    EXPECT_TRUE(left.empty()) << left[0];
+  }
+  // The same commands without the limit succeed (the limit is what failed).
+  for (const auto& c : cases) {
+    const Result r = box.run(c.args);
+    EXPECT_EQ(r.code, 0) << r.describe();
+    for (const auto& f : c.must_not_exist) EXPECT_TRUE(fs::exists(box.path(f))) << f;
+  }
+}
+
+TEST(Output, KillDuringAWriteLeavesNoFileUnderTheFinalName) {
+  Box box;
+  const std::vector<std::string> args = {"scene", "cloth", "--width", "1920", "--height", "1080", "--spp", "64",
+                                         "-o", "big.trace"};
+  for (int sig : {SIGKILL, SIGTERM}) {
+    SCOPED_TRACE(sig == SIGKILL ? "SIGKILL" : "SIGTERM");
+    const pid_t pid = box.start(args, "big");
+    // Wait until the temporary file holds data, i.e. the writer has started.
+    bool writing = false;
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!writing && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30)) {
+      for (const auto& e : fs::directory_iterator(box.work()))
+        if (e.path().filename().string().rfind(".big.trace.", 0) == 0 && fs::file_size(e.path()) > 0) writing = true;
+      if (!writing) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ::kill(pid, sig);
+    const Result r = box.wait(pid, "big", args);
+    ASSERT_TRUE(writing) << "no temporary file with data appeared\n" << r.describe();
+    EXPECT_EQ(r.signal, sig) << "ropsim finished before the signal: the test proves nothing\n" << r.describe();
+    EXPECT_FALSE(fs::exists(box.path("big.trace"))) << "a partial trace under the final name";
+    if (sig == SIGTERM) {  // a catchable signal also removes the temporary file
+      const auto left = box.leftovers();
+      EXPECT_TRUE(left.empty()) << left[0];
+    }
+    for (const auto& e : fs::directory_iterator(box.work())) fs::remove(e.path());
+  }
+}
+
+TEST(Output, AFailedRunRemovesOnlyTheFilesItCreated) {
+  Box box;
+  std::ofstream(box.path("afile")) << "x";
+  std::ofstream(box.path("keep.png")) << "old image";
+  // The report cannot be written (its folder is a file): nothing is written,
+  // and the image it was going to replace keeps its old contents.
+  Result r = box.run(cat({"run", "--scene", "cloth", "--out", "keep.png", "--report", "afile/r.json"}, kSmall));
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(slurp(box.path("keep.png")), "old image");
+  // A waveform this run created (committed by the cycle model before the
+  // report failed) is removed; a pre-existing one is replaced, not deleted.
+  const auto cyc = cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "new.vcd", "--report", "afile/r.json"},
+                       {"--width", "16", "--height", "16", "--spp", "4"});
+  r = box.run(cyc);
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_FALSE(fs::exists(box.path("new.vcd"))) << "the failed run left the waveform it created";
+  std::ofstream(box.path("old.vcd")) << "old";
+  auto cyc2 = cyc;
+  cyc2[6] = "old.vcd";
+  r = box.run(cyc2);
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_TRUE(fs::exists(box.path("old.vcd"))) << "the failed run deleted a file it did not create";
+  const auto left = box.leftovers();
+  EXPECT_TRUE(left.empty()) << left[0];
+}
+
+// ------------------------------------------------------------ reproducible images
+
+TEST(Output, ImagesAreByteReproducible) {
+  Box box;
+  const auto args = cat({"run", "--scene", "cloth", "--out", "a.exr", "--out", "a.png", "--quiet"}, kSmall);
+  ASSERT_EQ(box.run(args).code, 0);
+  const std::string exr = slurp(box.path("a.exr")), png = slurp(box.path("a.png"));
+  // A wall-clock stamp has a resolution of one second: cross one.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  ASSERT_EQ(box.run(args).code, 0);
+  EXPECT_TRUE(exr == slurp(box.path("a.exr"))) << "two runs gave different EXR bytes (a timestamp in the metadata?)";
+  EXPECT_TRUE(png == slurp(box.path("a.png"))) << "two runs gave different PNG bytes";
+  EXPECT_EQ(exr.find("capDate\0string\0\x13", 0, 16), std::string::npos) << "the EXR has a capture date";
+}
+
+// ------------------------------------------------------------ exit statuses
+
+/// Exactly one stderr line starting with prefix.
+void expect_one_line(const Result& r, const std::string& prefix) {
+  const auto lines = lines_of(r.err);
+  EXPECT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_EQ(r.err.rfind(prefix, 0), 0u) << r.describe();
+}
+
+TEST(ExitStatus, EveryRowOfTheReadmeTable) {
+  Box box;
+  std::ofstream(box.path("bad.trace"), std::ios::binary) << "RSTRACE1 but not really a trace";
+  std::ofstream(box.path("afile")) << "x";
+  // 0: success, --help, --version.
+  Result r = box.run(cat({"run", "--scene", "cloth", "--report", "ok.json", "--quiet"}, kSmall));
+  EXPECT_EQ(r.code, 0) << r.describe();
+  r = box.run({"--help"});
+  EXPECT_EQ(r.code, 0) << r.describe();
+  r = box.run({"--version"});
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_NE(r.out.find("ropsim 0."), std::string::npos) << r.describe();
+  EXPECT_NE(r.out.find("commit "), std::string::npos) << r.describe();
+  // 1: user errors, one line each.
+  const std::vector<std::pair<std::string, std::vector<std::string>>> user = {
+      {"bad trace", {"run", "--trace", "bad.trace", "--report", "r.json"}},
+      {"bad trace (validate)", {"trace", "validate", "bad.trace"}},
+      {"bad config key", cat({"run", "--fidelity", "cycle", "--hw-set", "nosuch.key=1", "--report", "r.json"}, kSmall)},
+      {"bad scene", {"run", "--scene", "nosuch", "--report", "r.json"}},
+      {"bad scene (scene verb)", {"scene", "nosuch", "-o", "x.trace"}},
+      {"bad flag", {"run", "--nosuch-flag"}},
+      {"missing verb", {}},
+      {"bad flag value", cat({"run", "--scene", "cloth", "--spp", "3"}, {})},
+      {"unwritable output", cat({"run", "--scene", "cloth", "--report", "afile/r.json"}, kSmall)},
+      {"output is a folder", cat({"run", "--scene", "cloth", "--report", "."}, kSmall)},
+  };
+  for (const auto& [what, args] : user) {
+    SCOPED_TRACE(what);
+    r = box.run(args);
+    EXPECT_EQ(r.code, 1) << r.describe();
+    expect_one_line(r, "ropsim: error: ");
+  }
+  EXPECT_FALSE(fs::exists(box.path("r.json")));
+  // 2: an internal error (the test hook), one line naming it.
+  Box::Options hook;
+  hook.env = {"ROPSIM_TEST_INTERNAL_ERROR=1"};
+  r = box.run({"config"}, hook);
+  EXPECT_EQ(r.code, 2) << r.describe();
+  expect_one_line(r, "ropsim: internal error: ");
+  EXPECT_NE(r.err.find("please report it"), std::string::npos) << r.describe();
+}
+
+// ------------------------------------------------------------ the library, in process
+
+TEST(OutputFile, UncommittedOutputLeavesNothingAndCommitReplaces) {
+  Box box;
+  const std::string p = box.path("t.txt");
+  {
+    ropsim::OutputFile f(p);
+    f.write("partial");
+  }
+  EXPECT_FALSE(fs::exists(p));
+  EXPECT_TRUE(box.leftovers().empty());
+  std::ofstream(p) << "old";
+  fs::permissions(p, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  ropsim::write_text_output(p, "new");
+  EXPECT_EQ(slurp(p), "new");
+  EXPECT_EQ(fs::status(p).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read)
+      << "a replaced file keeps its permissions";
+  EXPECT_THROW(ropsim::write_text_output(box.path("no/such/folder/x"), "x"), ropsim::UserError);
+  EXPECT_THROW(ropsim::write_text_output("-", "x"), ropsim::UserError) << "'-' only where allowed";
+  EXPECT_THROW(ropsim::write_text_output(box.work().string(), "x"), ropsim::UserError) << "a folder is not a target";
+  EXPECT_TRUE(box.leftovers().empty());
+}
+
+TEST(OutputFile, ByNameAndThroughAPipeForLibraryWriters) {
+  Box box;
+  // The pipe's private folder goes to $TMPDIR: the box's, restored on any exit.
+  struct TmpdirGuard {
+    std::string old;
+    bool had;
+    explicit TmpdirGuard(const std::string& dir) : had(std::getenv("TMPDIR") != nullptr) {
+      if (had) old = std::getenv("TMPDIR");
+      ::setenv("TMPDIR", dir.c_str(), 1);
+    }
+    ~TmpdirGuard() { had ? (void)::setenv("TMPDIR", old.c_str(), 1) : (void)::unsetenv("TMPDIR"); }
+  } guard(box.tmp().string());
+  const auto write_by_name = [](const std::string& name, const std::string& text) {
+    FILE* f = std::fopen(name.c_str(), "w");  // as SystemC or an image library would
+    ASSERT_NE(f, nullptr) << name;
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+  };
+  for (bool pipe : {false, true}) {
+    SCOPED_TRACE(pipe ? "via_pipe" : "named");
+    ropsim::OutputFile::Options o;
+    o.named = true;
+    o.via_pipe = pipe;
+    o.suffix = ".vcd";
+    const std::string p = box.path(pipe ? "p.vcd" : "n.vcd");
+    {
+      ropsim::OutputFile f(p, o);
+      EXPECT_EQ(f.write_name().substr(f.write_name().size() - 4), ".vcd");
+      write_by_name(f.write_name(), "$enddefinitions $end\n#0\n");
+      f.commit();
+    }
+    EXPECT_EQ(slurp(p), "$enddefinitions $end\n#0\n");
+    {  // never opened by the library, then discarded: nothing left, no hang
+      ropsim::OutputFile f(box.path("never.vcd"), o);
+    }
+    EXPECT_FALSE(fs::exists(box.path("never.vcd")));
+    // In place: a FIFO target receives the bytes and stays a FIFO.
+    const std::string fifo = box.path(pipe ? "pf" : "nf");
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::string got;
+    std::thread reader([&] {
+      std::ifstream in(fifo, std::ios::binary);
+      std::ostringstream ss;
+      ss << in.rdbuf();
+      got = ss.str();
+    });
+    {
+      ropsim::OutputFile f(fifo, o);
+      EXPECT_TRUE(f.in_place());
+      write_by_name(f.write_name(), "in place");
+      f.commit();
+    }
+    reader.join();
+    EXPECT_EQ(got, "in place");
+    EXPECT_TRUE(is_fifo(fifo));
+  }
+  const auto left = box.leftovers();
+  EXPECT_TRUE(left.empty()) << left[0];
+}
+
+}  // namespace

@@ -1,0 +1,41 @@
+// The two kinds of error ropsim reports (README "Exit status"):
+//  - UserError: the input or the environment is wrong (a bad trace, config,
+//    scene, flag, or an output that cannot be written). One line naming the
+//    file and record or key; exit status 1. The per-module error types
+//    (TraceError, ImageError, ConfigError, SceneError, CaptureError) are user
+//    errors too: they derive from std::runtime_error, as this does.
+//  - InternalError: an invariant of the simulator does not hold. It names the
+//    invariant; exit status 2 ("please report it"). It derives from
+//    std::logic_error, which the CLI maps to 2 as well.
+// Bottom layer: no dependencies beyond the standard library.
+#pragma once
+#include <stdexcept>
+#include <string>
+
+namespace ropsim {
+
+class UserError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class InternalError : public std::logic_error {
+ public:
+  using std::logic_error::logic_error;
+};
+
+/// Throws InternalError("<what>") when cond is false. `what` names the
+/// invariant ("retired tokens <= issued tokens"), not the symptom.
+inline void invariant(bool cond, const char* what) {
+  if (!cond) throw InternalError(what);
+}
+
+}  // namespace ropsim
+
+/// ROPSIM_ASSERT(cond, "invariant text"): an invariant check that stays in
+/// release builds and reports the source location.
+#define ROPSIM_ASSERT(cond, what)                                                                              \
+  do {                                                                                                         \
+    if (!(cond))                                                                                               \
+      throw ::ropsim::InternalError(std::string(what) + " (" __FILE__ ":" + std::to_string(__LINE__) + ")");  \
+  } while (0)

@@ -1,0 +1,118 @@
+// One discipline for every file ropsim writes (images, reports, traces, VCD,
+// vectors, dumps); docs/outputs.md.
+//
+//  - A regular target (or a new name) is written to a unique temporary file in
+//    the target's folder (.NAME.XXXXXX) and renamed onto the target only after
+//    every write, the flush, fsync and the close succeeded. Readers never see a
+//    partial file under the final name; concurrent writers never share a
+//    temporary file.
+//  - A symlink is resolved (the whole chain): the link's target is replaced and
+//    the link is kept.
+//  - A target that exists and is not a regular file (a character device, a
+//    FIFO) is opened O_WRONLY and written in place; it stays what it was.
+//  - "-" is standard output, where the caller allows it (a single text output).
+//  - Any failure (ENOSPC, EFBIG under `ulimit -f`, EIO...) throws UserError
+//    "PATH: <strerror>"; the temporary file is removed and nothing appears
+//    under the final name. An OutputFile destroyed without commit() discards.
+//  - Targets this process created (the name did not exist) are remembered, so
+//    a failing run can remove them with remove_created_outputs(); a
+//    pre-existing file and a concurrent run's file are never removed.
+//
+// Bottom layer: POSIX and the standard library only.
+#pragma once
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <string_view>
+
+namespace ropsim {
+
+class OutputFile {
+ public:
+  struct Options {
+    /// "-" means standard output (only where one text output is asked for).
+    bool allow_stdout = false;
+    /// A library writes the file by name (write_name()); there is no stream.
+    bool named = false;
+    /// named: write_name() is a FIFO whose bytes a thread copies to the
+    /// target with every write checked (for libraries that ignore write
+    /// errors and write sequentially, e.g. SystemC's VCD writer).
+    bool via_pipe = false;
+    /// named: write_name() ends with this (e.g. ".vcd").
+    std::string suffix;
+  };
+
+  explicit OutputFile(std::string path);
+  OutputFile(std::string path, Options opt);
+  ~OutputFile();  ///< discard() unless committed
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  /// The path as the user gave it (what error messages name).
+  const std::string& path() const { return path_; }
+  /// The stream to write (stream mode): a temporary file, the target itself
+  /// (in place), or stdout.
+  FILE* stream();
+  /// Writes n bytes to stream(); throws UserError "PATH: <strerror>".
+  void write(const void* data, size_t n);
+  void write(std::string_view s) { write(s.data(), s.size()); }
+  /// named mode: the file name the library must write.
+  const std::string& write_name() const { return write_name_; }
+  /// Throws UserError "PATH: <what>", discarding the output.
+  [[noreturn]] void fail(const std::string& what);
+
+  /// Finishes the output: flush, fsync, close, all checked; then rename onto
+  /// the target (or copy into an in-place target). Throws UserError.
+  void commit();
+  /// Removes the temporary file (or closes an in-place target). No-throw.
+  void discard() noexcept;
+
+  bool committed() const { return committed_; }
+  bool to_stdout() const { return mode_ == Mode::kStdout; }
+  bool in_place() const { return mode_ == Mode::kInPlace; }
+
+ private:
+  enum class Mode { kStdout, kInPlace, kReplace };
+  struct Pipe;
+  [[noreturn]] void fail_errno(int err);
+  void commit_stream();
+  void commit_named();
+  void rename_onto_target(int fd_for_mode);
+
+  std::string path_;    ///< as given
+  std::string target_;  ///< the resolved target (symlinks followed)
+  std::string temp_;    ///< the temporary file ("" in place / stdout)
+  std::string write_name_;
+  Options opt_;
+  Mode mode_ = Mode::kReplace;
+  FILE* f_ = nullptr;
+  int target_mode_ = -1;  ///< permission bits of a replaced file, -1 when new
+  bool existed_ = false;
+  bool committed_ = false;
+  std::unique_ptr<Pipe> pipe_;
+};
+
+/// Writes text to path through an OutputFile (allow_stdout: "-" is stdout).
+void write_text_output(const std::string& path, std::string_view text, bool allow_stdout = false);
+
+/// Creates the folders leading to path ("-" and bare names: nothing); throws
+/// UserError "PATH: cannot create the folder DIR: <reason>".
+void ensure_parent_dir(const std::string& path);
+
+/// Removes every target this process created through OutputFile::commit that
+/// is still the file it wrote (same device and inode). Returns how many.
+int remove_created_outputs() noexcept;
+/// Forgets the created targets (after a run succeeded).
+void forget_created_outputs() noexcept;
+
+/// Process setup for a CLI: ignore SIGXFSZ (a write beyond RLIMIT_FSIZE then
+/// fails with EFBIG instead of killing the process) and remove the pending
+/// temporary files on SIGINT, SIGTERM and SIGHUP before dying of the signal.
+void install_output_signal_handling();
+
+/// Resolves a symlink chain (relative links against their folder). Returns
+/// the first path that is not a symlink (it may not exist). Throws UserError
+/// on a loop (ELOOP).
+std::string resolve_symlinks(const std::string& path);
+
+}  // namespace ropsim
