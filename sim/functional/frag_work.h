@@ -21,19 +21,26 @@ struct FragWork {
   uint32_t m = 0;          ///< popcount(survivors)
   float z[64];             ///< the fragment's depth at each tested sample
 
-  // Per-method payloads, each filled by the stages its method uses.
+  // Per-method payloads, each filled by the stages its method uses. A run has
+  // one method, so they share storage; each is only ever read as itself.
   struct Lk {
     TrackResult track;  ///< the tracker's decision (n, surface id)
     uint8_t order[64];  ///< survivors sorted by stored depth (order[0..m))
     uint32_t ref[64];   ///< alpha reference of the j-th sorted survivor order[j]
-  } lk;
+  };
   struct Enderton {
     uint32_t count;  ///< R = floor(alpha m + xi): samples to write
     int list[64];    ///< list[0..count): the chosen samples, in choice order
-  } enderton;
+  };
   struct Naive {
     uint32_t ref[64];  ///< random reference of survivor sample i, at index i
-  } naive;
+  };
+  union {
+    Lk lk;              ///< lk
+    Enderton enderton;  ///< enderton
+    Naive naive;        ///< naive
+  };
+  FragWork() : lk() {}
 
   // Opacity test and write.
   uint64_t written = 0;  ///< samples whose depth and colour were written

@@ -136,31 +136,43 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const uint16_t* rgb16 = memo_.half_color(w.f->rgb);
   uint64_t wrote = 0;
   uint32_t examined = w.m;
+  PixelRef px = w.px;
+  const float* z = w.z;
   if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
-    for (uint32_t j = 0; j < w.m; ++j)
-      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) wrote |= uint64_t{1} << w.lk.order[j];
+    for (uint32_t j = 0; j < w.m; ++j) {
+      const int i = w.lk.order[j];
+      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
+        px.write_sample(i, z[i], rgb16);
+        wrote |= uint64_t{1} << i;
+      }
+    }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
   } else if constexpr (M == Method::kEnderton) {
-    for (uint32_t j = 0; j < w.enderton.count; ++j) wrote |= uint64_t{1} << w.enderton.list[j];
+    for (uint32_t j = 0; j < w.enderton.count; ++j) {
+      const int i = w.enderton.list[j];
+      px.write_sample(i, z[i], rgb16);
+      wrote |= uint64_t{1} << i;
+    }
     c_.samples_opacity_passed += w.enderton.count;
     examined = w.enderton.count;
   } else if constexpr (M == Method::kNaive) {
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
-      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) wrote |= uint64_t{1} << i;
+      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) {
+        px.write_sample(i, z[i], rgb16);
+        wrote |= uint64_t{1} << i;
+      }
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-  } else if constexpr (M == Method::kA2c) {  // its opacity decision was the mask, before the depth test
+  } else {  // a2c (its opacity decision was the mask, before the depth test) and opaque
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      px.write_sample(i, z[i], rgb16);
+    }
     wrote = w.survivors;
-  } else {  // opaque
-    wrote = w.survivors;
-    c_.samples_opacity_passed += w.m;
-  }
-  for (uint64_t s = wrote; s; s &= s - 1) {
-    const int i = __builtin_ctzll(s);
-    w.px.write_sample(i, w.z[i], rgb16);
+    if constexpr (M == Method::kOpaque) c_.samples_opacity_passed += w.m;
   }
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
   c_.samples_written += n;
