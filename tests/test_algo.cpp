@@ -1,12 +1,11 @@
 // Bit-level functions shared by the golden model and the SystemC units.
 #include <gtest/gtest.h>
 
-#include <random>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <random>
 #include <set>
 #include <vector>
 
@@ -118,9 +117,13 @@ TEST(Bits, LowMaskAndBitReversal) {
 
 TEST(AlphaRef, ReproducesThePublishedValues) {
   // (sampleId 0, spp 1): (pixel, surface) -> CalcAlphaRef bits (issue #2).
-  struct Case { uint64_t pixel; uint32_t surface; uint32_t expect; };
-  const Case cases[] = {{0, 0, 0x00000000u}, {1, 0, 0x80000000u}, {0, 1, 0x3707B665u},
-                        {5, 7, 0xD1FDFF63u}, {12345, 678, 0x2ED32D8Eu}};
+  struct Case {
+    uint64_t pixel;
+    uint32_t surface;
+    uint32_t expect;
+  };
+  const Case cases[] = {
+      {0, 0, 0x00000000u}, {1, 0, 0x80000000u}, {0, 1, 0x3707B665u}, {5, 7, 0xD1FDFF63u}, {12345, 678, 0x2ED32D8Eu}};
   for (const auto& c : cases)
     EXPECT_EQ(calc_alpha_ref(0, c.pixel, c.surface, 1), c.expect)
         << std::hex << "pixel " << c.pixel << " surface " << c.surface;
@@ -213,7 +216,8 @@ TEST(Hilbert, StateMachineEqualsTheRotationLoop) {
   };
   for (uint32_t n = 1; n <= 256; n <<= 1)
     for (uint32_t y = 0; y < n; ++y)
-      for (uint32_t x = 0; x < n; ++x) ASSERT_EQ(hilbert_xy2d(n, x, y), reference(n, x, y)) << n << " " << x << " " << y;
+      for (uint32_t x = 0; x < n; ++x)
+        ASSERT_EQ(hilbert_xy2d(n, x, y), reference(n, x, y)) << n << " " << x << " " << y;
   std::mt19937 rng(5);
   for (int i = 0; i < 100000; ++i) {
     const uint32_t x = rng() % 32768, y = rng() % 32768;
@@ -232,7 +236,8 @@ TEST(Hilbert, IsABijectionWithUnitSteps) {
         at[d] = {x, y};
       }
     for (size_t d = 1; d < at.size(); ++d) {
-      int dx = std::abs(int(at[d].first) - int(at[d - 1].first)), dy = std::abs(int(at[d].second) - int(at[d - 1].second));
+      int dx = std::abs(int(at[d].first) - int(at[d - 1].first)),
+          dy = std::abs(int(at[d].second) - int(at[d - 1].second));
       EXPECT_EQ(dx + dy, 1) << "consecutive indices " << d - 1 << "," << d << " are not neighbours (n " << n << ")";
     }
   }
@@ -353,7 +358,8 @@ TEST(SortOrder, GroupedSortEqualsKeySort) {
     const uint64_t mask = (uint64_t(s) << 32 | (s * 2654435761u)) & (trial % 3 ? ~0ull : 0xFFFFull);
     uint64_t keys[64];
     int m = 0;
-    for (uint64_t b = mask; b; b &= b - 1) keys[m++] = sort_key(stored[__builtin_ctzll(b)], uint32_t(__builtin_ctzll(b)));
+    for (uint64_t b = mask; b; b &= b - 1)
+      keys[m++] = sort_key(stored[__builtin_ctzll(b)], uint32_t(__builtin_ctzll(b)));
     sort_keys(keys, m);
     uint8_t order[64];
     ASSERT_EQ(sort_by_stored_depth(stored, mask, order), m);
@@ -369,7 +375,8 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
     const std::string csv = make_vectors(unit, 200, 3, Numerics{});
     std::vector<std::string> lines;
     size_t start = 0;
-    for (size_t nl; (nl = csv.find('\n', start)) != std::string::npos; start = nl + 1) lines.push_back(csv.substr(start, nl - start));
+    for (size_t nl; (nl = csv.find('\n', start)) != std::string::npos; start = nl + 1)
+      lines.push_back(csv.substr(start, nl - start));
     ASSERT_EQ(lines.size(), 201u) << unit;
     const auto cols = std::count(lines[0].begin(), lines[0].end(), ',');
     for (size_t i = 1; i < lines.size(); ++i)

@@ -90,8 +90,10 @@ std::string grid_obj(int n, double s, uint64_t seed) {
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) {
       const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 2, d = a + n + 1;
-      if ((i + j) % 2) o << "f " << a << " " << b << " " << c << "\nf " << a << " " << d << " " << c << "\n";
-      else o << "f " << a << " " << b << " " << d << "\nf " << b << " " << c << " " << d << "\n";
+      if ((i + j) % 2)
+        o << "f " << a << " " << b << " " << c << "\nf " << a << " " << d << " " << c << "\n";
+      else
+        o << "f " << a << " " << b << " " << d << "\nf " << b << " " << c << " " << d << "\n";
     }
   return o.str();
 }
@@ -119,8 +121,10 @@ std::string headon_grid_obj(int spp, uint64_t seed) {
   for (int j = 0; j < G; ++j)
     for (int i = 0; i < G; ++i) {
       const int a = j * (G + 1) + i + 1, b = a + 1, c = a + G + 2, d = a + G + 1;
-      if ((i + j) % 2) o << "f " << a << " " << b << " " << c << "\nf " << a << " " << d << " " << c << "\n";
-      else o << "f " << a << " " << b << " " << d << "\nf " << b << " " << c << " " << d << "\n";
+      if ((i + j) % 2)
+        o << "f " << a << " " << b << " " << c << "\nf " << a << " " << d << " " << c << "\n";
+      else
+        o << "f " << a << " " << b << " " << d << "\nf " << b << " " << c << " " << d << "\n";
     }
   return o.str();
 }
@@ -146,8 +150,10 @@ std::string raw_bytes(const std::vector<T>& v) {
 std::string tga(int w, int h, const std::vector<std::array<uint8_t, 4>>& rgba) {
   std::string t(18, '\0');
   t[2] = 2;
-  t[12] = char(w & 0xFF); t[13] = char(w >> 8);
-  t[14] = char(h & 0xFF); t[15] = char(h >> 8);
+  t[12] = char(w & 0xFF);
+  t[13] = char(w >> 8);
+  t[14] = char(h & 0xFF);
+  t[15] = char(h >> 8);
   t[16] = 32;
   t[17] = 0x28;
   for (const auto& p : rgba) t += std::string{char(p[2]), char(p[1]), char(p[0]), char(p[3])};
@@ -225,10 +231,10 @@ TEST(CaptureWatertight, MeshCoveringTheScreenCoversEverySampleOnce) {
   Scratch box;
   for (int spp : {1, 4, 16, 64}) {
     box.write("grid.obj", grid_obj(23, 4.0, uint64_t(spp)));
-    const std::string scene = box.write(
-        "s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.5\norder = \"shuffled\"\n",
-                             "eye = [0.3, -0.2, 3]\ntarget = [0, 0, 0]\nup = [0.1, 1, 0]",
-                             "width = 61\nheight = 47\nspp = " + std::to_string(spp) + "\n"));
+    const std::string scene =
+        box.write("s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.5\norder = \"shuffled\"\n",
+                                       "eye = [0.3, -0.2, 3]\ntarget = [0, 0, 0]\nup = [0.1, 1, 0]",
+                                       "width = 61\nheight = 47\nspp = " + std::to_string(spp) + "\n"));
     const SceneSpec s = load_scene_file(scene);
     const auto frags = capture_fragments(s);
     const auto n = sample_counts(s, frags);
@@ -244,10 +250,10 @@ TEST(CaptureWatertight, EdgesThroughSamplesCoverEverySampleOnce) {
   Scratch box;
   for (int spp : {1, 2, 4, 8, 16, 32, 64}) {
     box.write("grid.obj", headon_grid_obj(spp, uint64_t(spp) * 77));
-    const std::string scene = box.write(
-        "s.toml", "width = 64\nheight = 64\nspp = " + std::to_string(spp) +
-                      "\n[camera]\neye = [0, 0, 2]\ntarget = [0, 0, 0]\nfov_y = 90\nnear = 1\nfar = 3\n"
-                      "[[object]]\nmesh = \"grid.obj\"\nopacity = 0.5\n");
+    const std::string scene =
+        box.write("s.toml", "width = 64\nheight = 64\nspp = " + std::to_string(spp) +
+                                "\n[camera]\neye = [0, 0, 2]\ntarget = [0, 0, 0]\nfov_y = 90\nnear = 1\nfar = 3\n"
+                                "[[object]]\nmesh = \"grid.obj\"\nopacity = 0.5\n");
     const SceneSpec s = load_scene_file(scene);
     const auto frags = capture_fragments(s);
     const auto n = sample_counts(s, frags);
@@ -281,10 +287,10 @@ TEST(CaptureClipping, FloorThroughNearAndFarPlanesIsWatertight) {
   constexpr double kNear = 0.5, kFar = 30;
   for (const char* depth : {"plane", "per-sample"}) {
     SCOPED_TRACE(std::string("depth = ") + depth);
-    const std::string scene = box.write(
-        "s.toml", "width = 80\nheight = 60\nspp = 16\ndepth = \"" + std::string(depth) +
-                      "\"\n[camera]\neye = [0, 1, 0]\ntarget = [0, 1, -1]\nfov_y = 60\nnear = 0.5\nfar = 30\n"
-                      "[[object]]\nmesh = \"floor.obj\"\nopacity = 0.5\n");
+    const std::string scene =
+        box.write("s.toml", "width = 80\nheight = 60\nspp = 16\ndepth = \"" + std::string(depth) +
+                                "\"\n[camera]\neye = [0, 1, 0]\ntarget = [0, 1, -1]\nfov_y = 60\nnear = 0.5\nfar = 30\n"
+                                "[[object]]\nmesh = \"floor.obj\"\nopacity = 0.5\n");
     const SceneSpec s = load_scene_file(scene);
     ASSERT_EQ(s.spp, kSpp);
     CaptureStats st;
@@ -295,9 +301,9 @@ TEST(CaptureClipping, FloorThroughNearAndFarPlanesIsWatertight) {
     // distance d = 1 / tan(angle below the axis).
     const double t = std::tan(30.0 * 3.14159265358979 / 180.0);
     const auto pos = standard_sample_positions(kSpp);
-    const auto distance = [&](uint32_t y, int k) {  // +inf above the horizon
+    const auto distance = [&](uint32_t y, int k) {                                 // +inf above the horizon
       const double ndc_y = 1.0 - 2.0 * (y + pos[size_t(k)].y / 256.0) / s.height;  // + up
-      const double down = -ndc_y * t;                                               // tan of the angle below
+      const double down = -ndc_y * t;                                              // tan of the angle below
       return down > 0 ? 1.0 / down : HUGE_VAL;
     };
     uint64_t visible = 0;
@@ -330,7 +336,8 @@ TEST(CaptureClipping, FloorThroughNearAndFarPlanesIsWatertight) {
             << "depth " << z[size_t(k)] << " of sample " << k << " at (" << f.x << ", " << f.y << ")";
         // The binary32 pipeline (clip coordinates, divide, plane) is off by
         // under 2e-7 here; another sample of the pixel is over 1e-3 away.
-        ASSERT_NEAR(z[size_t(k)], want, 1e-6) << "sample " << k << " at (" << f.x << ", " << f.y << "), distance " << dist;
+        ASSERT_NEAR(z[size_t(k)], want, 1e-6)
+            << "sample " << k << " at (" << f.x << ", " << f.y << "), distance " << dist;
       }
     }
   }
@@ -353,14 +360,29 @@ TEST(CaptureSamplePositions, TraceHeadersHoldTheStandardPositionsExactly) {
       {2, {{4, 4}, {-4, -4}}},
       {4, {{-2, -6}, {6, -2}, {-6, 2}, {2, 6}}},
       {8, {{1, -3}, {-1, 3}, {5, 1}, {-3, -5}, {-5, 5}, {-7, -1}, {3, 7}, {7, -7}}},
-      {16, {{1, 1}, {-1, -3}, {-3, 2}, {4, -1}, {-5, -2}, {2, 5}, {5, 3}, {3, -5}, {-2, 6}, {0, -7}, {-4, -6}, {-6, 4},
-            {-8, 0}, {7, -4}, {6, 7}, {-7, -8}}}};
+      {16,
+       {{1, 1},
+        {-1, -3},
+        {-3, 2},
+        {4, -1},
+        {-5, -2},
+        {2, 5},
+        {5, 3},
+        {3, -5},
+        {-2, 6},
+        {0, -7},
+        {-4, -6},
+        {-6, 4},
+        {-8, 0},
+        {7, -4},
+        {6, 7},
+        {-7, -8}}}};
   Scratch box;
   box.write("t.obj", "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n");
   for (const auto& [spp, pos] : expect) {
-    const std::string scene = box.write(
-        "s.toml", scene_text("[[object]]\nmesh = \"t.obj\"\n", "eye = [0, 0, 5]\ntarget = [0, 0, 0]",
-                             "width = 16\nheight = 16\nspp = " + std::to_string(spp) + "\n"));
+    const std::string scene =
+        box.write("s.toml", scene_text("[[object]]\nmesh = \"t.obj\"\n", "eye = [0, 0, 5]\ntarget = [0, 0, 0]",
+                                       "width = 16\nheight = 16\nspp = " + std::to_string(spp) + "\n"));
     capture_to_file(load_scene_file(scene), box.path("t.trace"));
     TraceReader r(box.path("t.trace"));
     ASSERT_EQ(r.header().spp, spp);
@@ -386,16 +408,18 @@ TEST(CaptureMaterials, GltfAlphaModes) {
            ",\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"min\":[-3,-1,0],\"max\":[3,1,0]}";
   }
   box.write("m.gltf", R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
-"meshes":[{"primitives":[)" + prims + R"(]}],
+"meshes":[{"primitives":[)" +
+                          prims + R"(]}],
 "materials":[{"pbrMetallicRoughness":{"baseColorFactor":[1,0,0,0.25]},"alphaMode":"BLEND"},
              {"pbrMetallicRoughness":{"baseColorFactor":[0,1,0,0.25]},"alphaMode":"MASK","alphaCutoff":0.5},
              {"pbrMetallicRoughness":{"baseColorFactor":[0,0,1,0.25]}}],
 "accessors":[)" + acc + R"(],
 "bufferViews":[{"buffer":0,"byteLength":108}],
-"buffers":[{"byteLength":108,"uri":"data:application/octet-stream;base64,)" + enc + R"("}]})");
-  const std::string scene = box.write(
-      "s.toml", scene_text("[[object]]\nmesh = \"m.gltf\"\nopacity = \"material\"\ncolor = \"material\"\n"
-                           "shading = \"unlit\"\n"));
+"buffers":[{"byteLength":108,"uri":"data:application/octet-stream;base64,)" +
+                          enc + R"("}]})");
+  const std::string scene =
+      box.write("s.toml", scene_text("[[object]]\nmesh = \"m.gltf\"\nopacity = \"material\"\ncolor = \"material\"\n"
+                                     "shading = \"unlit\"\n"));
   const SceneSpec s = load_scene_file(scene);
   CaptureStats st;
   const auto frags = capture_fragments(s, &st);
@@ -417,15 +441,19 @@ TEST(CaptureTextures, ObjectTextureAndGltfMaskTexture) {
   Scratch box;
   // 4 x 1 texels: red transparent, red transparent, green opaque, green opaque.
   box.write("t.tga", tga(4, 1, {{255, 0, 0, 0}, {255, 0, 0, 0}, {0, 255, 0, 255}, {0, 255, 0, 255}}));
-  box.write("quad.obj", "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
-                        "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+  box.write("quad.obj",
+            "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+            "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
   // The quad fills x in [16, 48) of a 64 x 64 screen (fov 90, distance 2).
   auto scene = [&](const std::string& obj) {
-    return box.write("s.toml", "width = 64\nheight = 64\nspp = 4\n[camera]\neye = [0, 0, 2]\ntarget = [0, 0, 0]\n"
-                               "fov_y = 90\nnear = 1\nfar = 10\n" + obj);
+    return box.write("s.toml",
+                     "width = 64\nheight = 64\nspp = 4\n[camera]\neye = [0, 0, 2]\ntarget = [0, 0, 0]\n"
+                     "fov_y = 90\nnear = 1\nfar = 10\n" +
+                         obj);
   };
-  const SceneSpec s = load_scene_file(scene("[[object]]\nmesh = \"quad.obj\"\ntexture = \"t.tga\"\nopacity = 0.5\n"
-                                            "shading = \"unlit\"\n"));
+  const SceneSpec s =
+      load_scene_file(scene("[[object]]\nmesh = \"quad.obj\"\ntexture = \"t.tga\"\nopacity = 0.5\n"
+                            "shading = \"unlit\"\n"));
   int left = 0, right = 0;
   for (const auto& f : capture_fragments(s)) {
     const double u = (f.x + 0.5 - 16) / 32;
@@ -456,9 +484,11 @@ TEST(CaptureTextures, ObjectTextureAndGltfMaskTexture) {
              {"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}],
 "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":32},
                {"buffer":0,"byteOffset":80,"byteLength":12}],
-"buffers":[{"byteLength":92,"uri":"data:application/octet-stream;base64,)" + base64(buf) + R"("}]})");
-  const SceneSpec g = load_scene_file(scene("[[object]]\nmesh = \"q.gltf\"\nopacity = \"material\"\n"
-                                            "color = \"material\"\nshading = \"unlit\"\n"));
+"buffers":[{"byteLength":92,"uri":"data:application/octet-stream;base64,)" +
+                          base64(buf) + R"("}]})");
+  const SceneSpec g =
+      load_scene_file(scene("[[object]]\nmesh = \"q.gltf\"\nopacity = \"material\"\n"
+                            "color = \"material\"\nshading = \"unlit\"\n"));
   CaptureStats st;
   const auto frags = capture_fragments(g, &st);
   EXPECT_GT(st.discarded_fragments, 100u) << "the transparent half is discarded";
@@ -475,10 +505,10 @@ TEST(CaptureOrder, ShuffledIsASeededPermutation) {
   Scratch box;
   box.write("grid.obj", grid_obj(8, 1.0, 7));
   auto prims = [&](const std::string& order, int seed) {
-    const std::string scene = box.write(
-        "s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.4\norder = \"" + order + "\"\n",
-                             "eye = [0, 0, 5]\ntarget = [0, 0, 0]",
-                             "width = 64\nheight = 48\nspp = 4\nseed = " + std::to_string(seed) + "\n"));
+    const std::string scene =
+        box.write("s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.4\norder = \"" + order + "\"\n",
+                                       "eye = [0, 0, 5]\ntarget = [0, 0, 0]",
+                                       "width = 64\nheight = 48\nspp = 4\nseed = " + std::to_string(seed) + "\n"));
     const PreparedScene ps = prepare_scene(load_scene_file(scene));
     std::vector<std::array<float, 4>> first;
     for (const auto& t : ps.draws[0].triangles) first.push_back(t.v[0].pos);
@@ -488,7 +518,10 @@ TEST(CaptureOrder, ShuffledIsASeededPermutation) {
   EXPECT_EQ(s1, s1b) << "same seed, same order";
   EXPECT_NE(s1, a) << "shuffled must differ from the authored order";
   EXPECT_NE(s1, s2) << "the seed must change the order";
-  auto sorted = [](std::vector<std::array<float, 4>> v) { std::sort(v.begin(), v.end()); return v; };
+  auto sorted = [](std::vector<std::array<float, 4>> v) {
+    std::sort(v.begin(), v.end());
+    return v;
+  };
   EXPECT_EQ(sorted(s1), sorted(a)) << "a permutation: the same triangles";
 }
 
@@ -531,8 +564,8 @@ TEST(CaptureBadInput, ErrorsNameTheFileAndKeyAndLeaveNoOutput) {
   expect_capture_error(box, box.write("m.toml", scene_text(obj, "eye = [0, 0, 5]\ntarget = [0, 0, 10]")),
                        {"m.toml", "nothing visible", "1 outside the view frustum"});
   // ... which --allow-empty turns into a valid trace with no fragment.
-  const CliResult r = run_cli(box, "capture '" + box.path("m.toml") + "' --allow-empty --quiet -o '" +
-                                       box.path("empty.trace") + "'");
+  const CliResult r =
+      run_cli(box, "capture '" + box.path("m.toml") + "' --allow-empty --quiet -o '" + box.path("empty.trace") + "'");
   EXPECT_EQ(r.code, 0) << r.err;
   TraceReader tr(box.path("empty.trace"));
   Fragment f;
@@ -543,11 +576,13 @@ TEST(CaptureBadInput, ErrorsNameTheFileAndKeyAndLeaveNoOutput) {
 // (kept for a transparent object) surround the camera and cover every sample.
 TEST(CaptureBadInput, CameraInsideGeometryIsClippedAndSeesTheInside) {
   Scratch box;
-  box.write("cube.obj",
-            "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n"
-            "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 7 3\nf 4 8 7\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n");
-  const std::string scene = box.write(
-      "s.toml", "width = 40\nheight = 30\nspp = 4\n[camera]\neye = [0.2, 0.1, 0.3]\ntarget = [1, 0.3, -1]\n"
+  box.write(
+      "cube.obj",
+      "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n"
+      "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 7 3\nf 4 8 7\nf 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n");
+  const std::string scene =
+      box.write("s.toml",
+                "width = 40\nheight = 30\nspp = 4\n[camera]\neye = [0.2, 0.1, 0.3]\ntarget = [1, 0.3, -1]\n"
                 "fov_y = 100\nnear = 0.05\nfar = 10\n[[object]]\nmesh = \"cube.obj\"\nopacity = 0.5\n");
   const SceneSpec s = load_scene_file(scene);
   const CaptureStats st = capture_to_file(s, box.path("in.trace"));
@@ -556,11 +591,13 @@ TEST(CaptureBadInput, CameraInsideGeometryIsClippedAndSeesTheInside) {
   std::vector<Fragment> frags;
   for (Fragment f; r.next(f);) frags.push_back(f);
   const auto n = sample_counts(s, frags);
-  for (size_t i = 0; i < n.size(); ++i) ASSERT_EQ(n[i], 1) << "inside a closed cube each sample sees one wall, sample " << i;
+  for (size_t i = 0; i < n.size(); ++i)
+    ASSERT_EQ(n[i], 1) << "inside a closed cube each sample sees one wall, sample " << i;
   // A camera with its near plane cutting a mesh is not an error either.
-  const std::string cut = box.write(
-      "cut.toml", "width = 40\nheight = 30\nspp = 4\n[camera]\neye = [0, 0, 1.2]\ntarget = [0, 0, 0]\n"
-                  "fov_y = 60\nnear = 0.5\nfar = 10\n[[object]]\nmesh = \"cube.obj\"\nopacity = 0.5\n");
+  const std::string cut =
+      box.write("cut.toml",
+                "width = 40\nheight = 30\nspp = 4\n[camera]\neye = [0, 0, 1.2]\ntarget = [0, 0, 0]\n"
+                "fov_y = 60\nnear = 0.5\nfar = 10\n[[object]]\nmesh = \"cube.obj\"\nopacity = 0.5\n");
   CaptureStats cst;
   capture_fragments(load_scene_file(cut), &cst);
   EXPECT_GT(cst.clipped, 0u);
@@ -569,9 +606,9 @@ TEST(CaptureBadInput, CameraInsideGeometryIsClippedAndSeesTheInside) {
 TEST(CaptureCli, WritesAValidTraceWithoutAProgressBarWhenNotATerminal) {
   Scratch box;
   box.write("grid.obj", grid_obj(6, 1.0, 3));
-  const std::string scene = box.write(
-      "s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.4\ncolor = [0.2, 0.5, 1.0]\n"
-                           "shading = \"flat\"\norder = \"shuffled\"\n"));
+  const std::string scene =
+      box.write("s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.4\ncolor = [0.2, 0.5, 1.0]\n"
+                                     "shading = \"flat\"\norder = \"shuffled\"\n"));
   const CliResult r = run_cli(box, "capture '" + scene + "' -o '" + box.path("g.trace") + "' --spp 8 --width 50");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(r.err.empty()) << "no progress bar when stderr is not a terminal: " << r.err;
@@ -586,7 +623,8 @@ TEST(CaptureCli, WritesAValidTraceWithoutAProgressBarWhenNotATerminal) {
   }
   EXPECT_GT(n, 100u);
   // Deterministic: the same scene gives the same bytes.
-  ASSERT_EQ(run_cli(box, "capture '" + scene + "' --quiet -o '" + box.path("h.trace") + "' --spp 8 --width 50").code, 0);
+  ASSERT_EQ(run_cli(box, "capture '" + scene + "' --quiet -o '" + box.path("h.trace") + "' --spp 8 --width 50").code,
+            0);
   std::ifstream a(box.path("g.trace"), std::ios::binary), b(box.path("h.trace"), std::ios::binary);
   std::stringstream sa, sb;
   sa << a.rdbuf();

@@ -138,8 +138,8 @@ std::string record_of(const std::string& msg) {
 
 TEST(Cli, EverySubcommandHasHelp) {
   CliSandbox box;
-  for (const char* sub : {"", "run", "compare", "scene", "trace", "trace info", "trace validate", "trace dump",
-                          "vectors"}) {
+  for (const char* sub :
+       {"", "run", "compare", "scene", "trace", "trace info", "trace validate", "trace dump", "vectors"}) {
     const CliResult r = box.run(std::string(sub) + " --help");
     EXPECT_EQ(r.code, 0) << "ropsim " << sub << " --help\n" << r.describe();
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << "ropsim " << sub << " --help prints no usage\n"
@@ -167,9 +167,9 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
 
   r = box.run("trace info cloth4.trace");
   expect_ok(r, "trace info");
-  for (const std::string& s : {std::string("scene cloth"), std::string("256x256"), std::string("4 spp"),
-                               std::string("depth plane"), std::string("compression zstd"),
-                               "fragments " + n_frags + " "})
+  for (const std::string& s :
+       {std::string("scene cloth"), std::string("256x256"), std::string("4 spp"), std::string("depth plane"),
+        std::string("compression zstd"), "fragments " + n_frags + " "})
     EXPECT_NE(r.out.find(s), std::string::npos) << "trace info lacks \"" << s << "\"\n" << r.describe();
 
   r = box.run("trace dump cloth4.trace --limit 3");
@@ -295,10 +295,10 @@ TEST(Cli, SameInputsAndSeedGiveIdenticalOutputs) {
   const auto ra = nlohmann::json::parse(slurp(a.path("r.json")));
   const auto rb = nlohmann::json::parse(slurp(b.path("r.json")));
   // Counter names of sim/driver/report.cpp.
-  for (const char* k : {"fragments", "samples_tested", "samples_depth_passed", "samples_opacity_passed",
-                        "samples_written", "surface_id_changes", "sorts", "depth_bytes_read", "depth_bytes_written",
-                        "color_bytes_written", "tracker_bytes_read", "tracker_bytes_written", "state_bytes_read",
-                        "state_bytes_written", "tiles_touched"}) {
+  for (const char* k :
+       {"fragments", "samples_tested", "samples_depth_passed", "samples_opacity_passed", "samples_written",
+        "surface_id_changes", "sorts", "depth_bytes_read", "depth_bytes_written", "color_bytes_written",
+        "tracker_bytes_read", "tracker_bytes_written", "state_bytes_read", "state_bytes_written", "tiles_touched"}) {
     ASSERT_TRUE(ra["counters"].contains(k)) << "report lacks counters." << k << ": " << ra.dump();
     EXPECT_TRUE(ra["counters"][k].is_number_unsigned()) << "counters." << k << " = " << ra["counters"][k];
   }
@@ -344,9 +344,10 @@ TEST(Cli, AlphaRefVectors) {
 TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
   CliSandbox box;
   expect_ok(box.run("run --scene eight-layers --spp 4 --quiet --out f.exr"), "functional run");
-  expect_ok(box.run("run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR "/configs/narrow.toml' --scene eight-layers --spp 4 "
-                    "--quiet --out c.exr --report c.json --vcd w.vcd --vcd-window 100:400"),
-            "cycle run");
+  expect_ok(
+      box.run("run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR "/configs/narrow.toml' --scene eight-layers --spp 4 "
+              "--quiet --out c.exr --report c.json --vcd w.vcd --vcd-window 100:400"),
+      "cycle run");
   const CliResult cmp = box.run("compare c.exr f.exr --json");
   EXPECT_NE(cmp.out.find("\"rmse_8bit\": 0.000000"), std::string::npos) << cmp.describe();
   const auto j = nlohmann::json::parse(slurp(box.work() / "c.json"));
@@ -383,8 +384,8 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
 // ROP, where the two modes agree in every timing figure), with more activations.
 TEST(CliCycle, LockstepFlagGivesTheSameRun) {
   CliSandbox box;
-  const std::string common = "run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR
-                             "/configs/narrow.toml' --scene cloth --spp 4 --quiet ";
+  const std::string common =
+      "run --fidelity cycle --hw '" ROPSIM_SOURCE_DIR "/configs/narrow.toml' --scene cloth --spp 4 --quiet ";
   expect_ok(box.run(common + "--out d.exr --report d.json"), "decoupled run");
   expect_ok(box.run(common + "--lockstep --out l.exr --report l.json"), "lockstep run");
   const CliResult cmp = box.run("compare d.exr l.exr --json");
@@ -408,10 +409,9 @@ TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --hw-set dram.channels=0", {"dram.channels"});
   expect_cli_error(box, "run --fidelity cycle --method reference --scene testcard --spp 1", {"reference"});
   expect_cli_error(box, "run --scene testcard --spp 1 --hw-set dram.channels=2", {"--hw-set", "cycle"});
-  {
-    std::ofstream(box.path("bad.toml")) << "[cache]\nways = 3\n";
-  }
-  expect_cli_error(box, "run --fidelity cycle --hw bad.toml --scene testcard --spp 1 --out x.png", {"bad.toml", "cache."});
+  { std::ofstream(box.path("bad.toml")) << "[cache]\nways = 3\n"; }
+  expect_cli_error(box, "run --fidelity cycle --hw bad.toml --scene testcard --spp 1 --out x.png",
+                   {"bad.toml", "cache."});
 }
 
 // --hw-set: a rejected override names itself; the cache shape is checked

@@ -7,13 +7,14 @@
 
 #include <cstring>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <random>
 #include <set>
 #include <sstream>
 
+#include "address_map.h"
 #include "alpha_ref_gen.h"
 #include "coverage_tracker.h"
 #include "cycle_report.h"
@@ -22,7 +23,6 @@
 #include "driver.h"
 #include "golden_model.h"
 #include "hw_config.h"
-#include "address_map.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
 #include "sim_context.h"
@@ -165,9 +165,12 @@ class ScriptSource : public Unit {
 
  protected:
   void step(uint64_t now) override {
-    while (i_ < script_.size() && script_[i_].first <= now && out_.can_push(now)) out_.push(script_[i_++].second, now, now + 1);
-    if (i_ < script_.size()) wake_at(std::max(now + 1, script_[i_].first));
-    else if (!out_.closed()) out_.close(now);
+    while (i_ < script_.size() && script_[i_].first <= now && out_.can_push(now))
+      out_.push(script_[i_++].second, now, now + 1);
+    if (i_ < script_.size())
+      wake_at(std::max(now + 1, script_[i_].first));
+    else if (!out_.closed())
+      out_.close(now);
   }
 
  private:
@@ -217,7 +220,8 @@ struct Harness {
   AddressMap amap;
   std::unique_ptr<TokenFifo> in, out;
   Harness(int spp, Method m)
-      : header(small_header(spp)), rop(header, method_config(m)),
+      : header(small_header(spp)),
+        rop(header, method_config(m)),
         amap(header.width, header.spp, rop.setup().tracker_bytes, 64) {
     in = std::make_unique<TokenFifo>("in", 1024, clk);
     out = std::make_unique<TokenFifo>("out", 1024, clk);
@@ -412,9 +416,9 @@ TEST(PixelOrderingUnit, SamePixelNeverReordersWhileOthersOvertake) {
     w.finish();
   }
   HwConfig hw;
-  for (const char* a : {"cache.fast_clear=false", "cache.size_bytes=1024", "cache.ways=1", "cache.line_bytes=16",
-                        "dram.row_bytes=64", "dram.interleave_bytes=16", "distributor.rop_units=1",
-                        "ordering.window=16"})
+  for (const char* a :
+       {"cache.fast_clear=false", "cache.size_bytes=1024", "cache.ways=1", "cache.line_bytes=16", "dram.row_bytes=64",
+        "dram.interleave_bytes=16", "distributor.rop_units=1", "ordering.window=16"})
     apply_hw_override(hw, a);
   InputSpec in;
   in.trace_path = path;
@@ -442,10 +446,10 @@ TEST(PixelOrderingUnit, SamePixelNeverReordersWhileOthersOvertake) {
 namespace {
 HwConfig unlimited_memory() {
   HwConfig hw;
-  for (const char* a : {"dram.channels=64", "dram.bytes_per_clock=4096", "dram.latency_cycles=0",
-                        "dram.row_miss_cycles=0", "cache.size_bytes=1048576", "source.fragments_per_clock=4",
-                        "distributor.fragments_per_clock=4", "distributor.tile_pixels=8",
-                        "distributor.fifo_depth=256", "ordering.window=16"})
+  for (const char* a :
+       {"dram.channels=64", "dram.bytes_per_clock=4096", "dram.latency_cycles=0", "dram.row_miss_cycles=0",
+        "cache.size_bytes=1048576", "source.fragments_per_clock=4", "distributor.fragments_per_clock=4",
+        "distributor.tile_pixels=8", "distributor.fifo_depth=256", "ordering.window=16"})
     apply_hw_override(hw, a);
   return hw;
 }
@@ -654,7 +658,8 @@ TEST(HwConfigFile, RejectedOverrideNamesItselfAndChangesNothing) {
   const std::string r = config_error([] { resolve_hw_config("", {"dram.channels=2", "cache.ways=3"}); });
   EXPECT_EQ(r.rfind("--hw-set cache.ways=3: ", 0), 0u) << "names the override that broke it, only that: " << r;
   const std::string two = config_error([] { resolve_hw_config("", {"cache.line_bytes=256", "dram.row_bytes=128"}); });
-  EXPECT_EQ(two.rfind("--hw-set cache.line_bytes=256, --hw-set dram.row_bytes=128: dram.row_bytes 128 is smaller", 0), 0u)
+  EXPECT_EQ(two.rfind("--hw-set cache.line_bytes=256, --hw-set dram.row_bytes=128: dram.row_bytes 128 is smaller", 0),
+            0u)
       << two;
 }
 
@@ -663,10 +668,11 @@ TEST(HwConfigFile, RejectedOverrideNamesItselfAndChangesNothing) {
 // are accepted in either order.
 TEST(HwConfigFile, CacheShapeIsCheckedAfterAllOverrides) {
   // 64-byte lines: 256 bytes hold one 4-way set, not one 8-way set (the default ways).
-  for (const auto& sets : std::vector<std::vector<std::string>>{{"cache.size_bytes=256", "cache.ways=4"},
-                                                               {"cache.ways=4", "cache.size_bytes=256"},
-                                                               {"cache.size_bytes=256", "cache.line_bytes=16", "cache.ways=16"},
-                                                               {"cache.line_bytes=4096", "dram.row_bytes=4096", "dram.interleave_bytes=4096"}}) {
+  for (const auto& sets : std::vector<std::vector<std::string>>{
+           {"cache.size_bytes=256", "cache.ways=4"},
+           {"cache.ways=4", "cache.size_bytes=256"},
+           {"cache.size_bytes=256", "cache.line_bytes=16", "cache.ways=16"},
+           {"cache.line_bytes=4096", "dram.row_bytes=4096", "dram.interleave_bytes=4096"}}) {
     HwConfig hw;
     ASSERT_NO_THROW(hw = resolve_hw_config("", sets)) << sets[0] << " then " << sets[1];
     EXPECT_EQ(hw.name, "built-in defaults with --hw-set");
@@ -688,7 +694,9 @@ TEST(HwConfigFile, CacheShapeIsCheckedAfterAllOverrides) {
   // An override that does not touch the broken keys leaves the blame on the file.
   EXPECT_EQ(config_error([&] { resolve_hw_config(p, {"dram.channels=2"}); }).rfind(p + ": ", 0), 0u);
   // A bad override among good ones names itself.
-  EXPECT_EQ(config_error([&] { resolve_hw_config(p, {"cache.ways=4", "dram.banks=0"}); }).rfind("--hw-set dram.banks=0: ", 0),
+  EXPECT_EQ(config_error([&] {
+              resolve_hw_config(p, {"cache.ways=4", "dram.banks=0"});
+            }).rfind("--hw-set dram.banks=0: ", 0),
             0u);
 }
 
@@ -705,7 +713,8 @@ TEST(HwConfigFile, ResolvedTomlRoundTripsEveryNumber) {
     const std::string toml = hw_config_to_toml(hw);
     const HwConfig back = load_hw_config(write_tmp("resolved.toml", toml));
     EXPECT_EQ(std::memcmp(&back.clock.frequency_ghz, &hw.clock.frequency_ghz, sizeof(double)), 0)
-        << f << " read back as " << back.clock.frequency_ghz << " from\n" << toml;
+        << f << " read back as " << back.clock.frequency_ghz << " from\n"
+        << toml;
     EXPECT_EQ(hw_config_to_toml(back), toml) << f;
   }
   HwConfig hw;
@@ -832,9 +841,12 @@ TEST(Decoupling, OccupancyStatsDoNotDependOnHostOrder) {
     OccupancyStats ahead(cap);
     size_t i = 0, j = 0;
     while (j < q.size()) {
-      if (i < p.size() && i < j + cap && (rng() % 2)) ahead.push(p[i++]);
-      else if (j < i) ahead.pop(q[j++]);
-      else ahead.push(p[i++]);
+      if (i < p.size() && i < j + cap && (rng() % 2))
+        ahead.push(p[i++]);
+      else if (j < i)
+        ahead.pop(q[j++]);
+      else
+        ahead.push(p[i++]);
     }
     double m1, m2;
     uint64_t f1, f2;
@@ -894,7 +906,8 @@ namespace {
 /// Every leaf field of a report as a path: objects by ".", array elements as "[]".
 void leaf_paths(const nlohmann::ordered_json& j, const std::string& at, std::set<std::string>& out) {
   if (j.is_object()) {
-    for (auto it = j.begin(); it != j.end(); ++it) leaf_paths(it.value(), at.empty() ? it.key() : at + "." + it.key(), out);
+    for (auto it = j.begin(); it != j.end(); ++it)
+      leaf_paths(it.value(), at.empty() ? it.key() : at + "." + it.key(), out);
   } else if (j.is_array() && !j.empty() && j[0].is_object()) {
     for (const auto& e : j) leaf_paths(e, at + "[]", out);
   } else {
@@ -938,7 +951,8 @@ TEST(ReportFields, DocsAreGeneratedFromTheDeclarationsAndCoverEveryReport) {
     const CycleRun c = run_cycle(in, ctx.config, HwConfig{});
     std::set<std::string> leaves;
     leaf_paths(cycle_report(ctx, c, std::nullopt), "", leaves);
-    for (const auto& p : leaves) EXPECT_TRUE(described.count(p)) << to_string(m) << ": report field " << p << " is not described";
+    for (const auto& p : leaves)
+      EXPECT_TRUE(described.count(p)) << to_string(m) << ": report field " << p << " is not described";
     EXPECT_TRUE(leaves.count("timing.units[].cycles.busy")) << "the scan of the report is broken";
   }
 }

@@ -74,8 +74,8 @@ std::vector<uint64_t> split_mask(uint64_t mask, int k, uint64_t key) {
   return out;
 }
 
-const float kAlphaSweep[] = {0.0f, 1e-6f, 0x1p-9f, 0.01f, 0.1f, 0.2f, 0.25f, 1.0f / 3.0f, 0.4f, 0.5f, 0.61f,
-                             0.75f, 0.9f, 0.99f, 1.0f - 1e-6f, 1.0f};
+const float kAlphaSweep[] = {0.0f, 1e-6f, 0x1p-9f, 0.01f, 0.1f, 0.2f,  0.25f,        1.0f / 3.0f,
+                             0.4f, 0.5f,  0.61f,   0.75f, 0.9f, 0.99f, 1.0f - 1e-6f, 1.0f};
 
 }  // namespace
 
@@ -99,7 +99,8 @@ TEST(LkStratification, OneSurfaceCoversFloorOrCeil) {
       for (auto [x, y] : pixels) {
         const uint64_t key = fragment_key(99, 0, 0, x, y);
         const int k = 1 + int(fragment_random(key, 100) % 5);
-        for (uint64_t part : split_mask(full_mask(spp), k, key)) m.draw(frag(x, y, part, 0.5f, alpha, {1, 1, 1}, 0, prim++));
+        for (uint64_t part : split_mask(full_mask(spp), k, key))
+          m.draw(frag(x, y, part, 0.5f, alpha, {1, 1, 1}, 0, prim++));
       }
       const double an = double(alpha) * spp;
       for (auto [x, y] : pixels) {
@@ -122,13 +123,20 @@ TEST(LkStratification, FarSurfaceKeepsExactlyFourOfSixteen) {
       for (uint32_t x = 0; x < 64; ++x) {
         Fragment nearf = frag(x, y, 0xFFFF, 0.25f, 0.5f, {1, 0, 0}, near_first ? 0 : 1);
         Fragment farf = frag(x, y, 0xFFFF, 0.75f, 0.5f, {0, 1, 0}, near_first ? 1 : 0);
-        if (near_first) { m.draw(nearf); m.draw(farf); }
-        else { m.draw(farf); m.draw(nearf); }
+        if (near_first) {
+          m.draw(nearf);
+          m.draw(farf);
+        } else {
+          m.draw(farf);
+          m.draw(nearf);
+        }
       }
     for (uint32_t y = 0; y < 64; ++y)
       for (uint32_t x = 0; x < 64; ++x) {
-        ASSERT_EQ(samples_at_depth(m, x, y, 0.75f), 4) << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
-        ASSERT_EQ(samples_at_depth(m, x, y, 0.25f), 8) << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
+        ASSERT_EQ(samples_at_depth(m, x, y, 0.75f), 4)
+            << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
+        ASSERT_EQ(samples_at_depth(m, x, y, 0.25f), 8)
+            << (near_first ? "near first" : "far first") << " pixel " << x << "," << y;
       }
   }
 }
@@ -136,8 +144,11 @@ TEST(LkStratification, FarSurfaceKeepsExactlyFourOfSixteen) {
 namespace {
 /// Mean fraction of samples at depth z over a W x W region after drawing the
 /// given layers (full-pixel fragments) in order.
-struct Layer { float z, alpha; };
-double mean_coverage(Method meth, int spp, uint32_t W, const std::vector<Layer>& layers, float z_query, Numerics num = {}) {
+struct Layer {
+  float z, alpha;
+};
+double mean_coverage(Method meth, int spp, uint32_t W, const std::vector<Layer>& layers, float z_query,
+                     Numerics num = {}) {
   TraceHeader h = header(W, W, spp);
   StochasticModel m = model(h, meth, num);
   for (uint32_t y = 0; y < W; ++y)
@@ -258,8 +269,12 @@ std::array<double, 3> mean_pixel(const Image& img) {
 
 // Enderton et al. Examples 1 and 2: closed-form pixel values.
 TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
-  struct Ex { const char* scene; std::array<double, 3> exact; };
-  const Ex examples[] = {{"enderton-1", {0.45, 0.2475, 0.3025}}, {"enderton-2", {0.7626953125, 0.7626953125, 0.7626953125}}};
+  struct Ex {
+    const char* scene;
+    std::array<double, 3> exact;
+  };
+  const Ex examples[] = {{"enderton-1", {0.45, 0.2475, 0.3025}},
+                         {"enderton-2", {0.7626953125, 0.7626953125, 0.7626953125}}};
   for (const auto& ex : examples)
     for (int spp : {4, 16, 64}) {
       InputSpec in;
@@ -283,7 +298,8 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
           // The colour is a sum of at most 4 layer indicators in [0, 1]; a 6-sigma
           // binomial bound on each (p = 1/2, worst case) plus binary16 rounding.
           const double b = 4 * bound(0.5, samples) + 1e-3;
-          EXPECT_NEAR(m[size_t(c)], ex.exact[size_t(c)], b) << ex.scene << " " << to_string(meth) << " spp " << spp << " channel " << c;
+          EXPECT_NEAR(m[size_t(c)], ex.exact[size_t(c)], b)
+              << ex.scene << " " << to_string(meth) << " spp " << spp << " channel " << c;
         }
       }
     }

@@ -82,8 +82,9 @@ Scan scan(const fs::path& root) {
     const std::string folder = rel.parent_path().generic_string();
     if (kTop.count(folder)) continue;
     if (!by_folder.count(folder)) {
-      r.problems.push_back(folder + " holds sources but has no layer: add it to kLayers in tests/test_layers.cpp "
-                                    "and to docs/architecture.md");
+      r.problems.push_back(folder +
+                           " holds sources but has no layer: add it to kLayers in tests/test_layers.cpp "
+                           "and to docs/architecture.md");
       continue;
     }
     files[folder].push_back(it->path());
@@ -111,8 +112,8 @@ Scan scan(const fs::path& root) {
         ++r.checked;
         const Layer& to = *by_folder.at(h->second);
         if (to.level > from.level)
-          r.problems.push_back(fs::relative(p, root).generic_string() + ":" + std::to_string(n) + " includes " +
-                               name + " of " + to.folder + " (layer " + std::to_string(to.level) + ", " + to.what +
+          r.problems.push_back(fs::relative(p, root).generic_string() + ":" + std::to_string(n) + " includes " + name +
+                               " of " + to.folder + " (layer " + std::to_string(to.level) + ", " + to.what +
                                ") from layer " + std::to_string(from.level) + " (" + from.what +
                                "): layers only point down");
       }
@@ -136,11 +137,11 @@ TEST(Layers, TheScanCatchesWhatItMustOnASyntheticTree) {
     fs::create_directories((root / rel).parent_path());
     std::ofstream(root / rel) << text;
   };
-  put("sim/functional/stage.h", "#include \"unit.h\"\n#include \"bits.h\"\n");      // up, then down
-  put("rtl_models/units/unit.h", "#include \"stage.h\"\n");                          // down
+  put("sim/functional/stage.h", "#include \"unit.h\"\n#include \"bits.h\"\n");  // up, then down
+  put("rtl_models/units/unit.h", "#include \"stage.h\"\n");                     // down
   put("rtl_models/algo/bits.h", "#pragma once\n");
-  put("sim/newfolder/x.cpp", "int x;\n");                                             // no layer
-  put("traces/format/stage.h", "\n");                                                // name clash
+  put("sim/newfolder/x.cpp", "int x;\n");  // no layer
+  put("traces/format/stage.h", "\n");      // name clash
   const Scan r = scan(root);
   fs::remove_all(root);
   auto has = [&](const std::string& needle) {

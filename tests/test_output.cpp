@@ -52,8 +52,8 @@ std::vector<std::string> lines_of(const std::string& s) {
 }
 
 struct Result {
-  int code = -1;    ///< exit status; -1 when killed by a signal
-  int signal = 0;   ///< the signal that killed it
+  int code = -1;   ///< exit status; -1 when killed by a signal
+  int signal = 0;  ///< the signal that killed it
   std::string out, err, cmd;
   std::string describe() const {
     return cmd + "\n" + (signal ? "killed by signal " + std::to_string(signal) : "exit " + std::to_string(code)) +
@@ -234,8 +234,8 @@ TEST(Output, SymlinkTargetKeepsTheLinkAndGetsNewContents) {
   fs::create_directories(box.work() / "real");
   std::ofstream(box.path("real/r.json")) << "old";
   std::ofstream(box.path("real/t.trace")) << "old";
-  fs::create_symlink("real/r.json", box.path("link.json"));  // relative links,
-  fs::create_symlink("link.json", box.path("chain.json"));   // and a chain
+  fs::create_symlink("real/r.json", box.path("link.json"));             // relative links,
+  fs::create_symlink("link.json", box.path("chain.json"));              // and a chain
   fs::create_symlink(box.path("real/t.trace"), box.path("abs.trace"));  // an absolute one
   const Result r = box.run(cat({"run", "--scene", "cloth", "--report", "chain.json", "--quiet"}, kSmall));
   EXPECT_EQ(r.code, 0) << r.describe();
@@ -265,8 +265,8 @@ TEST(Output, DashWritesTheReportAndTheDumpToStandardOutput) {
   EXPECT_FALSE(fs::exists(box.path("-"))) << "a file named '-' was written";
   EXPECT_EQ(image_problem(box.path("a.png")), "");
   ASSERT_EQ(box.run(cat({"scene", "cloth", "-o", "s.trace"}, kSmall)).code, 0);
-  for (const auto& args : std::vector<std::vector<std::string>>{{"trace", "dump", "s.trace", "--limit", "3"},
-                                                                {"trace", "dump", "s.trace", "--limit", "3", "-o", "-"}}) {
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"trace", "dump", "s.trace", "--limit", "3"}, {"trace", "dump", "s.trace", "--limit", "3", "-o", "-"}}) {
     const Result d = box.run(args);
     EXPECT_EQ(d.code, 0) << d.describe();
     EXPECT_EQ(lines_of(d.out).size(), 4u) << "header + 3 fragments expected\n" << d.describe();
@@ -320,7 +320,8 @@ TEST(Output, FileSizeLimitIsAUserErrorForEveryKindAndLeavesNoFile) {
       {"exr", cat({"run", "--scene", "cloth", "--out", "x.exr", "--quiet"}, kSmall), {"x.exr"}},
       {"report", cat({"run", "--scene", "cloth", "--report", "x.json", "--quiet"}, kSmall), {"x.json"}},
       {"trace", cat({"scene", "cloth", "-o", "x.trace"}, kSmall), {"x.trace"}},
-      {"vcd", cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "x.vcd", "--out", "v.png", "--quiet"}, kSmall),
+      {"vcd",
+       cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "x.vcd", "--out", "v.png", "--quiet"}, kSmall),
        {"x.vcd", "v.png"}},
   };
   Box::Options lim;
@@ -348,8 +349,8 @@ TEST(Output, FileSizeLimitIsAUserErrorForEveryKindAndLeavesNoFile) {
 
 TEST(Output, KillDuringAWriteLeavesNoFileUnderTheFinalName) {
   Box box;
-  const std::vector<std::string> args = {"scene", "cloth", "--width", "1920", "--height", "1080", "--spp", "64",
-                                         "-o", "big.trace"};
+  const std::vector<std::string> args = {"scene", "cloth", "--width", "1920", "--height",
+                                         "1080",  "--spp", "64",      "-o",   "big.trace"};
   for (int sig : {SIGKILL, SIGTERM}) {
     SCOPED_TRACE(sig == SIGKILL ? "SIGKILL" : "SIGTERM");
     const pid_t pid = box.start(args, "big");
@@ -385,8 +386,9 @@ TEST(Output, AFailedRunRemovesOnlyTheFilesItCreated) {
   EXPECT_EQ(slurp(box.path("keep.png")), "old image");
   // A waveform this run created (committed by the cycle model before the
   // report failed) is removed; a pre-existing one is replaced, not deleted.
-  const auto cyc = cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "new.vcd", "--report", "afile/r.json"},
-                       {"--width", "16", "--height", "16", "--spp", "4"});
+  const auto cyc =
+      cat({"run", "--scene", "cloth", "--fidelity", "cycle", "--vcd", "new.vcd", "--report", "afile/r.json"},
+          {"--width", "16", "--height", "16", "--spp", "4"});
   r = box.run(cyc);
   EXPECT_EQ(r.code, 1) << r.describe();
   EXPECT_FALSE(fs::exists(box.path("new.vcd"))) << "the failed run left the waveform it created";

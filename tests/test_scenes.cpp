@@ -1,10 +1,10 @@
 // The rasterizer (fill rule, sample patterns) and the built-in scenes.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <unistd.h>
 #include <map>
 #include <vector>
 
@@ -45,11 +45,32 @@ TEST(SamplePatterns, StandardPositionsExactly) {
       {1, {{0.5, 0.5}}},
       {2, {{0.75, 0.75}, {0.25, 0.25}}},
       {4, {{0.375, 0.125}, {0.875, 0.375}, {0.125, 0.625}, {0.625, 0.875}}},
-      {8, {{0.5625, 0.3125}, {0.4375, 0.6875}, {0.8125, 0.5625}, {0.3125, 0.1875}, {0.1875, 0.8125}, {0.0625, 0.4375},
-           {0.6875, 0.9375}, {0.9375, 0.0625}}},
-      {16, {{0.5625, 0.5625}, {0.4375, 0.3125}, {0.3125, 0.625}, {0.75, 0.4375}, {0.1875, 0.375}, {0.625, 0.8125},
-            {0.8125, 0.6875}, {0.6875, 0.1875}, {0.375, 0.875}, {0.5, 0.0625}, {0.25, 0.125}, {0.125, 0.75},
-            {0.0, 0.5}, {0.9375, 0.25}, {0.875, 0.9375}, {0.0625, 0.0}}}};
+      {8,
+       {{0.5625, 0.3125},
+        {0.4375, 0.6875},
+        {0.8125, 0.5625},
+        {0.3125, 0.1875},
+        {0.1875, 0.8125},
+        {0.0625, 0.4375},
+        {0.6875, 0.9375},
+        {0.9375, 0.0625}}},
+      {16,
+       {{0.5625, 0.5625},
+        {0.4375, 0.3125},
+        {0.3125, 0.625},
+        {0.75, 0.4375},
+        {0.1875, 0.375},
+        {0.625, 0.8125},
+        {0.8125, 0.6875},
+        {0.6875, 0.1875},
+        {0.375, 0.875},
+        {0.5, 0.0625},
+        {0.25, 0.125},
+        {0.125, 0.75},
+        {0.0, 0.5},
+        {0.9375, 0.25},
+        {0.875, 0.9375},
+        {0.0625, 0.0}}}};
   for (const auto& [spp, pos] : expect) {
     const auto p = standard_sample_positions(spp);
     for (size_t i = 0; i < pos.size(); ++i) {
@@ -89,7 +110,8 @@ TEST(Rasterizer, WatertightMeshCoversEverySampleOnce) {
         if (i > 0 && i < G && j > 0 && j < G) {
           // Interior vertices on the 1/256 grid; every third one exactly on a sample.
           x = std::floor(x) + (k % 3 == 0 ? h.positions[size_t(k % unsigned(spp))].x / 256.0 : double(k % 256) / 256.0);
-          y = std::floor(y) + (k % 3 == 0 ? h.positions[size_t(k % unsigned(spp))].y / 256.0 : double((k >> 8) % 256) / 256.0);
+          y = std::floor(y) +
+              (k % 3 == 0 ? h.positions[size_t(k % unsigned(spp))].y / 256.0 : double((k >> 8) % 256) / 256.0);
         }
         p.x = x;
         p.y = y;
@@ -105,8 +127,17 @@ TEST(Rasterizer, WatertightMeshCoversEverySampleOnce) {
         const auto& d = v[size_t((j + 1) * (G + 1) + i)];
         ScreenTriangle t;
         // Alternate diagonals and windings so every edge orientation occurs.
-        if ((i + j) % 2) { t.v = {a, b, c}; tris.push_back(t); t.v = {a, d, c}; tris.push_back(t); }
-        else { t.v = {a, b, d}; tris.push_back(t); t.v = {b, c, d}; tris.push_back(t); }
+        if ((i + j) % 2) {
+          t.v = {a, b, c};
+          tris.push_back(t);
+          t.v = {a, d, c};
+          tris.push_back(t);
+        } else {
+          t.v = {a, b, d};
+          tris.push_back(t);
+          t.v = {b, c, d};
+          tris.push_back(t);
+        }
       }
     // Horizontal and vertical edges exactly through samples: a split at x = 20 + sample 0's x.
     const auto n = coverage_counts(h, tris);
@@ -124,7 +155,14 @@ TEST(Rasterizer, AxisAlignedEdgesThroughSamples) {
     std::vector<ScreenTriangle> tris;
     auto rect = [&](double x0, double y0, double x1, double y1) {
       ScreenVertex a, b, c, d;
-      a.x = x0; a.y = y0; b.x = x1; b.y = y0; c.x = x1; c.y = y1; d.x = x0; d.y = y1;
+      a.x = x0;
+      a.y = y0;
+      b.x = x1;
+      b.y = y0;
+      c.x = x1;
+      c.y = y1;
+      d.x = x0;
+      d.y = y1;
       ScreenTriangle t;
       t.v = {a, b, c};
       tris.push_back(t);
@@ -142,9 +180,15 @@ TEST(Rasterizer, AxisAlignedEdgesThroughSamples) {
 TEST(Rasterizer, DepthPlaneReproducesVertexDepths) {
   TraceHeader h = header(16, 16, 16);
   ScreenTriangle t;
-  t.v[0].x = 0; t.v[0].y = 0; t.v[0].z = 0.1;
-  t.v[1].x = 16; t.v[1].y = 0; t.v[1].z = 0.5;
-  t.v[2].x = 0; t.v[2].y = 16; t.v[2].z = 0.9;
+  t.v[0].x = 0;
+  t.v[0].y = 0;
+  t.v[0].z = 0.1;
+  t.v[1].x = 16;
+  t.v[1].y = 0;
+  t.v[1].z = 0.5;
+  t.v[2].x = 0;
+  t.v[2].y = 16;
+  t.v[2].z = 0.9;
   Rasterizer r(h);
   int n = 0;
   r.rasterize(t, [&](const Fragment& f) {
@@ -175,7 +219,8 @@ TEST(Scenes, EveryScenePerSppIsValidAndDeterministic) {
           ASSERT_TRUE(err.empty()) << info.name << " " << spp << " spp: " << err;
           uint32_t zb;
           std::memcpy(&zb, &f.z0, 4);
-          h = mix64(h ^ f.coverage ^ (uint64_t(f.x) << 48) ^ (uint64_t(f.y) << 32) ^ f.prim_id ^ (uint64_t(f.draw_id) << 20) ^ zb);
+          h = mix64(h ^ f.coverage ^ (uint64_t(f.x) << 48) ^ (uint64_t(f.y) << 32) ^ f.prim_id ^
+                    (uint64_t(f.draw_id) << 20) ^ zb);
           ++c;
         }
       };
@@ -206,7 +251,10 @@ std::map<int, double> layer_histogram(const std::string& scene, int spp) {
   std::map<int, double> hist;
   double covered = 0;
   for (uint16_t k : n)
-    if (k) { hist[k] += 1; covered += 1; }
+    if (k) {
+      hist[k] += 1;
+      covered += 1;
+    }
   for (auto& [k, v] : hist) v /= covered;
   return hist;
 }

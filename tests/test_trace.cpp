@@ -106,27 +106,33 @@ size_t current_rss_bytes() {
 // ------------------------------------------------------------------ an encoder from the specification
 
 void put8(std::vector<uint8_t>& o, uint8_t v) { o.push_back(v); }
-void put16(std::vector<uint8_t>& o, uint16_t v) { for (int i = 0; i < 2; ++i) o.push_back(uint8_t(v >> (8 * i))); }
-void put32(std::vector<uint8_t>& o, uint32_t v) { for (int i = 0; i < 4; ++i) o.push_back(uint8_t(v >> (8 * i))); }
-void put64(std::vector<uint8_t>& o, uint64_t v) { for (int i = 0; i < 8; ++i) o.push_back(uint8_t(v >> (8 * i))); }
+void put16(std::vector<uint8_t>& o, uint16_t v) {
+  for (int i = 0; i < 2; ++i) o.push_back(uint8_t(v >> (8 * i)));
+}
+void put32(std::vector<uint8_t>& o, uint32_t v) {
+  for (int i = 0; i < 4; ++i) o.push_back(uint8_t(v >> (8 * i)));
+}
+void put64(std::vector<uint8_t>& o, uint64_t v) {
+  for (int i = 0; i < 8; ++i) o.push_back(uint8_t(v >> (8 * i)));
+}
 void putf(std::vector<uint8_t>& o, float f) { put32(o, bits(f)); }
 
 /// Header bytes (fixed 48-byte part, 2 * spp position bytes, scene name).
 std::vector<uint8_t> encode_header(const TraceHeader& h) {
   std::vector<uint8_t> o;
   for (char c : kTraceMagic) o.push_back(uint8_t(c));  // 0: magic
-  put16(o, kTraceVersion);                              // 8: version
-  put16(o, 0);                                          // 10: reserved
-  put32(o, h.width);                                    // 12
-  put32(o, h.height);                                   // 16
-  put8(o, uint8_t(h.spp));                              // 20
-  put8(o, uint8_t(h.depth_mode));                       // 21
-  put8(o, uint8_t(h.color_format));                     // 22
-  put8(o, uint8_t(h.compression));                      // 23
-  for (float c : h.clear_color) putf(o, c);             // 24, 28, 32
-  putf(o, h.clear_depth);                               // 36
-  put16(o, uint16_t(h.scene_name.size()));              // 40
-  for (int i = 0; i < 6; ++i) put8(o, 0);               // 42: reserved
+  put16(o, kTraceVersion);                             // 8: version
+  put16(o, 0);                                         // 10: reserved
+  put32(o, h.width);                                   // 12
+  put32(o, h.height);                                  // 16
+  put8(o, uint8_t(h.spp));                             // 20
+  put8(o, uint8_t(h.depth_mode));                      // 21
+  put8(o, uint8_t(h.color_format));                    // 22
+  put8(o, uint8_t(h.compression));                     // 23
+  for (float c : h.clear_color) putf(o, c);            // 24, 28, 32
+  putf(o, h.clear_depth);                              // 36
+  put16(o, uint16_t(h.scene_name.size()));             // 40
+  for (int i = 0; i < 6; ++i) put8(o, 0);              // 42: reserved
   EXPECT_EQ(o.size(), 48u);
   for (int i = 0; i < h.spp; ++i) {
     put8(o, h.positions[i].x);
@@ -212,9 +218,15 @@ std::vector<Fragment> make_fragments(const TraceHeader& h, size_t n, uint64_t se
     f.x = uint16_t(i == 1 ? h.width - 1 : i == 2 ? 0 : rng() % h.width);
     f.y = uint16_t(i == 1 ? h.height - 1 : i == 2 ? 0 : rng() % h.height);
     switch (i) {
-      case 0: f.coverage = spp_mask(h.spp); break;                 // full
-      case 1: f.coverage = uint64_t{1} << (h.spp - 1); break;      // highest sample only
-      case 2: f.coverage = 1; break;                               // sample 0 only
+      case 0:
+        f.coverage = spp_mask(h.spp);
+        break;  // full
+      case 1:
+        f.coverage = uint64_t{1} << (h.spp - 1);
+        break;  // highest sample only
+      case 2:
+        f.coverage = 1;
+        break;  // sample 0 only
       default: {
         f.coverage = rng() & spp_mask(h.spp);
         if (!f.coverage) f.coverage = 1;
@@ -256,8 +268,8 @@ std::string read_all_error(const std::string& path) {
     Fragment f;
     while (r.next(f)) {
     }
-    ADD_FAILURE() << path << ": expected a TraceError, but the whole trace was read ("
-                  << r.records_read() << " fragments)";
+    ADD_FAILURE() << path << ": expected a TraceError, but the whole trace was read (" << r.records_read()
+                  << " fragments)";
   } catch (const TraceError& e) {
     return e.what();
   } catch (const std::exception& e) {
@@ -328,8 +340,7 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
   EXPECT_EQ(g.depth_mode, h.depth_mode);
   EXPECT_EQ(g.color_format, h.color_format);
   EXPECT_EQ(g.compression, h.compression);
-  for (int i = 0; i < 3; ++i)
-    EXPECT_EQ(bits(g.clear_color[i]), bits(h.clear_color[i])) << "clear colour channel " << i;
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(bits(g.clear_color[i]), bits(h.clear_color[i])) << "clear colour channel " << i;
   EXPECT_EQ(bits(g.clear_depth), bits(h.clear_depth));
   EXPECT_EQ(g.scene_name, h.scene_name);
   for (int i = 0; i < spp; ++i) {
@@ -355,8 +366,8 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
     } else {
       for (int s = 0; s < 64; ++s) {
         if (e.coverage >> s & 1) {
-          EXPECT_EQ(bits(f.z[s]), bits(e.z[s])) << "depth of sample " << s << ": " << hexbits(f.z[s]) << " vs "
-                                                << hexbits(e.z[s]);
+          EXPECT_EQ(bits(f.z[s]), bits(e.z[s]))
+              << "depth of sample " << s << ": " << hexbits(f.z[s]) << " vs " << hexbits(e.z[s]);
         }
       }
     }
@@ -625,8 +636,8 @@ TEST(TraceStreaming, TwoMillionFragmentsInConstantMemory) {
   EXPECT_EQ(n, kN) << "fragments read";
   EXPECT_EQ(sum, kN * (kN - 1) / 2) << "fragments read out of order or altered";
   const double grew_mib = (double(rss_after) - double(rss_before)) / (1024.0 * 1024.0);
-  EXPECT_LT(grew_mib, 16.0) << "reading " << kN << " fragments grew VmRSS by " << grew_mib
-                            << " MiB (from " << rss_before << " to " << rss_after << " bytes): the reader does not stream";
+  EXPECT_LT(grew_mib, 16.0) << "reading " << kN << " fragments grew VmRSS by " << grew_mib << " MiB (from "
+                            << rss_before << " to " << rss_after << " bytes): the reader does not stream";
   EXPECT_LT(secs, 5.0) << "reading " << kN << " fragments took " << secs << " s";
   std::printf("[ info     ] read %llu fragments (%.1f MB file) in %.2f s; VmRSS grew %.2f MiB\n",
               static_cast<unsigned long long>(n), fs::file_size(path) / 1e6, secs, grew_mib);
@@ -646,9 +657,12 @@ std::vector<BadFragment> bad_fragments() {
   const DepthMode P = DepthMode::kPlane, S = DepthMode::kPerSample;
   const ColorFormat F = ColorFormat::kRgbF32, U = ColorFormat::kRgbUnorm8;
   return {
-      {"pixel x outside the screen", "outside", P, F, [](const TraceHeader& h, Fragment& f) { f.x = uint16_t(h.width); }},
-      {"pixel y outside the screen", "outside", S, U, [](const TraceHeader& h, Fragment& f) { f.y = uint16_t(h.height + 7); }},
-      {"coverage bit beyond spp", "beyond", P, F, [](const TraceHeader& h, Fragment& f) { f.coverage |= uint64_t{1} << h.spp; }},
+      {"pixel x outside the screen", "outside", P, F,
+       [](const TraceHeader& h, Fragment& f) { f.x = uint16_t(h.width); }},
+      {"pixel y outside the screen", "outside", S, U,
+       [](const TraceHeader& h, Fragment& f) { f.y = uint16_t(h.height + 7); }},
+      {"coverage bit beyond spp", "beyond", P, F,
+       [](const TraceHeader& h, Fragment& f) { f.coverage |= uint64_t{1} << h.spp; }},
       {"coverage top bit beyond spp", "beyond", S, F, [](const TraceHeader&, Fragment& f) { f.coverage = 0x80; }},
       {"empty coverage", "empty coverage", P, U, [](const TraceHeader&, Fragment& f) { f.coverage = 0; }},
       {"NaN sample depth", "depth of sample 2", S, F, [](const TraceHeader&, Fragment& f) { f.z[2] = kNaN; }},
@@ -781,7 +795,12 @@ TEST(TraceReaderRefuses, TruncatedUncompressed) {
   std::vector<uint8_t> file = b.header;
   file.insert(file.end(), b.payload.begin(), b.payload.end());
   const size_t H = b.header.size();
-  struct Cut { size_t at; long long record; const char* needle; const char* what; };
+  struct Cut {
+    size_t at;
+    long long record;
+    const char* needle;
+    const char* what;
+  };
   const std::vector<Cut> cuts = {
       {3, -1, "header", "inside the magic"},
       {20, -1, "header", "inside the fixed header"},
@@ -850,7 +869,11 @@ TEST(TraceReaderRefuses, TruncatedCompressed) {
   const Built b = build_valid(8, DepthMode::kPerSample, ColorFormat::kRgbF32, 12);
   TraceHeader hz = b.h;
   hz.compression = Compression::kZstd;
-  struct PCut { size_t at; long long record; const char* what; };
+  struct PCut {
+    size_t at;
+    long long record;
+    const char* what;
+  };
   for (const PCut& c : {PCut{0, 0, "empty payload"}, PCut{b.record_offsets[5] + 3, 5, "inside record 5"},
                         PCut{b.record_offsets[12], 12, "just before the end record"},
                         PCut{b.record_offsets[12] + 5, 12, "inside the end record"}}) {
@@ -867,8 +890,15 @@ TEST(TraceReaderRefuses, BadHeaders) {
     TraceHeader h = b.h;
     h.compression = z;
     const std::vector<uint8_t> good = assemble(h, b.payload);
-    struct Patch { const char* what; size_t offset; std::vector<uint8_t> bytes; const char* needle; };
-    auto u32 = [](uint32_t v) { return std::vector<uint8_t>{uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16), uint8_t(v >> 24)}; };
+    struct Patch {
+      const char* what;
+      size_t offset;
+      std::vector<uint8_t> bytes;
+      const char* needle;
+    };
+    auto u32 = [](uint32_t v) {
+      return std::vector<uint8_t>{uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16), uint8_t(v >> 24)};
+    };
     auto f32 = [&](float f) { return u32(bits(f)); };
     const std::vector<Patch> patches = {
         {"wrong magic", 0, {'R', 'O', 'P', 'T', 'R', 'A', 'C', 'X'}, "magic"},
@@ -955,7 +985,8 @@ std::string utf8_encode(uint32_t cp) {
   if (cp < 0x80) return std::string(1, char(cp));
   if (cp < 0x800) return {char(0xC0 | cp >> 6), char(0x80 | (cp & 0x3F))};
   if (cp < 0x10000) return {char(0xE0 | cp >> 12), char(0x80 | (cp >> 6 & 0x3F)), char(0x80 | (cp & 0x3F))};
-  return {char(0xF0 | cp >> 18), char(0x80 | (cp >> 12 & 0x3F)), char(0x80 | (cp >> 6 & 0x3F)), char(0x80 | (cp & 0x3F))};
+  return {char(0xF0 | cp >> 18), char(0x80 | (cp >> 12 & 0x3F)), char(0x80 | (cp >> 6 & 0x3F)),
+          char(0x80 | (cp & 0x3F))};
 }
 }  // namespace
 

@@ -174,8 +174,8 @@ OutputFile::OutputFile(std::string path, Options opt) : path_(std::move(path)), 
     // Replace: next to the target, so the rename stays in one file system.
     // In place / stdout: in $TMPDIR, then copied (never a temporary in /dev).
     const bool beside = mode_ == Mode::kReplace;
-    const int fd = make_temp(beside ? dir_of(target_) : temp_dir(), beside ? base_of(target_) : "ropsim",
-                             opt_.suffix, temp_);
+    const int fd =
+        make_temp(beside ? dir_of(target_) : temp_dir(), beside ? base_of(target_) : "ropsim", opt_.suffix, temp_);
     if (fd < 0) fail_errno(errno);
     add_pending(temp_, 1);
     ::close(fd);

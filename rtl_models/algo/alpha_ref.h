@@ -9,14 +9,12 @@
 
 namespace ropsim {
 
-inline constexpr uint32_t kAlphaRefConstants[4] = {0x6C50B47Cu, 0xB82F1E52u, 0xC7AFE638u,
-                                                   0x8D22F6E6u};
+inline constexpr uint32_t kAlphaRefConstants[4] = {0x6C50B47Cu, 0xB82F1E52u, 0xC7AFE638u, 0x8D22F6E6u};
 
 /// Sequence index of a sample: sampleId + pixelId * spp, kept modulo 2^hash_bits
 /// (the paper's 32-bit unsigned arithmetic; wraps on screens where
 /// pixelId * spp >= 2^32, see docs/numerics.md "Index overflow").
-inline uint32_t alpha_ref_index(uint32_t sample_id, uint64_t pixel_id, uint32_t spp,
-                                int hash_bits = 32) {
+inline uint32_t alpha_ref_index(uint32_t sample_id, uint64_t pixel_id, uint32_t spp, int hash_bits = 32) {
   const uint64_t x = uint64_t{sample_id} + pixel_id * uint64_t{spp};
   return static_cast<uint32_t>(x & low_mask(hash_bits));
 }
@@ -32,10 +30,9 @@ inline uint32_t calc_alpha_ref_index(uint32_t index, uint32_t surface_id, int ha
 }
 
 /// CalcAlphaRef(sampleId, pixelId, surfaceId) with the paper's 32-bit datapath.
-inline uint32_t calc_alpha_ref(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id,
-                               uint32_t spp, int hash_bits = 32) {
-  return calc_alpha_ref_index(alpha_ref_index(sample_id, pixel_id, spp, hash_bits), surface_id,
-                              hash_bits);
+inline uint32_t calc_alpha_ref(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id, uint32_t spp,
+                               int hash_bits = 32) {
+  return calc_alpha_ref_index(alpha_ref_index(sample_id, pixel_id, spp, hash_bits), surface_id, hash_bits);
 }
 
 /// calc_alpha_ref for the sample indices first, first + 1, ... (wrapping at

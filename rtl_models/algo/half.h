@@ -13,8 +13,8 @@ inline uint16_t float_to_half(float f) {
   const uint32_t absx = x & 0x7FFFFFFFu;
   if (absx >= 0x7F800000u) return static_cast<uint16_t>(sign | 0x7C00u | (absx > 0x7F800000u ? 0x200u : 0u));
   if (absx >= 0x477FF000u) return static_cast<uint16_t>(sign | 0x7C00u);  // rounds to >= 65520
-  if (absx < 0x38800000u) {  // subnormal half or zero
-    if (absx < 0x33000000u) return static_cast<uint16_t>(sign);  // < 2^-25 rounds to 0
+  if (absx < 0x38800000u) {                                               // subnormal half or zero
+    if (absx < 0x33000000u) return static_cast<uint16_t>(sign);           // < 2^-25 rounds to 0
     const uint32_t e = absx >> 23;
     const uint32_t m = (absx & 0x7FFFFFu) | 0x800000u;
     const uint32_t shift = 126 - e;  // 14 + (127 - 15 - e) ... maps to 2^-24 units
@@ -43,7 +43,10 @@ inline float half_to_float(uint16_t h) {
     x = sign;
   } else {  // subnormal: normalise
     e = 113;
-    while (!(m & 0x400u)) { m <<= 1; --e; }
+    while (!(m & 0x400u)) {
+      m <<= 1;
+      --e;
+    }
     x = sign | (e << 23) | ((m & 0x3FFu) << 13);
   }
   float f;

@@ -16,7 +16,8 @@ namespace ropsim {
 inline std::array<uint64_t, 65> a2c_prefix_table(int spp) {
   std::array<uint64_t, 65> t{};
   const int m = log2_floor(unsigned(spp));
-  for (int k = 1; k <= spp; ++k) t[size_t(k)] = t[size_t(k - 1)] | (uint64_t{1} << reverse_low_bits(uint32_t(k - 1), m));
+  for (int k = 1; k <= spp; ++k)
+    t[size_t(k)] = t[size_t(k - 1)] | (uint64_t{1} << reverse_low_bits(uint32_t(k - 1), m));
   return t;
 }
 

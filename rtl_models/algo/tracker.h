@@ -16,14 +16,12 @@ constexpr uint32_t tracker_state_bytes(int spp, int surface_id_bits) {
 struct TrackerState {
   uint64_t covered = 0;
   uint32_t surface_id = 0;
-  bool operator==(const TrackerState& o) const {
-    return covered == o.covered && surface_id == o.surface_id;
-  }
+  bool operator==(const TrackerState& o) const { return covered == o.covered && surface_id == o.surface_id; }
 };
 
 struct TrackResult {
-  uint32_t n = 0;          ///< first sequence index for this fragment: popcount(covered)
-  uint32_t surface_id = 0; ///< surface id to hash with
+  uint32_t n = 0;           ///< first sequence index for this fragment: popcount(covered)
+  uint32_t surface_id = 0;  ///< surface id to hash with
   bool new_surface = false;
 };
 

@@ -1,5 +1,7 @@
 #include "hw_config.h"
 
+#include <toml++/toml.h>
+
 #include <charconv>
 #include <cmath>
 #include <functional>
@@ -8,17 +10,18 @@
 #include <system_error>
 #include <utility>
 
-#include <toml++/toml.h>
-
 #include "bits.h"
 
 namespace ropsim {
 
 const char* to_string(SorterKind k) {
   switch (k) {
-    case SorterKind::kBitonic: return "bitonic";
-    case SorterKind::kRank: return "rank";
-    case SorterKind::kSerial: return "serial";
+    case SorterKind::kBitonic:
+      return "bitonic";
+    case SorterKind::kRank:
+      return "rank";
+    case SorterKind::kSerial:
+      return "serial";
   }
   return "?";
 }
@@ -38,8 +41,10 @@ struct Param {
   std::function<void*(HwConfig&)> field;
 };
 
-#define U32(sec, k, unit, lo, hi, pow2, meaning) \
-  Param{#sec "." #k, unit, Kind::kU32, lo, hi, pow2, meaning, [](HwConfig& c) -> void* { return &c.sec.k; }}
+#define U32(sec, k, unit, lo, hi, pow2, meaning)                                                         \
+  Param {                                                                                                \
+#sec "." #k, unit, Kind::kU32, lo, hi, pow2, meaning, [](HwConfig & c) -> void* { return &c.sec.k; } \
+  }
 #define FIELD(sec, k) [](HwConfig& c) -> void* { return &c.sec.k; }
 
 const std::vector<Param>& params() {
@@ -76,13 +81,14 @@ const std::vector<Param>& params() {
        "bitonic (log2 N (log2 N + 1) / 2 pipelined stages), rank (N^2 comparators, 1 clock) or serial (m clocks)",
        FIELD(sorter, kind)},
       U32(sorter, fifo_depth, "entries", 1, 4096, false, "FIFO from the sorter to the alpha-reference generator"),
-      U32(alpha_ref, lanes, "hashes/clock", 1, 64, false, "CalcAlphaRef hash lanes: m references take ceil(m / lanes) clocks"),
+      U32(alpha_ref, lanes, "hashes/clock", 1, 64, false,
+          "CalcAlphaRef hash lanes: m references take ceil(m / lanes) clocks"),
       U32(alpha_ref, pipeline_depth, "cycles", 1, 64, false, "hash pipeline depth (four multiply-xor rounds)"),
       U32(alpha_ref, fifo_depth, "entries", 1, 4096, false, "FIFO from the alpha-reference generator to writeback"),
-      U32(writeback, samples_per_clock, "samples/clock", 1, 64, false,
-          "opacity tests and sample writes per clock"),
+      U32(writeback, samples_per_clock, "samples/clock", 1, 64, false, "opacity tests and sample writes per clock"),
       U32(writeback, latency_cycles, "cycles", 1, 64, false, "writeback latency; the pixel retires after it"),
-      U32(cache, size_bytes, "bytes", 256, 1u << 30, true, "ROP cache capacity per ROP unit (depth, colour, tracker lines)"),
+      U32(cache, size_bytes, "bytes", 256, 1u << 30, true,
+          "ROP cache capacity per ROP unit (depth, colour, tracker lines)"),
       U32(cache, line_bytes, "bytes", 16, 4096, true, "cache line and DRAM burst size"),
       U32(cache, ways, "ways", 1, 64, false, "set associativity (LRU replacement)"),
       U32(cache, hit_latency_cycles, "cycles", 1, 1000, false, "tag lookup and data read on a hit"),
@@ -94,7 +100,8 @@ const std::vector<Param>& params() {
       U32(dram, latency_cycles, "cycles", 0, 100000, false, "read latency after the data burst"),
       U32(dram, banks, "banks", 1, 256, false, "banks per channel, each with one open row"),
       U32(dram, row_bytes, "bytes", 64, 1u << 20, true, "row (page) size per bank"),
-      U32(dram, row_miss_cycles, "cycles", 0, 100000, false, "extra cycles to close and open a row on a row-buffer miss"),
+      U32(dram, row_miss_cycles, "cycles", 0, 100000, false,
+          "extra cycles to close and open a row on a row-buffer miss"),
       U32(dram, interleave_bytes, "bytes", 16, 1u << 20, true, "address interleave granule between channels"),
   };
   return p;
@@ -128,11 +135,21 @@ std::string value_to_string(const Param& p, HwConfig& c) {
   void* f = p.field(c);
   std::ostringstream os;
   switch (p.kind) {
-    case Kind::kU32: os << *static_cast<uint32_t*>(f); break;
-    case Kind::kReal: os << real_to_string(*static_cast<double*>(f)); break;
-    case Kind::kBool: os << (*static_cast<bool*>(f) ? "true" : "false"); break;
-    case Kind::kSorter: os << '"' << to_string(*static_cast<SorterKind*>(f)) << '"'; break;
-    case Kind::kInterleave: os << '"' << to_string(*static_cast<Interleave*>(f)) << '"'; break;
+    case Kind::kU32:
+      os << *static_cast<uint32_t*>(f);
+      break;
+    case Kind::kReal:
+      os << real_to_string(*static_cast<double*>(f));
+      break;
+    case Kind::kBool:
+      os << (*static_cast<bool*>(f) ? "true" : "false");
+      break;
+    case Kind::kSorter:
+      os << '"' << to_string(*static_cast<SorterKind*>(f)) << '"';
+      break;
+    case Kind::kInterleave:
+      os << '"' << to_string(*static_cast<Interleave*>(f)) << '"';
+      break;
   }
   return os.str();
 }
@@ -141,10 +158,18 @@ std::string range_of(const Param& p) {
   std::ostringstream os;
   switch (p.kind) {
     case Kind::kU32:
-    case Kind::kReal: os << p.lo << " .. " << p.hi << (p.pow2 ? ", power of two" : ""); break;
-    case Kind::kBool: os << "true, false"; break;
-    case Kind::kSorter: os << "bitonic, rank, serial"; break;
-    case Kind::kInterleave: os << "diagonal, row"; break;
+    case Kind::kReal:
+      os << p.lo << " .. " << p.hi << (p.pow2 ? ", power of two" : "");
+      break;
+    case Kind::kBool:
+      os << "true, false";
+      break;
+    case Kind::kSorter:
+      os << "bitonic, rank, serial";
+      break;
+    case Kind::kInterleave:
+      os << "diagonal, row";
+      break;
   }
   return os.str();
 }
@@ -164,10 +189,16 @@ void set_real(const Param& p, HwConfig& c, double v, const std::string& at) {
 void set_name(const Param& p, HwConfig& c, const std::string& s, const std::string& at) {
   if (p.kind == Kind::kSorter) {
     for (SorterKind k : {SorterKind::kBitonic, SorterKind::kRank, SorterKind::kSerial})
-      if (s == to_string(k)) { *static_cast<SorterKind*>(p.field(c)) = k; return; }
+      if (s == to_string(k)) {
+        *static_cast<SorterKind*>(p.field(c)) = k;
+        return;
+      }
   } else {
     for (Interleave k : {Interleave::kDiagonal, Interleave::kRow})
-      if (s == to_string(k)) { *static_cast<Interleave*>(p.field(c)) = k; return; }
+      if (s == to_string(k)) {
+        *static_cast<Interleave*>(p.field(c)) = k;
+        return;
+      }
   }
   fail_at(at, "\"" + s + "\" is not one of " + range_of(p));
 }
@@ -216,9 +247,12 @@ HwConfig read_hw_file(const std::string& path) {
           set_u32(*p, c, v.as_integer()->get(), at);
           break;
         case Kind::kReal:
-          if (v.is_integer()) set_real(*p, c, double(v.as_integer()->get()), at);
-          else if (v.is_floating_point()) set_real(*p, c, v.as_floating_point()->get(), at);
-          else fail(path, key, "must be a number");
+          if (v.is_integer())
+            set_real(*p, c, double(v.as_integer()->get()), at);
+          else if (v.is_floating_point())
+            set_real(*p, c, v.as_floating_point()->get(), at);
+          else
+            fail(path, key, "must be a number");
           break;
         case Kind::kBool:
           if (!v.is_boolean()) fail(path, key, "must be true or false");
@@ -283,7 +317,8 @@ void apply_hw_override(HwConfig& cfg, const std::string& a) {
       if (val != "true" && val != "false") fail_at(at, "must be true or false");
       *static_cast<bool*>(p->field(c)) = val == "true";
       break;
-    default: set_name(*p, c, val, at);
+    default:
+      set_name(*p, c, val, at);
   }
   c.overrides.push_back(a);
   cfg = std::move(c);
@@ -318,8 +353,8 @@ void validate_hw_config(const HwConfig& c) {
                 " x " + n(ways) + " = " + n(set_bytes) + ")");
   if (size % set_bytes != 0 || !is_pow2(size / set_bytes))
     fail_at(origin_of(c, {"cache.size_bytes", "cache.line_bytes", "cache.ways"}),
-            "cache.size_bytes / (cache.line_bytes x cache.ways) = " + n(size) + " / (" + n(line) + " x " +
-                n(ways) + ") must be a power-of-two number of sets");
+            "cache.size_bytes / (cache.line_bytes x cache.ways) = " + n(size) + " / (" + n(line) + " x " + n(ways) +
+                ") must be a power-of-two number of sets");
   if (c.dram.row_bytes < line)
     fail_at(origin_of(c, {"dram.row_bytes", "cache.line_bytes"}),
             "dram.row_bytes " + n(c.dram.row_bytes) + " is smaller than cache.line_bytes " + n(line));

@@ -1,10 +1,9 @@
 // The ROP clock: converts cycles (the config's unit) to sc_time once, and
 // knows the VCD window. All units of one pipeline share one Clock.
 #pragma once
-#include <systemc>
-
 #include <cmath>
 #include <cstdint>
+#include <systemc>
 
 namespace ropsim {
 

@@ -1,9 +1,9 @@
 #include "scheduler.h"
 
+#include <algorithm>
+
 #include "bits.h"
 #include "unit.h"
-
-#include <algorithm>
 
 namespace ropsim {
 
@@ -39,8 +39,10 @@ void Scheduler::request(uint32_t index, uint64_t cycle) {
   w.insert(it, cycle);
   if (!earliest) return;
   earliest_[index] = cycle;
-  if (running_) next_ = std::min(next_, cycle);
-  else if (cycle < armed_) notify(cycle);
+  if (running_)
+    next_ = std::min(next_, cycle);
+  else if (cycle < armed_)
+    notify(cycle);
 }
 
 void Scheduler::notify(uint64_t cycle) {

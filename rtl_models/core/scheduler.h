@@ -13,9 +13,8 @@
 // same cycles), and several units due in one cycle cost one kernel activation
 // instead of one each. Idle cycles still cost nothing: no unit asks for them.
 #pragma once
-#include <systemc>
-
 #include <cstdint>
+#include <systemc>
 #include <utility>
 #include <vector>
 
@@ -48,8 +47,8 @@ class Scheduler : public sc_core::sc_module {
   std::vector<uint64_t> due_;                 // bit per unit: runs in the current cycle
   std::vector<uint64_t> earliest_;            // per unit: wakes_.back(), ~0 if none
   std::vector<uint32_t> waiting_;             // the units with a request (decoupled units rarely have one)
-  uint64_t armed_ = ~uint64_t{0};  // cycle of the pending notification (~0: none)
-  uint64_t next_ = ~uint64_t{0};   // while running: the earliest request after now
+  uint64_t armed_ = ~uint64_t{0};             // cycle of the pending notification (~0: none)
+  uint64_t next_ = ~uint64_t{0};              // while running: the earliest request after now
   bool running_ = false, again_ = false;
   uint32_t at_ = 0;  // the unit running now
   uint64_t activations_ = 0;

@@ -26,8 +26,8 @@ struct FifoStats {
   uint32_t capacity = 0;
   uint64_t pushes = 0;
   uint32_t max_occupancy = 0;
-  double mean_occupancy = 0;   ///< entries, time-averaged over the run
-  uint64_t full_cycles = 0;    ///< cycles at capacity
+  double mean_occupancy = 0;  ///< entries, time-averaged over the run
+  uint64_t full_cycles = 0;   ///< cycles at capacity
 };
 
 /// Occupancy over simulated time from push and pop cycles that arrive in
@@ -144,8 +144,10 @@ class TimedFifo {
   /// slot frees, now if that is decided, else when the consumer pops.
   void wait_for_space(uint64_t t) {
     const uint64_t s = space_from();
-    if (s != kUndecided) producer_->on_space(std::max(s, t + 1));
-    else producer_waiting_ = true;
+    if (s != kUndecided)
+      producer_->on_space(std::max(s, t + 1));
+    else
+      producer_waiting_ = true;
   }
   /// A decoupled producer that cannot tell yet whether a slot is free at its
   /// cycle (space_from() is kUndecided) hears (on_space) at the next pop.

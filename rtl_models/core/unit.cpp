@@ -6,12 +6,18 @@ namespace ropsim {
 
 const char* to_string(Activity a) {
   switch (a) {
-    case Activity::kIdle: return "idle";
-    case Activity::kBusy: return "busy";
-    case Activity::kStarved: return "input_starved";
-    case Activity::kBlocked: return "output_blocked";
-    case Activity::kHazard: return "pixel_hazard";
-    case Activity::kMemory: return "memory";
+    case Activity::kIdle:
+      return "idle";
+    case Activity::kBusy:
+      return "busy";
+    case Activity::kStarved:
+      return "input_starved";
+    case Activity::kBlocked:
+      return "output_blocked";
+    case Activity::kHazard:
+      return "pixel_hazard";
+    case Activity::kMemory:
+      return "memory";
   }
   return "?";
 }

@@ -15,12 +15,11 @@
 // SystemC time, so the cache and DRAM see requests in cycle order. Lockstep
 // and decoupled runs give identical results (tests/test_cycle.cpp).
 #pragma once
-#include <systemc>
-
 #include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
+#include <systemc>
 #include <vector>
 
 #include "clock.h"
@@ -42,9 +41,9 @@ const char* to_string(Activity a);
 
 struct UnitStats {
   std::array<uint64_t, kActivities> cycles{};  ///< cycles per Activity
-  uint64_t fragments = 0;  ///< fragments accepted
-  uint64_t samples = 0;    ///< samples processed (unit-specific: tested, sorted, hashed, written)
-  uint64_t activations = 0;  ///< times the scheduler ran the unit (host cost)
+  uint64_t fragments = 0;                      ///< fragments accepted
+  uint64_t samples = 0;                        ///< samples processed (unit-specific: tested, sorted, hashed, written)
+  uint64_t activations = 0;                    ///< times the scheduler ran the unit (host cost)
 };
 
 class Unit : public sc_core::sc_module {
@@ -96,8 +95,10 @@ class Unit : public sc_core::sc_module {
   /// From cycle t the unit does a (inside a busy interval: after it).
   void set_activity(Activity a, uint64_t t) {
     charge_to(t);
-    if (t < busy_end_) after_ = a;
-    else act_ = a;
+    if (t < busy_end_)
+      after_ = a;
+    else
+      act_ = a;
     if (clk_.tracing(t)) trace_activity = int(a);
   }
   /// Busy for [t, until), then `after` until the next change, so a unit need

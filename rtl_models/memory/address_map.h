@@ -20,7 +20,9 @@ inline const char* to_string(Buffer b) {
 class AddressMap {
  public:
   AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes)
-      : tiles_x_(ceil_div(width, 8u)), spp_(uint32_t(spp)), tracker_bytes_(tracker_bytes),
+      : tiles_x_(ceil_div(width, 8u)),
+        spp_(uint32_t(spp)),
+        tracker_bytes_(tracker_bytes),
         line_shift_(log2_ceil(line_bytes)) {}
   uint64_t pixel_index(uint32_t x, uint32_t y) const {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
@@ -45,7 +47,8 @@ class AddressMap {
       // Samples lying wholly in lines <= l1 need nothing more; a sample that
       // starts in l1 and crosses into l1 + 1 stays and emits l1 + 1 next.
       const uint64_t past = ((l1 + 1) << line_shift_) - start;
-      const uint64_t k = bps == kDepthSampleBytes ? past / kDepthSampleBytes : past / kColorSampleBytes;  // constant divisors
+      const uint64_t k =
+          bps == kDepthSampleBytes ? past / kDepthSampleBytes : past / kColorSampleBytes;  // constant divisors
       mask = k >= 64 ? 0 : mask & (~uint64_t{0} << k);
     }
   }

@@ -5,8 +5,13 @@
 namespace ropsim {
 
 Dram::Dram(const HwConfig::Dram& cfg)
-    : cfg_(cfg), interleave_(cfg.interleave_bytes), channels_(cfg.channels), row_(cfg.row_bytes), banks_(cfg.banks),
-      bus_(cfg.bytes_per_clock), ch_(cfg.channels) {
+    : cfg_(cfg),
+      interleave_(cfg.interleave_bytes),
+      channels_(cfg.channels),
+      row_(cfg.row_bytes),
+      banks_(cfg.banks),
+      bus_(cfg.bytes_per_clock),
+      ch_(cfg.channels) {
   for (auto& c : ch_) {
     c.open_row.assign(cfg.banks, ~uint64_t{0});
     c.bank_free.assign(cfg.banks, 0);

@@ -22,11 +22,17 @@ void PostedWrites::apply(uint64_t before) {
   }
 }
 
-RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
-                   PostedWrites* posted, uint32_t rop)
-    : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)), set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
-      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid), lru_(tags_.size(), 0), ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {
-}
+RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram, PostedWrites* posted, uint32_t rop)
+    : cfg_(cfg),
+      dram_(dram),
+      in_dram_(in_dram),
+      posted_(posted),
+      rop_(rop),
+      sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
+      set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
+      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid),
+      lru_(tags_.size(), 0),
+      ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {}
 
 size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
   const uint64_t l = line >> set_shift_;

@@ -22,9 +22,9 @@ namespace ropsim {
 
 struct CacheStats {
   std::array<uint64_t, kBuffers> read_hits{}, read_misses{}, write_hits{}, write_misses{};
-  uint64_t merged = 0;      ///< reads of a line whose fill was still in flight
+  uint64_t merged = 0;  ///< reads of a line whose fill was still in flight
   uint64_t evictions = 0, dirty_evictions = 0;
-  uint64_t clear_fills = 0; ///< misses served by fast clear, no DRAM read
+  uint64_t clear_fills = 0;  ///< misses served by fast clear, no DRAM read
 
   /// Sums another cache's counts into this one (the ROP caches' total).
   CacheStats& operator+=(const CacheStats& o) {
@@ -97,16 +97,17 @@ class RopCache {
  public:
   /// `posted` (shared by the ROPs) delays writes as PostedWrites says; without
   /// it a posted write is applied at once.
-  RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram,
-           PostedWrites* posted = nullptr, uint32_t rop = 0);
+  RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram, PostedWrites* posted = nullptr, uint32_t rop = 0);
   /// Reads a line at cycle now; returns the cycle its data is available.
   uint64_t read(uint64_t line_addr, Buffer b, uint64_t now);
   /// Writes (part of) a line at cycle now; never stalls the writer.
   void write(uint64_t line_addr, Buffer b, uint64_t now);
   /// Posts a write for cycle `cycle` (see PostedWrites).
   void post_write(uint64_t line_addr, Buffer b, uint64_t cycle) {
-    if (posted_) posted_->post(cycle, rop_, this, line_addr, b);
-    else write(line_addr, b, cycle);
+    if (posted_)
+      posted_->post(cycle, rop_, this, line_addr, b);
+    else
+      write(line_addr, b, cycle);
   }
   /// Writes every dirty line back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);

@@ -17,7 +17,7 @@ class BitonicSorter final : public SortAlgorithm {
     const int n = 1 << k_;
     uint64_t v[64];
     for (int i = 0; i < n; ++i) v[i] = i < m ? keys[i] : ~uint64_t{0};
-    for (int size = 2; size <= n; size <<= 1)          // merge phases
+    for (int size = 2; size <= n; size <<= 1)                 // merge phases
       for (int stride = size >> 1; stride > 0; stride >>= 1)  // one stage each
         for (int i = 0; i < n; ++i) {
           const int j = i ^ stride;

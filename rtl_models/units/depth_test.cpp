@@ -1,11 +1,10 @@
 #include "depth_test.h"
 
-
 namespace ropsim {
 
-DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop,
-                     Retirement& retirement, const AddressMap& amap, const HwConfig::DepthTest& cfg, RopCache& cache,
-                     TokenFifo& in, TokenFifo& out)
+DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
+                     const AddressMap& amap, const HwConfig::DepthTest& cfg, RopCache& cache, TokenFifo& in,
+                     TokenFifo& out)
     : Unit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in), out_(out) {}
 
 uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
@@ -52,7 +51,8 @@ void DepthTest::step(uint64_t now) {
       ++stats_.fragments;
       const uint64_t ready = evaluate(t, now);
       pending_.push(Pending{std::max(ready, now), t->seq, t, t->survivors == 0});
-      busy_until_ = now + std::max<uint32_t>(1, ceil_div(uint32_t(__builtin_popcountll(t->covered)), cfg_.samples_per_clock));
+      busy_until_ =
+          now + std::max<uint32_t>(1, ceil_div(uint32_t(__builtin_popcountll(t->covered)), cfg_.samples_per_clock));
       accepted = true;
     }
   }

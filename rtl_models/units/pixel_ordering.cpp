@@ -1,6 +1,5 @@
 #include "pixel_ordering.h"
 
-
 namespace ropsim {
 
 PixelOrdering::PixelOrdering(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Ordering& cfg,

@@ -16,8 +16,8 @@ namespace ropsim {
 
 class SampleSorter : public PipeUnit {
  public:
-  SampleSorter(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, std::unique_ptr<SortAlgorithm> algo,
-               TokenFifo& in, TokenFifo& out)
+  SampleSorter(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop,
+               std::unique_ptr<SortAlgorithm> algo, TokenFifo& in, TokenFifo& out)
       : PipeUnit(name, clk, rop, in, out), algo_(std::move(algo)) {}
   const SortAlgorithm& algorithm() const { return *algo_; }
   std::vector<Extra> extras() const override {

@@ -1,11 +1,9 @@
 #include "writeback.h"
 
-
 namespace ropsim {
 
-Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop,
-                     Retirement& retirement, const AddressMap& amap, const HwConfig::Writeback& cfg, RopCache& cache,
-                     TokenFifo& in)
+Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
+                     const AddressMap& amap, const HwConfig::Writeback& cfg, RopCache& cache, TokenFifo& in)
     : DecoupledUnit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {

@@ -10,7 +10,6 @@
 // main maps them to the exit status (README "Exit status").
 #pragma once
 #include <CLI/CLI.hpp>
-
 #include <functional>
 #include <string>
 #include <vector>

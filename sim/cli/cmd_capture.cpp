@@ -40,9 +40,9 @@ class ProgressBar {
     const double f = double(done) / double(total);
     const int w = 40, fill = int(f * w);
     const double sec = std::chrono::duration<double>(now - t0_).count();
-    std::fprintf(stderr, "\rcapture [%s%s] %5.1f%%  %llu/%llu triangles  %.1f s", std::string(size_t(fill), '#').c_str(),
-                 std::string(size_t(w - fill), ' ').c_str(), 100.0 * f, (unsigned long long)done,
-                 (unsigned long long)total, sec);
+    std::fprintf(stderr, "\rcapture [%s%s] %5.1f%%  %llu/%llu triangles  %.1f s",
+                 std::string(size_t(fill), '#').c_str(), std::string(size_t(w - fill), ' ').c_str(), 100.0 * f,
+                 (unsigned long long)done, (unsigned long long)total, sec);
     shown_ = true;
   }
   void done() {
@@ -80,11 +80,11 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
     st = capture_to_file(spec, o.out, o.allow_empty, [&](uint64_t d, uint64_t t) { bar.update(d, t); });
   }
   if (!o.quiet)
-    fmt::print("wrote {}: {}x{} {} spp, {} triangles ({} outside, {} clipped, {} back-facing, {} discarded), "
-               "{} fragments, {} covered samples, {:.2f} s ({:.2f} M fragments/s)\n",
-               o.out, spec.width, spec.height, spec.spp, st.triangles, st.outside, st.clipped, st.back_facing,
-               st.discarded, st.fragments, st.covered_samples, st.seconds,
-               st.seconds > 0 ? double(st.fragments) / st.seconds / 1e6 : 0.0);
+    fmt::print(
+        "wrote {}: {}x{} {} spp, {} triangles ({} outside, {} clipped, {} back-facing, {} discarded), "
+        "{} fragments, {} covered samples, {:.2f} s ({:.2f} M fragments/s)\n",
+        o.out, spec.width, spec.height, spec.spp, st.triangles, st.outside, st.clipped, st.back_facing, st.discarded,
+        st.fragments, st.covered_samples, st.seconds, st.seconds > 0 ? double(st.fragments) / st.seconds / 1e6 : 0.0);
   return 0;
 }
 
@@ -96,8 +96,9 @@ std::function<int()> add_capture_command(CLI::App& app) {
       "capture", "Rasterize a mesh scene file (OBJ / glTF meshes, camera, opacity; docs/capture.md) into a trace");
   sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
   sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error; docs/outputs.md)");
-  sub->add_option("--mesh-dir", o->mesh_dir,
-                  "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
+  sub->add_option(
+      "--mesh-dir", o->mesh_dir,
+      "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
   sub->add_option("--spp", o->spp, "Override the scene's samples per pixel: 1, 2, 4, 8, 16, 32 or 64")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(CLI::Range(1u, 32768u));

@@ -1,7 +1,6 @@
 // `ropsim capture`: a mesh scene file -> a fragment trace (docs/capture.md).
 #pragma once
 #include <CLI/CLI.hpp>
-
 #include <functional>
 
 namespace ropsim {

@@ -19,10 +19,12 @@ struct CompareOpts {
 int cmd_compare(const CompareOpts& o) {
   CompareResult c = compare_image_files(o.a, o.b);
   if (o.json)
-    fmt::print("{{\"rmse_8bit\": {:.6f}, \"psnr_db\": {:.4f}, \"max_error_8bit\": {:.6f}, \"mean_error_8bit\": {:.6f}}}\n",
-               c.rmse_8bit, std::isfinite(c.psnr_db) ? c.psnr_db : 999.0, c.max_error_8bit, c.mean_error_8bit);
+    fmt::print(
+        "{{\"rmse_8bit\": {:.6f}, \"psnr_db\": {:.4f}, \"max_error_8bit\": {:.6f}, \"mean_error_8bit\": {:.6f}}}\n",
+        c.rmse_8bit, std::isfinite(c.psnr_db) ? c.psnr_db : 999.0, c.max_error_8bit, c.mean_error_8bit);
   else
-    fmt::print("RMSE {:.4f} (8-bit units)  PSNR {:.2f} dB  max error {:.2f}\n", c.rmse_8bit, c.psnr_db, c.max_error_8bit);
+    fmt::print("RMSE {:.4f} (8-bit units)  PSNR {:.2f} dB  max error {:.2f}\n", c.rmse_8bit, c.psnr_db,
+               c.max_error_8bit);
   return 0;
 }
 

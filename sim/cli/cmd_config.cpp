@@ -31,10 +31,12 @@ int cmd_config(const ConfigOpts& o) {
 
 VerbRunner add_config_command(CLI::App& app) {
   auto o = std::make_shared<ConfigOpts>();
-  CLI::App* cfgc = app.add_subcommand("config", "Print the hardware config (defaults or a file, resolved) or its parameter table");
+  CLI::App* cfgc =
+      app.add_subcommand("config", "Print the hardware config (defaults or a file, resolved) or its parameter table");
   cfgc->add_option("FILE", o->file, "Config file to check and print resolved (default: the built-in defaults)")
       ->check(CLI::ExistingFile);
-  cfgc->add_flag("--markdown", o->markdown, "Print every parameter with unit, default, range and meaning (docs/config.md)");
+  cfgc->add_flag("--markdown", o->markdown,
+                 "Print every parameter with unit, default, range and meaning (docs/config.md)");
   return [o, cfgc]() { return cfgc->parsed() ? cmd_config(*o) : -1; };
 }
 

@@ -67,9 +67,9 @@ void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std
   for (auto& f : staged) f->commit();
 }
 
-int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, uint64_t vcd_first,
-                  uint64_t vcd_last, const std::vector<std::string>& outs, const std::string& report,
-                  const std::string& cmdline) {
+int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
+                  uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
+                  const std::string& report, const std::string& cmdline) {
   CycleOptions opt;
   opt.vcd_first = vcd_first;
   opt.vcd_last = vcd_last;
@@ -79,7 +79,8 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   if (tty)
     opt.progress = [t0](uint64_t n) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n, s > 0 ? n / s / 1e6 : 0.0);
+      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n,
+                   s > 0 ? n / s / 1e6 : 0.0);
     };
   if (!o.vcd.empty()) {
     ensure_parent_dir(o.vcd);
@@ -174,20 +175,29 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
 
 VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   auto ro = std::make_shared<RunOpts>();
-  CLI::App* run = app.add_subcommand("run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
-  auto* opt_trace = run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
+  CLI::App* run = app.add_subcommand(
+      "run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
+  auto* opt_trace =
+      run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
   run->add_option("--scene", ro->scene, "Built-in scene (default cloth): " + join(scene_names()))
-      ->check(CLI::IsMember(scene_names()))->excludes(opt_trace);
-  run->add_option("--method", ro->method, "Method: " + join(method_names()) + " (default lk)")->check(CLI::IsMember(method_names()));
+      ->check(CLI::IsMember(scene_names()))
+      ->excludes(opt_trace);
+  run->add_option("--method", ro->method, "Method: " + join(method_names()) + " (default lk)")
+      ->check(CLI::IsMember(method_names()));
   run->add_option("--spp", ro->spp, "Samples per pixel for --scene: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
-  run->add_option("--width", ro->width, "Scene width in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
-  run->add_option("--height", ro->height, "Scene height in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--width", ro->width, "Scene width in pixels (default: the scene's)")
+      ->check(CLI::Range(1u, kMaxScreenSide));
+  run->add_option("--height", ro->height, "Scene height in pixels (default: the scene's)")
+      ->check(CLI::Range(1u, kMaxScreenSide));
   run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
-  run->add_option("--hash-bits", ro->num.hash_bits, "Alpha-reference hash datapath width, bits (8..32, default 32)")->check(CLI::Range(8, 32));
-  run->add_option("--alpha-bits", ro->num.alpha_bits, "Opacity fixed-point precision, bits (1..32, default 32)")->check(CLI::Range(1, 32));
-  run->add_option("--surface-id-bits", ro->num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")->check(CLI::Range(1, 32));
+  run->add_option("--hash-bits", ro->num.hash_bits, "Alpha-reference hash datapath width, bits (8..32, default 32)")
+      ->check(CLI::Range(8, 32));
+  run->add_option("--alpha-bits", ro->num.alpha_bits, "Opacity fixed-point precision, bits (1..32, default 32)")
+      ->check(CLI::Range(1, 32));
+  run->add_option("--surface-id-bits", ro->num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")
+      ->check(CLI::Range(1, 32));
   run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
   run->add_option("--fidelity", ro->fidelity,
@@ -203,7 +213,8 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
                 "for checking the decoupling)");
   run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
       ->check(CLI::Range(1u, 1000u));
-  run->add_flag("--vs-reference", ro->vs_reference, "Also run the A-buffer reference on the same stream and report the RMSE");
+  run->add_flag("--vs-reference", ro->vs_reference,
+                "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
   return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
 }

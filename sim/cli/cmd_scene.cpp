@@ -18,7 +18,8 @@ struct SceneOpts {
 
 int cmd_scene(SceneOpts& o, const CLI::App& sub) {
   if (o.list) {
-    for (const auto& s : scene_catalog()) fmt::print("{:<13} {:>4}x{:<4} {}\n", s.name, s.width, s.height, s.description);
+    for (const auto& s : scene_catalog())
+      fmt::print("{:<13} {:>4}x{:<4} {}\n", s.name, s.width, s.height, s.description);
     return 0;
   }
   if (!sub.count("NAME")) throw UserError("scene: give a scene NAME (or --list)");
@@ -40,14 +41,20 @@ VerbRunner add_scene_command(CLI::App& app) {
   auto o = std::make_shared<SceneOpts>();
   CLI::App* scn = app.add_subcommand("scene", "Write a built-in scene as a trace file, or list the scenes");
   scn->add_option("NAME", o->sp.name, "Scene: " + join(scene_names()))->check(CLI::IsMember(scene_names()));
-  scn->add_option("--spp", o->sp.spp, "Samples per pixel: 1, 2, 4, 8, 16, 32 or 64 (default 16)")->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
+  scn->add_option("--spp", o->sp.spp, "Samples per pixel: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
+      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   scn->add_option("-o,--output", o->out, "Trace file to write");
-  scn->add_option("--width", o->sp.width, "Width in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
-  scn->add_option("--height", o->sp.height, "Height in pixels (default: the scene's)")->check(CLI::Range(1u, kMaxScreenSide));
+  scn->add_option("--width", o->sp.width, "Width in pixels (default: the scene's)")
+      ->check(CLI::Range(1u, kMaxScreenSide));
+  scn->add_option("--height", o->sp.height, "Height in pixels (default: the scene's)")
+      ->check(CLI::Range(1u, kMaxScreenSide));
   scn->add_option("--seed", o->sp.seed, "Scene generator seed (default 1)");
-  scn->add_option("--depth", o->depth_mode, "Depth records: plane or per-sample (default plane)")->check(CLI::IsMember({"plane", "per-sample"}));
-  scn->add_option("--color", o->color_fmt, "Colour records: rgb-f32 or rgb-unorm8 (default rgb-f32)")->check(CLI::IsMember({"rgb-f32", "rgb-unorm8"}));
-  scn->add_option("--compression", o->compression, "zstd or none (default zstd)")->check(CLI::IsMember({"zstd", "none"}));
+  scn->add_option("--depth", o->depth_mode, "Depth records: plane or per-sample (default plane)")
+      ->check(CLI::IsMember({"plane", "per-sample"}));
+  scn->add_option("--color", o->color_fmt, "Colour records: rgb-f32 or rgb-unorm8 (default rgb-f32)")
+      ->check(CLI::IsMember({"rgb-f32", "rgb-unorm8"}));
+  scn->add_option("--compression", o->compression, "zstd or none (default zstd)")
+      ->check(CLI::IsMember({"zstd", "none"}));
   scn->add_flag("--list", o->list, "List the built-in scenes");
   return [o, scn]() { return scn->parsed() ? cmd_scene(*o, *scn) : -1; };
 }

@@ -25,13 +25,16 @@ int cmd_trace_info(const std::string& path, bool validate_only) {
   uint64_t covered = 0;
   uint32_t max_draw = 0;
   // Depth complexity: fragments per touched pixel, in sparse 8x8 tiles.
-  struct Counts { std::array<uint32_t, 64> n{}; };
+  struct Counts {
+    std::array<uint32_t, 64> n{};
+  };
   TileMap<Counts> counts(r.header().width, r.header().height);
   while (r.next(f)) {
     covered += __builtin_popcountll(f.coverage);
     max_draw = std::max(max_draw, f.draw_id);
     if (!validate_only)
-      ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); }).n[(f.y & 7u) * 8 + (f.x & 7u)];
+      ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); })
+            .n[(f.y & 7u) * 8 + (f.x & 7u)];
   }
   const uint64_t n = r.records_read();
   if (validate_only) {

@@ -31,11 +31,13 @@ VerbRunner add_vectors_command(CLI::App& app) {
   auto o = std::make_shared<VectorOpts>();
   CLI::App* vec = app.add_subcommand("vectors", "Golden test vectors (CSV) for one unit, for RTL verification");
   vec->add_option("UNIT", o->unit, "Unit: " + join(vector_units()))->required()->check(CLI::IsMember(vector_units()));
-  vec->add_option("--count", o->count, "Number of vectors (default 1000)")->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
+  vec->add_option("--count", o->count, "Number of vectors (default 1000)")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
   vec->add_option("-o,--output", o->out, "CSV file to write (- for standard output)")->required();
   vec->add_option("--seed", o->seed, "Seed of the random cases (default 1)");
   vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
-  vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker: surface id width (1..32)")->check(CLI::Range(1, 32));
+  vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker: surface id width (1..32)")
+      ->check(CLI::Range(1, 32));
   return [o, vec]() { return vec->parsed() ? cmd_vectors(*o) : -1; };
 }
 

@@ -8,7 +8,6 @@
 //      One line "ropsim: internal error: <invariant>: please report it".
 // A failing run removes the outputs it created (never a file it replaced).
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <cstdlib>
 #include <new>

@@ -23,12 +23,18 @@ FunctionalRun as_functional(const CycleRun& run, const std::optional<Image>& ref
 
 const char* activity_meaning(Activity a) {
   switch (a) {
-    case Activity::kIdle: return "cycles before its first or after its last fragment";
-    case Activity::kBusy: return "cycles working";
-    case Activity::kStarved: return "cycles waiting for input";
-    case Activity::kBlocked: return "cycles waiting for space in the FIFO behind it";
-    case Activity::kHazard: return "ordering: cycles with every waiting fragment's pixel in flight, or the scoreboard full";
-    case Activity::kMemory: return "cycles waiting for the ROP cache or DRAM";
+    case Activity::kIdle:
+      return "cycles before its first or after its last fragment";
+    case Activity::kBusy:
+      return "cycles working";
+    case Activity::kStarved:
+      return "cycles waiting for input";
+    case Activity::kBlocked:
+      return "cycles waiting for space in the FIFO behind it";
+    case Activity::kHazard:
+      return "ordering: cycles with every waiting fragment's pixel in flight, or the scoreboard full";
+    case Activity::kMemory:
+      return "cycles waiting for the ROP cache or DRAM";
   }
   return "";
 }
@@ -44,7 +50,8 @@ std::string format_bottleneck(const CycleStats& s) {
     case Bottleneck::Kind::kSource:
       return fmt::format("source-bound: the trace source delivers fragments {:.0f}% of the cycles ({} per clock)",
                          100 * b.busy, s.hw.source.fragments_per_clock);
-    case Bottleneck::Kind::kUnit: break;
+    case Bottleneck::Kind::kUnit:
+      break;
   }
   return fmt::format("{}-bound ({}): busy {:.0f}%, waiting for memory {:.0f}%, pixel hazard {:.0f}% of the cycles",
                      b.unit_kind, b.reason, 100 * b.busy, 100 * b.memory, 100 * b.hazard);
@@ -66,8 +73,9 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   for (const auto& u : s.units) {
     Fields j = t.item("units");
     j.put("name", u.name, "-", "the unit instance (SystemC name)");
-    j.put("kind", u.kind, "-", "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
-                               "alpha_ref_gen or writeback");
+    j.put("kind", u.kind, "-",
+          "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
+          "alpha_ref_gen or writeback");
     j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
     j.put("fragments", u.stats.fragments, "fragments", "fragments it accepted");
     j.put("samples", u.stats.samples, "samples",
@@ -117,7 +125,8 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   for (int b = 0; b < kBuffers; ++b) {
     const std::string buf = to_string(Buffer(b));
     Fields x = dram.obj(buf);
-    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes", "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
+    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes",
+          "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
     x.put("bytes_written", s.dram.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
   }
   dram.put("bytes_read", s.dram.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
@@ -145,15 +154,16 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   return t;
 }
 
-nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference,
-                                    FieldSink* sink) {
+nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run,
+                                    const std::optional<Image>& reference, FieldSink* sink) {
   nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "cycle", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
   Fields hw = r.obj("hardware");
   hw.put("config", run.stats.hw.name, "-",
          "cycle: the design file (or \"built-in defaults\"), \"with --hw-set\" when overridden");
-  hw.put("resolved_toml", hw_config_to_toml(run.stats.hw), "-", "cycle: every hardware parameter as simulated, as TOML");
+  hw.put("resolved_toml", hw_config_to_toml(run.stats.hw), "-",
+         "cycle: every hardware parameter as simulated, as TOML");
   put_cycle_stats(r.obj("timing"), run.stats);
   Fields host = r.obj("host");
   host.put("sim_seconds", run.sim_seconds, "s", "cycle: sc_start alone");
@@ -189,12 +199,12 @@ std::vector<FieldDoc> report_field_docs() {
 std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference) {
   const CycleStats& s = run.stats;
   std::string out = functional_summary(ctx, as_functional(run, reference));
-  out += fmt::format("  cycle model ({}): {} cycles = {:.2f} us at {} GHz; {:.3f} fragments/clock, {:.2f} samples/clock\n",
-                     s.hw.name, s.total_cycles, s.frame_time_us, s.hw.clock.frequency_ghz, s.fragments_per_clock,
-                     s.samples_per_clock);
+  out += fmt::format(
+      "  cycle model ({}): {} cycles = {:.2f} us at {} GHz; {:.3f} fragments/clock, {:.2f} samples/clock\n", s.hw.name,
+      s.total_cycles, s.frame_time_us, s.hw.clock.frequency_ghz, s.fragments_per_clock, s.samples_per_clock);
   out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
-                     s.dram.total_bytes_read(), s.dram.total_bytes_written(),
-                     s.dram_achieved_gbps, s.dram_peak_gbps, 100 * s.dram_utilization);
+                     s.dram.total_bytes_read(), s.dram.total_bytes_written(), s.dram_achieved_gbps, s.dram_peak_gbps,
+                     100 * s.dram_utilization);
   out += "  " + format_bottleneck(s) + "\n";
   out += fmt::format("  host: {:.3f} s simulated, {:.2f} M fragments/s\n", run.sim_seconds,
                      run.sim_seconds > 0 ? run.counters.fragments / run.sim_seconds / 1e6 : 0.0);

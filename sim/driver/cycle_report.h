@@ -1,11 +1,10 @@
 // Report printers for cycle runs: the JSON report (the functional report plus
 // "hardware" and "timing" sections; docs/reports.md) and the human summary.
 #pragma once
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "cycle_run.h"
 #include "report.h"
@@ -19,8 +18,8 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s);
 std::string format_bottleneck(const CycleStats& s);
 /// reference: the A-buffer image when --vs-reference was asked for; with a
 /// sink, also each field's description.
-nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference,
-                                    FieldSink* sink = nullptr);
+nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run,
+                                    const std::optional<Image>& reference, FieldSink* sink = nullptr);
 /// Every report field, functional and cycle, with its unit and meaning, in
 /// report order (docs/reports.md).
 std::vector<FieldDoc> report_field_docs();

@@ -24,7 +24,7 @@ struct FunctionalRun {
   Counters counters;
   Image image;
   size_t state_bytes = 0;
-  double wall_seconds = 0;       ///< whole run: input, model and resolve
+  double wall_seconds = 0;         ///< whole run: input, model and resolve
   std::optional<Image> reference;  ///< the reference method's image, when asked for
 };
 

@@ -8,8 +8,8 @@
 #include <stdexcept>
 
 #include "image_io.h"
-#include "report_fields.h"
 #include "output_file.h"
+#include "report_fields.h"
 #include "version.h"
 
 namespace ropsim {

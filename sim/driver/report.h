@@ -1,10 +1,9 @@
 // Run reports: one JSON printer and one human-summary printer, so the model
 // code never prints (docs/reports.md lists every field with its unit).
 #pragma once
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "driver.h"
 #include "report_fields.h"
@@ -22,8 +21,7 @@ struct ReportContext {
 };
 
 /// The functional report; with a sink, also each field's description.
-nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run,
-                                         FieldSink* sink = nullptr);
+nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run, FieldSink* sink = nullptr);
 
 /// A short human summary of a functional run (a few lines).
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);

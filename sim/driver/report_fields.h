@@ -4,11 +4,10 @@
 // fields (docs/reports.md is generated that way: `ropsim report-fields
 // --markdown`, and a test keeps them equal).
 #pragma once
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "counters.h"
 

@@ -24,18 +24,28 @@ class VecRng {
   uint64_t mask(int spp) {
     uint64_t m = u64();
     switch (below(4)) {
-      case 0: m &= u64(); break;  // sparse
-      case 1: m |= u64(); break;  // dense
-      case 2: m = ~0ull; break;   // full
-      default: break;
+      case 0:
+        m &= u64();
+        break;  // sparse
+      case 1:
+        m |= u64();
+        break;  // dense
+      case 2:
+        m = ~0ull;
+        break;  // full
+      default:
+        break;
     }
     return spp == 64 ? m : m & ((uint64_t{1} << spp) - 1);
   }
   float depth() {
     switch (below(4)) {
-      case 0: return 1.0f;                               // cleared
-      case 1: return float(below(4)) * 0.25f;            // frequent ties
-      default: return float(u64() >> 40) * 0x1p-24f;     // [0, 1)
+      case 0:
+        return 1.0f;  // cleared
+      case 1:
+        return float(below(4)) * 0.25f;  // frequent ties
+      default:
+        return float(u64() >> 40) * 0x1p-24f;  // [0, 1)
     }
   }
 
@@ -49,9 +59,15 @@ std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
 
 std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
   std::string out = "sample_id,pixel_id,surface_id,spp,hash_bits,index_hex,ref_hex\n";
-  struct Case { uint32_t s; uint64_t p; uint32_t sid; uint32_t spp; };
-  std::vector<Case> directed = {{0, 0, 0, 1},         {0, 1, 0, 1},          {0, 0, 1, 1},
-                                {0, 5, 7, 1},         {0, 12345, 678, 1},    {63, (1ull << 26) - 1, 0xFFFFFFFFu, 64},
+  struct Case {
+    uint32_t s;
+    uint64_t p;
+    uint32_t sid;
+    uint32_t spp;
+  };
+  std::vector<Case> directed = {{0, 0, 0, 1},           {0, 1, 0, 1},
+                                {0, 0, 1, 1},           {0, 5, 7, 1},
+                                {0, 12345, 678, 1},     {63, (1ull << 26) - 1, 0xFFFFFFFFu, 64},
                                 {0, 1ull << 26, 1, 64}, {15, 0xFFFFFFFull, 3, 16}};
   uint64_t n = 0;
   auto emit = [&](uint32_t s, uint64_t p, uint32_t sid, uint32_t spp) {
@@ -71,7 +87,8 @@ std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) 
 }
 
 std::string tracker_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
-  std::string out = "spp,surface_id_bits,covered_in_hex,surface_id_in,surviving_hex,new_surface,n,surface_id_out,covered_out_hex\n";
+  std::string out =
+      "spp,surface_id_bits,covered_in_hex,surface_id_in,surviving_hex,new_surface,n,surface_id_out,covered_out_hex\n";
   uint64_t n = 0;
   auto emit = [&](int spp, uint64_t covered, uint32_t sid, uint64_t surviving) {
     TrackerState t{covered, sid};
@@ -82,11 +99,11 @@ std::string tracker_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
     ++n;
   };
   const uint32_t sid_max = uint32_t(low_mask(num.surface_id_bits));
-  if (n < count) emit(16, 0, 0, 0xFFFF);        // first fragment
-  if (n < count) emit(16, 0x00FF, 3, 0xFF00);   // disjoint: same surface
-  if (n < count) emit(16, 0x00FF, 3, 0x0180);   // overlap: new surface
-  if (n < count) emit(64, ~0ull, sid_max, 1);   // surface id wraps
-  if (n < count) emit(4, 0x5, 9, 0);            // nothing survives
+  if (n < count) emit(16, 0, 0, 0xFFFF);       // first fragment
+  if (n < count) emit(16, 0x00FF, 3, 0xFF00);  // disjoint: same surface
+  if (n < count) emit(16, 0x00FF, 3, 0x0180);  // overlap: new surface
+  if (n < count) emit(64, ~0ull, sid_max, 1);  // surface id wraps
+  if (n < count) emit(4, 0x5, 9, 0);           // nothing survives
   while (n < count) {
     const int spp = rng.spp();
     emit(spp, rng.mask(spp), uint32_t(rng.u64()) & sid_max, rng.mask(spp));

@@ -13,7 +13,7 @@ namespace ropsim {
 
 struct FragWork {
   const Fragment* f = nullptr;  ///< the fragment (not copied: the golden model's input, the token's own)
-  PixelRef px{};  ///< the pixel's state (FunctionalRop::fetch)
+  PixelRef px{};                ///< the pixel's state (FunctionalRop::fetch)
 
   // Depth test.
   uint64_t covered = 0;    ///< samples tested: the coverage (a2c: AND its sample mask)

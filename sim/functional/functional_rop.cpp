@@ -13,8 +13,13 @@
 namespace ropsim {
 
 RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
-    : header(h), cfg(c), traits(ropsim::traits(c.method)), spp(h.spp), hilbert_n(hilbert_side(h.width, h.height)),
-      tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)), a2c_prefix(a2c_prefix_table(h.spp)) {
+    : header(h),
+      cfg(c),
+      traits(ropsim::traits(c.method)),
+      spp(h.spp),
+      hilbert_n(hilbert_side(h.width, h.height)),
+      tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)),
+      a2c_prefix(a2c_prefix_table(h.spp)) {
   if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
@@ -32,15 +37,21 @@ uint64_t RopSetup::random_key(const Fragment& f) const {
 // golden model runs the specialisation of its method (process_as<M>, every
 // stage inlined), the units run the same code through run()'s dispatch.
 
-#define ROPSIM_DISPATCH(call)                                   \
-  switch (s_.cfg.method) {                                      \
-    case Method::kLk: return call<Method::kLk>(w);              \
-    case Method::kEnderton: return call<Method::kEnderton>(w);  \
-    case Method::kNaive: return call<Method::kNaive>(w);        \
-    case Method::kA2c: return call<Method::kA2c>(w);            \
-    case Method::kOpaque: return call<Method::kOpaque>(w);      \
-    case Method::kReference: break;                             \
-  }                                                             \
+#define ROPSIM_DISPATCH(call)            \
+  switch (s_.cfg.method) {               \
+    case Method::kLk:                    \
+      return call<Method::kLk>(w);       \
+    case Method::kEnderton:              \
+      return call<Method::kEnderton>(w); \
+    case Method::kNaive:                 \
+      return call<Method::kNaive>(w);    \
+    case Method::kA2c:                   \
+      return call<Method::kA2c>(w);      \
+    case Method::kOpaque:                \
+      return call<Method::kOpaque>(w);   \
+    case Method::kReference:             \
+      break;                             \
+  }                                      \
   return 0;
 
 template <Method M>
@@ -55,8 +66,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   if constexpr (kT.coverage_select) {
     // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
     // opacity decision, made before the depth test.
-    const uint32_t k =
-        a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
+    const uint32_t k = a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
     tested &= s_.a2c_prefix[k];
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
@@ -201,14 +211,29 @@ void FunctionalRop::process_as(FragWork& w) {
 }
 
 FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
-    : setup_(h, cfg), store_(h, setup_.traits.tracker), depth_(setup_), track_(setup_), sort_(setup_),
-      reference_(setup_), write_(setup_) {
+    : setup_(h, cfg),
+      store_(h, setup_.traits.tracker),
+      depth_(setup_),
+      track_(setup_),
+      sort_(setup_),
+      reference_(setup_),
+      write_(setup_) {
   switch (cfg.method) {
-    case Method::kLk: process_ = &FunctionalRop::process_as<Method::kLk>; break;
-    case Method::kEnderton: process_ = &FunctionalRop::process_as<Method::kEnderton>; break;
-    case Method::kNaive: process_ = &FunctionalRop::process_as<Method::kNaive>; break;
-    case Method::kA2c: process_ = &FunctionalRop::process_as<Method::kA2c>; break;
-    case Method::kOpaque: process_ = &FunctionalRop::process_as<Method::kOpaque>; break;
+    case Method::kLk:
+      process_ = &FunctionalRop::process_as<Method::kLk>;
+      break;
+    case Method::kEnderton:
+      process_ = &FunctionalRop::process_as<Method::kEnderton>;
+      break;
+    case Method::kNaive:
+      process_ = &FunctionalRop::process_as<Method::kNaive>;
+      break;
+    case Method::kA2c:
+      process_ = &FunctionalRop::process_as<Method::kA2c>;
+      break;
+    case Method::kOpaque:
+      process_ = &FunctionalRop::process_as<Method::kOpaque>;
+      break;
     case Method::kReference:
       throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
   }

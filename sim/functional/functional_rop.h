@@ -13,8 +13,8 @@
 #include <cstdint>
 
 #include "conversion_memo.h"
-#include "depth.h"
 #include "counters.h"
+#include "depth.h"
 #include "frag_work.h"
 #include "method.h"
 #include "sample_store.h"
@@ -31,8 +31,8 @@ struct RopSetup {
   MethodConfig cfg;
   MethodTraits traits;
   int spp;
-  uint32_t hilbert_n;       ///< side of the Hilbert curve covering the screen
-  uint32_t tracker_bytes;   ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
+  uint32_t hilbert_n;                            ///< side of the Hilbert curve covering the screen
+  uint32_t tracker_bytes;                        ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
   std::array<float, 64> offset_x{}, offset_y{};  ///< sample offsets from the pixel centre
   std::array<uint64_t, 65> a2c_prefix{};         ///< a2c: mask of the first k samples
 
@@ -56,7 +56,6 @@ inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) 
     }
   }
 }
-
 
 /// A stage's counters; a run's are the sum over the stages.
 class Stage {

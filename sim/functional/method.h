@@ -18,19 +18,20 @@ enum class Method { kLk, kEnderton, kNaive, kA2c, kOpaque, kReference };
 struct MethodTraits {
   Method method;
   const char* name;
-  const char* summary;         ///< one line for --help and the docs
-  bool pipeline;               ///< runs on the ROP (false: the A-buffer ground truth)
-  bool coverage_select;        ///< a2c: a dithered sample mask chosen before the depth test
-  bool tracker;                ///< lk: the coverage-bitmask surface tracker (per-pixel state)
-  bool sorter;                 ///< lk: survivors sorted by the depth already stored
-  bool reference;              ///< lk, enderton, naive: the alpha-reference generator (hashes)
-  bool seeded;                 ///< its random choices depend on the run's seed
+  const char* summary;   ///< one line for --help and the docs
+  bool pipeline;         ///< runs on the ROP (false: the A-buffer ground truth)
+  bool coverage_select;  ///< a2c: a dithered sample mask chosen before the depth test
+  bool tracker;          ///< lk: the coverage-bitmask surface tracker (per-pixel state)
+  bool sorter;           ///< lk: survivors sorted by the depth already stored
+  bool reference;        ///< lk, enderton, naive: the alpha-reference generator (hashes)
+  bool seeded;           ///< its random choices depend on the run's seed
 };
 
 /// The traits of every method, in the order of method_names().
 //                                                  pipeline select tracker sorter reference seeded
 inline constexpr MethodTraits kMethodTable[] = {
-    {Method::kLk, "lk", "Laine & Karras 2011: stratified stochastic transparency", true, false, true, true, true, false},
+    {Method::kLk, "lk", "Laine & Karras 2011: stratified stochastic transparency", true, false, true, true, true,
+     false},
     {Method::kEnderton, "enderton", "Enderton et al. 2010: R = floor(alpha m + xi) depth survivors chosen at random",
      true, false, false, false, true, true},
     {Method::kNaive, "naive", "naive stochastic transparency: one random reference per sample", true, false, false,

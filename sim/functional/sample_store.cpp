@@ -67,7 +67,8 @@ Image SampleStore::resolve() const {
 }
 
 size_t SampleStore::state_bytes() const {
-  const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) + (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
+  const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) +
+                          (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
   return tiles_.tiles() * per_tile + tiles_.directory_bytes();
 }
 
@@ -101,7 +102,8 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
         }
       }
       if (a.has_tracker()) {
-        const TrackerState ta = va.tracker ? *va.tracker : TrackerState{}, tb = vb.tracker ? *vb.tracker : TrackerState{};
+        const TrackerState ta = va.tracker ? *va.tracker : TrackerState{},
+                           tb = vb.tracker ? *vb.tracker : TrackerState{};
         if (!(ta == tb)) {
           os << "pixel (" << x << ", " << y << "): tracker (id " << ta.surface_id << ", mask " << std::hex << ta.covered
              << std::dec << ") vs (id " << tb.surface_id << ", mask " << std::hex << tb.covered << std::dec << ")";
@@ -112,9 +114,13 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
     return true;
   };
   bool same = true;
-  a.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) { if (same) same = check_tile(x0, y0); });
+  a.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+    if (same) same = check_tile(x0, y0);
+  });
   if (same)
-    b.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) { if (same) same = check_tile(x0, y0); });
+    b.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+      if (same) same = check_tile(x0, y0);
+    });
   return os.str();
 }
 

@@ -16,9 +16,9 @@ namespace ropsim {
 
 /// The buffers of one 8 x 8 tile.
 struct SampleTile {
-  std::unique_ptr<float[]> depth;          ///< [pixel * spp + sample]
-  std::unique_ptr<uint16_t[]> rgb;         ///< [(pixel * spp + sample) * 3 + channel]
-  std::unique_ptr<TrackerState[]> tracker; ///< [pixel], nullptr unless tracking
+  std::unique_ptr<float[]> depth;           ///< [pixel * spp + sample]
+  std::unique_ptr<uint16_t[]> rgb;          ///< [(pixel * spp + sample) * 3 + channel]
+  std::unique_ptr<TrackerState[]> tracker;  ///< [pixel], nullptr unless tracking
 };
 
 /// Mutable pointers to one pixel's state.

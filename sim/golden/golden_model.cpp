@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-
 namespace ropsim {
 
 StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg) : FunctionalModel(h), rop_(h, cfg) {}
@@ -73,9 +72,8 @@ Image ReferenceModel::resolve() const {
         auto& L = layers[s];
         // Nearest first; at equal depth the later fragment is in front, as the
         // LESS_EQUAL depth test of the stochastic methods decides.
-        std::sort(L.begin(), L.end(), [](const Layer& a, const Layer& b) {
-          return a.z != b.z ? a.z < b.z : a.seq > b.seq;
-        });
+        std::sort(L.begin(), L.end(),
+                  [](const Layer& a, const Layer& b) { return a.z != b.z ? a.z < b.z : a.seq > b.seq; });
         double trans = 1.0, c[3] = {0, 0, 0};
         for (const Layer& l : L) {
           const double a = l.e->alpha;

@@ -76,8 +76,8 @@ class ReferenceModel : public FunctionalModel {
     size_t z_offset;  // into z_, popcount(coverage) depths in sample order
     std::array<float, 3> rgb;
     float alpha;
-    uint32_t seq;   // API order within the pixel's list
-    int64_t next;   // previous entry of the same pixel, -1 at the end
+    uint32_t seq;  // API order within the pixel's list
+    int64_t next;  // previous entry of the same pixel, -1 at the end
   };
   struct HeadTile {
     std::array<int64_t, 64> head;

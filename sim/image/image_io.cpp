@@ -1,8 +1,8 @@
 #include "image_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cmath>
@@ -85,7 +85,8 @@ Image read_image(const std::string& path) {
   OIIO::ImageBuf buf(path);
   if (!buf.read(0, 0, true, OIIO::TypeDesc::FLOAT)) throw ImageError(path + ": cannot read image: " + buf.geterror());
   const auto& spec = buf.spec();
-  if (spec.nchannels < 3) throw ImageError(path + ": image has " + std::to_string(spec.nchannels) + " channels, need RGB");
+  if (spec.nchannels < 3)
+    throw ImageError(path + ": image has " + std::to_string(spec.nchannels) + " channels, need RGB");
   Image img;
   img.width = uint32_t(spec.width);
   img.height = uint32_t(spec.height);

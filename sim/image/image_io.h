@@ -28,8 +28,8 @@ void write_image(const Image& img, const std::string& path);
 Image read_image(const std::string& path);
 
 struct CompareResult {
-  double rmse_8bit = 0;   ///< RMSE over all pixels and RGB channels, x 255
-  double psnr_db = 0;     ///< 20 log10(1 / RMSE) with RMSE in [0, 1] units
+  double rmse_8bit = 0;  ///< RMSE over all pixels and RGB channels, x 255
+  double psnr_db = 0;    ///< 20 log10(1 / RMSE) with RMSE in [0, 1] units
   double max_error_8bit = 0;
   double mean_error_8bit = 0;
 };

@@ -22,9 +22,9 @@
 namespace ropsim {
 
 struct CycleOptions {
-  std::string vcd_path;  ///< non-empty: write a VCD waveform here
-  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycle window of the waveform
-  std::function<void(uint64_t fragments)> progress;  ///< every 65536 fragments
+  std::string vcd_path;                                               ///< non-empty: write a VCD waveform here
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};                    ///< cycle window of the waveform
+  std::function<void(uint64_t fragments)> progress;                   ///< every 65536 fragments
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
   /// Runs every unit in lockstep with SystemC time, none decoupled (unit.h).
   /// The results are identical; it is slower. A --vcd run is always lockstep,
@@ -45,7 +45,7 @@ struct UnitReport {
 struct Bottleneck {
   enum class Kind { kMemory, kSource, kUnit };
   Kind kind = Kind::kUnit;
-  std::string unit_kind;        ///< the pacing unit kind (kSource: "trace_source")
+  std::string unit_kind;  ///< the pacing unit kind (kSource: "trace_source")
   /// kUnit: "throughput", "memory latency" or "pixel hazards", whichever of
   /// busy, memory and hazard is largest.
   std::string reason;
@@ -54,10 +54,10 @@ struct Bottleneck {
 
 struct CycleStats {
   HwConfig hw;
-  uint64_t period_ps = 0;        ///< simulated clock period
-  uint64_t total_cycles = 0;     ///< to the end of the final cache flush
-  uint64_t pipeline_cycles = 0;  ///< to the retirement of the last fragment
-  double frame_time_us = 0;      ///< total_cycles at the configured clock
+  uint64_t period_ps = 0;                                 ///< simulated clock period
+  uint64_t total_cycles = 0;                              ///< to the end of the final cache flush
+  uint64_t pipeline_cycles = 0;                           ///< to the retirement of the last fragment
+  double frame_time_us = 0;                               ///< total_cycles at the configured clock
   double fragments_per_clock = 0, samples_per_clock = 0;  ///< over total_cycles
   std::vector<UnitReport> units;
   std::vector<FifoStats> fifos;

@@ -11,10 +11,15 @@ namespace ropsim {
 
 RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input,
                          const MethodConfig& method, const HwConfig& hw)
-    : sc_module(name), hw_(hw), clk_(hw.clock.frequency_ghz), input_(std::move(input)),
-      rop_(input_->header(), method), retirement_(pool_),
+    : sc_module(name),
+      hw_(hw),
+      clk_(hw.clock.frequency_ghz),
+      input_(std::move(input)),
+      rop_(input_->header(), method),
+      retirement_(pool_),
       amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes),
-      dram_(hw.dram), in_dram_(hw.cache.line_bytes) {
+      dram_(hw.dram),
+      in_dram_(hw.cache.line_bytes) {
   const MethodTraits& mt = rop_.traits();
   const TraceHeader& header = rop_.header();
   sched_ = std::make_unique<Scheduler>("scheduler", clk_);
@@ -26,37 +31,38 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
                  std::make_unique<TraceSource>("trace_source", clk_, *input_, rop_, pool_, hw.source, src_out));
   std::vector<TokenFifo*> rop_in;
   for (uint32_t r = 0; r < n_rops; ++r)
-    rop_in.push_back(&make_fifo("rop" + std::to_string(r) + ".input", hw.distributor.fifo_depth,
-                                hw.distributor.latency_cycles));
+    rop_in.push_back(
+        &make_fifo("rop" + std::to_string(r) + ".input", hw.distributor.fifo_depth, hw.distributor.latency_cycles));
   auto& dist = add("distributor", -1,
                    std::make_unique<Distributor>("distributor", clk_, hw.distributor, header.width, src_out, rop_in));
   src_out.connect(source_, &dist);
 
   for (uint32_t r = 0; r < n_rops; ++r) {
-    const std::string p = "rop" + std::to_string(r) + ".";   // FIFO names
-    const std::string u = "rop" + std::to_string(r) + "_";   // module names ('.' is the hierarchy separator)
+    const std::string p = "rop" + std::to_string(r) + ".";  // FIFO names
+    const std::string u = "rop" + std::to_string(r) + "_";  // module names ('.' is the hierarchy separator)
     const int ri = int(r);
     caches_.push_back(std::make_unique<RopCache>(hw.cache, dram_, in_dram_, &posted_, r));
     RopCache& cache = *caches_.back();
 
     TokenFifo& ord_out = make_fifo(p + "ordering_to_depth", hw.ordering.fifo_depth, hw.ordering.latency_cycles);
-    auto& ord = add("pixel_ordering", ri,
-                    std::make_unique<PixelOrdering>((u + "pixel_ordering").c_str(), clk_, hw.ordering, *rop_in[r], ord_out));
+    auto& ord =
+        add("pixel_ordering", ri,
+            std::make_unique<PixelOrdering>((u + "pixel_ordering").c_str(), clk_, hw.ordering, *rop_in[r], ord_out));
     rop_in[r]->connect(&dist, &ord);
     retirement_.attach(r, &ord);
 
     TokenFifo& dt_out = make_fifo(p + "depth_out", hw.depth_test.fifo_depth, hw.depth_test.latency_cycles);
     Unit* prev = &add("depth_test", ri,
-                      std::make_unique<DepthTest>((u + "depth_test").c_str(), clk_, rop_, retirement_, amap_, hw.depth_test,
-                                                  cache, ord_out, dt_out));
+                      std::make_unique<DepthTest>((u + "depth_test").c_str(), clk_, rop_, retirement_, amap_,
+                                                  hw.depth_test, cache, ord_out, dt_out));
     ord_out.connect(&ord, prev);
     TokenFifo* link = &dt_out;
 
     if (mt.tracker) {
       TokenFifo& tr_out = make_fifo(p + "tracker_to_sorter", hw.tracker.fifo_depth, hw.tracker.latency_cycles);
-      Unit* tr = &add("coverage_tracker", ri,
-                      std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, rop_, hw.tracker, *link,
-                                                        tr_out));
+      Unit* tr = &add(
+          "coverage_tracker", ri,
+          std::make_unique<CoverageTracker>((u + "coverage_tracker").c_str(), clk_, rop_, hw.tracker, *link, tr_out));
       link->connect(prev, tr);
       prev = tr;
       link = &tr_out;
@@ -64,9 +70,9 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
     if (mt.sorter) {
       auto algo = make_sorter(hw.sorter.kind, spp);
       TokenFifo& so_out = make_fifo(p + "sorter_to_alpha_ref", hw.sorter.fifo_depth, algo->latency_cycles(spp));
-      Unit* so = &add("sample_sorter", ri,
-                      std::make_unique<SampleSorter>((u + "sample_sorter").c_str(), clk_, rop_, std::move(algo), *link,
-                                                     so_out));
+      Unit* so = &add(
+          "sample_sorter", ri,
+          std::make_unique<SampleSorter>((u + "sample_sorter").c_str(), clk_, rop_, std::move(algo), *link, so_out));
       link->connect(prev, so);
       prev = so;
       link = &so_out;
@@ -74,16 +80,16 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
     if (mt.reference) {
       const uint32_t worst = hw.alpha_ref.pipeline_depth + ceil_div(uint32_t(spp) + 1, hw.alpha_ref.lanes) - 1;
       TokenFifo& ar_out = make_fifo(p + "alpha_ref_to_writeback", hw.alpha_ref.fifo_depth, worst);
-      Unit* ar = &add("alpha_ref_gen", ri,
-                      std::make_unique<AlphaRefGen>((u + "alpha_ref_gen").c_str(), clk_, rop_, hw.alpha_ref, *link,
-                                                    ar_out));
+      Unit* ar =
+          &add("alpha_ref_gen", ri,
+               std::make_unique<AlphaRefGen>((u + "alpha_ref_gen").c_str(), clk_, rop_, hw.alpha_ref, *link, ar_out));
       link->connect(prev, ar);
       prev = ar;
       link = &ar_out;
     }
     Unit* wb = &add("writeback", ri,
                     std::make_unique<Writeback>((u + "writeback").c_str(), clk_, rop_, retirement_, amap_, hw.writeback,
-                                                  cache, *link));
+                                                cache, *link));
     link->connect(prev, wb);
   }
 }
@@ -119,7 +125,8 @@ std::vector<TokenFifo*> RopPipeline::fifos() const {
 void RopPipeline::trace_to(const std::string& vcd_base, uint64_t first, uint64_t last) {
   vcd_ = sc_core::sc_create_vcd_trace_file(vcd_base.c_str());
   clk_.set_trace_window(first, last);
-  for (const auto& u : units_) sc_core::sc_trace(vcd_, u.unit->trace_activity, std::string(u.unit->name()) + ".activity");
+  for (const auto& u : units_)
+    sc_core::sc_trace(vcd_, u.unit->trace_activity, std::string(u.unit->name()) + ".activity");
   for (const auto& f : fifos_) sc_core::sc_trace(vcd_, f->trace_occupancy, f->name() + ".occupancy");
 }
 
@@ -134,8 +141,8 @@ uint64_t RopPipeline::run() {
       if (!f->empty()) held += "; " + f->name() + " holds " + std::to_string(f->size());
     throw std::logic_error("cycle model stalled at cycle " + std::to_string(clk_.now()) + ": " +
                            std::to_string(retirement_.retired()) + " of " + std::to_string(source_->produced()) +
-                           " fragments retired" + (source_->done() ? "" : " and the trace source is not done") +
-                           held + " (a lost wake-up; please report it)");
+                           " fragments retired" + (source_->done() ? "" : " and the trace source is not done") + held +
+                           " (a lost wake-up; please report it)");
   }
   // The last retirement, not SystemC's final time: decoupled units close their
   // outputs without SystemC time passing, so that differs between the modes.

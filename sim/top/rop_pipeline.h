@@ -7,10 +7,9 @@
 //   source -> distributor -+-> ordering -> depth test -> [tracker -> sorter] -> [alpha ref] -> writeback
 //                          +-> ... one chain per ROP unit, each with its ROP cache, all sharing the DRAM
 #pragma once
-#include <systemc>
-
 #include <memory>
 #include <string>
+#include <systemc>
 #include <vector>
 
 #include "address_map.h"

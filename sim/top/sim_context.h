@@ -2,9 +2,8 @@
 // every run (and every model test) installs its own and deletes it after.
 // Modules must be destroyed before the context.
 #pragma once
-#include <systemc>
-
 #include <cstdlib>
+#include <systemc>
 
 namespace ropsim {
 

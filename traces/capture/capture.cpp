@@ -97,8 +97,8 @@ float shade(const ObjectSpec& ob, const LightSpec& light, const Vec3d& l, const 
 
 PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, const Vec3d& l) {
   const ObjectSpec& ob = s.objects[index];
-  const bool material_textures =
-      ob.texture.empty() && (ob.color_source == ColorSource::kMaterial || ob.opacity_source == OpacitySource::kMaterial);
+  const bool material_textures = ob.texture.empty() && (ob.color_source == ColorSource::kMaterial ||
+                                                        ob.opacity_source == OpacitySource::kMaterial);
   LoadedMesh mesh = load_mesh(ob.mesh, false, material_textures);
   const std::string where = s.path + ": " + ob.name + ": ";
   if (ob.color_source == ColorSource::kVertex && mesh.colors.empty())
@@ -115,8 +115,10 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
   PreparedDraw d;
   d.name = ob.name;
   d.back_faces = ob.back_faces;
-  if (!ob.texture.empty()) d.textures.push_back(load_texture_file(ob.texture));
-  else if (!mesh.uvs.empty()) d.textures = std::move(mesh.textures);
+  if (!ob.texture.empty())
+    d.textures.push_back(load_texture_file(ob.texture));
+  else if (!mesh.uvs.empty())
+    d.textures = std::move(mesh.textures);
   std::vector<size_t> order(mesh.triangles.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   if (ob.order == DrawOrder::kShuffled) shuffle(order, s.seed ^ (uint64_t(index) * 0x9E3779B97F4A7C15ull));
@@ -213,8 +215,8 @@ PreparedDraw prepare_billboards(const SceneSpec& s, size_t index, const Camera& 
     ClipVertex q[4];
     const double cx[4] = {-1, 1, 1, -1}, cy[4] = {-1, -1, 1, 1};
     for (int k = 0; k < 4; ++k) {
-      q[k].pos = cam.clip({c[0] + cx[k] * R[0] + cy[k] * U[0], c[1] + cx[k] * R[1] + cy[k] * U[1],
-                           c[2] + cx[k] * R[2] + cy[k] * U[2]});
+      q[k].pos = cam.clip(
+          {c[0] + cx[k] * R[0] + cy[k] * U[0], c[1] + cx[k] * R[1] + cy[k] * U[1], c[2] + cx[k] * R[2] + cy[k] * U[2]});
       q[k].rgb = d.textures.empty() ? rgb : std::array<float, 3>{float(cx[k] + 1) / 2, float(cy[k] + 1) / 2, 1.0f};
       q[k].alpha = ob.opacity;
     }
@@ -334,7 +336,10 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
         progress(done, total);
         next_report = done + std::max<uint64_t>(1, total / 200);
       }
-      if (ct.discarded) { ++st.discarded; continue; }
+      if (ct.discarded) {
+        ++st.discarded;
+        continue;
+      }
       HVert a[16], b[16];
       for (int k = 0; k < 3; ++k) {
         const ClipVertex& v = ct.v[size_t(k)];
@@ -345,12 +350,18 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
       // Outcodes: trivially outside / inside.
       auto planes = [&](const HVert& v, int i) {
         switch (i) {
-          case 0: return v.p[2];                 // near: z >= 0
-          case 1: return v.p[3] - v.p[2];        // far: z <= w
-          case 2: return g * v.p[3] - v.p[0];    // guard band x <= g w
-          case 3: return g * v.p[3] + v.p[0];
-          case 4: return g * v.p[3] - v.p[1];
-          default: return g * v.p[3] + v.p[1];
+          case 0:
+            return v.p[2];  // near: z >= 0
+          case 1:
+            return v.p[3] - v.p[2];  // far: z <= w
+          case 2:
+            return g * v.p[3] - v.p[0];  // guard band x <= g w
+          case 3:
+            return g * v.p[3] + v.p[0];
+          case 4:
+            return g * v.p[3] - v.p[1];
+          default:
+            return g * v.p[3] + v.p[1];
         }
       };
       unsigned out_all = 0x3F, out_any = 0;
@@ -361,7 +372,10 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
         out_all &= code;
         out_any |= code;
       }
-      if (out_all) { ++st.outside; continue; }
+      if (out_all) {
+        ++st.outside;
+        continue;
+      }
       int n = 3;
       HVert* poly = a;
       if (out_any) {
@@ -374,7 +388,10 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
           std::swap(src, dst);
         }
         poly = src;
-        if (n < 3) { ++st.outside; continue; }
+        if (n < 3) {
+          ++st.outside;
+          continue;
+        }
       }
       // Perspective divide and viewport (y down, depth 0..1), in binary32 as
       // GPUs and Mesa do, so that snapping to 1/256 pixel rounds the same values.
@@ -396,7 +413,10 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
           const int j = (k + 1) % n;
           area += sv[k].x * sv[j].y - sv[j].x * sv[k].y;
         }
-        if (area >= 0) { ++st.back_facing; continue; }
+        if (area >= 0) {
+          ++st.back_facing;
+          continue;
+        }
       }
       const std::function<void(const Fragment&)> emit_tri = [&](const Fragment& in) {
         if (ct.texture < 0) return emit_counted(in);
@@ -406,7 +426,10 @@ CaptureStats rasterize_prepared(const PreparedScene& ps, const TraceHeader& h,
           f.rgb[size_t(c)] = ct.tint[size_t(c)] * in.rgb[2] * (ct.tex_rgb ? tx[size_t(c)] : 1.0f);
         float a = in.alpha * (ct.tex_alpha ? tx[3] : 1.0f);
         if (ct.mask) {
-          if (a < ct.cutoff) { ++st.discarded_fragments; return; }
+          if (a < ct.cutoff) {
+            ++st.discarded_fragments;
+            return;
+          }
           a = 1.0f;
         }
         f.alpha = std::clamp(a, 0.0f, 1.0f);
@@ -457,7 +480,8 @@ CaptureStats capture_to_file(const SceneSpec& spec, const std::string& out_path,
   PreparedScene ps = prepare_scene(spec);
   const TraceHeader h = capture_header(spec);
   TraceWriter w(out_path, h);
-  CaptureStats st = rasterize_prepared(ps, h, [&](const Fragment& f) { w.write(f); }, progress);
+  CaptureStats st = rasterize_prepared(
+      ps, h, [&](const Fragment& f) { w.write(f); }, progress);
   if (st.fragments == 0 && !allow_empty)
     throw CaptureError(spec.path + ": nothing visible: " + std::to_string(st.triangles) + " triangles, " +
                        std::to_string(st.outside) + " outside the view frustum, " + std::to_string(st.back_facing) +

@@ -26,8 +26,8 @@ struct ClipVertex {
 
 struct ClipTriangle {
   std::array<ClipVertex, 3> v;
-  uint32_t prim_id = 0;     ///< gl_PrimitiveID: index within the draw, in API order
-  bool discarded = false;   ///< alphaMode MASK below the cutoff: drawn, every fragment discarded
+  uint32_t prim_id = 0;    ///< gl_PrimitiveID: index within the draw, in API order
+  bool discarded = false;  ///< alphaMode MASK below the cutoff: drawn, every fragment discarded
   /// Textured: the vertices' rgb hold (u, v, diffuse shade) instead of a
   /// colour; each fragment samples texture `texture` of the draw at its
   /// (u, v) and gets colour = tint x shade x texel.rgb (if tex_rgb), opacity
@@ -61,13 +61,13 @@ PreparedScene prepare_scene(const SceneSpec& spec);
 TraceHeader capture_header(const SceneSpec& spec);
 
 struct CaptureStats {
-  uint64_t triangles = 0;          ///< submitted (discarded ones included)
-  uint64_t discarded = 0;          ///< alphaMode MASK below the cutoff (whole triangles)
+  uint64_t triangles = 0;            ///< submitted (discarded ones included)
+  uint64_t discarded = 0;            ///< alphaMode MASK below the cutoff (whole triangles)
   uint64_t discarded_fragments = 0;  ///< textured alphaMode MASK: fragments below the cutoff
-  uint64_t outside = 0;            ///< entirely outside a clip plane
-  uint64_t clipped = 0;            ///< crossing a clip plane (near, far or guard band) and split
-  uint64_t back_facing = 0;        ///< culled (objects with back_faces = false)
-  uint64_t degenerate = 0;         ///< zero area after snapping to 1/256 pixel
+  uint64_t outside = 0;              ///< entirely outside a clip plane
+  uint64_t clipped = 0;              ///< crossing a clip plane (near, far or guard band) and split
+  uint64_t back_facing = 0;          ///< culled (objects with back_faces = false)
+  uint64_t degenerate = 0;           ///< zero area after snapping to 1/256 pixel
   uint64_t fragments = 0, covered_samples = 0;
   double seconds = 0;
 };

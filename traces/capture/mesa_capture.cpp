@@ -1,7 +1,10 @@
 #include "mesa_capture.h"
 
+// osmesa.h (GL/gl.h) defines the types glext.h uses: keep this order.
+// clang-format off
 #include <GL/osmesa.h>
 #include <GL/glext.h>
+// clang-format on
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -17,51 +20,51 @@ namespace {
 /// The GL 2.0+ entry points, from OSMesaGetProcAddress (GL 1.1 ones are linked).
 struct GlFunctions {
 #define ROPSIM_GL(type, name) type name = nullptr;
-#define ROPSIM_GL_LIST                                                          \
-  ROPSIM_GL(PFNGLGENFRAMEBUFFERSPROC, GenFramebuffers)                          \
-  ROPSIM_GL(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer)                          \
-  ROPSIM_GL(PFNGLDELETEFRAMEBUFFERSPROC, DeleteFramebuffers)                    \
-  ROPSIM_GL(PFNGLGENRENDERBUFFERSPROC, GenRenderbuffers)                        \
-  ROPSIM_GL(PFNGLBINDRENDERBUFFERPROC, BindRenderbuffer)                        \
-  ROPSIM_GL(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                  \
+#define ROPSIM_GL_LIST                                                               \
+  ROPSIM_GL(PFNGLGENFRAMEBUFFERSPROC, GenFramebuffers)                               \
+  ROPSIM_GL(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer)                               \
+  ROPSIM_GL(PFNGLDELETEFRAMEBUFFERSPROC, DeleteFramebuffers)                         \
+  ROPSIM_GL(PFNGLGENRENDERBUFFERSPROC, GenRenderbuffers)                             \
+  ROPSIM_GL(PFNGLBINDRENDERBUFFERPROC, BindRenderbuffer)                             \
+  ROPSIM_GL(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                       \
   ROPSIM_GL(PFNGLRENDERBUFFERSTORAGEMULTISAMPLEPROC, RenderbufferStorageMultisample) \
-  ROPSIM_GL(PFNGLFRAMEBUFFERRENDERBUFFERPROC, FramebufferRenderbuffer)          \
-  ROPSIM_GL(PFNGLCHECKFRAMEBUFFERSTATUSPROC, CheckFramebufferStatus)            \
-  ROPSIM_GL(PFNGLCREATESHADERPROC, CreateShader)                                \
-  ROPSIM_GL(PFNGLSHADERSOURCEPROC, ShaderSource)                                \
-  ROPSIM_GL(PFNGLCOMPILESHADERPROC, CompileShader)                              \
-  ROPSIM_GL(PFNGLGETSHADERIVPROC, GetShaderiv)                                  \
-  ROPSIM_GL(PFNGLGETSHADERINFOLOGPROC, GetShaderInfoLog)                        \
-  ROPSIM_GL(PFNGLDELETESHADERPROC, DeleteShader)                                \
-  ROPSIM_GL(PFNGLCREATEPROGRAMPROC, CreateProgram)                              \
-  ROPSIM_GL(PFNGLATTACHSHADERPROC, AttachShader)                                \
-  ROPSIM_GL(PFNGLLINKPROGRAMPROC, LinkProgram)                                  \
-  ROPSIM_GL(PFNGLGETPROGRAMIVPROC, GetProgramiv)                                \
-  ROPSIM_GL(PFNGLGETPROGRAMINFOLOGPROC, GetProgramInfoLog)                      \
-  ROPSIM_GL(PFNGLUSEPROGRAMPROC, UseProgram)                                    \
-  ROPSIM_GL(PFNGLDELETEPROGRAMPROC, DeleteProgram)                              \
-  ROPSIM_GL(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation)                    \
-  ROPSIM_GL(PFNGLUNIFORM1UIPROC, Uniform1ui)                                    \
-  ROPSIM_GL(PFNGLGENBUFFERSPROC, GenBuffers)                                    \
-  ROPSIM_GL(PFNGLBINDBUFFERPROC, BindBuffer)                                    \
-  ROPSIM_GL(PFNGLBUFFERDATAPROC, BufferData)                                    \
-  ROPSIM_GL(PFNGLBUFFERSUBDATAPROC, BufferSubData)                              \
-  ROPSIM_GL(PFNGLGETBUFFERSUBDATAPROC, GetBufferSubData)                        \
-  ROPSIM_GL(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                            \
-  ROPSIM_GL(PFNGLDELETEBUFFERSPROC, DeleteBuffers)                              \
-  ROPSIM_GL(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays)                          \
-  ROPSIM_GL(PFNGLBINDVERTEXARRAYPROC, BindVertexArray)                          \
-  ROPSIM_GL(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays)                    \
-  ROPSIM_GL(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                  \
-  ROPSIM_GL(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray)          \
-  ROPSIM_GL(PFNGLGETMULTISAMPLEFVPROC, GetMultisamplefv)                        \
-  ROPSIM_GL(PFNGLMEMORYBARRIERPROC, MemoryBarrier)                              \
+  ROPSIM_GL(PFNGLFRAMEBUFFERRENDERBUFFERPROC, FramebufferRenderbuffer)               \
+  ROPSIM_GL(PFNGLCHECKFRAMEBUFFERSTATUSPROC, CheckFramebufferStatus)                 \
+  ROPSIM_GL(PFNGLCREATESHADERPROC, CreateShader)                                     \
+  ROPSIM_GL(PFNGLSHADERSOURCEPROC, ShaderSource)                                     \
+  ROPSIM_GL(PFNGLCOMPILESHADERPROC, CompileShader)                                   \
+  ROPSIM_GL(PFNGLGETSHADERIVPROC, GetShaderiv)                                       \
+  ROPSIM_GL(PFNGLGETSHADERINFOLOGPROC, GetShaderInfoLog)                             \
+  ROPSIM_GL(PFNGLDELETESHADERPROC, DeleteShader)                                     \
+  ROPSIM_GL(PFNGLCREATEPROGRAMPROC, CreateProgram)                                   \
+  ROPSIM_GL(PFNGLATTACHSHADERPROC, AttachShader)                                     \
+  ROPSIM_GL(PFNGLLINKPROGRAMPROC, LinkProgram)                                       \
+  ROPSIM_GL(PFNGLGETPROGRAMIVPROC, GetProgramiv)                                     \
+  ROPSIM_GL(PFNGLGETPROGRAMINFOLOGPROC, GetProgramInfoLog)                           \
+  ROPSIM_GL(PFNGLUSEPROGRAMPROC, UseProgram)                                         \
+  ROPSIM_GL(PFNGLDELETEPROGRAMPROC, DeleteProgram)                                   \
+  ROPSIM_GL(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation)                         \
+  ROPSIM_GL(PFNGLUNIFORM1UIPROC, Uniform1ui)                                         \
+  ROPSIM_GL(PFNGLGENBUFFERSPROC, GenBuffers)                                         \
+  ROPSIM_GL(PFNGLBINDBUFFERPROC, BindBuffer)                                         \
+  ROPSIM_GL(PFNGLBUFFERDATAPROC, BufferData)                                         \
+  ROPSIM_GL(PFNGLBUFFERSUBDATAPROC, BufferSubData)                                   \
+  ROPSIM_GL(PFNGLGETBUFFERSUBDATAPROC, GetBufferSubData)                             \
+  ROPSIM_GL(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                                 \
+  ROPSIM_GL(PFNGLDELETEBUFFERSPROC, DeleteBuffers)                                   \
+  ROPSIM_GL(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays)                               \
+  ROPSIM_GL(PFNGLBINDVERTEXARRAYPROC, BindVertexArray)                               \
+  ROPSIM_GL(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays)                         \
+  ROPSIM_GL(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                       \
+  ROPSIM_GL(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray)               \
+  ROPSIM_GL(PFNGLGETMULTISAMPLEFVPROC, GetMultisamplefv)                             \
+  ROPSIM_GL(PFNGLMEMORYBARRIERPROC, MemoryBarrier)                                   \
   ROPSIM_GL(PFNGLCLIPCONTROLPROC, ClipControl)
   ROPSIM_GL_LIST
 #undef ROPSIM_GL
   void load() {
-#define ROPSIM_GL(type, name)                                                                  \
-  name = reinterpret_cast<type>(OSMesaGetProcAddress("gl" #name));                            \
+#define ROPSIM_GL(type, name)                                      \
+  name = reinterpret_cast<type>(OSMesaGetProcAddress("gl" #name)); \
   if (!name) throw CaptureError("Mesa cross-check: OSMesa has no gl" #name);
     ROPSIM_GL_LIST
 #undef ROPSIM_GL
@@ -101,9 +104,19 @@ class OsMesaContext {
  public:
   OsMesaContext(int w, int h) : buffer_(size_t(w) * size_t(h) * 4) {
     setenv("LP_NUM_THREADS", "2", 0);  // the machine is shared; respect a caller's setting
-    const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 0, OSMESA_STENCIL_BITS, 0,
-                           OSMESA_PROFILE, OSMESA_CORE_PROFILE, OSMESA_CONTEXT_MAJOR_VERSION, 4,
-                           OSMESA_CONTEXT_MINOR_VERSION, 5, 0};
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           0,
+                           OSMESA_STENCIL_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_CORE_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           4,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           5,
+                           0};
     ctx_ = OSMesaCreateContextAttribs(attribs, nullptr);
     if (!ctx_) throw CaptureError("Mesa cross-check: OSMesa cannot create an OpenGL 4.5 core context");
     if (!OSMesaMakeCurrent(ctx_, buffer_.data(), GL_UNSIGNED_BYTE, w, h)) {
@@ -368,9 +381,12 @@ CrossCheckResult cross_check_with_mesa(const SceneSpec& spec_in) {
       if (f == 0 && len > 0) tie = true;
       if (len > 0) best = std::min(best, std::abs(double(f)) / len);
     }
-    if (tie) ++r.on_edge;
-    else if (best <= 1.0) ++r.within_one_subpixel;
-    else ++r.farther;
+    if (tie)
+      ++r.on_edge;
+    else if (best <= 1.0)
+      ++r.within_one_subpixel;
+    else
+      ++r.farther;
   };
   auto diff_mask = [&](uint32_t draw, uint32_t prim, int px, int py, uint64_t m) {
     for (; m; m &= m - 1) classify(draw, prim, px, py, __builtin_ctzll(m));
@@ -392,13 +408,15 @@ CrossCheckResult cross_check_with_mesa(const SceneSpec& spec_in) {
       diff_mask(km.draw, km.prim, km.x, km.y, mc.records[j].mask);
       ++j;
     } else {
-      if (ours[i].coverage == mc.records[j].mask) ++r.equal;
+      if (ours[i].coverage == mc.records[j].mask)
+        ++r.equal;
       else {
         ++r.mask_differs;
         diff_mask(ko.draw, ko.prim, ko.x, ko.y, ours[i].coverage ^ mc.records[j].mask);
       }
       // The depths the ROP uses: clamped to [0, 1] (docs/trace-format.md section 4).
-      const double dz = std::abs(std::clamp(double(ours[i].z0), 0.0, 1.0) - std::clamp(double(mc.records[j].z), 0.0, 1.0));
+      const double dz =
+          std::abs(std::clamp(double(ours[i].z0), 0.0, 1.0) - std::clamp(double(mc.records[j].z), 0.0, 1.0));
       r.max_depth_diff = std::max(r.max_depth_diff, dz);
       depth_sum += dz;
       if (dz > kDepthTolAbs + kDepthTolPixels * (std::abs(double(ours[i].dzdx)) + std::abs(double(ours[i].dzdy))))
@@ -418,15 +436,18 @@ std::string cross_check_summary(const CrossCheckResult& r) {
   std::string s;
   s += fmt::format("cross-check {} at {}x{}, {} spp against {}\n", r.scene, r.width, r.height, r.samples, r.renderer);
   s += fmt::format("  sample positions (1/256 pixel from the top-left corner): {}\n", r.positions);
-  s += fmt::format("  records (draw, primitive, pixel): ropsim {}, Mesa {}; equal {} ({:.4f}%), mask differs {}, "
-                   "only ropsim {}, only Mesa {}\n",
-                   r.ours, r.mesa, r.equal, 100.0 * r.agreement, r.mask_differs, r.only_ours, r.only_mesa);
-  s += fmt::format("  samples covered by one rasterizer only: {} (on an edge of ropsim's snapped triangle {}, within "
-                   "1/256 pixel of one {}, farther {}, in clipped triangles {})\n",
-                   r.samples_differ, r.on_edge, r.within_one_subpixel, r.farther, r.in_clipped);
-  s += fmt::format("  depth at the pixel centre, clamped to [0, 1]: max |diff| {:.3g}, mean {:.3g}; over the tolerance "
-                   "({:g} + {:g} px x |gradient|): {}\n",
-                   r.max_depth_diff, r.mean_depth_diff, kDepthTolAbs, kDepthTolPixels, r.depth_over_tolerance);
+  s += fmt::format(
+      "  records (draw, primitive, pixel): ropsim {}, Mesa {}; equal {} ({:.4f}%), mask differs {}, "
+      "only ropsim {}, only Mesa {}\n",
+      r.ours, r.mesa, r.equal, 100.0 * r.agreement, r.mask_differs, r.only_ours, r.only_mesa);
+  s += fmt::format(
+      "  samples covered by one rasterizer only: {} (on an edge of ropsim's snapped triangle {}, within "
+      "1/256 pixel of one {}, farther {}, in clipped triangles {})\n",
+      r.samples_differ, r.on_edge, r.within_one_subpixel, r.farther, r.in_clipped);
+  s += fmt::format(
+      "  depth at the pixel centre, clamped to [0, 1]: max |diff| {:.3g}, mean {:.3g}; over the tolerance "
+      "({:g} + {:g} px x |gradient|): {}\n",
+      r.max_depth_diff, r.mean_depth_diff, kDepthTolAbs, kDepthTolPixels, r.depth_over_tolerance);
   s += fmt::format("  time: ropsim {:.3f} s, Mesa {:.3f} s\n", r.ours_seconds, r.mesa_seconds);
   return s;
 }

@@ -22,7 +22,7 @@ struct MesaRecord {
 
 struct MesaCapture {
   std::string renderer, version;
-  int samples = 0;                                    ///< GL_SAMPLES of the framebuffer
+  int samples = 0;                                     ///< GL_SAMPLES of the framebuffer
   std::vector<std::array<float, 2>> sample_positions;  ///< glGetMultisamplefv, pixel units
   std::vector<MesaRecord> records;                     ///< one per (draw, prim, pixel), API order
   uint64_t invocations = 0;                            ///< fragment shader invocations recorded
@@ -44,11 +44,11 @@ struct CrossCheckResult {
   std::string scene, renderer;
   uint32_t width = 0, height = 0;
   int samples = 0;
-  std::string positions;                  ///< Mesa's positions in 1/256 pixel, as used by ropsim
-  uint64_t ours = 0, mesa = 0;            ///< records (draw, prim, pixel) from each
-  uint64_t equal = 0;                     ///< present in both with the same coverage mask
+  std::string positions;        ///< Mesa's positions in 1/256 pixel, as used by ropsim
+  uint64_t ours = 0, mesa = 0;  ///< records (draw, prim, pixel) from each
+  uint64_t equal = 0;           ///< present in both with the same coverage mask
   uint64_t mask_differs = 0, only_ours = 0, only_mesa = 0;
-  double agreement = 0;                   ///< equal / records in either
+  double agreement = 0;  ///< equal / records in either
   // Samples whose coverage differs, by the distance of the sample from the
   // nearest edge of ropsim's snapped triangle (1/256 pixel units):
   uint64_t samples_differ = 0, on_edge = 0, within_one_subpixel = 0, farther = 0, in_clipped = 0;

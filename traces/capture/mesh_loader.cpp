@@ -4,8 +4,8 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
-#include <assimp/Importer.hpp>
 #include <algorithm>
+#include <assimp/Importer.hpp>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -42,7 +42,6 @@ MeshMaterial read_material(const aiMaterial* m) {
   out.base[3] = std::min(out.base[3], 1.0f);
   return out;
 }
-
 
 int load_material_texture(const aiScene* sc, const aiMaterial* m, const std::string& mesh_path, LoadedMesh& out,
                           std::map<std::string, int>& cache) {
@@ -95,8 +94,8 @@ LoadedMesh load_mesh(const std::string& path, bool points_ok, bool textures) {
   Assimp::Importer imp;
   // Triangulate polygons; keep points (point clouds) and lines (dropped below).
   // (ValidateDataStructure rejects point clouds, which have no faces.)
-  const unsigned flags = aiProcess_Triangulate | aiProcess_GenSmoothNormals |
-                         (points_ok ? 0u : unsigned(aiProcess_ValidateDataStructure));
+  const unsigned flags =
+      aiProcess_Triangulate | aiProcess_GenSmoothNormals | (points_ok ? 0u : unsigned(aiProcess_ValidateDataStructure));
   const aiScene* sc = imp.ReadFile(path, flags);
   if (!sc || (sc->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !sc->mRootNode)
     throw CaptureError(path + ": cannot load the mesh: " + std::string(imp.GetErrorString()));
@@ -163,7 +162,8 @@ LoadedMesh load_mesh(const std::string& path, bool points_ok, bool textures) {
   };
   walk(sc->mRootNode, aiMatrix4x4());
   if (out.triangles.empty() && !(points_ok && !out.points.empty()))
-    throw CaptureError(path + (points_ok ? ": the mesh has no points and no triangles" : ": the mesh has no triangles"));
+    throw CaptureError(path +
+                       (points_ok ? ": the mesh has no points and no triangles" : ": the mesh has no triangles"));
   return out;
 }
 

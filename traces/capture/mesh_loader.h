@@ -15,7 +15,7 @@ enum class AlphaMode { kOpaque, kMask, kBlend };
 
 struct MeshMaterial {
   std::string name;
-  std::array<float, 4> base{1, 1, 1, 1};  ///< linear RGBA: glTF baseColorFactor, else diffuse colour and opacity
+  std::array<float, 4> base{1, 1, 1, 1};      ///< linear RGBA: glTF baseColorFactor, else diffuse colour and opacity
   AlphaMode alpha_mode = AlphaMode::kOpaque;  ///< glTF alphaMode (OPAQUE for other formats)
   float alpha_cutoff = 0.5f;                  ///< glTF alphaCutoff (MASK)
   int texture = -1;  ///< base colour texture (RGBA: colour and alpha), index into LoadedMesh::textures
@@ -29,8 +29,8 @@ struct LoadedMesh {
   std::vector<std::array<float, 2>> uvs;         ///< per vertex texture coordinates (set 0), empty when none
   std::vector<Texture> textures;                 ///< loaded only when asked for
   std::vector<std::array<uint32_t, 3>> triangles;
-  std::vector<uint32_t> triangle_material;       ///< index into materials, per triangle
-  std::vector<uint32_t> points;                  ///< vertices used as point primitives (PLY point clouds)
+  std::vector<uint32_t> triangle_material;  ///< index into materials, per triangle
+  std::vector<uint32_t> points;             ///< vertices used as point primitives (PLY point clouds)
   std::vector<MeshMaterial> materials;
 };
 

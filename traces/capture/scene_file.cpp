@@ -1,12 +1,13 @@
 #include "scene_file.h"
 
+#include <toml++/toml.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
-#include <toml++/toml.h>
 
 #include "utf8.h"
 
@@ -150,9 +151,11 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
     if (*seed < 0) k.fail(k.node("seed"), "seed", "must be >= 0");
     s.seed = uint64_t(*seed);
   }
-  s.depth_mode = k.choice("depth", "plane", {"plane", "per-sample"}) == "plane" ? DepthMode::kPlane : DepthMode::kPerSample;
-  s.color_format = k.choice("color_format", "rgb-f32", {"rgb-f32", "rgb-unorm8"}) == "rgb-f32" ? ColorFormat::kRgbF32
-                                                                                               : ColorFormat::kRgbUnorm8;
+  s.depth_mode =
+      k.choice("depth", "plane", {"plane", "per-sample"}) == "plane" ? DepthMode::kPlane : DepthMode::kPerSample;
+  s.color_format = k.choice("color_format", "rgb-f32", {"rgb-f32", "rgb-unorm8"}) == "rgb-f32"
+                       ? ColorFormat::kRgbF32
+                       : ColorFormat::kRgbUnorm8;
   s.compression = k.choice("compression", "zstd", {"zstd", "none"}) == "zstd" ? Compression::kZstd : Compression::kNone;
   if (auto bg = k.rgb("background")) s.background = *bg;
 
@@ -223,7 +226,8 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
     if (auto tex = ok.string("texture")) ob.texture = (scene_dir / *tex).lexically_normal().string();
     if (const toml::node* op = ok.node("opacity")) {
       if (op->is_string()) {
-        if (*op->value<std::string>() != "material") ok.fail(op, "opacity", "must be a number in [0, 1] or \"material\"");
+        if (*op->value<std::string>() != "material")
+          ok.fail(op, "opacity", "must be a number in [0, 1] or \"material\"");
         ob.opacity_source = OpacitySource::kMaterial;
       } else {
         ob.opacity = float(ok.number_in("opacity", 1.0, 0.0, 1.0, "[0, 1] (or \"material\")"));
@@ -232,15 +236,18 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
     if (const toml::node* c = ok.node("color")) {
       if (c->is_string()) {
         const std::string v = *c->value<std::string>();
-        if (v == "material") ob.color_source = ColorSource::kMaterial;
-        else if (v == "vertex") ob.color_source = ColorSource::kVertex;
-        else ok.fail(c, "color", "must be [r, g, b], \"material\" or \"vertex\"");
+        if (v == "material")
+          ob.color_source = ColorSource::kMaterial;
+        else if (v == "vertex")
+          ob.color_source = ColorSource::kVertex;
+        else
+          ok.fail(c, "color", "must be [r, g, b], \"material\" or \"vertex\"");
       } else {
         ob.color = *ok.rgb("color");
       }
     }
     ob.order = ok.choice("order", "authored", {"authored", "shuffled"}) == "authored" ? DrawOrder::kAuthored
-                                                                                    : DrawOrder::kShuffled;
+                                                                                      : DrawOrder::kShuffled;
     const std::string sh = ok.choice("shading", "smooth", {"smooth", "flat", "unlit"});
     ob.shading = sh == "smooth" ? Shading::kSmooth : sh == "flat" ? Shading::kFlat : Shading::kUnlit;
     // Default: back faces kept unless the object is opaque (constant opacity 1).

@@ -31,42 +31,42 @@ enum class DrawOrder { kAuthored, kShuffled };
 enum class Shading { kSmooth, kFlat, kUnlit };
 
 struct ObjectSpec {
-  std::string name;                 ///< for messages: "object[i]" or its `name`
+  std::string name;  ///< for messages: "object[i]" or its `name`
   ObjectKind kind = ObjectKind::kMesh;
-  std::string mesh;                 ///< resolved path of the mesh / point file
-  std::string texture;              ///< resolved path of an RGBA image over the object ("" = none)
+  std::string mesh;     ///< resolved path of the mesh / point file
+  std::string texture;  ///< resolved path of an RGBA image over the object ("" = none)
   OpacitySource opacity_source = OpacitySource::kConstant;
-  float opacity = 1.0f;             ///< alpha when constant
+  float opacity = 1.0f;  ///< alpha when constant
   ColorSource color_source = ColorSource::kConstant;
   std::array<float, 3> color{1.0f, 1.0f, 1.0f};  ///< linear RGB when constant
   DrawOrder order = DrawOrder::kAuthored;
-  bool back_faces = true;           ///< keep back-facing triangles
+  bool back_faces = true;  ///< keep back-facing triangles
   Shading shading = Shading::kSmooth;
-  double scale = 1.0;               ///< uniform scale, applied first
-  Vec3d rotate{0, 0, 0};            ///< degrees about x, then y, then z
-  Vec3d translate{0, 0, 0};         ///< world units, applied last
-  double size = 1.0;                ///< billboards: side length in world units
-  uint32_t max_points = 0;          ///< billboards: 0 = every point, else an even subsample
+  double scale = 1.0;        ///< uniform scale, applied first
+  Vec3d rotate{0, 0, 0};     ///< degrees about x, then y, then z
+  Vec3d translate{0, 0, 0};  ///< world units, applied last
+  double size = 1.0;         ///< billboards: side length in world units
+  uint32_t max_points = 0;   ///< billboards: 0 = every point, else an even subsample
 };
 
 struct CameraSpec {
   Vec3d eye{0, 0, 5}, target{0, 0, 0}, up{0, 1, 0};
-  double fov_y = 45.0;              ///< vertical field of view, degrees
-  double near = 0.1, far = 100.0;   ///< clip distances along the view direction, world units
+  double fov_y = 45.0;             ///< vertical field of view, degrees
+  double near = 0.1, far = 100.0;  ///< clip distances along the view direction, world units
 };
 
 struct LightSpec {
-  bool headlight = true;            ///< light travels along the view direction
-  Vec3d direction{0, 0, 1};         ///< towards the light, world space (when not headlight)
-  double ambient = 0.15;            ///< fraction of the colour lit regardless of the normal
+  bool headlight = true;     ///< light travels along the view direction
+  Vec3d direction{0, 0, 1};  ///< towards the light, world space (when not headlight)
+  double ambient = 0.15;     ///< fraction of the colour lit regardless of the normal
 };
 
 struct SceneSpec {
-  std::string path;                 ///< the scene file
+  std::string path;  ///< the scene file
   std::string name;
   uint32_t width = 640, height = 480;
   int spp = 16;
-  uint64_t seed = 1;                ///< seed of the triangle shuffles
+  uint64_t seed = 1;  ///< seed of the triangle shuffles
   DepthMode depth_mode = DepthMode::kPlane;
   ColorFormat color_format = ColorFormat::kRgbF32;
   Compression compression = Compression::kZstd;

@@ -11,14 +11,11 @@ namespace ropsim {
 
 namespace {
 
-float srgb_to_linear(float c) {
-  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
+float srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
 
 Texture read(OIIO::ImageInput* in, const std::string& name, bool srgb) {
   const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-    throw CaptureError(name + ": empty texture image");
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw CaptureError(name + ": empty texture image");
   std::vector<float> px(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, px.data()))
     throw CaptureError(name + ": cannot decode the texture: " + in->geterror());
@@ -32,7 +29,11 @@ Texture read(OIIO::ImageInput* in, const std::string& name, bool srgb) {
     const float* p = &px[i * size_t(nc)];
     float r = p[0], g = nc >= 3 ? p[1] : p[0], b = nc >= 3 ? p[2] : p[0];
     float a = nc == 4 ? p[3] : nc == 2 ? p[1] : 1.0f;
-    if (srgb) { r = srgb_to_linear(r); g = srgb_to_linear(g); b = srgb_to_linear(b); }
+    if (srgb) {
+      r = srgb_to_linear(r);
+      g = srgb_to_linear(g);
+      b = srgb_to_linear(b);
+    }
     float* o = &t.rgba[i * 4];
     o[0] = std::isfinite(r) ? std::max(r, 0.0f) : 0.0f;
     o[1] = std::isfinite(g) ? std::max(g, 0.0f) : 0.0f;

@@ -8,12 +8,11 @@
 
 #include "bits.h"
 #include "depth.h"
+#include "errors.h"
 #include "numerics.h"
+#include "output_file.h"
 #include "trace.h"
 #include "utf8.h"
-
-#include "errors.h"
-#include "output_file.h"
 
 namespace ropsim {
 
@@ -26,16 +25,32 @@ namespace {
 constexpr size_t kFixedHeaderBytes = 48;
 constexpr size_t kIoChunk = 1 << 17;
 
-void put_u16(uint8_t* p, uint16_t v) { p[0] = uint8_t(v); p[1] = uint8_t(v >> 8); }
-void put_u32(uint8_t* p, uint32_t v) { for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i)); }
-void put_u64(uint8_t* p, uint64_t v) { for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i)); }
-void put_f32(uint8_t* p, float f) { uint32_t v; std::memcpy(&v, &f, 4); put_u32(p, v); }
+void put_u16(uint8_t* p, uint16_t v) {
+  p[0] = uint8_t(v);
+  p[1] = uint8_t(v >> 8);
+}
+void put_u32(uint8_t* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+void put_u64(uint8_t* p, uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+void put_f32(uint8_t* p, float f) {
+  uint32_t v;
+  std::memcpy(&v, &f, 4);
+  put_u32(p, v);
+}
 uint16_t get_u16(const uint8_t* p) { return uint16_t(p[0] | (p[1] << 8)); }
 uint32_t get_u32(const uint8_t* p) {
   return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
 }
 uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
-float get_f32(const uint8_t* p) { uint32_t v = get_u32(p); float f; std::memcpy(&f, &v, 4); return f; }
+float get_f32(const uint8_t* p) {
+  uint32_t v = get_u32(p);
+  float f;
+  std::memcpy(&f, &v, 4);
+  return f;
+}
 
 int coverage_bytes(int spp) { return int(ceil_div(unsigned(spp), 8u)); }
 
@@ -193,7 +208,8 @@ std::string validate_header(const TraceHeader& h) {
   if (h.width == 0 || h.height == 0) return "width and height must be at least 1";
   if (h.width > kMaxScreenSide || h.height > kMaxScreenSide)
     return "width and height must be at most " + std::to_string(kMaxScreenSide);
-  if (!is_valid_spp(h.spp)) return "samples per pixel " + std::to_string(h.spp) + " is not one of 1, 2, 4, 8, 16, 32, 64";
+  if (!is_valid_spp(h.spp))
+    return "samples per pixel " + std::to_string(h.spp) + " is not one of 1, 2, 4, 8, 16, 32, 64";
   if (static_cast<uint8_t>(h.depth_mode) > 1) return "unknown depth mode";
   if (static_cast<uint8_t>(h.color_format) > 1) return "unknown colour format";
   if (static_cast<uint8_t>(h.compression) > 1) return "unknown compression";
@@ -213,12 +229,12 @@ std::string validate_fragment(const TraceHeader& h, const Fragment& f) {
   if (h.spp < 64 && (f.coverage >> h.spp) != 0)
     return "coverage mask sets bits beyond " + std::to_string(h.spp) + " samples";
   if (h.depth_mode == DepthMode::kPlane) {
-    if (!std::isfinite(f.z0) || !std::isfinite(f.dzdx) || !std::isfinite(f.dzdy))
-      return "depth plane is not finite";
+    if (!std::isfinite(f.z0) || !std::isfinite(f.dzdx) || !std::isfinite(f.dzdy)) return "depth plane is not finite";
   } else {
     for (uint64_t m = f.coverage; m; m &= m - 1) {
       float z = f.z[__builtin_ctzll(m)];
-      if (!(z >= 0.0f && z <= 1.0f)) return "depth of sample " + std::to_string(__builtin_ctzll(m)) + " is not in [0, 1]";
+      if (!(z >= 0.0f && z <= 1.0f))
+        return "depth of sample " + std::to_string(__builtin_ctzll(m)) + " is not in [0, 1]";
     }
   }
   for (float c : f.rgb)
@@ -237,8 +253,7 @@ void fragment_sample_depths(const TraceHeader& h, const Fragment& f, float* z_ou
   if (h.depth_mode == DepthMode::kPlane) {
     for (uint64_t m = f.coverage; m; m &= m - 1) {
       int i = __builtin_ctzll(m);
-      z_out[i] = plane_depth(f.z0, f.dzdx, f.dzdy, sample_offset(h.positions[i].x),
-                             sample_offset(h.positions[i].y));
+      z_out[i] = plane_depth(f.z0, f.dzdx, f.dzdy, sample_offset(h.positions[i].x), sample_offset(h.positions[i].y));
     }
   } else {
     for (uint64_t m = f.coverage; m; m &= m - 1) {
@@ -316,7 +331,8 @@ bool TraceReader::next(Fragment& f) {
       read_exact(b, 8, "end record");
       uint64_t count = get_u64(b);
       if (count != records_)
-        fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
+        fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) +
+             " were read");
       uint8_t extra;
       if (src_->read(&extra, 1) != 0) fail("data after the end record");
       if (!src_->complete()) fail("truncated: the compressed frame is incomplete");
@@ -336,7 +352,10 @@ bool TraceReader::next(Fragment& f) {
       const size_t total = head + 12 + colour_bytes;
       const size_t got = src_->read(b, total);
       if (got != total)
-        fail(std::string("truncated in the ") + (got < head ? "fragment" : got < head + 12 ? "depth plane" : "colour") +
+        fail(std::string("truncated in the ") +
+             (got < head        ? "fragment"
+              : got < head + 12 ? "depth plane"
+                                : "colour") +
              " (no end record)");
     } else {
       read_exact(b, head, "fragment");
@@ -422,25 +441,39 @@ void TraceWriter::write(const Fragment& f) {
   uint8_t b[16 + 8 + 256 + 16];
   size_t n = 0;
   b[n++] = kTagFragment;
-  put_u32(b + n, f.draw_id); n += 4;
-  put_u32(b + n, f.prim_id); n += 4;
-  put_u16(b + n, f.x); n += 2;
-  put_u16(b + n, f.y); n += 2;
+  put_u32(b + n, f.draw_id);
+  n += 4;
+  put_u32(b + n, f.prim_id);
+  n += 4;
+  put_u16(b + n, f.x);
+  n += 2;
+  put_u16(b + n, f.y);
+  n += 2;
   for (int i = 0; i < coverage_bytes(header_.spp); ++i) b[n++] = uint8_t(f.coverage >> (8 * i));
   if (header_.depth_mode == DepthMode::kPlane) {
-    put_f32(b + n, f.z0); put_f32(b + n + 4, f.dzdx); put_f32(b + n + 8, f.dzdy); n += 12;
+    put_f32(b + n, f.z0);
+    put_f32(b + n + 4, f.dzdx);
+    put_f32(b + n + 8, f.dzdy);
+    n += 12;
   } else {
-    for (uint64_t m = f.coverage; m; m &= m - 1) { put_f32(b + n, f.z[__builtin_ctzll(m)]); n += 4; }
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      put_f32(b + n, f.z[__builtin_ctzll(m)]);
+      n += 4;
+    }
   }
   if (header_.color_format == ColorFormat::kRgbF32) {
-    for (int i = 0; i < 3; ++i) { put_f32(b + n, f.rgb[i]); n += 4; }
+    for (int i = 0; i < 3; ++i) {
+      put_f32(b + n, f.rgb[i]);
+      n += 4;
+    }
   } else {
     for (int i = 0; i < 3; ++i) {
       float c = std::min(1.0f, std::max(0.0f, f.rgb[i]));
       b[n++] = uint8_t(std::lround(c * 255.0f));
     }
   }
-  put_f32(b + n, f.alpha); n += 4;
+  put_f32(b + n, f.alpha);
+  n += 4;
   sink_->write(b, n);
   raw_bytes_ += n;
   ++count_;

@@ -18,11 +18,20 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
   // Twice the signed area; orient counter-clockwise on screen (y down) so that
   // inside means every edge function >= 0.
   int64_t area = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0]);
-  if (area == 0) { ++stats_.culled_degenerate; return; }
+  if (area == 0) {
+    ++stats_.culled_degenerate;
+    return;
+  }
   int idx[3] = {0, 1, 2};
-  if (area < 0) { std::swap(idx[1], idx[2]); area = -area; }
+  if (area < 0) {
+    std::swap(idx[1], idx[2]);
+    area = -area;
+  }
   int64_t x[3], y[3];
-  for (int i = 0; i < 3; ++i) { x[i] = X[idx[i]]; y[i] = Y[idx[i]]; }
+  for (int i = 0; i < 3; ++i) {
+    x[i] = X[idx[i]];
+    y[i] = Y[idx[i]];
+  }
   // Edge e goes from vertex e to vertex e+1; its function is >= 0 inside.
   int64_t ex[3], ey[3], bias[3];
   for (int e = 0; e < 3; ++e) {
@@ -34,9 +43,7 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
     bool top_left = ey[e] < 0 || (ey[e] == 0 && ex[e] > 0);
     bias[e] = top_left ? 0 : -1;
   }
-  auto edge = [&](int e, int64_t px, int64_t py) {
-    return ex[e] * (py - y[e]) - ey[e] * (px - x[e]) + bias[e];
-  };
+  auto edge = [&](int e, int64_t px, int64_t py) { return ex[e] * (py - y[e]) - ey[e] * (px - x[e]) + bias[e]; };
 
   // Depth plane and attribute interpolation through barycentrics (in pixels).
   const double inv_area = 1.0 / static_cast<double>(area);
@@ -66,7 +73,10 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
     pa = ((b.z - a.z) * (c.y - a.y) - (c.z - a.z) * (b.y - a.y)) / d;
     pb = ((b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z)) / d;
     unsnapped = d != 0 && std::isfinite(pa) && std::isfinite(pb);
-    if (unsnapped) { dzdx = pa; dzdy = pb; }
+    if (unsnapped) {
+      dzdx = pa;
+      dzdy = pb;
+    }
   }
   auto zplane = [&](double sx, double sy) {  // unsnapped plane at a point in pixels
     return t.v[0].z + pa * (sx - t.v[0].x) + pb * (sy - t.v[0].y);
@@ -116,13 +126,16 @@ void Rasterizer::rasterize(const ScreenTriangle& t, const std::function<void(con
         if (!(cov >> s & 1)) continue;
         double b[3];
         bary(double(bx + h_.positions[s].x), double(by + h_.positions[s].y), b);
-        const double zs = unsnapped ? zplane(double(px) + h_.positions[s].x / kScale, double(py) + h_.positions[s].y / kScale)
-                                    : zat(b);
+        const double zs = unsnapped
+                              ? zplane(double(px) + h_.positions[s].x / kScale, double(py) + h_.positions[s].y / kScale)
+                              : zat(b);
         f.z[s] = static_cast<float>(std::clamp(zs, 0.0, 1.0));
       }
       for (int c = 0; c < 3; ++c)
-        f.rgb[c] = std::max(0.0f, static_cast<float>(bc[0] * v[0]->rgb[c] + bc[1] * v[1]->rgb[c] + bc[2] * v[2]->rgb[c]));
-      f.alpha = static_cast<float>(std::clamp(bc[0] * v[0]->alpha + bc[1] * v[1]->alpha + bc[2] * v[2]->alpha, 0.0, 1.0));
+        f.rgb[c] =
+            std::max(0.0f, static_cast<float>(bc[0] * v[0]->rgb[c] + bc[1] * v[1]->rgb[c] + bc[2] * v[2]->rgb[c]));
+      f.alpha =
+          static_cast<float>(std::clamp(bc[0] * v[0]->alpha + bc[1] * v[1]->alpha + bc[2] * v[2]->alpha, 0.0, 1.0));
       ++stats_.fragments;
       stats_.covered_samples += n;
       emit(f);

@@ -11,8 +11,8 @@ namespace {
 constexpr int k2[][2] = {{4, 4}, {-4, -4}};
 constexpr int k4[][2] = {{-2, -6}, {6, -2}, {-6, 2}, {2, 6}};
 constexpr int k8[][2] = {{1, -3}, {-1, 3}, {5, 1}, {-3, -5}, {-5, 5}, {-7, -1}, {3, 7}, {7, -7}};
-constexpr int k16[][2] = {{1, 1},   {-1, -3}, {-3, 2}, {4, -1}, {-5, -2}, {2, 5},  {5, 3},   {3, -5},
-                          {-2, 6},  {0, -7},  {-4, -6}, {-6, 4}, {-8, 0},  {7, -4}, {6, 7},  {-7, -8}};
+constexpr int k16[][2] = {{1, 1},  {-1, -3}, {-3, 2},  {4, -1}, {-5, -2}, {2, 5},  {5, 3}, {3, -5},
+                          {-2, 6}, {0, -7},  {-4, -6}, {-6, 4}, {-8, 0},  {7, -4}, {6, 7}, {-7, -8}};
 
 template <size_t N>
 std::array<SamplePos, 64> from_sixteenths(const int (&p)[N][2]) {
@@ -25,11 +25,16 @@ std::array<SamplePos, 64> from_sixteenths(const int (&p)[N][2]) {
 
 std::array<SamplePos, 64> standard_sample_positions(int spp) {
   switch (spp) {
-    case 1: return std::array<SamplePos, 64>{};  // all default to the centre (128, 128)
-    case 2: return from_sixteenths(k2);
-    case 4: return from_sixteenths(k4);
-    case 8: return from_sixteenths(k8);
-    case 16: return from_sixteenths(k16);
+    case 1:
+      return std::array<SamplePos, 64>{};  // all default to the centre (128, 128)
+    case 2:
+      return from_sixteenths(k2);
+    case 4:
+      return from_sixteenths(k4);
+    case 8:
+      return from_sixteenths(k8);
+    case 16:
+      return from_sixteenths(k16);
     case 32:
     case 64: {
       // Hammersley (0, m, 2)-net: x = (i + 1/2) / N, y = (rev_m(i) + 1/2) / N.
@@ -43,7 +48,8 @@ std::array<SamplePos, 64> standard_sample_positions(int spp) {
       }
       return out;
     }
-    default: throw std::invalid_argument("no standard sample pattern for " + std::to_string(spp) + " spp");
+    default:
+      throw std::invalid_argument("no standard sample pattern for " + std::to_string(spp) + " spp");
   }
 }
 

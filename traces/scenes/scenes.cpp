@@ -37,7 +37,11 @@ using Rgb = std::array<float, 3>;
 
 ScreenVertex vert(double x, double y, double z, Rgb c, float a) {
   ScreenVertex v;
-  v.x = x; v.y = y; v.z = z; v.rgb = c; v.alpha = a;
+  v.x = x;
+  v.y = y;
+  v.z = z;
+  v.rgb = c;
+  v.alpha = a;
   return v;
 }
 
@@ -53,8 +57,8 @@ void add_quad(std::vector<ScreenTriangle>& out, uint32_t draw, const ScreenVerte
 }
 
 /// An axis-aligned rectangle tessellated into nx x ny quads; alpha may ramp in x.
-void add_rect(std::vector<ScreenTriangle>& out, uint32_t draw, double x0, double y0, double x1, double y1,
-              double z, Rgb c, float a0, float a1, int nx = 1, int ny = 1) {
+void add_rect(std::vector<ScreenTriangle>& out, uint32_t draw, double x0, double y0, double x1, double y1, double z,
+              Rgb c, float a0, float a1, int nx = 1, int ny = 1) {
   auto at = [&](int i, int j) {
     double u = double(i) / nx, v = double(j) / ny;
     return vert(x0 + u * (x1 - x0), y0 + v * (y1 - y0), z, c, static_cast<float>(a0 + u * (a1 - a0)));
@@ -67,7 +71,10 @@ void number_primitives(std::vector<ScreenTriangle>& tris) {
   // gl_PrimitiveID semantics: the index of the triangle within its draw.
   uint32_t draw = ~0u, prim = 0;
   for (auto& t : tris) {
-    if (t.draw_id != draw) { draw = t.draw_id; prim = 0; }
+    if (t.draw_id != draw) {
+      draw = t.draw_id;
+      prim = 0;
+    }
     t.prim_id = prim++;
   }
 }
@@ -80,7 +87,8 @@ void testcard(Scene& s, SceneRng&) {
   // Top: alpha ramp 0 -> 1 (one surface, 8 x 2 quads: interior edges).
   add_rect(t, 0, W * 0.05 + 0.3, pad + 0.5, W * 0.95 + 0.3, band - pad + 0.5, 0.5, white, 0.0f, 1.0f, 8, 2);
   // Middle: constant alpha 0.61, also tessellated so the surface has interior edges.
-  add_rect(t, 1, W * 0.05 + 0.3, band + pad + 0.5, W * 0.95 + 0.3, 2 * band - pad + 0.5, 0.5, white, 0.61f, 0.61f, 8, 2);
+  add_rect(t, 1, W * 0.05 + 0.3, band + pad + 0.5, W * 0.95 + 0.3, 2 * band - pad + 0.5, 0.5, white, 0.61f, 0.61f, 8,
+           2);
   // Bottom: five overlapping quads, alpha 0.75, at distinct depths, drawn back to front.
   const double qw = W * 0.3, step = (W * 0.9 - qw) / 4.0;
   for (int i = 0; i < 5; ++i) {
@@ -119,7 +127,8 @@ void cloth(Scene& s, SceneRng& rng) {
   auto pos = [&](double u, double v, double out[3]) {
     out[0] = W * (0.5 + 0.20 * (2 * u - 1) + 0.21 * std::sin(5 * kPi * u + 0.5 * v));
     out[1] = H * (0.5 + 0.34 * (2 * v - 1) + 0.11 * std::sin(3 * kPi * v + 0.6 * u));
-    out[2] = 0.5 + 0.2 * std::cos(5 * kPi * u + 0.5 * v) + 0.12 * std::cos(3 * kPi * v) + 0.04 * std::sin(5 * u + 3 * v) + 0.08 * (u - 0.5);
+    out[2] = 0.5 + 0.2 * std::cos(5 * kPi * u + 0.5 * v) + 0.12 * std::cos(3 * kPi * v) +
+             0.04 * std::sin(5 * u + 3 * v) + 0.08 * (u - 0.5);
   };
   auto shade = [&](double u, double v) {
     const double e = 1e-3;
@@ -168,7 +177,8 @@ void smoke(Scene& s, SceneRng& rng) {
     for (int k = 0; k < 4; ++k) {
       double a = ang + k * kPi / 2;
       float tint = static_cast<float>(rng.uniform(0.8, 1.1));  // a coarse stand-in for a texture
-      c[k] = vert(cx + r * std::cos(a), cy + r * std::sin(a), z, Rgb{g * tint, g * tint, std::min(1.0f, g * tint * 1.05f)}, 0.05f);
+      c[k] = vert(cx + r * std::cos(a), cy + r * std::sin(a), z,
+                  Rgb{g * tint, g * tint, std::min(1.0f, g * tint * 1.05f)}, 0.05f);
     }
     add_quad(s.triangles, b, c[0], c[1], c[2], c[3]);
   }
@@ -181,7 +191,8 @@ void opaque(Scene& s, SceneRng& rng) {
             static_cast<float>(rng.uniform(0.1, 1))};
     ScreenTriangle t;
     t.draw_id = static_cast<uint32_t>(k);
-    for (auto& v : t.v) v = vert(rng.uniform(-0.1, 1.1) * W, rng.uniform(-0.1, 1.1) * H, rng.uniform(0.05, 0.95), col, 1.0f);
+    for (auto& v : t.v)
+      v = vert(rng.uniform(-0.1, 1.1) * W, rng.uniform(-0.1, 1.1) * H, rng.uniform(0.05, 0.95), col, 1.0f);
     s.triangles.push_back(t);
   }
 }
@@ -193,11 +204,14 @@ struct Builder {
 
 const std::vector<Builder>& builders() {
   static const std::vector<Builder> b = {
-      {{"testcard", "LK Fig. 1 left: alpha ramp 0->1, a 0.61 quad, 5 overlapping 0.75 quads; white on black", 256, 192}, testcard},
+      {{"testcard", "LK Fig. 1 left: alpha ramp 0->1, a 0.61 quad, 5 overlapping 0.75 quads; white on black", 256, 192},
+       testcard},
       {{"eight-layers", "LK Fig. 3: 8 full-screen white surfaces, alpha 0.1, over black", 128, 128}, eight_layers},
-      {{"enderton-1", "red over green, alpha 0.45 each, over blue: exact pixel (0.45, 0.2475, 0.3025)", 64, 64}, enderton1},
+      {{"enderton-1", "red over green, alpha 0.45 each, over blue: exact pixel (0.45, 0.2475, 0.3025)", 64, 64},
+       enderton1},
       {{"enderton-2", "4 white surfaces, alpha 0.25, over 25% gray: exact pixel 0.7626953125", 64, 64}, enderton2},
-      {{"cloth", "folded tessellated coloured sheet, 3-6 layers, alpha 0.4, triangles shuffled (LK Fig. 10)", 256, 256}, cloth},
+      {{"cloth", "folded tessellated coloured sheet, 3-6 layers, alpha 0.4, triangles shuffled (LK Fig. 10)", 256, 256},
+       cloth},
       {{"smoke", "96 overlapping billboards, alpha 0.05, unsorted (LK Fig. 8)", 256, 256}, smoke},
       {{"opaque", "24 interpenetrating opaque triangles", 256, 256}, opaque},
   };
@@ -224,7 +238,8 @@ Scene build_scene(const SceneParams& p) {
     for (const auto& x : builders()) names += (names.empty() ? "" : ", ") + x.info.name;
     throw SceneError("unknown scene '" + p.name + "' (known: " + names + ")");
   }
-  if (!is_valid_spp(p.spp)) throw SceneError("--spp " + std::to_string(p.spp) + " is not one of 1, 2, 4, 8, 16, 32, 64");
+  if (!is_valid_spp(p.spp))
+    throw SceneError("--spp " + std::to_string(p.spp) + " is not one of 1, 2, 4, 8, 16, 32, 64");
   Scene s;
   TraceHeader& h = s.header;
   h.width = p.width ? p.width : b->info.width;

@@ -12,10 +12,11 @@ class TileMap {
  public:
   static constexpr int kTileShift = 3;  ///< 8 x 8 pixels per tile
   static constexpr int kTileSide = 1 << kTileShift;
-  static constexpr int kDirShift = 5;   ///< 32 x 32 tiles per directory block
+  static constexpr int kDirShift = 5;  ///< 32 x 32 tiles per directory block
 
   TileMap(uint32_t width, uint32_t height)
-      : tiles_x_((width + kTileSide - 1) >> kTileShift), tiles_y_((height + kTileSide - 1) >> kTileShift),
+      : tiles_x_((width + kTileSide - 1) >> kTileShift),
+        tiles_y_((height + kTileSide - 1) >> kTileShift),
         dirs_x_((tiles_x_ + (1u << kDirShift) - 1) >> kDirShift),
         dirs_((size_t(dirs_x_) * ((tiles_y_ + (1u << kDirShift) - 1) >> kDirShift))) {}
 
@@ -64,7 +65,8 @@ class TileMap {
   size_t tiles() const { return count_; }
   size_t directory_bytes() const {
     size_t n = dirs_.size() * sizeof(std::unique_ptr<Dir>);
-    for (const auto& d : dirs_) if (d) n += sizeof(Dir) + d->size() * sizeof(std::unique_ptr<Tile>);
+    for (const auto& d : dirs_)
+      if (d) n += sizeof(Dir) + d->size() * sizeof(std::unique_ptr<Tile>);
     return n;
   }
 
