@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "errors.h"
 #include "frag_work.h"
 
 namespace ropsim {
@@ -68,6 +69,7 @@ class Retirement {
   }
   /// The fragment leaves the ROP at `cycle`.
   void retire(FragToken* t, uint64_t cycle) {
+    invariant(t->rop < scoreboards_.size() && scoreboards_[t->rop], "a retiring fragment's ROP has a scoreboard");
     scoreboards_[t->rop]->release(t->pixel_key, cycle);
     ++retired_;
     if (cycle > last_) last_ = cycle;

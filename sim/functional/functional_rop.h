@@ -169,3 +169,5 @@ class FunctionalRop {
 };
 
 }  // namespace ropsim
+
+#include "functional_rop_stages.h"  // IWYU pragma: export

@@ -1,6 +1,7 @@
 #include "rop_pipeline.h"
 
 #include "alpha_ref_gen.h"
+#include "errors.h"
 #include "coverage_tracker.h"
 #include "depth_test.h"
 #include "pixel_ordering.h"
@@ -139,10 +140,10 @@ uint64_t RopPipeline::run() {
     std::string held;
     for (const auto& f : fifos_)
       if (!f->empty()) held += "; " + f->name() + " holds " + std::to_string(f->size());
-    throw std::logic_error("cycle model stalled at cycle " + std::to_string(clk_.now()) + ": " +
-                           std::to_string(retirement_.retired()) + " of " + std::to_string(source_->produced()) +
-                           " fragments retired" + (source_->done() ? "" : " and the trace source is not done") + held +
-                           " (a lost wake-up; please report it)");
+    throw InternalError("every fragment retires before the simulation ends: the cycle model stalled at cycle " +
+                        std::to_string(clk_.now()) + ", " + std::to_string(retirement_.retired()) + " of " +
+                        std::to_string(source_->produced()) + " fragments retired" +
+                        (source_->done() ? "" : " and the trace source is not done") + held + " (a lost wake-up)");
   }
   // The last retirement, not SystemC's final time: decoupled units close their
   // outputs without SystemC time passing, so that differs between the modes.

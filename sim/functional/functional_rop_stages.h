@@ -1,0 +1,184 @@
+// The stages' definitions, inline so that the golden model's specialised
+// process_as<M> and each SystemC unit's stage call compile to straight code
+// (included by functional_rop.h only).
+#pragma once
+#include "alpha_ref.h"
+#include "depth.h"
+#include "hilbert.h"
+#include "method_kernels.h"
+#include "opacity.h"
+#include "random_hash.h"
+#include "sort_order.h"
+
+namespace ropsim {
+
+inline uint64_t RopSetup::random_key(const Fragment& f) const {
+  return fragment_key(cfg.seed, f.draw_id, f.prim_id, f.x, f.y);
+}
+
+// ------------------------------------------------------------------ stages
+//
+// Each stage's behaviour is written once, per method with `if constexpr`; the
+// golden model runs the specialisation of its method (process_as<M>, every
+// stage inlined), the units run the same code through run()'s dispatch.
+
+#define ROPSIM_DISPATCH(call)            \
+  switch (s_.cfg.method) {               \
+    case Method::kLk:                    \
+      return call<Method::kLk>(w);       \
+    case Method::kEnderton:              \
+      return call<Method::kEnderton>(w); \
+    case Method::kNaive:                 \
+      return call<Method::kNaive>(w);    \
+    case Method::kA2c:                   \
+      return call<Method::kA2c>(w);      \
+    case Method::kOpaque:                \
+      return call<Method::kOpaque>(w);   \
+    case Method::kReference:             \
+      break;                             \
+  }                                      \
+  return 0;
+
+template <Method M>
+inline uint32_t DepthStage::run_as(FragWork& w) {
+  constexpr MethodTraits kT = traits(M);
+  const Fragment& f = *w.f;
+  const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
+  ++c_.fragments;
+  c_.samples_tested += covered;
+  c_.depth_bytes_read += kDepthSampleBytes * covered;
+  uint64_t tested = f.coverage;
+  if constexpr (kT.coverage_select) {
+    // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
+    // opacity decision, made before the depth test.
+    const uint32_t k = a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
+    tested &= s_.a2c_prefix[k];
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
+  }
+  if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  // Each tested sample's depth (as RopSetup::sample_depths) and its test, in
+  // one pass; branch-free: pass/fail is data-dependent.
+  uint64_t S = 0;
+  float* z = w.z;
+  const float* stored = w.px.depth;
+  if (s_.header.depth_mode == DepthMode::kPlane) {
+    for (uint64_t m = tested; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, s_.offset_x[size_t(i)], s_.offset_y[size_t(i)]);
+      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
+    }
+  } else {
+    for (uint64_t m = tested; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      z[i] = canonical_depth(f.z[i]);
+      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
+    }
+  }
+  w.covered = tested;
+  w.survivors = S;
+  w.m = uint32_t(__builtin_popcountll(S));
+  c_.samples_depth_passed += w.m;
+  return uint32_t(__builtin_popcountll(tested));
+}
+
+inline uint32_t DepthStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+inline void TrackStage::run(FragWork& w) {
+  w.lk.track = track_surface(*w.px.tracker, w.survivors, s_.cfg.numerics.surface_id_bits);
+  track_commit(*w.px.tracker, w.survivors);  // line 18: the state is not read again for this fragment
+  c_.surface_id_changes += w.lk.track.new_surface;
+  c_.tracker_bytes_written += s_.tracker_bytes;
+}
+
+inline uint32_t SortStage::run(FragWork& w) {
+  const int m = sort_by_stored_depth(w.px.depth, w.survivors, w.lk.order);
+  c_.sorts += m > 1;
+  return uint32_t(m);
+}
+
+template <Method M>
+inline uint32_t ReferenceStage::run_as(FragWork& w) {
+  const Fragment& f = *w.f;
+  if constexpr (M == Method::kLk) {
+    const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
+    calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
+                    s_.cfg.numerics.hash_bits, w.lk.ref);
+    return w.m;
+  } else if constexpr (M == Method::kEnderton) {
+    int n = 0;
+    for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
+    const uint64_t key = s_.random_key(f);
+    w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
+    enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
+    return w.enderton.count + 1;  // the count's hash and one per pick
+  } else if constexpr (M == Method::kNaive) {
+    const uint64_t key = s_.random_key(f);
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      w.naive.ref[i] = fragment_random(key, uint32_t(i) + 1);
+    }
+    return w.m;
+  } else {
+    return 0;  // no reference stage
+  }
+}
+
+inline uint32_t ReferenceStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+template <Method M>
+inline uint32_t WriteStage::run_as(FragWork& w) {
+  const Numerics& num = s_.cfg.numerics;
+  const uint16_t* rgb16 = memo_.half_color(w.f->rgb);
+  uint64_t wrote = 0;
+  uint32_t examined = w.m;
+  PixelRef px = w.px;
+  const float* z = w.z;
+  if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+    const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    for (uint32_t j = 0; j < w.m; ++j) {
+      const int i = w.lk.order[j];
+      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
+        px.write_sample(i, z[i], rgb16);
+        wrote |= uint64_t{1} << i;
+      }
+    }
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+  } else if constexpr (M == Method::kEnderton) {
+    for (uint32_t j = 0; j < w.enderton.count; ++j) {
+      const int i = w.enderton.list[j];
+      px.write_sample(i, z[i], rgb16);
+      wrote |= uint64_t{1} << i;
+    }
+    c_.samples_opacity_passed += w.enderton.count;
+    examined = w.enderton.count;
+  } else if constexpr (M == Method::kNaive) {
+    const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) {
+        px.write_sample(i, z[i], rgb16);
+        wrote |= uint64_t{1} << i;
+      }
+    }
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
+  } else {  // a2c (its opacity decision was the mask, before the depth test) and opaque
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      px.write_sample(i, z[i], rgb16);
+    }
+    wrote = w.survivors;
+    if constexpr (M == Method::kOpaque) c_.samples_opacity_passed += w.m;
+  }
+  const uint32_t n = uint32_t(__builtin_popcountll(wrote));
+  c_.samples_written += n;
+  c_.depth_bytes_written += kDepthSampleBytes * n;
+  c_.color_bytes_written += kColorSampleBytes * n;
+  w.written = wrote;
+  return examined;
+}
+
+inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+#undef ROPSIM_DISPATCH
+
+}  // namespace ropsim
