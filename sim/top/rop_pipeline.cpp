@@ -1,9 +1,9 @@
 #include "rop_pipeline.h"
 
 #include "alpha_ref_gen.h"
-#include "errors.h"
 #include "coverage_tracker.h"
 #include "depth_test.h"
+#include "errors.h"
 #include "pixel_ordering.h"
 #include "sample_sorter.h"
 #include "writeback.h"
