@@ -31,11 +31,3 @@ inline void invariant(bool cond, const char* what) {
 }
 
 }  // namespace ropsim
-
-/// ROPSIM_ASSERT(cond, "invariant text"): an invariant check that stays in
-/// release builds and reports the source location.
-#define ROPSIM_ASSERT(cond, what)                                                                            \
-  do {                                                                                                       \
-    if (!(cond))                                                                                             \
-      throw ::ropsim::InternalError(std::string(what) + " (" __FILE__ ":" + std::to_string(__LINE__) + ")"); \
-  } while (0)

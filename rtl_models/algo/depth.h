@@ -37,6 +37,26 @@ inline float plane_depth(float z0, float dzdx, float dzdy, float ox, float oy) {
   return canonical_depth(static_cast<float>(x + double(dzdy) * double(oy)));
 }
 
+/// Calls f(i, z) for each sample i of mask, in index order, with the
+/// fragment's depth z there: from its plane (plane_depth with the sample's
+/// offsets ox[i], oy[i]) or from its per-sample depths (per_sample[i],
+/// canonicalised). The one evaluation loop of every model and tool.
+template <class F>
+inline void for_each_sample_depth(uint64_t mask, bool plane, float z0, float dzdx, float dzdy, const float* ox,
+                                  const float* oy, const float* per_sample, F&& f) {
+  if (plane) {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      f(i, plane_depth(z0, dzdx, dzdy, ox[i], oy[i]));
+    }
+  } else {
+    for (; mask; mask &= mask - 1) {
+      const int i = __builtin_ctzll(mask);
+      f(i, canonical_depth(per_sample[i]));
+    }
+  }
+}
+
 /// LK Figure 7 line 2: a sample is removed when s.z > stored; ties pass
 /// (LESS_EQUAL), so a later fragment at equal depth wins.
 inline bool depth_passes(float z, float stored) { return z <= stored; }  // no NaN reaches here

@@ -44,17 +44,8 @@ struct RopSetup {
 };
 
 inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) const {
-  if (header.depth_mode == DepthMode::kPlane) {
-    for (; mask; mask &= mask - 1) {
-      const int i = __builtin_ctzll(mask);
-      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, offset_x[size_t(i)], offset_y[size_t(i)]);
-    }
-  } else {
-    for (; mask; mask &= mask - 1) {
-      const int i = __builtin_ctzll(mask);
-      z[i] = canonical_depth(f.z[i]);
-    }
-  }
+  for_each_sample_depth(mask, header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, offset_x.data(),
+                        offset_y.data(), f.z.data(), [z](int i, float zi) { z[i] = zi; });
 }
 
 /// A stage's counters; a run's are the sum over the stages.

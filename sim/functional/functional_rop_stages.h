@@ -56,24 +56,16 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
   if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
-  // Each tested sample's depth (as RopSetup::sample_depths) and its test, in
-  // one pass; branch-free: pass/fail is data-dependent.
+  // Each tested sample's depth and its test, in one pass; branch-free:
+  // pass/fail is data-dependent.
   uint64_t S = 0;
   float* z = w.z;
   const float* stored = w.px.depth;
-  if (s_.header.depth_mode == DepthMode::kPlane) {
-    for (uint64_t m = tested; m; m &= m - 1) {
-      const int i = __builtin_ctzll(m);
-      z[i] = plane_depth(f.z0, f.dzdx, f.dzdy, s_.offset_x[size_t(i)], s_.offset_y[size_t(i)]);
-      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
-    }
-  } else {
-    for (uint64_t m = tested; m; m &= m - 1) {
-      const int i = __builtin_ctzll(m);
-      z[i] = canonical_depth(f.z[i]);
-      S |= uint64_t{depth_passes(z[i], stored[i])} << i;
-    }
-  }
+  for_each_sample_depth(tested, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, s_.offset_x.data(),
+                        s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
+                          z[i] = zi;
+                          S |= uint64_t{depth_passes(zi, stored[i])} << i;
+                        });
   w.covered = tested;
   w.survivors = S;
   w.m = uint32_t(__builtin_popcountll(S));

@@ -250,17 +250,13 @@ size_t fragment_record_bytes(const TraceHeader& h, int covered) {
 }
 
 void fragment_sample_depths(const TraceHeader& h, const Fragment& f, float* z_out) {
-  if (h.depth_mode == DepthMode::kPlane) {
-    for (uint64_t m = f.coverage; m; m &= m - 1) {
-      int i = __builtin_ctzll(m);
-      z_out[i] = plane_depth(f.z0, f.dzdx, f.dzdy, sample_offset(h.positions[i].x), sample_offset(h.positions[i].y));
-    }
-  } else {
-    for (uint64_t m = f.coverage; m; m &= m - 1) {
-      int i = __builtin_ctzll(m);
-      z_out[i] = canonical_depth(f.z[i]);
-    }
+  float ox[64], oy[64];
+  for (int i = 0; i < h.spp; ++i) {
+    ox[i] = sample_offset(h.positions[size_t(i)].x);
+    oy[i] = sample_offset(h.positions[size_t(i)].y);
   }
+  for_each_sample_depth(f.coverage, h.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, ox, oy, f.z.data(),
+                        [z_out](int i, float z) { z_out[i] = z; });
 }
 
 // ---------------------------------------------------------------- reader
