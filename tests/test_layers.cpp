@@ -46,7 +46,8 @@ constexpr Layer kLayers[] = {
     {"sim/top", 34, "models: the pipeline top and the cycle run"},
     {"sim/image", 40, "drivers: image files"},
     {"sim/driver", 41, "drivers: runs, reports, vectors"},
-    {"sim/cli", 42, "drivers: the ropsim command"},
+    {"sim/study", 42, "drivers: studies (sweeps, the local executor, the results database)"},
+    {"sim/cli", 43, "drivers: the ropsim command"},
 };
 // Folders with sources that sit above every layer (nothing includes them).
 const std::set<std::string> kTop = {"tests", "bench"};

@@ -29,6 +29,7 @@ VerbRunner add_trace_command(CLI::App& app);
 VerbRunner add_vectors_command(CLI::App& app);
 VerbRunner add_config_command(CLI::App& app);
 VerbRunner add_report_fields_command(CLI::App& app);
+VerbRunner add_study_command(CLI::App& app);
 // add_capture_command: cmd_capture.h
 
 inline std::string join(const std::vector<std::string>& v, const char* sep = ", ") {

@@ -1,0 +1,75 @@
+// `ropsim study`: run a what-if study (docs/studies.md) on this machine, list
+// its points, or export its results.
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <memory>
+#include <thread>
+
+#include "cli_common.h"
+#include "study.h"
+#include "study_runner.h"
+
+namespace ropsim {
+
+namespace {
+
+struct StudyOpts {
+  std::string file, out, dir, csv;
+  unsigned jobs = 0;
+  bool retry_failed = false, quiet = false;
+};
+
+int cmd_study_run(const StudyOpts& o) {
+  const Study s = load_study(o.file);  // a bad file is refused before anything runs
+  StudyRunOptions ro;
+  ro.out_dir = o.out.empty() ? "out/study/" + s.name : o.out;
+  ro.jobs = o.jobs ? o.jobs : std::max(1u, std::thread::hardware_concurrency());
+  ro.retry_failed = o.retry_failed;
+  ro.progress = !o.quiet;
+  const StudySummary r = run_study(s, ro);
+  if (!o.quiet || r.failed) {
+    fmt::print("study {}: {} points: {} run now, {} already done, {} failed; results in {}/results.db\n", s.name,
+               r.points, r.ran, r.reused, r.failed, ro.out_dir);
+    for (const auto& [point, error] : r.failures) fmt::print("  failed: {}: {}\n", point, error);
+  }
+  return r.failed ? 1 : 0;
+}
+
+int cmd_study_points(const StudyOpts& o) {
+  const Study s = load_study(o.file);
+  for (const auto& p : expand_study(s)) fmt::print("{} {}\n", p.hash, p.params_json().dump());
+  return 0;
+}
+
+}  // namespace
+
+VerbRunner add_study_command(CLI::App& app) {
+  auto o = std::make_shared<StudyOpts>();
+  CLI::App* st = app.add_subcommand("study", "What-if studies: sweep parameters, collect results (docs/studies.md)");
+  st->require_subcommand(1);
+  CLI::App* run = st->add_subcommand("run", "Run the points of a study that its folder does not hold yet");
+  run->add_option("STUDY", o->file, "Study file (TOML)")->required();
+  run->add_option("--out", o->out, "Study folder (default out/study/NAME)");
+  run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
+  run->add_flag("--retry-failed", o->retry_failed, "Run again the points whose error is recorded");
+  run->add_flag("--quiet", o->quiet, "No progress line; print only failures");
+  CLI::App* pts = st->add_subcommand("points", "List the points of a study (hash and parameters) without running");
+  pts->add_option("STUDY", o->file, "Study file (TOML)")->required();
+  CLI::App* exp = st->add_subcommand("export", "Write a study folder's results as CSV");
+  exp->add_option("DIR", o->dir, "Study folder")->required();
+  exp->add_option("--csv", o->csv, "CSV file to write (- for standard output)")->required();
+  return [o, st, run, pts, exp]() {
+    if (!st->parsed()) return -1;
+    if (run->parsed()) return cmd_study_run(*o);
+    if (pts->parsed()) return cmd_study_points(*o);
+    if (exp->parsed()) {
+      export_study_csv(o->dir, o->csv);
+      return 0;
+    }
+    return -1;
+  };
+}
+
+}  // namespace ropsim

@@ -1,0 +1,368 @@
+#include "study.h"
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "errors.h"
+#include "random_hash.h"
+#include "version.h"
+
+namespace ropsim {
+
+std::string to_string(const StudyValue& v) {
+  if (auto* i = std::get_if<int64_t>(&v)) return std::to_string(*i);
+  if (auto* d = std::get_if<double>(&v)) return fmt::format("{}", *d);  // shortest round-trip
+  if (auto* b = std::get_if<bool>(&v)) return *b ? "true" : "false";
+  return std::get<std::string>(v);
+}
+
+nlohmann::ordered_json to_json(const StudyValue& v) {
+  if (auto* i = std::get_if<int64_t>(&v)) return *i;
+  if (auto* d = std::get_if<double>(&v)) return *d;
+  if (auto* b = std::get_if<bool>(&v)) return *b;
+  return std::get<std::string>(v);
+}
+
+namespace {
+
+/// The run parameters an axis may sweep, besides the hardware keys.
+struct RunParam {
+  const char* key;
+  const char* meaning;
+};
+constexpr RunParam kRunParams[] = {
+    {"method", "the transparency method"},
+    {"spp", "samples per pixel (scenes)"},
+    {"seed", "seed of the methods' hash-based random numbers"},
+    {"fidelity", "functional or cycle"},
+    {"hash_bits", "alpha-reference hash width, bits"},
+    {"alpha_bits", "opacity fixed-point precision, bits"},
+    {"surface_id_bits", "surface id register width, bits"},
+    {"width", "scene width, pixels (scenes)"},
+    {"height", "scene height, pixels (scenes)"},
+    {"scene_seed", "seed of the scene generator (scenes)"},
+    {"repeat", "draw the input this many times into one frame"},
+};
+
+bool is_run_param(const std::string& k) {
+  for (const auto& p : kRunParams)
+    if (k == p.key) return true;
+  return false;
+}
+
+bool is_hw_key(const std::string& k) {
+  for (const auto& p : hw_params())
+    if (p.key == k) return true;
+  return false;
+}
+
+[[noreturn]] void fail(const Study& s, const std::string& key, const std::string& why) {
+  throw UserError(s.path + ": " + key + ": " + why);
+}
+
+StudyValue value_of(const Study& s, const std::string& key, const toml::node& n) {
+  if (auto v = n.value_exact<int64_t>()) return *v;
+  if (auto v = n.value_exact<double>()) return *v;
+  if (auto v = n.value_exact<bool>()) return *v;
+  if (auto v = n.value_exact<std::string>()) return *v;
+  fail(s, key, "values must be integers, reals, booleans or strings");
+}
+
+int64_t int_of(const Study& s, const std::string& key, const StudyValue& v, int64_t lo, int64_t hi) {
+  const int64_t* i = std::get_if<int64_t>(&v);
+  if (!i) fail(s, key, "expected an integer, got " + to_string(v));
+  if (*i < lo || *i > hi) fail(s, key, fmt::format("{} is not in [{}, {}]", *i, lo, hi));
+  return *i;
+}
+
+/// Checks one value of a run-parameter axis.
+void check_run_value(const Study& s, const std::string& key, const std::string& at, const StudyValue& v) {
+  if (key == "method") {
+    Method m;
+    if (!std::holds_alternative<std::string>(v) || !parse_method(std::get<std::string>(v), m))
+      fail(s, at, to_string(v) + " is not a method (one of lk, enderton, naive, a2c, opaque, reference)");
+  } else if (key == "fidelity") {
+    const std::string* f = std::get_if<std::string>(&v);
+    if (!f || (*f != "functional" && *f != "cycle")) fail(s, at, to_string(v) + " is not functional or cycle");
+  } else if (key == "spp") {
+    const int64_t n = int_of(s, at, v, 1, kMaxSpp);
+    if (!is_valid_spp(int(n))) fail(s, at, fmt::format("{} is not a power of two in [1, 64]", n));
+  } else if (key == "seed" || key == "scene_seed") {
+    int_of(s, at, v, 0, INT64_MAX);
+  } else if (key == "hash_bits") {
+    int_of(s, at, v, 8, 32);
+  } else if (key == "alpha_bits" || key == "surface_id_bits") {
+    int_of(s, at, v, 1, 32);
+  } else if (key == "width" || key == "height") {
+    int_of(s, at, v, 1, kMaxScreenSide);
+  } else if (key == "repeat") {
+    int_of(s, at, v, 1, 1000);
+  }
+}
+
+/// Checks one value of a hardware axis on its own (range and type); a
+/// constraint between keys is checked per point.
+void check_hw_value(const Study& s, const std::string& key, const std::string& at, const StudyValue& v) {
+  HwConfig c;
+  try {
+    apply_hw_override(c, key + "=" + to_string(v));
+  } catch (const std::exception& e) {
+    fail(s, at, e.what());
+  }
+}
+
+std::string hex16(uint64_t h) { return fmt::format("{:016x}", h); }
+
+uint64_t hash_text(const std::string& s) {
+  uint64_t h = 0x9e3779b97f4a7c15ull;
+  for (unsigned char c : s) h = mix64(h ^ c);
+  return mix64(h ^ s.size());
+}
+
+const StudyInput& input_of(const Study& s, const std::string& label) {
+  for (const auto& in : s.inputs)
+    if (in.label == label) return in;
+  throw InternalError("a study point names an input the study has");
+}
+
+}  // namespace
+
+Study load_study(const std::string& path) {
+  Study s;
+  s.path = path;
+  toml::table t;
+  try {
+    t = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    throw UserError(fmt::format("{}: line {}: {}", path, e.source().begin.line, e.description()));
+  }
+  const std::filesystem::path dir = std::filesystem::absolute(path).parent_path();
+  for (const auto& [k, node] : t) {
+    const std::string key(k.str());
+    if (key != "study" && key != "inputs" && key != "axes") fail(s, key, "unknown section (study, inputs, axes)");
+    if (!node.is_table()) fail(s, key, "expected a table [" + key + "]");
+  }
+  s.name = std::filesystem::path(path).stem().string();
+  if (const toml::table* st = t["study"].as_table()) {
+    for (const auto& [k, node] : *st) {
+      const std::string key = "study." + std::string(k.str());
+      if (key == "study.name") {
+        auto v = node.value_exact<std::string>();
+        if (!v || v->empty()) fail(s, key, "expected a non-empty string");
+        s.name = *v;
+      } else if (key == "study.combine") {
+        auto v = node.value_exact<std::string>();
+        if (!v || (*v != "product" && *v != "zip")) fail(s, key, "expected \"product\" or \"zip\"");
+        s.combine = *v == "zip" ? Study::Combine::kZip : Study::Combine::kProduct;
+      } else if (key == "study.reference") {
+        auto v = node.value_exact<bool>();
+        if (!v) fail(s, key, "expected true or false");
+        s.reference = *v;
+      } else if (key == "study.reference_spp") {
+        auto v = node.value_exact<int64_t>();
+        if (!v || !is_valid_spp(int(*v)) || *v > kMaxSpp) fail(s, key, "expected a power of two in [1, 64]");
+        s.reference_spp = int(*v);
+      } else if (key == "study.save_images") {
+        auto v = node.value_exact<bool>();
+        if (!v) fail(s, key, "expected true or false");
+        s.save_images = *v;
+      } else {
+        fail(s, key, "unknown key (name, combine, reference, reference_spp, save_images)");
+      }
+    }
+  }
+  std::set<std::string> labels;
+  if (const toml::table* in = t["inputs"].as_table()) {
+    for (const auto& [k, node] : *in) {
+      const std::string key = "inputs." + std::string(k.str());
+      if (key != "inputs.scenes" && key != "inputs.traces") fail(s, key, "unknown key (scenes, traces)");
+      const toml::array* a = node.as_array();
+      if (!a || a->empty()) fail(s, key, "expected a non-empty list of strings");
+      for (const auto& e : *a) {
+        auto v = e.value_exact<std::string>();
+        if (!v) fail(s, key, "expected a list of strings");
+        StudyInput si;
+        if (key == "inputs.scenes") {
+          bool known = false;
+          for (const auto& sc : scene_catalog()) known = known || sc.name == *v;
+          if (!known) fail(s, key, *v + " is not a built-in scene (ropsim scene --list)");
+          si.scene = si.label = *v;
+        } else {
+          std::filesystem::path p(*v);
+          if (p.is_relative()) p = dir / p;
+          if (!std::filesystem::is_regular_file(p)) fail(s, key, *v + ": no such trace file");
+          si.trace = p.lexically_normal().string();
+          si.label = p.stem().string();
+        }
+        if (!labels.insert(si.label).second) fail(s, key, "two inputs are named " + si.label);
+        s.inputs.push_back(si);
+      }
+    }
+  }
+  if (s.inputs.empty()) fail(s, "inputs", "a study needs at least one input (inputs.scenes or inputs.traces)");
+  bool has_trace = false;
+  for (const auto& in : s.inputs) has_trace = has_trace || !in.trace.empty();
+  if (has_trace && s.reference_spp) fail(s, "study.reference_spp", "applies to scenes only (a trace's spp is fixed)");
+
+  bool any_cycle = false, any_hw = false;
+  if (const toml::table* ax = t["axes"].as_table()) {
+    // In the order of the file (a toml::table iterates its keys sorted).
+    std::vector<std::pair<std::string, const toml::node*>> in_order;
+    for (const auto& [k, node] : *ax) in_order.emplace_back(std::string(k.str()), &node);
+    std::stable_sort(in_order.begin(), in_order.end(), [](const auto& a, const auto& b) {
+      return a.second->source().begin.line < b.second->source().begin.line;
+    });
+    for (const auto& [key, node_ptr] : in_order) {
+      const toml::node& node = *node_ptr;
+      const std::string at = "axes." + key;
+      const bool run = is_run_param(key), hw = is_hw_key(key);
+      if (!run && !hw)
+        fail(s, at,
+             "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
+             "surface_id_bits, width, height, scene_seed, repeat; or a hardware key: ropsim config --markdown)");
+      StudyAxis axis{key, {}};
+      if (const toml::array* a = node.as_array()) {
+        if (a->empty()) fail(s, at, "an axis needs at least one value");
+        for (const auto& e : *a) axis.values.push_back(value_of(s, at, e));
+      } else {
+        axis.values.push_back(value_of(s, at, node));
+      }
+      std::set<std::string> seen;
+      for (const auto& v : axis.values) {
+        if (!seen.insert(to_string(v)).second) fail(s, at, "the value " + to_string(v) + " appears twice");
+        if (run) check_run_value(s, key, at, v);
+        if (hw) check_hw_value(s, key, at, v);
+        if (key == "fidelity" && to_string(v) == "cycle") any_cycle = true;
+      }
+      if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
+        fail(s, at, "applies to scenes only: the study has trace inputs");
+      any_hw = any_hw || hw;
+      s.axes.push_back(std::move(axis));
+    }
+  }
+  if (any_hw && !any_cycle) fail(s, "axes", "hardware keys need fidelity = \"cycle\" among the points");
+  if (s.combine == Study::Combine::kZip)
+    for (const auto& a : s.axes)
+      if (a.values.size() != s.axes.front().values.size())
+        fail(s, "axes." + a.key,
+             fmt::format("combine = \"zip\" needs lists of one length ({} here, {} for {})", a.values.size(),
+                         s.axes.front().values.size(), s.axes.front().key));
+  return s;
+}
+
+nlohmann::ordered_json StudyPoint::params_json() const {
+  nlohmann::ordered_json j;
+  j["input"] = input;
+  for (const auto& [k, v] : params) j[k] = to_json(v);
+  return j;
+}
+
+std::vector<std::string> study_param_keys(const Study& s) {
+  std::vector<std::string> keys = {"input"};
+  for (const auto& a : s.axes)
+    if (is_run_param(a.key)) keys.push_back(a.key);
+  for (const auto& a : s.axes)
+    if (!is_run_param(a.key)) keys.push_back(a.key);
+  return keys;
+}
+
+std::vector<StudyPoint> expand_study(const Study& s) {
+  std::vector<std::map<std::string, StudyValue>> combos;
+  if (s.axes.empty()) {
+    combos.emplace_back();
+  } else if (s.combine == Study::Combine::kZip) {
+    for (size_t i = 0; i < s.axes.front().values.size(); ++i) {
+      std::map<std::string, StudyValue> m;
+      for (const auto& a : s.axes) m[a.key] = a.values[i];
+      combos.push_back(std::move(m));
+    }
+  } else {
+    combos.emplace_back();
+    for (const auto& a : s.axes) {
+      std::vector<std::map<std::string, StudyValue>> next;
+      for (const auto& c : combos)
+        for (const auto& v : a.values) {
+          auto m = c;
+          m[a.key] = v;
+          next.push_back(std::move(m));
+        }
+      combos = std::move(next);
+    }
+  }
+  std::vector<StudyPoint> points;
+  for (const auto& in : s.inputs)
+    for (const auto& c : combos) {
+      StudyPoint p;
+      p.index = points.size();
+      p.input = in.label;
+      p.params = c;
+      // The identity: what the input is, every parameter, what the metrics
+      // compare against, and the tool that computes them.
+      nlohmann::ordered_json id;
+      id["input"] = in.trace.empty() ? "scene:" + in.scene : "trace:" + in.trace;
+      id["params"] = p.params_json();
+      id["reference"] = s.reference;
+      id["reference_spp"] = s.reference_spp;
+      id["ropsim"] = std::string(ropsim_version()) + " " + ropsim_commit();
+      p.hash = hex16(hash_text(id.dump()));
+      points.push_back(std::move(p));
+    }
+  return points;
+}
+
+ResolvedPoint resolve_point(const Study& s, const StudyPoint& p) {
+  ResolvedPoint r;
+  const StudyInput& in = input_of(s, p.input);
+  auto get = [&](const char* key) -> const StudyValue* {
+    auto it = p.params.find(key);
+    return it == p.params.end() ? nullptr : &it->second;
+  };
+  auto get_int = [&](const char* key, int64_t def) {
+    const StudyValue* v = get(key);
+    return v ? std::get<int64_t>(*v) : def;
+  };
+  if (in.trace.empty()) {
+    r.input.scene.name = in.scene;
+    r.input.scene.spp = int(get_int("spp", 16));
+    r.input.scene.width = uint32_t(get_int("width", 0));
+    r.input.scene.height = uint32_t(get_int("height", 0));
+    r.input.scene.seed = uint64_t(get_int("scene_seed", 1));
+  } else {
+    r.input.trace_path = in.trace;
+  }
+  r.input.repeat = uint32_t(get_int("repeat", 1));
+  if (const StudyValue* m = get("method")) parse_method(std::get<std::string>(*m), r.method.method);
+  r.method.seed = uint64_t(get_int("seed", 1));
+  r.method.numerics.hash_bits = int(get_int("hash_bits", 32));
+  r.method.numerics.alpha_bits = int(get_int("alpha_bits", 32));
+  r.method.numerics.surface_id_bits = int(get_int("surface_id_bits", 32));
+  const StudyValue* f = get("fidelity");
+  r.cycle = f && std::get<std::string>(*f) == "cycle";
+  std::vector<std::string> overrides;
+  for (const auto& [k, v] : p.params)
+    if (is_hw_key(k)) overrides.push_back(k + "=" + to_string(v));
+  if (r.cycle) {
+    r.hw = resolve_hw_config("", overrides);
+    r.hw.name = "study " + s.name;
+  }
+  if (s.reference) {
+    r.reference_input = r.input;
+    if (s.reference_spp) r.reference_input.scene.spp = s.reference_spp;
+    nlohmann::ordered_json id;
+    id["input"] = in.trace.empty() ? "scene:" + in.scene : "trace:" + in.trace;
+    id["spp"] = r.reference_input.scene.spp;
+    id["width"] = r.reference_input.scene.width;
+    id["height"] = r.reference_input.scene.height;
+    id["scene_seed"] = r.reference_input.scene.seed;
+    id["repeat"] = r.reference_input.repeat;
+    r.reference_key = hex16(hash_text(id.dump()));
+  }
+  return r;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,83 @@
+// Studies (docs/studies.md): a what-if sweep described in one TOML file --
+// its inputs, its axes over any run parameter, how the axes combine, and the
+// reference its quality metrics compare against -- expanded into points, each
+// identified by a hash of its fully resolved parameters and the tool version.
+// This file: the study file and its points; study_runner.h runs them.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "driver.h"
+#include "hw_config.h"
+
+namespace ropsim {
+
+/// A parameter value: an integer, a real, a boolean or a string.
+using StudyValue = std::variant<int64_t, double, bool, std::string>;
+std::string to_string(const StudyValue& v);
+nlohmann::ordered_json to_json(const StudyValue& v);
+
+/// One input of a study: a built-in scene or a trace file.
+struct StudyInput {
+  std::string label;  ///< the name the results use: the scene's name, or the trace file's stem
+  std::string scene;  ///< a built-in scene, or
+  std::string trace;  ///< a trace file (absolute, resolved against the study file's folder)
+};
+
+struct StudyAxis {
+  std::string key;  ///< method, spp, seed, fidelity, hash_bits, ..., or a hardware key "section.key"
+  std::vector<StudyValue> values;
+};
+
+struct Study {
+  std::string path;  ///< the study file
+  std::string name;
+  enum class Combine { kProduct, kZip } combine = Combine::kProduct;
+  std::vector<StudyInput> inputs;
+  std::vector<StudyAxis> axes;
+  /// Quality metrics against the A-buffer reference of the point's input
+  /// (rendered once per input and resolution); at reference_spp samples per
+  /// pixel when set (scenes only), else at the point's own spp.
+  bool reference = true;
+  int reference_spp = 0;
+  bool save_images = false;  ///< each point's image as image.png in its folder
+};
+
+/// Reads and checks a study file. Every unknown key and bad value throws
+/// UserError "FILE: KEY: reason" before anything runs.
+Study load_study(const std::string& path);
+
+/// A point of a study: one run's parameters.
+struct StudyPoint {
+  size_t index = 0;                          ///< in expansion order
+  std::string hash;                          ///< 16 hex digits of the resolved parameters and the tool version
+  std::string input;                         ///< the input's label
+  std::map<std::string, StudyValue> params;  ///< every axis value, by key (input included)
+  nlohmann::ordered_json params_json() const;
+};
+
+/// The points of a study, in a fixed order: inputs outermost, then the axes
+/// in file order (product), or the axes' i-th values together (zip).
+std::vector<StudyPoint> expand_study(const Study& s);
+
+/// The keys the points of a study set, in column order: input, then the
+/// run parameters, then the hardware keys.
+std::vector<std::string> study_param_keys(const Study& s);
+
+/// What a point runs: the input, the method, the fidelity and the design.
+/// Throws UserError (e.g. a cache shape only this combination breaks).
+struct ResolvedPoint {
+  InputSpec input;
+  MethodConfig method;
+  bool cycle = false;
+  HwConfig hw;
+  std::string reference_key;  ///< "" when the study has no reference
+  InputSpec reference_input;  ///< the input the reference is rendered from
+};
+ResolvedPoint resolve_point(const Study& s, const StudyPoint& p);
+
+}  // namespace ropsim

@@ -1,0 +1,564 @@
+#include "study_runner.h"
+
+#include <fmt/format.h>
+#include <poll.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "cycle_report.h"
+#include "cycle_run.h"
+#include "errors.h"
+#include "image_io.h"
+#include "output_file.h"
+#include "report.h"
+
+namespace fs = std::filesystem;
+
+namespace ropsim {
+
+namespace {
+
+// ------------------------------------------------------------------ tasks
+
+struct Task {
+  char kind;     ///< 'r': render a reference, 'p': run a point
+  size_t index;  ///< into refs (the point that names the reference) or points
+};
+
+std::string read_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+fs::path point_dir(const std::string& dir, const StudyPoint& p) { return fs::path(dir) / "points" / p.hash; }
+fs::path ref_path(const std::string& dir, const std::string& key) { return fs::path(dir) / "refs" / (key + ".exr"); }
+
+/// The reference of a point: the A-buffer on its reference input.
+void render_reference(const Study& s, const StudyPoint& p, const std::string& dir) {
+  const ResolvedPoint r = resolve_point(s, p);
+  MethodConfig m = r.method;
+  m.method = Method::kReference;
+  const FunctionalRun run = run_functional(r.reference_input, m);
+  write_image(run.image, ref_path(dir, r.reference_key).string());
+}
+
+/// One point: its run, its report (with the metrics against the reference)
+/// and its folder. report.json is written last: its presence means done.
+void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
+  const fs::path pd = point_dir(dir, p);
+  fs::create_directories(pd);
+  write_text_output((pd / "params.json").string(), p.params_json().dump(2) + "\n");
+  const ResolvedPoint r = resolve_point(s, p);
+  std::optional<Image> reference;
+  if (!r.reference_key.empty()) reference = read_image(ref_path(dir, r.reference_key).string());
+  ReportContext ctx{"ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}};
+  nlohmann::ordered_json report;
+  std::string summary;
+  Image image;
+  if (r.cycle) {
+    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
+    CycleRun run = run_cycle(r.input, r.method, r.hw);
+    report = cycle_report(ctx, run, reference);
+    summary = cycle_summary(ctx, run, reference);
+    image = std::move(run.image);
+  } else {
+    FunctionalRun run = run_functional(r.input, r.method);
+    run.reference = reference;
+    report = functional_report(ctx, run);
+    summary = functional_summary(ctx, run);
+    image = std::move(run.image);
+  }
+  if (s.save_images) write_image(image, (pd / "image.png").string());
+  write_text_output((pd / "log.txt").string(), summary);
+  write_text_output((pd / "report.json").string(), report.dump(2) + "\n");
+}
+
+/// A worker process: reads tasks ("r N" or "p N") from in_fd, answers
+/// "N ok" or "N fail" on out_fd; the error goes to the task's error file.
+[[noreturn]] void worker_main(const Study& s, const std::vector<StudyPoint>& points, const std::string& dir, int in_fd,
+                              int out_fd) {
+  FILE* in = fdopen(in_fd, "r");
+  char kind = 0;
+  size_t index = 0;
+  while (in && std::fscanf(in, " %c %zu", &kind, &index) == 2) {
+    bool ok = true;
+    std::string error;
+    try {
+      if (kind == 'r')
+        render_reference(s, points.at(index), dir);
+      else
+        run_point(s, points.at(index), dir);
+    } catch (const std::exception& e) {
+      ok = false;
+      error = e.what();
+    }
+    if (!ok) {
+      try {
+        const fs::path f = kind == 'r' ? fs::path(dir) / "refs" / (points.at(index).hash + ".error")
+                                       : point_dir(dir, points.at(index)) / "error.txt";
+        fs::create_directories(f.parent_path());
+        write_text_output(f.string(), error + "\n");
+      } catch (...) {
+      }
+    }
+    const std::string reply = fmt::format("{} {} {}\n", kind, index, ok ? "ok" : "fail");
+    if (::write(out_fd, reply.data(), reply.size()) != ssize_t(reply.size())) break;
+  }
+  std::fflush(nullptr);
+  _exit(0);
+}
+
+// ------------------------------------------------------------------ database
+
+class Db {
+ public:
+  explicit Db(const std::string& path) : path_(path) {
+    if (sqlite3_open(path.c_str(), &db_) != SQLITE_OK) fail("cannot open");
+    exec("PRAGMA journal_mode=WAL");
+    exec("PRAGMA synchronous=NORMAL");
+    exec(
+        "CREATE TABLE IF NOT EXISTS results (point TEXT PRIMARY KEY, point_index INTEGER, status TEXT, error TEXT, "
+        "report TEXT)");
+    exec("CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT)");
+    sqlite3_stmt* st = prepare("SELECT name FROM pragma_table_info('results')");
+    while (sqlite3_step(st) == SQLITE_ROW) columns_.insert(reinterpret_cast<const char*>(sqlite3_column_text(st, 0)));
+    sqlite3_finalize(st);
+  }
+  ~Db() { sqlite3_close(db_); }
+  Db(const Db&) = delete;
+  Db& operator=(const Db&) = delete;
+
+  void exec(const std::string& sql) {
+    char* err = nullptr;
+    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+      const std::string e = err ? err : "?";
+      sqlite3_free(err);
+      fail(e);
+    }
+  }
+  sqlite3_stmt* prepare(const std::string& sql) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &st, nullptr) != SQLITE_OK) fail(sqlite3_errmsg(db_));
+    return st;
+  }
+  /// status of every point in the table: hash -> "ok" / "failed".
+  std::map<std::string, std::string> statuses() {
+    std::map<std::string, std::string> m;
+    sqlite3_stmt* st = prepare("SELECT point, status FROM results");
+    while (sqlite3_step(st) == SQLITE_ROW)
+      m[reinterpret_cast<const char*>(sqlite3_column_text(st, 0))] =
+          reinterpret_cast<const char*>(sqlite3_column_text(st, 1));
+    sqlite3_finalize(st);
+    return m;
+  }
+  void set_meta(const std::string& k, const std::string& v) {
+    sqlite3_stmt* st = prepare("INSERT OR REPLACE INTO study (key, value) VALUES (?, ?)");
+    sqlite3_bind_text(st, 1, k.c_str(), -1, SQLITE_TRANSIENT);
+    sqlite3_bind_text(st, 2, v.c_str(), -1, SQLITE_TRANSIENT);
+    step_done(st);
+  }
+  /// One row: every column a typed value; new columns are added as needed.
+  void put_row(const std::vector<std::pair<std::string, nlohmann::ordered_json>>& row) {
+    exec("BEGIN IMMEDIATE");
+    for (const auto& [name, v] : row)
+      if (!columns_.count(name)) {
+        const char* type = v.is_number_integer() || v.is_boolean() ? "INTEGER" : v.is_number() ? "REAL" : "TEXT";
+        exec(fmt::format("ALTER TABLE results ADD COLUMN {} {}", quote(name), type));
+        columns_.insert(name);
+      }
+    std::string cols, marks;
+    for (const auto& [name, v] : row) {
+      cols += (cols.empty() ? "" : ", ") + quote(name);
+      marks += marks.empty() ? "?" : ", ?";
+    }
+    sqlite3_stmt* st = prepare("INSERT OR REPLACE INTO results (" + cols + ") VALUES (" + marks + ")");
+    int i = 1;
+    for (const auto& [name, v] : row) {
+      if (v.is_null())
+        sqlite3_bind_null(st, i);
+      else if (v.is_boolean())
+        sqlite3_bind_int64(st, i, v.get<bool>() ? 1 : 0);
+      else if (v.is_number_unsigned())
+        sqlite3_bind_int64(st, i, int64_t(v.get<uint64_t>()));
+      else if (v.is_number_integer())
+        sqlite3_bind_int64(st, i, v.get<int64_t>());
+      else if (v.is_number())
+        sqlite3_bind_double(st, i, v.get<double>());
+      else {
+        const std::string s = v.is_string() ? v.get<std::string>() : v.dump();
+        sqlite3_bind_text(st, i, s.c_str(), -1, SQLITE_TRANSIENT);
+      }
+      ++i;
+    }
+    step_done(st);
+    exec("COMMIT");
+  }
+  sqlite3* handle() { return db_; }
+
+ private:
+  static std::string quote(const std::string& n) {
+    std::string q = "\"";
+    for (char c : n) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  }
+  void step_done(sqlite3_stmt* st) {
+    const int rc = sqlite3_step(st);
+    sqlite3_finalize(st);
+    if (rc != SQLITE_DONE) fail(sqlite3_errmsg(db_));
+  }
+  [[noreturn]] void fail(const std::string& why) { throw UserError(path_ + ": " + why); }
+  std::string path_;
+  sqlite3* db_ = nullptr;
+  std::set<std::string> columns_;
+};
+
+/// The report's scalar fields as columns, by their report path (arrays and
+/// the long texts stay in the report JSON).
+void flatten(const nlohmann::ordered_json& j, const std::string& at,
+             std::vector<std::pair<std::string, nlohmann::ordered_json>>& out) {
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it)
+      flatten(it.value(), at.empty() ? it.key() : at + "." + it.key(), out);
+  } else if (!j.is_array() && at != "command" && at != "hardware.resolved_toml") {
+    out.emplace_back(at, j);
+  }
+}
+
+std::vector<std::pair<std::string, nlohmann::ordered_json>> row_of(const StudyPoint& p, const std::string& status,
+                                                                   const std::string& error,
+                                                                   const nlohmann::ordered_json* report) {
+  std::vector<std::pair<std::string, nlohmann::ordered_json>> row = {
+      {"point", p.hash}, {"point_index", p.index}, {"status", status}, {"error", error}};
+  std::set<std::string> names = {"point", "point_index", "status", "error", "report"};
+  const nlohmann::ordered_json params = p.params_json();
+  for (auto it = params.begin(); it != params.end(); ++it) {
+    row.emplace_back(it.key(), it.value());
+    names.insert(it.key());
+  }
+  if (report) {
+    row.emplace_back("report", report->dump());
+    std::vector<std::pair<std::string, nlohmann::ordered_json>> m;
+    flatten(*report, "", m);
+    for (auto& [k, v] : m)
+      if (names.insert(k).second) row.emplace_back(k, v);
+  }
+  return row;
+}
+
+/// Records a finished point from its folder: its report, or its error.
+bool record_from_folder(Db& db, const std::string& dir, const StudyPoint& p) {
+  const fs::path pd = point_dir(dir, p);
+  if (fs::exists(pd / "report.json")) {
+    const nlohmann::ordered_json report = nlohmann::ordered_json::parse(read_file(pd / "report.json"));
+    db.put_row(row_of(p, "ok", "", &report));
+    return true;
+  }
+  if (fs::exists(pd / "error.txt")) {
+    std::string e = read_file(pd / "error.txt");
+    while (!e.empty() && e.back() == '\n') e.pop_back();
+    db.put_row(row_of(p, "failed", e, nullptr));
+    return true;
+  }
+  return false;
+}
+
+std::string describe(const StudyPoint& p) {
+  std::string s = p.hash + " (" + p.input;
+  for (const auto& [k, v] : p.params) s += ", " + k + "=" + to_string(v);
+  return s + ")";
+}
+
+struct Worker {
+  pid_t pid = -1;
+  int to = -1, from = -1;
+  std::string buf;
+  std::optional<Task> busy;
+};
+
+}  // namespace
+
+StudySummary run_study(const Study& s, const StudyRunOptions& o) {
+  const std::vector<StudyPoint> points = expand_study(s);
+  StudySummary sum;
+  sum.points = points.size();
+  std::error_code ec;
+  fs::create_directories(fs::path(o.out_dir) / "points", ec);
+  if (!ec) fs::create_directories(fs::path(o.out_dir) / "refs", ec);
+  if (ec) throw UserError(o.out_dir + ": cannot create the study folder: " + ec.message());
+  write_text_output((fs::path(o.out_dir) / "study.toml").string(), read_file(s.path));
+
+  std::vector<size_t> todo;              // point indices to run
+  std::map<std::string, size_t> ref_of;  // reference key -> a point naming it
+  std::map<size_t, std::string> key_of;  // point -> its reference key
+  {
+    Db db((fs::path(o.out_dir) / "results.db").string());
+    db.set_meta("name", s.name);
+    db.set_meta("file", s.path);
+    db.set_meta("points", std::to_string(points.size()));
+    auto status = db.statuses();
+    for (const auto& p : points) {
+      auto it = status.find(p.hash);
+      const bool failed = it != status.end() && it->second != "ok";
+      if (it != status.end() && !(failed && o.retry_failed)) {
+        ++(failed ? sum.failed : sum.reused);
+        if (failed) sum.failures.emplace_back(describe(p), "(recorded before)");
+        continue;
+      }
+      if (failed) fs::remove(point_dir(o.out_dir, p) / "error.txt");
+      // A point finished by a run that was killed before recording it.
+      if (!failed && record_from_folder(db, o.out_dir, p)) {
+        if (fs::exists(point_dir(o.out_dir, p) / "report.json")) {
+          ++sum.reused;
+        } else {
+          ++sum.failed;
+          sum.failures.emplace_back(describe(p), read_file(point_dir(o.out_dir, p) / "error.txt"));
+        }
+        continue;
+      }
+      fs::remove(point_dir(o.out_dir, p) / "error.txt");
+      // A point the parameters already make impossible fails here.
+      try {
+        const ResolvedPoint r = resolve_point(s, p);
+        if (!r.reference_key.empty()) {
+          key_of[p.index] = r.reference_key;
+          if (!fs::exists(ref_path(o.out_dir, r.reference_key))) ref_of.emplace(r.reference_key, p.index);
+        }
+        todo.push_back(p.index);
+      } catch (const std::exception& e) {
+        fs::create_directories(point_dir(o.out_dir, p));
+        write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), std::string(e.what()) + "\n");
+        db.put_row(row_of(p, "failed", e.what(), nullptr));
+        ++sum.failed;
+        sum.failures.emplace_back(describe(p), e.what());
+      }
+    }
+  }
+  if (todo.empty()) return sum;
+
+  // The work graph: every missing reference, then the points.
+  std::deque<Task> refs, runs;
+  for (const auto& [key, pi] : ref_of) refs.push_back(Task{'r', pi});
+  for (size_t pi : todo) runs.push_back(Task{'p', pi});
+  std::set<std::string> failed_refs;
+
+  const size_t n_workers = std::max<size_t>(1, std::min<size_t>(o.jobs, refs.size() + runs.size()));
+  std::vector<Worker> workers(n_workers);
+  std::fflush(nullptr);
+  for (auto& w : workers) {
+    int down[2], up[2];
+    if (pipe(down) != 0 || pipe(up) != 0) throw UserError("study: cannot create a pipe");
+    w.pid = fork();
+    if (w.pid < 0) throw UserError("study: cannot start a worker process");
+    if (w.pid == 0) {
+      ::close(down[1]);
+      ::close(up[0]);
+      for (const auto& other : workers)
+        if (other.pid > 0) {
+          ::close(other.to);
+          ::close(other.from);
+        }
+      worker_main(s, points, o.out_dir, down[0], up[1]);
+    }
+    ::close(down[0]);
+    ::close(up[1]);
+    w.to = down[1];
+    w.from = up[0];
+  }
+  signal(SIGPIPE, SIG_IGN);
+
+  Db db((fs::path(o.out_dir) / "results.db").string());
+  const auto t0 = std::chrono::steady_clock::now();
+  size_t done_now = 0, total_now = runs.size();
+  auto last_print = t0 - std::chrono::seconds(10);
+  const bool tty = o.progress && isatty(fileno(stderr));
+  auto progress = [&](bool final) {
+    if (!o.progress) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!final && !tty && now - last_print < std::chrono::seconds(5)) return;
+    last_print = now;
+    const double el = std::chrono::duration<double>(now - t0).count();
+    const size_t rem = total_now - done_now;
+    const std::string eta = done_now ? fmt::format(", ETA {:.0f} s", el / double(done_now) * double(rem)) : "";
+    std::fprintf(stderr, "%sstudy %s: %zu of %zu points done, %zu failed, %zu remaining%s%s", tty ? "\r" : "",
+                 s.name.c_str(), sum.reused + sum.ran + sum.failed, sum.points, sum.failed, rem, eta.c_str(),
+                 tty && !final ? "   " : "\n");
+  };
+
+  auto next_task = [&]() -> std::optional<Task> {
+    if (!refs.empty()) {
+      Task t = refs.front();
+      refs.pop_front();
+      return t;
+    }
+    // The points wait until every reference is rendered.
+    for (const auto& w : workers)
+      if (w.busy && w.busy->kind == 'r') return std::nullopt;
+    while (!runs.empty()) {
+      Task t = runs.front();
+      runs.pop_front();
+      auto k = key_of.find(t.index);
+      if (k != key_of.end() && failed_refs.count(k->second)) {
+        const StudyPoint& p = points[t.index];
+        const std::string e = "its reference failed: " +
+                              read_file(fs::path(o.out_dir) / "refs" / (points[ref_of[k->second]].hash + ".error"));
+        fs::create_directories(point_dir(o.out_dir, p));
+        write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), e);
+        db.put_row(row_of(p, "failed", e, nullptr));
+        ++sum.failed;
+        ++done_now;
+        sum.failures.emplace_back(describe(p), e);
+        continue;
+      }
+      return t;
+    }
+    return std::nullopt;
+  };
+  auto dispatch = [&]() {
+    for (auto& w : workers)
+      if (w.pid > 0 && !w.busy)
+        if (auto t = next_task()) {
+          const std::string line = fmt::format("{} {}\n", t->kind, t->index);
+          if (::write(w.to, line.data(), line.size()) == ssize_t(line.size())) w.busy = t;
+        }
+  };
+  auto finish = [&](const Task& t, bool ok) {
+    const StudyPoint& p = points[t.index];
+    if (t.kind == 'r') {
+      if (!ok) failed_refs.insert(key_of[t.index]);
+      return;
+    }
+    ++done_now;
+    if (ok && record_from_folder(db, o.out_dir, p) && fs::exists(point_dir(o.out_dir, p) / "report.json")) {
+      ++sum.ran;
+    } else {
+      std::string e = fs::exists(point_dir(o.out_dir, p) / "error.txt")
+                          ? read_file(point_dir(o.out_dir, p) / "error.txt")
+                          : std::string("the worker running it stopped");
+      while (!e.empty() && e.back() == '\n') e.pop_back();
+      db.put_row(row_of(p, "failed", e, nullptr));
+      ++sum.failed;
+      sum.failures.emplace_back(describe(p), e);
+    }
+    progress(false);
+  };
+
+  dispatch();
+  for (;;) {
+    std::vector<pollfd> fds;
+    std::vector<Worker*> who;
+    for (auto& w : workers)
+      if (w.pid > 0 && w.busy) {
+        fds.push_back(pollfd{w.from, POLLIN, 0});
+        who.push_back(&w);
+      }
+    if (fds.empty()) break;
+    if (poll(fds.data(), fds.size(), -1) < 0) {
+      if (errno == EINTR) continue;
+      throw UserError("study: poll failed");
+    }
+    for (size_t i = 0; i < fds.size(); ++i) {
+      if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      Worker& w = *who[i];
+      char buf[256];
+      const ssize_t n = ::read(w.from, buf, sizeof buf);
+      if (n <= 0) {  // the worker died: its task fails, the others go on
+        const Task t = *w.busy;
+        w.busy.reset();
+        ::close(w.to);
+        ::close(w.from);
+        int st = 0;
+        waitpid(w.pid, &st, 0);
+        w.pid = -1;
+        finish(t, false);
+        continue;
+      }
+      w.buf.append(buf, size_t(n));
+      size_t nl;
+      while ((nl = w.buf.find('\n')) != std::string::npos) {
+        const std::string line = w.buf.substr(0, nl);
+        w.buf.erase(0, nl + 1);
+        if (w.busy) {
+          const Task t = *w.busy;
+          w.busy.reset();
+          finish(t, line.size() >= 2 && line.compare(line.size() - 2, 2, "ok") == 0);
+        }
+      }
+    }
+    dispatch();
+  }
+  for (auto& w : workers)
+    if (w.pid > 0) {
+      ::close(w.to);
+      ::close(w.from);
+      int st = 0;
+      waitpid(w.pid, &st, 0);
+    }
+  // Points a dead worker left (no worker remained to run them).
+  while (!runs.empty()) {
+    const StudyPoint& p = points[runs.front().index];
+    runs.pop_front();
+    db.put_row(row_of(p, "failed", "no worker process was left to run it", nullptr));
+    ++sum.failed;
+    sum.failures.emplace_back(describe(p), "no worker process was left to run it");
+  }
+  progress(true);
+  return sum;
+}
+
+void export_study_csv(const std::string& dir, const std::string& csv_path) {
+  const fs::path db_path = fs::path(dir) / "results.db";
+  if (!fs::exists(db_path)) throw UserError(dir + ": not a study folder (no results.db)");
+  Db db(db_path.string());
+  sqlite3_stmt* st = db.prepare("SELECT * FROM results ORDER BY point_index");
+  const int n = sqlite3_column_count(st);
+  auto csv = [](const std::string& s) {
+    if (s.find_first_of(",\"\n") == std::string::npos) return s;
+    std::string q = "\"";
+    for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  };
+  std::string out;
+  std::vector<int> cols;
+  for (int c = 0; c < n; ++c)
+    if (std::string(sqlite3_column_name(st, c)) != "report") cols.push_back(c);
+  for (size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv(sqlite3_column_name(st, cols[i]));
+  out += "\n";
+  while (sqlite3_step(st) == SQLITE_ROW) {
+    for (size_t i = 0; i < cols.size(); ++i) {
+      const int c = cols[i];
+      std::string v;
+      switch (sqlite3_column_type(st, c)) {
+        case SQLITE_NULL:
+          break;
+        case SQLITE_INTEGER:
+          v = std::to_string(sqlite3_column_int64(st, c));
+          break;
+        case SQLITE_FLOAT:
+          v = fmt::format("{}", sqlite3_column_double(st, c));
+          break;
+        default:
+          v = reinterpret_cast<const char*>(sqlite3_column_text(st, c));
+      }
+      out += (i ? "," : "") + csv(v);
+    }
+    out += "\n";
+  }
+  sqlite3_finalize(st);
+  write_text_output(csv_path, out, true);
+}
+
+}  // namespace ropsim

@@ -1,0 +1,39 @@
+// Running a study on this machine: a work graph of reference renders, then
+// points, on N worker processes (SystemC allows one simulation context per
+// process; each worker runs many tasks, so start-up is paid once per worker).
+// Results go to DIR/results.db (SQLite, one row per point) and to a folder per
+// point; a run that was killed runs only what is missing when started again.
+#pragma once
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "study.h"
+
+namespace ropsim {
+
+struct StudyRunOptions {
+  std::string out_dir;        ///< the study folder: results.db, points/, refs/
+  unsigned jobs = 1;          ///< worker processes
+  bool retry_failed = false;  ///< run again the points whose error is recorded
+  bool progress = true;       ///< a progress line on stderr
+};
+
+struct StudySummary {
+  size_t points = 0;                                          ///< in the study
+  size_t reused = 0;                                          ///< already in the folder: not run again
+  size_t ran = 0;                                             ///< run now and succeeded
+  size_t failed = 0;                                          ///< with a recorded error (now or before)
+  std::vector<std::pair<std::string, std::string>> failures;  ///< (point hash and parameters, error)
+};
+
+/// Runs the points of s that the folder does not hold yet. A point that fails
+/// records its error and the others go on. Throws UserError when the folder
+/// cannot be used.
+StudySummary run_study(const Study& s, const StudyRunOptions& o);
+
+/// Writes the results table of a study folder as CSV: one row per point, one
+/// column per parameter and metric (the report JSON left out). Throws UserError.
+void export_study_csv(const std::string& dir, const std::string& csv_path);
+
+}  // namespace ropsim

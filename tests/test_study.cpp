@@ -1,0 +1,285 @@
+// Studies (docs/studies.md), through the real ropsim binary: a bad study file
+// is refused before anything runs; -j 2 gives the results of -j 1; a study
+// killed with SIGKILL and run again holds every point once, with the results
+// of an uninterrupted run; a point with a bad value records its error while
+// the others complete.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#ifndef ROPSIM_BINARY
+#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path work() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path d = fs::temp_directory_path() /
+                     ("ropsim-test-study-" + std::to_string(::getpid()) + "-" + (info ? info->name() : "x"));
+  return d;
+}
+
+struct Scratch {
+  fs::path dir = work();
+  Scratch() {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  ~Scratch() { fs::remove_all(dir); }
+  fs::path put(const std::string& name, const std::string& text) const {
+    std::ofstream(dir / name) << text;
+    return dir / name;
+  }
+};
+
+/// Runs ropsim with args in dir; returns the exit status, stdout and stderr.
+struct Ran {
+  int status;
+  std::string out, err;
+};
+Ran ropsim(const fs::path& dir, const std::string& args) {
+  const std::string o = (dir / ".stdout").string(), e = (dir / ".stderr").string();
+  const std::string cmd = "cd '" + dir.string() + "' && '" ROPSIM_BINARY "' " + args + " >'" + o + "' 2>'" + e + "'";
+  const int st = std::system(cmd.c_str());
+  auto slurp = [](const std::string& p) {
+    std::ifstream f(p);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  };
+  return Ran{WIFEXITED(st) ? WEXITSTATUS(st) : -1, slurp(o), slurp(e)};
+}
+
+/// A CSV export as rows of column -> value.
+using Rows = std::vector<std::map<std::string, std::string>>;
+std::vector<std::string> csv_fields(const std::string& line) {
+  std::vector<std::string> f;
+  std::string cur;
+  bool q = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (q) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        cur += '"';
+        ++i;
+      } else if (c == '"') {
+        q = false;
+      } else {
+        cur += c;
+      }
+    } else if (c == '"') {
+      q = true;
+    } else if (c == ',') {
+      f.push_back(cur);
+      cur.clear();
+    } else {
+      cur += c;
+    }
+  }
+  f.push_back(cur);
+  return f;
+}
+Rows export_rows(const fs::path& dir, const std::string& study_dir) {
+  const Ran r = ropsim(dir, "study export '" + study_dir + "' --csv out.csv");
+  EXPECT_EQ(r.status, 0) << r.err;
+  std::ifstream f(dir / "out.csv");
+  std::string line;
+  std::getline(f, line);
+  const auto head = csv_fields(line);
+  Rows rows;
+  while (std::getline(f, line)) {
+    const auto v = csv_fields(line);
+    std::map<std::string, std::string> m;
+    for (size_t i = 0; i < head.size() && i < v.size(); ++i) m[head[i]] = v[i];
+    rows.push_back(m);
+  }
+  return rows;
+}
+
+/// The rows without the host's measurements (times, rates, memory), which
+/// differ from run to run.
+Rows model_results(Rows rows) {
+  for (auto& r : rows)
+    for (auto it = r.begin(); it != r.end();)
+      it = it->first.rfind("host.", 0) == 0 || it->first.rfind("timing.host.", 0) == 0 ? r.erase(it) : std::next(it);
+  return rows;
+}
+
+const char* kSmall = R"(
+[study]
+name = "small"
+
+[inputs]
+scenes = ["cloth", "eight-layers"]
+
+[axes]
+method = ["lk", "enderton", "opaque"]
+spp = [4, 8]
+fidelity = ["functional", "cycle"]
+width = 48
+height = 48
+)";
+
+}  // namespace
+
+TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
+  Scratch s;
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"[axes]\nmethod = [\"lk\"]\n", "inputs"},  // no input
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethd = [\"lk\"]\n", "axes.methd"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethod = [\"lk\", \"bogus\"]\n", "axes.method"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nspp = [3]\n", "axes.spp"},
+      {"[inputs]\nscenes = [\"nosuch\"]\n", "inputs.scenes"},
+      {"[inputs]\ntraces = [\"missing.rtr\"]\n", "inputs.traces"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nfidelity = \"cycle\"\n\"cache.ways\" = [0]\n", "axes.cache.ways"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\n\"cache.ways\" = [4]\n", "axes"},  // hardware without cycle
+      {"[inputs]\nscenes = [\"cloth\"]\n[study]\ncombine = \"zip\"\n[axes]\nspp = [4, 8]\nmethod = [\"lk\"]\n",
+       "axes.method"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[study]\nnme = \"x\"\n", "study.nme"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[extra]\n", "extra"},
+      {"[inputs]\nscenes = [\"cloth\"\n", "line"},  // not TOML
+  };
+  for (const auto& [text, key] : bad) {
+    const fs::path f = s.put("bad.toml", text);
+    const Ran r = ropsim(s.dir, "study run bad.toml --out st -j 1");
+    EXPECT_EQ(r.status, 1) << text;
+    EXPECT_NE(r.err.find("ropsim: error: "), std::string::npos) << text << "\n" << r.err;
+    EXPECT_NE(r.err.find("bad.toml: " + key), std::string::npos) << "the error names the file and key " << key << ":\n"
+                                                                 << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "one line:\n" << r.err;
+    EXPECT_FALSE(fs::exists(s.dir / "st")) << "something ran for:\n" << text;
+  }
+}
+
+TEST(Study, TwoWorkersGiveTheResultsOfOneAndEveryPointOnce) {
+  Scratch s;
+  s.put("small.toml", kSmall);
+  const Ran a = ropsim(s.dir, "study run small.toml --out j1 -j 1 --quiet");
+  ASSERT_EQ(a.status, 0) << a.err << a.out;
+  const Ran b = ropsim(s.dir, "study run small.toml --out j2 -j 2 --quiet");
+  ASSERT_EQ(b.status, 0) << b.err << b.out;
+  const Rows r1 = model_results(export_rows(s.dir, "j1")), r2 = model_results(export_rows(s.dir, "j2"));
+  ASSERT_EQ(r1.size(), 24u) << "2 inputs x 3 methods x 2 spp x 2 fidelities";
+  EXPECT_EQ(r1, r2) << "-j 2 changed a result";
+  for (const auto& r : r1) {
+    EXPECT_EQ(r.at("status"), "ok") << r.at("point") << ": " << r.at("error");
+    EXPECT_FALSE(r.at("vs_reference.rmse_8bit").empty()) << "no RMSE against the reference";
+  }
+  // Cycle points have timing columns; their counters equal the functional ones.
+  size_t cycle = 0;
+  for (const auto& r : r1)
+    if (r.at("fidelity") == "cycle") {
+      ++cycle;
+      EXPECT_FALSE(r.at("timing.total_cycles").empty());
+      for (const auto& f : r1)
+        if (f.at("fidelity") == "functional" && f.at("input") == r.at("input") && f.at("method") == r.at("method") &&
+            f.at("spp") == r.at("spp"))
+          EXPECT_EQ(f.at("counters.samples_written"), r.at("counters.samples_written"));
+    }
+  EXPECT_EQ(cycle, 12u);
+  // Running it again runs nothing and changes nothing.
+  const Ran c = ropsim(s.dir, "study run small.toml --out j2 -j 2");
+  EXPECT_EQ(c.status, 0);
+  EXPECT_NE(c.out.find("0 run now, 24 already done"), std::string::npos) << c.out;
+  EXPECT_EQ(model_results(export_rows(s.dir, "j2")), r2);
+}
+
+TEST(Study, AKilledStudyRunAgainHoldsEveryPointOnceWithTheSameResults) {
+  Scratch s;
+  // Enough points that the kill falls in the middle: 2 x 2 x 5 x 2 = 40 cycle points.
+  s.put("long.toml", R"(
+[inputs]
+scenes = ["cloth", "smoke"]
+
+[axes]
+fidelity = "cycle"
+method = ["lk", "enderton"]
+"distributor.rop_units" = [1, 2, 4, 8, 16]
+spp = [4, 16]
+width = 96
+height = 96
+)");
+  // Uninterrupted.
+  ASSERT_EQ(ropsim(s.dir, "study run long.toml --out whole -j 2 --quiet").status, 0);
+  const Rows whole = model_results(export_rows(s.dir, "whole"));
+  ASSERT_EQ(whole.size(), 40u);
+  // Killed after some points are done.
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    fs::current_path(s.dir);
+    execl(ROPSIM_BINARY, ROPSIM_BINARY, "study", "run", "long.toml", "--out", "killed", "-j", "2", "--quiet",
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  auto done = [&] {
+    size_t n = 0;
+    if (fs::exists(s.dir / "killed" / "points"))
+      for (const auto& e : fs::directory_iterator(s.dir / "killed" / "points"))
+        n += fs::exists(e.path() / "report.json");
+    return n;
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  while (done() < 5 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const size_t before = done();
+  kill(pid, SIGKILL);
+  int st = 0;
+  waitpid(pid, &st, 0);
+  ASSERT_TRUE(WIFSIGNALED(st)) << "the study finished before the kill; make it longer";
+  ASSERT_LT(before, 40u) << "the study finished before the kill";
+  // Again: only what is missing runs; every point is there once.
+  const Ran again = ropsim(s.dir, "study run long.toml --out killed -j 2");
+  ASSERT_EQ(again.status, 0) << again.err << again.out;
+  EXPECT_EQ(again.out.find("40 run now"), std::string::npos) << "everything ran again:\n" << again.out;
+  const Rows resumed = model_results(export_rows(s.dir, "killed"));
+  ASSERT_EQ(resumed.size(), 40u) << "a point is missing or twice";
+  EXPECT_EQ(resumed, whole) << "the resumed study's results differ from an uninterrupted run's";
+}
+
+TEST(Study, APointWithABadValueRecordsItsErrorAndTheOthersComplete) {
+  Scratch s;
+  // 3 ways is a valid value alone, but 65536 / (64 x 3) sets is no power of two.
+  s.put("ways.toml", R"(
+[inputs]
+scenes = ["eight-layers"]
+
+[axes]
+fidelity = "cycle"
+"cache.ways" = [4, 3, 8]
+spp = 4
+width = 32
+height = 32
+)");
+  const Ran r = ropsim(s.dir, "study run ways.toml --out st -j 2");
+  EXPECT_EQ(r.status, 1) << "a failed point makes the study's exit status 1";
+  EXPECT_NE(r.out.find("2 run now, 0 already done, 1 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cache.ways=3"), std::string::npos) << "the summary lists the failure:\n" << r.out;
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 3u);
+  for (const auto& row : rows) {
+    if (row.at("cache.ways") == "3") {
+      EXPECT_EQ(row.at("status"), "failed");
+      EXPECT_NE(row.at("error").find("power-of-two number of sets"), std::string::npos) << row.at("error");
+    } else {
+      EXPECT_EQ(row.at("status"), "ok") << row.at("error");
+      EXPECT_FALSE(row.at("timing.total_cycles").empty());
+    }
+  }
+  EXPECT_TRUE(fs::exists(s.dir / "st" / "points" / rows[1].at("point") / "error.txt"));
+}
