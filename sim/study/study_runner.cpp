@@ -53,6 +53,8 @@ void render_reference(const Study& s, const StudyPoint& p, const std::string& di
   MethodConfig m = r.method;
   m.method = Method::kReference;
   const FunctionalRun run = run_functional(r.reference_input, m);
+  // The PNG first: the EXR's presence means the reference is done.
+  write_image(run.image, (fs::path(dir) / "refs" / (r.reference_key + ".png")).string());
   write_image(run.image, ref_path(dir, r.reference_key).string());
 }
 
@@ -64,7 +66,10 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   write_text_output((pd / "params.json").string(), p.params_json().dump(2) + "\n");
   const ResolvedPoint r = resolve_point(s, p);
   std::optional<Image> reference;
-  if (!r.reference_key.empty()) reference = read_image(ref_path(dir, r.reference_key).string());
+  if (!r.reference_key.empty()) {
+    reference = read_image(ref_path(dir, r.reference_key).string());
+    write_text_output((pd / "reference.txt").string(), r.reference_key + "\n");
+  }
   ReportContext ctx{"ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}};
   nlohmann::ordered_json report;
   std::string summary;
@@ -264,7 +269,11 @@ bool record_from_folder(Db& db, const std::string& dir, const StudyPoint& p) {
   const fs::path pd = point_dir(dir, p);
   if (fs::exists(pd / "report.json")) {
     const nlohmann::ordered_json report = nlohmann::ordered_json::parse(read_file(pd / "report.json"));
-    db.put_row(row_of(p, "ok", "", &report));
+    auto row = row_of(p, "ok", "", &report);
+    std::string ref = fs::exists(pd / "reference.txt") ? read_file(pd / "reference.txt") : "";
+    while (!ref.empty() && ref.back() == '\n') ref.pop_back();
+    row.emplace_back("reference_key", ref);
+    db.put_row(row);
     return true;
   }
   if (fs::exists(pd / "error.txt")) {
