@@ -295,12 +295,18 @@ std::vector<StudyPoint> expand_study(const Study& s) {
     }
   }
   std::vector<StudyPoint> points;
+  std::set<std::string> seen;
   for (const auto& in : s.inputs)
     for (const auto& c : combos) {
       StudyPoint p;
       p.index = points.size();
       p.input = in.label;
       p.params = c;
+      // A functional run has no hardware: its hardware values are dropped,
+      // and the points that then repeat another are one point.
+      auto f = p.params.find("fidelity");
+      if (f == p.params.end() || std::get<std::string>(f->second) != "cycle")
+        for (auto it = p.params.begin(); it != p.params.end();) it = is_hw_key(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
       // compare against, and the tool that computes them.
       nlohmann::ordered_json id;
@@ -310,6 +316,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       id["reference_spp"] = s.reference_spp;
       id["ropsim"] = std::string(ropsim_version()) + " " + ropsim_commit();
       p.hash = hex16(hash_text(id.dump()));
+      if (!seen.insert(p.hash).second) continue;
       points.push_back(std::move(p));
     }
   return points;
