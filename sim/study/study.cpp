@@ -306,7 +306,8 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       // and the points that then repeat another are one point.
       auto f = p.params.find("fidelity");
       if (f == p.params.end() || std::get<std::string>(f->second) != "cycle")
-        for (auto it = p.params.begin(); it != p.params.end();) it = is_hw_key(it->first) ? p.params.erase(it) : std::next(it);
+        for (auto it = p.params.begin(); it != p.params.end();)
+          it = is_hw_key(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
       // compare against, and the tool that computes them.
       nlohmann::ordered_json id;
