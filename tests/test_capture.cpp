@@ -525,6 +525,41 @@ TEST(CaptureOrder, ShuffledIsASeededPermutation) {
   EXPECT_EQ(sorted(s1), sorted(a)) << "a permutation: the same triangles";
 }
 
+// Depth orders: a draw's triangles sorted by the view depth (clip w) of their
+// centroids, farthest or nearest first; the same triangles as authored.
+TEST(CaptureOrder, DepthOrdersSortByViewDepthAndPermute) {
+  Scratch box;
+  box.write("grid.obj", grid_obj(8, 1.0, 7));
+  auto tris = [&](const std::string& order) {
+    const std::string scene =
+        box.write("s.toml", scene_text("[[object]]\nmesh = \"grid.obj\"\nopacity = 0.4\norder = \"" + order + "\"\n",
+                                       "eye = [1, 4, 5]\ntarget = [0, 0, 0]", "width = 64\nheight = 48\nspp = 4\n"));
+    const PreparedScene ps = prepare_scene(load_scene_file(scene));
+    std::vector<std::array<std::array<float, 4>, 3>> v;
+    for (const auto& t : ps.draws[0].triangles) v.push_back({t.v[0].pos, t.v[1].pos, t.v[2].pos});
+    return v;
+  };
+  auto depth = [](const std::array<std::array<float, 4>, 3>& t) {
+    return double(t[0][3]) + double(t[1][3]) + double(t[2][3]);
+  };
+  const auto a = tris("authored"), far = tris("far-to-near"), near = tris("near-to-far");
+  ASSERT_GT(a.size(), 50u);
+  size_t distinct = 0;
+  for (size_t i = 1; i < far.size(); ++i) {
+    EXPECT_GE(depth(far[i - 1]), depth(far[i])) << "far-to-near: triangle " << i << " is farther than the one before";
+    EXPECT_LE(depth(near[i - 1]), depth(near[i])) << "near-to-far: triangle " << i << " is nearer than the one before";
+    distinct += depth(far[i - 1]) != depth(far[i]);
+  }
+  EXPECT_GT(distinct, far.size() / 4) << "the view must see the grid at varying depths, or the test proves nothing";
+  EXPECT_NE(far, a);
+  auto sorted = [](auto v) {
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  EXPECT_EQ(sorted(far), sorted(a)) << "a permutation: the same triangles";
+  EXPECT_EQ(sorted(near), sorted(a)) << "a permutation: the same triangles";
+}
+
 // Bad input: a clear one-line error naming the file and key, exit 1, no output.
 TEST(CaptureBadInput, ErrorsNameTheFileAndKeyAndLeaveNoOutput) {
   Scratch box;

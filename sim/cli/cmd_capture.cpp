@@ -20,7 +20,7 @@ namespace ropsim {
 namespace {
 
 struct CaptureOpts {
-  std::string scene, out, mesh_dir;
+  std::string scene, out, mesh_dir, order;
   int spp = 0;
   uint32_t width = 0, height = 0;
   uint64_t seed = 0;
@@ -62,6 +62,11 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
   if (sub.count("--width")) ov.width = o.width;
   if (sub.count("--height")) ov.height = o.height;
   if (sub.count("--seed")) ov.seed = o.seed;
+  if (sub.count("--order")) {
+    DrawOrder d;
+    parse_draw_order(o.order, d);
+    ov.order = d;
+  }
   const SceneSpec spec = load_scene_file(o.scene, ov);
   if (o.cross_check) {
 #ifdef ROPSIM_HAVE_OSMESA
@@ -104,6 +109,8 @@ std::function<int()> add_capture_command(CLI::App& app) {
   sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(CLI::Range(1u, 32768u));
   sub->add_option("--height", o->height, "Override the scene's height in pixels")->check(CLI::Range(1u, 32768u));
   sub->add_option("--seed", o->seed, "Override the scene's shuffle seed");
+  sub->add_option("--order", o->order, "Override every object's draw order")
+      ->check(CLI::IsMember({"authored", "shuffled", "far-to-near", "near-to-far"}));
   sub->add_flag("--allow-empty", o->allow_empty, "Write a trace even when nothing is visible (else an error)");
   sub->add_flag("--cross-check", o->cross_check,
                 "Instead of writing a trace, capture the scene at 4 spp through Mesa (llvmpipe) and through ropsim "

@@ -122,6 +122,15 @@ PreparedDraw prepare_mesh(const SceneSpec& s, size_t index, const Camera& cam, c
   std::vector<size_t> order(mesh.triangles.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   if (ob.order == DrawOrder::kShuffled) shuffle(order, s.seed ^ (uint64_t(index) * 0x9E3779B97F4A7C15ull));
+  if (ob.order == DrawOrder::kFarToNear || ob.order == DrawOrder::kNearToFar) {
+    // By the view depth (clip w) of the centroid; ties keep the file's order.
+    std::vector<double> depth(mesh.triangles.size());
+    for (size_t i = 0; i < depth.size(); ++i)
+      for (int k = 0; k < 3; ++k) depth[i] += double(clip[mesh.triangles[i][size_t(k)]][3]);
+    const bool far_first = ob.order == DrawOrder::kFarToNear;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return far_first ? depth[a] > depth[b] : depth[a] < depth[b]; });
+  }
   d.triangles.reserve(order.size());
   for (size_t ti : order) {
     const auto& tri = mesh.triangles[ti];
@@ -199,6 +208,15 @@ PreparedDraw prepare_billboards(const SceneSpec& s, size_t index, const Camera& 
   }
   if (ob.order == DrawOrder::kShuffled) shuffle(pts, s.seed ^ (uint64_t(index) * 0x9E3779B97F4A7C15ull));
   const ObjectTransform xf(ob);
+  if (ob.order == DrawOrder::kFarToNear || ob.order == DrawOrder::kNearToFar) {
+    // By the view depth (clip w) of each point; ties keep the file's order.
+    std::vector<std::pair<double, uint32_t>> by;
+    for (uint32_t pi : pts) by.emplace_back(double(cam.clip(xf.point(mesh.positions[pi]))[3]), pi);
+    const bool far_first = ob.order == DrawOrder::kFarToNear;
+    std::stable_sort(by.begin(), by.end(),
+                     [&](const auto& a, const auto& b) { return far_first ? a.first > b.first : a.first < b.first; });
+    for (size_t i = 0; i < by.size(); ++i) pts[i] = by[i].second;
+  }
   const double h = ob.size / 2;
   const Vec3d R{cam.s[0] * h, cam.s[1] * h, cam.s[2] * h}, U{cam.u[0] * h, cam.u[1] * h, cam.u[2] * h};
   PreparedDraw d;

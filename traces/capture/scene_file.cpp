@@ -246,8 +246,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
         ob.color = *ok.rgb("color");
       }
     }
-    ob.order = ok.choice("order", "authored", {"authored", "shuffled"}) == "authored" ? DrawOrder::kAuthored
-                                                                                      : DrawOrder::kShuffled;
+    parse_draw_order(ok.choice("order", "authored", {"authored", "shuffled", "far-to-near", "near-to-far"}), ob.order);
     const std::string sh = ok.choice("shading", "smooth", {"smooth", "flat", "unlit"});
     ob.shading = sh == "smooth" ? Shading::kSmooth : sh == "flat" ? Shading::kFlat : Shading::kUnlit;
     // Default: back faces kept unless the object is opaque (constant opacity 1).
@@ -272,7 +271,32 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   if (o.width) s.width = *o.width;
   if (o.height) s.height = *o.height;
   if (o.seed) s.seed = *o.seed;
+  if (o.order)
+    for (auto& ob : s.objects) ob.order = *o.order;
   return s;
+}
+
+const char* to_string(DrawOrder o) {
+  switch (o) {
+    case DrawOrder::kAuthored:
+      return "authored";
+    case DrawOrder::kShuffled:
+      return "shuffled";
+    case DrawOrder::kFarToNear:
+      return "far-to-near";
+    case DrawOrder::kNearToFar:
+      return "near-to-far";
+  }
+  return "?";
+}
+
+bool parse_draw_order(const std::string& s, DrawOrder& out) {
+  for (DrawOrder o : {DrawOrder::kAuthored, DrawOrder::kShuffled, DrawOrder::kFarToNear, DrawOrder::kNearToFar})
+    if (s == to_string(o)) {
+      out = o;
+      return true;
+    }
+  return false;
 }
 
 SceneSpec load_scene_file(const std::string& path, const SceneOverrides& o) {

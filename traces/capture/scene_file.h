@@ -27,7 +27,13 @@ using Vec3d = std::array<double, 3>;
 enum class ObjectKind { kMesh, kBillboards };
 enum class OpacitySource { kConstant, kMaterial };
 enum class ColorSource { kConstant, kMaterial, kVertex };
-enum class DrawOrder { kAuthored, kShuffled };
+/// The order of a draw's triangles: as authored in the file; a seeded
+/// permutation; or sorted by the view depth of their centroids (stable).
+enum class DrawOrder { kAuthored, kShuffled, kFarToNear, kNearToFar };
+/// The scene-file and command-line names of the orders.
+const char* to_string(DrawOrder o);
+/// Parses "authored", "shuffled", "far-to-near" or "near-to-far"; false otherwise.
+bool parse_draw_order(const std::string& s, DrawOrder& out);
 enum class Shading { kSmooth, kFlat, kUnlit };
 
 struct ObjectSpec {
@@ -82,6 +88,7 @@ struct SceneOverrides {
   std::optional<int> spp;
   std::optional<uint32_t> width, height;
   std::optional<uint64_t> seed;
+  std::optional<DrawOrder> order;  ///< every object's draw order
 };
 
 /// Reads and validates a scene file. Throws CaptureError.
