@@ -436,3 +436,121 @@ TEST(CliCycle, ConfigCommandPrintsTheDocumentedTable) {
   EXPECT_NE(doc.find(r.out), std::string::npos) << "docs/config.md is out of date: regenerate its table with "
                                                    "`ropsim config --markdown`";
 }
+
+// ------------------------------------------------------------ numerics in the design, names, JSON
+
+// The design file's [numerics] are the run's numerics unless a run flag says
+// otherwise, in both fidelities; a functional run takes only numerics.* keys.
+TEST(CliNumerics, DesignFileNumericsEqualTheFlagsAndFlagsOverrideThem) {
+  CliSandbox box;
+  { std::ofstream(box.path("n12.toml")) << "[numerics]\nhash_bits = 12\n"; }
+  const std::string scene = "run --scene smoke --spp 4 --quiet ";
+  expect_ok(box.run(scene + "--hw n12.toml --out file.png --report file.json"), "functional --hw n12.toml");
+  expect_ok(box.run(scene + "--hash-bits 12 --out flag.png"), "functional --hash-bits 12");
+  expect_ok(box.run(scene + "--hw-set numerics.hash_bits=12 --out set.png"), "functional --hw-set numerics.hash_bits");
+  expect_ok(box.run(scene + "--out default.png"), "functional, default numerics");
+  EXPECT_EQ(slurp(box.path("file.png")), slurp(box.path("flag.png"))) << "[numerics] hash_bits = 12 != --hash-bits 12";
+  EXPECT_EQ(slurp(box.path("set.png")), slurp(box.path("flag.png")));
+  EXPECT_NE(slurp(box.path("file.png")), slurp(box.path("default.png"))) << "hash_bits 12 changed nothing";
+  EXPECT_EQ(nlohmann::json::parse(slurp(box.path("file.json")))["numerics"]["hash_bits"], 12);
+  // An explicit flag overrides the file.
+  expect_ok(box.run(scene + "--hw n12.toml --hash-bits 32 --out over.png --report over.json"), "flag over file");
+  EXPECT_EQ(slurp(box.path("over.png")), slurp(box.path("default.png")));
+  EXPECT_EQ(nlohmann::json::parse(slurp(box.path("over.json")))["numerics"]["hash_bits"], 32);
+  // The cycle fidelity: the same image, and the report's design shows the numerics that ran.
+  expect_ok(box.run(scene + "--fidelity cycle --hw n12.toml --out cyc.png --report cyc.json"), "cycle --hw n12.toml");
+  EXPECT_EQ(slurp(box.path("cyc.png")), slurp(box.path("flag.png")));
+  const auto cyc = nlohmann::json::parse(slurp(box.path("cyc.json")));
+  EXPECT_EQ(cyc["numerics"]["hash_bits"], 12);
+  EXPECT_EQ(cyc["hardware"]["resolved"]["numerics"]["hash_bits"], 12);
+  expect_ok(box.run(scene + "--fidelity cycle --hw n12.toml --hash-bits 20 --report cyc20.json"), "cycle flag");
+  const auto cyc20 = nlohmann::json::parse(slurp(box.path("cyc20.json")));
+  EXPECT_EQ(cyc20["numerics"]["hash_bits"], 20);
+  EXPECT_EQ(cyc20["hardware"]["resolved"]["numerics"]["hash_bits"], 20);
+  // A bad value names the key; a functional run refuses timing keys.
+  { std::ofstream(box.path("bad.toml")) << "[numerics]\nhash_bits = 40\n"; }
+  expect_cli_error(box, scene + "--hw bad.toml --out x.png", {"bad.toml", "numerics.hash_bits", "40"});
+  expect_cli_error(box, scene + "--hw-set numerics.alpha_bits=0 --out x.png", {"numerics.alpha_bits=0"});
+  expect_cli_error(box, scene + "--hw-set numerics.surface_id_bits=x --out x.png", {"numerics.surface_id_bits"});
+  expect_cli_error(box, scene + "--hw-set cache.ways=4 --out x.png", {"--hw-set cache.ways=4", "cycle"});
+}
+
+// Default output names: a cycle run's carries a digest of the design, a
+// functional run's its numerics when they are not the defaults.
+TEST(CliNumerics, DefaultNamesNeverShareADesign) {
+  CliSandbox box;
+  const std::string scene = "run --scene smoke --spp 4 --quiet ";
+  expect_ok(box.run(scene + "--fidelity cycle --hw-set distributor.rop_units=2"), "cycle, 2 ROPs");
+  expect_ok(box.run(scene + "--fidelity cycle --hw-set distributor.rop_units=8"), "cycle, 8 ROPs");
+  expect_ok(box.run(scene + "--fidelity cycle --hw-set distributor.rop_units=8"), "cycle, 8 ROPs again");
+  expect_ok(box.run(scene + "--fidelity cycle --hw-set numerics.hash_bits=16"), "cycle, 16-bit hash");
+  expect_ok(box.run(scene + "--fidelity cycle --hash-bits 16"), "cycle, --hash-bits 16");
+  expect_ok(box.run(scene), "functional");
+  expect_ok(box.run(scene + "--hash-bits 12"), "functional --hash-bits 12");
+  std::set<std::string> reports;
+  for (const auto& f : box.files())
+    if (fs::path(f).extension() == ".json") reports.insert(fs::path(f).filename().string());
+  // rop_units 2, rop_units 8 (twice: one name), hash 16 (flag or key: one design), functional x 2.
+  ASSERT_EQ(reports.size(), 5u) << ::testing::PrintToString(reports);
+  EXPECT_TRUE(reports.count("smoke-lk-4spp.json")) << ::testing::PrintToString(reports);
+  EXPECT_TRUE(reports.count("smoke-lk-4spp-h12a32s32.json")) << ::testing::PrintToString(reports);
+  for (const auto& r : reports) {
+    if (r.find("-cycle-") == std::string::npos) continue;
+    const auto j = nlohmann::json::parse(slurp(box.work() / "out" / "run" / r));
+    const std::string digest = j["hardware"]["digest"];
+    EXPECT_EQ(digest.size(), 8u);
+    EXPECT_EQ(r, "smoke-lk-4spp-cycle-hw" + digest + ".json");
+    EXPECT_TRUE(j["hardware"]["overrides"].is_array());
+    EXPECT_LE(j["hardware"]["overrides"].size(), 1u) << j["hardware"].dump();  // the flag run has none
+  }
+}
+
+// `config --json` is the design a run resolves (hardware.resolved), and
+// `trace info --json` carries what `trace info` prints.
+TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
+  CliSandbox box;
+  CliResult r = box.run("config --json --hw-set dram.channels=2 --hw-set numerics.alpha_bits=8");
+  expect_ok(r, "config --json");
+  nlohmann::json cfg;
+  ASSERT_NO_THROW(cfg = nlohmann::json::parse(r.out)) << r.describe();
+  EXPECT_EQ(cfg["dram"]["channels"], 2);
+  EXPECT_EQ(cfg["numerics"]["alpha_bits"], 8);
+  EXPECT_EQ(cfg["sorter"]["kind"], "bitonic");
+  EXPECT_EQ(cfg["cache"]["fast_clear"], true);
+  EXPECT_EQ(cfg["clock"]["frequency_ghz"], 1.5);
+  r = box.run("config --json '" ROPSIM_SOURCE_DIR "/configs/narrow.toml'");
+  expect_ok(r, "config --json narrow.toml");
+  EXPECT_EQ(nlohmann::json::parse(r.out)["distributor"]["rop_units"], 1);
+  expect_ok(box.run("run --scene smoke --spp 4 --quiet --fidelity cycle --hw-set dram.channels=2 --hw-set "
+                    "numerics.alpha_bits=8 --report c.json"),
+            "cycle run");
+  const auto rep = nlohmann::json::parse(slurp(box.path("c.json")));
+  EXPECT_EQ(rep["hardware"]["resolved"], cfg) << "the report's design is not config --json's";
+  EXPECT_EQ(rep["hardware"]["overrides"], nlohmann::json({"dram.channels=2", "numerics.alpha_bits=8"}));
+  expect_cli_error(box, "config --json --hw-set dram.channels=0", {"--hw-set dram.channels=0"});
+
+  expect_ok(box.run("scene cloth --spp 4 -o c.trace"), "scene cloth");
+  const CliResult text = box.run("trace info c.trace");
+  r = box.run("trace info c.trace --json");
+  expect_ok(r, "trace info --json");
+  nlohmann::json t;
+  ASSERT_NO_THROW(t = nlohmann::json::parse(r.out)) << r.describe();
+  EXPECT_EQ(t["file"], "c.trace");
+  EXPECT_EQ(t["header"]["scene"], "cloth");
+  EXPECT_EQ(t["header"]["spp"], 4);
+  EXPECT_EQ(t["header"]["width"], 256);
+  ropsim::TraceReader reader(box.path("c.trace"));
+  uint64_t n = 0;
+  for (ropsim::Fragment f; reader.next(f);) ++n;
+  EXPECT_EQ(t["fragments"], n);
+  for (const char* k : {"covered_samples", "covered_samples_per_fragment", "draws", "bytes", "pixels_touched",
+                        "pixels_touched_percent", "fragments_per_touched_pixel", "depth_complexity_histogram_pixels"})
+    EXPECT_TRUE(t.contains(k)) << "trace info --json lacks " << k << "\n" << r.out;
+  uint64_t hist = 0;
+  for (const auto& [k, v] : t["depth_complexity_histogram_pixels"].items()) hist += v.get<uint64_t>();
+  EXPECT_EQ(hist, t["pixels_touched"].get<uint64_t>());
+  EXPECT_NE(text.out.find("fragments " + std::to_string(n) + " "), std::string::npos) << text.describe();
+  EXPECT_NE(text.out.find("pixels touched " + std::to_string(t["pixels_touched"].get<uint64_t>()) + " "),
+            std::string::npos)
+      << text.describe();
+}

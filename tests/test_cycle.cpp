@@ -592,6 +592,9 @@ TEST(HwConfigFile, BadKeysAndValuesNameTheKey) {
   expect_config_error("[cache]\nsize_bytes = 256\nways = 8\n", "cache.size_bytes");
   expect_config_error("[dram\nchannels = 2\n", "bad.toml");
   expect_config_error("[cache]\nfast_clear = 1\n", "cache.fast_clear");
+  expect_config_error("[numerics]\nhash_bits = 7\n", "numerics.hash_bits");
+  expect_config_error("[numerics]\nalpha_bits = 33\n", "numerics.alpha_bits");
+  expect_config_error("[numerics]\nsurface_id_bits = 1.5\n", "numerics.surface_id_bits");
 }
 
 TEST(HwConfigFile, CommittedConfigsLoadAndDifferAndDocsListEveryKey) {
@@ -607,6 +610,26 @@ TEST(HwConfigFile, CommittedConfigsLoadAndDifferAndDocsListEveryKey) {
     EXPECT_NE(ss.str().find("`" + p.key + "`"), std::string::npos) << "docs/config.md does not document " << p.key;
   // The default file is the built-in defaults.
   EXPECT_EQ(hw_config_to_toml(load_hw_config(kSource + "/configs/default.toml")), hw_config_to_toml(HwConfig{}));
+}
+
+// The design's digest (default output names) is a fixed function of the
+// resolved values: the same on every machine, different for another design.
+// FNV-1a 64 of the built-in defaults (a change of any default or key changes it).
+constexpr uint64_t kDefaultDesignDigest = 0x91b85c1800a3bc69ull;
+
+TEST(HwConfigFile, DigestIsStableAndSeesEveryKey) {
+  EXPECT_EQ(hw_digest_hex(HwConfig{}), hw_digest_hex(load_hw_config(kSource + "/configs/default.toml")));
+  EXPECT_EQ(hw_config_digest(HwConfig{}), kDefaultDesignDigest) << "the digest of the defaults changed";
+  std::set<std::string> seen{hw_digest_hex(HwConfig{})};
+  for (const char* a : {"numerics.hash_bits=31", "numerics.alpha_bits=31", "numerics.surface_id_bits=31",
+                        "dram.channels=3", "sorter.kind=rank", "cache.fast_clear=false", "clock.frequency_ghz=1.25"}) {
+    HwConfig hw;
+    apply_hw_override(hw, a);
+    EXPECT_TRUE(seen.insert(hw_digest_hex(hw)).second) << a << " did not change the digest";
+  }
+  HwConfig named;
+  named.name = "another name";
+  EXPECT_EQ(hw_digest_hex(named), hw_digest_hex(HwConfig{})) << "only the values count";
 }
 
 TEST(HwConfigFile, OverridesParseStrictly) {

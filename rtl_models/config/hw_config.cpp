@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <initializer_list>
 #include <sstream>
@@ -29,7 +30,7 @@ const char* to_string(Interleave k) { return k == Interleave::kDiagonal ? "diago
 
 namespace {
 
-enum class Kind { kU32, kReal, kBool, kSorter, kInterleave };
+enum class Kind { kU32, kInt, kReal, kBool, kSorter, kInterleave };
 
 struct Param {
   const char* key;
@@ -44,6 +45,10 @@ struct Param {
 #define U32(sec, k, unit, lo, hi, pow2, meaning)                                                         \
   Param {                                                                                                \
 #sec "." #k, unit, Kind::kU32, lo, hi, pow2, meaning, [](HwConfig & c) -> void* { return &c.sec.k; } \
+  }
+#define I32(sec, k, unit, lo, hi, meaning)                                                                \
+  Param {                                                                                                 \
+#sec "." #k, unit, Kind::kInt, lo, hi, false, meaning, [](HwConfig & c) -> void* { return &c.sec.k; } \
   }
 #define FIELD(sec, k) [](HwConfig& c) -> void* { return &c.sec.k; }
 
@@ -103,6 +108,12 @@ const std::vector<Param>& params() {
       U32(dram, row_miss_cycles, "cycles", 0, 100000, false,
           "extra cycles to close and open a row on a row-buffer miss"),
       U32(dram, interleave_bytes, "bytes", 16, 1u << 20, true, "address interleave granule between channels"),
+      I32(numerics, hash_bits, "bits", 8, 32,
+          "width of the alpha-reference hash datapath (docs/numerics.md; run flag --hash-bits overrides it)"),
+      I32(numerics, alpha_bits, "bits", 1, 32,
+          "fixed-point precision of the fragment opacity (--alpha-bits overrides it)"),
+      I32(numerics, surface_id_bits, "bits", 1, 32,
+          "width of the per-pixel surface id register, wraps (--surface-id-bits overrides it)"),
   };
   return p;
 }
@@ -138,6 +149,9 @@ std::string value_to_string(const Param& p, HwConfig& c) {
     case Kind::kU32:
       os << *static_cast<uint32_t*>(f);
       break;
+    case Kind::kInt:
+      os << *static_cast<int*>(f);
+      break;
     case Kind::kReal:
       os << real_to_string(*static_cast<double*>(f));
       break;
@@ -158,6 +172,7 @@ std::string range_of(const Param& p) {
   std::ostringstream os;
   switch (p.kind) {
     case Kind::kU32:
+    case Kind::kInt:
     case Kind::kReal:
       os << p.lo << " .. " << p.hi << (p.pow2 ? ", power of two" : "");
       break;
@@ -180,7 +195,10 @@ void set_u32(const Param& p, HwConfig& c, int64_t v, const std::string& at) {
   if (double(v) < p.lo || double(v) > p.hi)
     fail_at(at, "value " + std::to_string(v) + " out of range (" + range_of(p) + ")");
   if (p.pow2 && !is_pow2(uint64_t(v))) fail_at(at, "value " + std::to_string(v) + " is not a power of two");
-  *static_cast<uint32_t*>(p.field(c)) = uint32_t(v);
+  if (p.kind == Kind::kInt)
+    *static_cast<int*>(p.field(c)) = int(v);
+  else
+    *static_cast<uint32_t*>(p.field(c)) = uint32_t(v);
 }
 void set_real(const Param& p, HwConfig& c, double v, const std::string& at) {
   if (!std::isfinite(v) || v < p.lo || v > p.hi) fail_at(at, "value out of range (" + range_of(p) + ")");
@@ -243,6 +261,7 @@ HwConfig read_hw_file(const std::string& path) {
       const std::string at = path + ": " + key;
       switch (p->kind) {
         case Kind::kU32:
+        case Kind::kInt:
           if (!v.is_integer()) fail(path, key, "must be an integer");
           set_u32(*p, c, v.as_integer()->get(), at);
           break;
@@ -297,7 +316,8 @@ void apply_hw_override(HwConfig& cfg, const std::string& a) {
   const char* const last = val.data() + val.size();
   HwConfig c = cfg;  // applied to cfg only once accepted
   switch (p->kind) {
-    case Kind::kU32: {
+    case Kind::kU32:
+    case Kind::kInt: {
       long long v = 0;
       const auto r = std::from_chars(first, last, v);
       if (r.ec == std::errc::result_out_of_range) fail_at(at, "value out of range (" + range_of(*p) + ")");
@@ -377,6 +397,55 @@ std::string hw_config_to_toml(const HwConfig& cfg) {
     os << key.substr(s.size() + 1) << " = " << value_to_string(p, c) << "  # " << p.unit << ": " << p.meaning << "\n";
   }
   return os.str();
+}
+
+void for_each_hw_value(const HwConfig& cfg, const std::function<void(const ParamInfo&, const HwValue&)>& fn) {
+  HwConfig c = cfg;
+  const auto& info = hw_params();
+  for (size_t i = 0; i < params().size(); ++i) {
+    const Param& p = params()[i];
+    void* f = p.field(c);
+    HwValue v;
+    switch (p.kind) {
+      case Kind::kU32:
+        v = int64_t(*static_cast<uint32_t*>(f));
+        break;
+      case Kind::kInt:
+        v = int64_t(*static_cast<int*>(f));
+        break;
+      case Kind::kReal:
+        v = *static_cast<double*>(f);
+        break;
+      case Kind::kBool:
+        v = *static_cast<bool*>(f);
+        break;
+      case Kind::kSorter:
+        v = std::string(to_string(*static_cast<SorterKind*>(f)));
+        break;
+      case Kind::kInterleave:
+        v = std::string(to_string(*static_cast<Interleave*>(f)));
+        break;
+    }
+    fn(info[i], v);
+  }
+}
+
+uint64_t hw_config_digest(const HwConfig& cfg) {
+  HwConfig c = cfg;
+  uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
+  for (const auto& p : params())
+    for (const char ch : std::string(p.key) + "=" + value_to_string(p, c) + "\n") {
+      h ^= uint8_t(ch);
+      h *= 0x100000001b3ull;
+    }
+  return h;
+}
+
+std::string hw_digest_hex(const HwConfig& cfg) {
+  const uint64_t h = hw_config_digest(cfg);
+  char buf[9];
+  std::snprintf(buf, sizeof buf, "%08x", unsigned((h >> 32) ^ (h & 0xffffffffu)));
+  return buf;
 }
 
 std::string hw_params_markdown() {

@@ -5,9 +5,13 @@
 // by the Clock of the pipeline.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
+
+#include "numerics.h"
 
 namespace ropsim {
 
@@ -78,6 +82,9 @@ struct HwConfig {
     uint32_t row_miss_cycles = 40;
     uint32_t interleave_bytes = 256;
   } dram;
+  /// The datapath widths ([numerics]); the same for every fidelity. A run's
+  /// --hash-bits, --alpha-bits and --surface-id-bits override them.
+  Numerics numerics;
 
   std::string name = "built-in defaults";  ///< file the config came from
   /// The "section.key=value" overrides applied over `name`, in order (so that
@@ -99,6 +106,16 @@ struct ParamInfo {
   std::string default_value;
 };
 const std::vector<ParamInfo>& hw_params();
+
+/// One parameter's value, typed: integers, reals, booleans, names (enums).
+using HwValue = std::variant<int64_t, double, bool, std::string>;
+/// Every parameter of cfg in table order (hw_params()), with its value.
+void for_each_hw_value(const HwConfig& cfg, const std::function<void(const ParamInfo&, const HwValue&)>& fn);
+/// A short digest of the design: FNV-1a 64 over every "section.key=value"
+/// line of the resolved design (numerics included), the same on every
+/// machine; `hw_digest_hex` gives its 8 hex digits (default output names).
+uint64_t hw_config_digest(const HwConfig& cfg);
+std::string hw_digest_hex(const HwConfig& cfg);
 
 /// Reads a TOML file over the defaults (keys it omits keep their defaults) and
 /// checks the result as a whole (validate_hw_config). Unknown sections or

@@ -103,14 +103,24 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
 
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const bool cycle = o.fidelity == "cycle";
-  if (!cycle)
-    for (const char* f : {"--hw", "--hw-set", "--vcd", "--vcd-window", "--lockstep"})
+  if (!cycle) {
+    for (const char* f : {"--vcd", "--vcd-window", "--lockstep"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
+    // A functional run takes only the design's numerics (the rest is timing).
+    for (const auto& a : o.hw_sets)
+      if (a.rfind("numerics.", 0) != 0)
+        throw UserError("--hw-set " + a +
+                        " applies to --fidelity cycle (a functional run takes only the numerics.* keys of a design)");
+  }
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
-  HwConfig hw;
+  // The design (a functional run uses only its numerics); the run's numerics
+  // flags, when given, override the design's.
+  HwConfig hw = resolve_hw_config(o.hw, o.hw_sets);
+  if (sub.count("--hash-bits")) hw.numerics.hash_bits = o.num.hash_bits;
+  if (sub.count("--alpha-bits")) hw.numerics.alpha_bits = o.num.alpha_bits;
+  if (sub.count("--surface-id-bits")) hw.numerics.surface_id_bits = o.num.surface_id_bits;
   uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};
   if (cycle) {
-    hw = resolve_hw_config(o.hw, o.hw_sets);
     if (!o.vcd_window.empty()) {
       const auto colon = o.vcd_window.find(':');
       char* end = nullptr;
@@ -142,7 +152,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   }
   GoldenConfig cfg;
   parse_method(o.method, cfg.method);
-  cfg.numerics = o.num;
+  cfg.numerics = hw.numerics;
   cfg.seed = o.seed;
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
@@ -151,7 +161,15 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     // A trace's spp is in its header, which is only read by the run: name by stem.
     std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
                                        : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
-    if (cycle) base += "-cycle";
+    // Distinct designs never share a name: a cycle run adds a digest of the
+    // resolved design (numerics included), a functional run its numerics
+    // when they are not the defaults.
+    const Numerics& n = cfg.numerics;
+    if (cycle)
+      base += "-cycle-hw" + hw_digest_hex(hw);
+    else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
+             n.surface_id_bits != Numerics{}.surface_id_bits)
+      base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
     outs = {base + ".png", base + ".exr"};
     report = base + ".json";
   }
@@ -192,20 +210,26 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::Range(1u, kMaxScreenSide));
   run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
-  run->add_option("--hash-bits", ro->num.hash_bits, "Alpha-reference hash datapath width, bits (8..32, default 32)")
+  run->add_option("--hash-bits", ro->num.hash_bits,
+                  "Alpha-reference hash datapath width, bits (8..32; default: the design's numerics.hash_bits, 32)")
       ->check(CLI::Range(8, 32));
-  run->add_option("--alpha-bits", ro->num.alpha_bits, "Opacity fixed-point precision, bits (1..32, default 32)")
+  run->add_option("--alpha-bits", ro->num.alpha_bits,
+                  "Opacity fixed-point precision, bits (1..32; default: the design's numerics.alpha_bits, 32)")
       ->check(CLI::Range(1, 32));
-  run->add_option("--surface-id-bits", ro->num.surface_id_bits, "Surface id register width, bits (1..32, default 32)")
+  run->add_option("--surface-id-bits", ro->num.surface_id_bits,
+                  "Surface id register width, bits (1..32; default: the design's numerics.surface_id_bits, 32)")
       ->check(CLI::Range(1, 32));
   run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
   run->add_option("--fidelity", ro->fidelity,
                   "functional (the golden model, default) or cycle (the cycle-approximate SystemC pipeline)")
       ->check(CLI::IsMember({"functional", "cycle"}));
-  run->add_option("--hw", ro->hw, "cycle: hardware config file (TOML, docs/config.md; default: built-in defaults)")
+  run->add_option(
+         "--hw", ro->hw,
+         "Hardware design file (TOML, docs/config.md; default: built-in defaults); functional: only its [numerics]")
       ->check(CLI::ExistingFile);
-  run->add_option("--hw-set", ro->hw_sets, "cycle: override one parameter, section.key=value; repeatable");
+  run->add_option("--hw-set", ro->hw_sets,
+                  "Override one design parameter, section.key=value; repeatable (functional: numerics.* only)");
   run->add_option("--vcd", ro->vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
   run->add_option("--vcd-window", ro->vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
   run->add_flag("--lockstep", ro->lockstep,

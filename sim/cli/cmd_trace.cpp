@@ -1,10 +1,12 @@
-// `ropsim trace info|validate|dump FILE`: inspect a trace file.
+// `ropsim trace info|validate|dump FILE`: inspect a trace file (info --json:
+// the header and statistics as one JSON object).
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "cli_common.h"
 #include "tile_map.h"
@@ -17,9 +19,10 @@ namespace {
 struct TraceOpts {
   std::string path, out = "-";
   uint64_t dump_limit = UINT64_MAX;
+  bool json = false;
 };
 
-int cmd_trace_info(const std::string& path, bool validate_only) {
+int cmd_trace_info(const std::string& path, bool validate_only, bool json = false) {
   TraceReader r(path);
   Fragment f;
   uint64_t covered = 0;
@@ -43,12 +46,6 @@ int cmd_trace_info(const std::string& path, bool validate_only) {
   }
   const auto& h = r.header();
   const auto file_bytes = std::filesystem::file_size(path);
-  fmt::print("{}\n  scene {}  {}x{}  {} spp\n  depth {}  colour {}  compression {}\n", path, h.scene_name, h.width,
-             h.height, h.spp, to_string(h.depth_mode), to_string(h.color_format), to_string(h.compression));
-  fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered,
-             n ? double(covered) / n : 0.0, n ? max_draw + 1 : 0);
-  fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
-             r.payload_bytes(), n ? double(r.payload_bytes()) / n : 0.0, n ? double(file_bytes) / n : 0.0);
   std::array<uint64_t, 17> hist{};
   uint64_t touched = 0, max_n = 0;
   counts.for_each([&](uint32_t, uint32_t, const Counts& c) {
@@ -59,8 +56,41 @@ int cmd_trace_info(const std::string& path, bool validate_only) {
       max_n = std::max<uint64_t>(max_n, k);
     }
   });
+  const double per_frag = n ? double(covered) / n : 0.0;
+  const double rec_per_frag = n ? double(r.payload_bytes()) / n : 0.0, disk_per_frag = n ? double(file_bytes) / n : 0.0;
+  const double touched_pct = 100.0 * touched / (double(h.width) * h.height);
+  const double mean_n = touched ? double(n) / touched : 0.0;
+  if (json) {
+    nlohmann::ordered_json j;
+    j["file"] = path;
+    j["header"] = nlohmann::ordered_json::parse(header_to_json(h));
+    j["fragments"] = n;
+    j["covered_samples"] = covered;
+    j["covered_samples_per_fragment"] = per_frag;
+    j["draws"] = n ? uint64_t(max_draw) + 1 : 0;
+    j["bytes"] = {{"file", file_bytes},
+                  {"records", r.payload_bytes()},
+                  {"per_fragment_uncompressed", rec_per_frag},
+                  {"per_fragment_on_disk", disk_per_frag}};
+    j["pixels_touched"] = touched;
+    j["pixels_touched_percent"] = touched_pct;
+    j["fragments_per_touched_pixel"] = {{"mean", mean_n}, {"max", max_n}};
+    // Touched pixels by their number of fragments (1 .. 15, and 16 or more).
+    nlohmann::ordered_json hj = nlohmann::ordered_json::object();
+    for (int k = 1; k <= 16; ++k)
+      if (hist[k]) hj[std::to_string(k) + (k == 16 ? "+" : "")] = hist[k];
+    j["depth_complexity_histogram_pixels"] = hj;
+    fmt::print("{}\n", j.dump(2));
+    return 0;
+  }
+  fmt::print("{}\n  scene {}  {}x{}  {} spp\n  depth {}  colour {}  compression {}\n", path, h.scene_name, h.width,
+             h.height, h.spp, to_string(h.depth_mode), to_string(h.color_format), to_string(h.compression));
+  fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered, per_frag,
+             n ? max_draw + 1 : 0);
+  fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
+             r.payload_bytes(), rec_per_frag, disk_per_frag);
   fmt::print("  pixels touched {} ({:.1f}% of the screen), fragments per touched pixel: mean {:.2f}, max {}\n", touched,
-             100.0 * touched / (double(h.width) * h.height), touched ? double(n) / touched : 0.0, max_n);
+             touched_pct, mean_n, max_n);
   std::string hs;
   for (int k = 1; k <= 16; ++k)
     if (hist[k]) hs += fmt::format(" {}{}:{:.1f}%", k, k == 16 ? "+" : "", 100.0 * hist[k] / touched);
@@ -91,6 +121,7 @@ VerbRunner add_trace_command(CLI::App& app) {
   trc->require_subcommand(1);
   CLI::App* tinfo = trc->add_subcommand("info", "Header and statistics (streams the whole trace)");
   tinfo->add_option("FILE", o->path, "Trace file")->required();
+  tinfo->add_flag("--json", o->json, "Print the header and statistics as one JSON object");
   CLI::App* tval = trc->add_subcommand("validate", "Check every record; exit 1 naming the first bad one");
   tval->add_option("FILE", o->path, "Trace file")->required();
   CLI::App* tdump = trc->add_subcommand("dump", "Header and fragments as JSON lines");
@@ -98,7 +129,7 @@ VerbRunner add_trace_command(CLI::App& app) {
   tdump->add_option("--limit", o->dump_limit, "Dump at most this many fragments");
   tdump->add_option("-o,--output", o->out, "File to write (default -: standard output)");
   return [o, tinfo, tval, tdump]() {
-    if (tinfo->parsed()) return cmd_trace_info(o->path, false);
+    if (tinfo->parsed()) return cmd_trace_info(o->path, false, o->json);
     if (tval->parsed()) return cmd_trace_info(o->path, true);
     if (tdump->parsed()) return cmd_trace_dump(o->path, o->out, o->dump_limit);
     return -1;

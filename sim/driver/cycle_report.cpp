@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <map>
+#include <variant>
 
 #include "image_io.h"
 
@@ -148,6 +149,21 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   host.put("fragment_tokens", s.tokens_allocated, "-", "fragment records allocated (bounded by FIFOs and windows)");
 }
 
+void put_hw_resolved(Fields f, const HwConfig& hw, const std::string& prefix) {
+  for_each_hw_value(hw, [&](const ParamInfo& p, const HwValue& v) {
+    const auto dot = p.key.find('.');
+    Fields sec = f.obj(p.key.substr(0, dot));
+    const std::string key = p.key.substr(dot + 1), meaning = prefix + p.meaning;
+    std::visit([&](const auto& x) { sec.put(key, x, p.unit, meaning); }, v);
+  });
+}
+
+nlohmann::ordered_json hw_config_to_json(const HwConfig& hw) {
+  nlohmann::ordered_json j;
+  put_hw_resolved(Fields(j, nullptr), hw);
+  return j;
+}
+
 nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   nlohmann::ordered_json t;
   put_cycle_stats(Fields(t, nullptr), s);
@@ -164,6 +180,12 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
          "cycle: the design file (or \"built-in defaults\"), \"with --hw-set\" when overridden");
   hw.put("resolved_toml", hw_config_to_toml(run.stats.hw), "-",
          "cycle: every hardware parameter as simulated, as TOML");
+  hw.put("overrides", run.stats.hw.overrides, "-",
+         "cycle: the --hw-set assignments applied over the design file, in order, as given");
+  hw.put("digest", hw_digest_hex(run.stats.hw), "-",
+         "cycle: 8 hex digits of FNV-1a 64 over the resolved design (in default output names: -hwDIGEST)");
+  // Each parameter's unit and meaning come from the parameter table (hw_params()).
+  put_hw_resolved(hw.obj("resolved"), run.stats.hw, "cycle: ");
   put_cycle_stats(r.obj("timing"), run.stats);
   Fields host = r.obj("host");
   host.put("sim_seconds", run.sim_seconds, "s", "cycle: sc_start alone");

@@ -14,6 +14,10 @@ namespace ropsim {
 /// The "timing" section: every timing figure with its unit and meaning.
 void put_cycle_stats(Fields t, const CycleStats& s);
 nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s);
+/// Every hardware parameter as an object section -> key -> typed value, each
+/// declared with the unit and meaning of its row in hw_params() (prefixed).
+void put_hw_resolved(Fields f, const HwConfig& hw, const std::string& prefix = "");
+nlohmann::ordered_json hw_config_to_json(const HwConfig& hw);
 /// The bottleneck as one line.
 std::string format_bottleneck(const CycleStats& s);
 /// reference: the A-buffer image when --vs-reference was asked for; with a

@@ -98,6 +98,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
 
   CycleStats& s = run.stats;
   s.hw = hw;
+  s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
   s.period_ps = top->clock().period_ps();
   s.total_cycles = top->total_cycles();
   s.pipeline_cycles = top->pipeline_cycles();
