@@ -241,6 +241,10 @@ Study load_study(const std::string& path) {
       }
       if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
         fail(s, at, "applies to scenes only: the study has trace inputs");
+      if (key.rfind("numerics.", 0) == 0)
+        fail(s, at,
+             "sweep the numerics with the axes hash_bits, alpha_bits and surface_id_bits (they apply to "
+             "both fidelities)");
       any_hw = any_hw || hw;
       s.axes.push_back(std::move(axis));
     }
