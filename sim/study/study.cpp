@@ -47,6 +47,7 @@ constexpr RunParam kRunParams[] = {
     {"height", "scene height, pixels (scenes)"},
     {"scene_seed", "seed of the scene generator (scenes)"},
     {"repeat", "draw the input this many times into one frame"},
+    {"order", "draw order of a mesh input's capture: authored, shuffled, far-to-near, near-to-far"},
 };
 
 bool is_run_param(const std::string& k) {
@@ -102,6 +103,10 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
     int_of(s, at, v, 1, kMaxScreenSide);
   } else if (key == "repeat") {
     int_of(s, at, v, 1, 1000);
+  } else if (key == "order") {
+    DrawOrder o;
+    if (!std::holds_alternative<std::string>(v) || !parse_draw_order(std::get<std::string>(v), o))
+      fail(s, at, to_string(v) + " is not a draw order (authored, shuffled, far-to-near, near-to-far)");
   }
 }
 
@@ -180,7 +185,8 @@ Study load_study(const std::string& path) {
   if (const toml::table* in = t["inputs"].as_table()) {
     for (const auto& [k, node] : *in) {
       const std::string key = "inputs." + std::string(k.str());
-      if (key != "inputs.scenes" && key != "inputs.traces") fail(s, key, "unknown key (scenes, traces)");
+      if (key != "inputs.scenes" && key != "inputs.traces" && key != "inputs.meshes")
+        fail(s, key, "unknown key (scenes, traces, meshes)");
       const toml::array* a = node.as_array();
       if (!a || a->empty()) fail(s, key, "expected a non-empty list of strings");
       for (const auto& e : *a) {
@@ -195,9 +201,18 @@ Study load_study(const std::string& path) {
         } else {
           std::filesystem::path p(*v);
           if (p.is_relative()) p = dir / p;
-          if (!std::filesystem::is_regular_file(p)) fail(s, key, *v + ": no such trace file");
-          si.trace = p.lexically_normal().string();
+          const bool trace = key == "inputs.traces";
+          if (!std::filesystem::is_regular_file(p))
+            fail(s, key, *v + (trace ? ": no such trace file" : ": no such scene file"));
+          (trace ? si.trace : si.mesh) = p.lexically_normal().string();
           si.label = p.stem().string();
+          if (!trace) {
+            try {
+              load_scene_file(si.mesh);  // checked now: a bad scene file runs nothing
+            } catch (const std::exception& e) {
+              fail(s, key, e.what());
+            }
+          }
         }
         if (!labels.insert(si.label).second) fail(s, key, "two inputs are named " + si.label);
         s.inputs.push_back(si);
@@ -205,8 +220,13 @@ Study load_study(const std::string& path) {
     }
   }
   if (s.inputs.empty()) fail(s, "inputs", "a study needs at least one input (inputs.scenes or inputs.traces)");
-  bool has_trace = false;
-  for (const auto& in : s.inputs) has_trace = has_trace || !in.trace.empty();
+  bool has_trace = false, has_mesh = false, has_scene = false;
+  for (const auto& in : s.inputs) {
+    has_trace = has_trace || !in.trace.empty();
+    has_mesh = has_mesh || !in.mesh.empty();
+    has_scene = has_scene || !in.scene.empty();
+  }
+  if (has_mesh && s.reference_spp) fail(s, "study.reference_spp", "applies to built-in scenes only");
   if (has_trace && s.reference_spp) fail(s, "study.reference_spp", "applies to scenes only (a trace's spp is fixed)");
 
   bool any_cycle = false, any_hw = false;
@@ -240,7 +260,9 @@ Study load_study(const std::string& path) {
         if (key == "fidelity" && to_string(v) == "cycle") any_cycle = true;
       }
       if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
-        fail(s, at, "applies to scenes only: the study has trace inputs");
+        fail(s, at, "applies to scenes and meshes only: the study has trace inputs");
+      if (key == "order" && (has_trace || has_scene))
+        fail(s, at, "applies to mesh inputs only (inputs.meshes): the study has other inputs");
       if (key.rfind("numerics.", 0) == 0)
         fail(s, at,
              "sweep the numerics with the axes hash_bits, alpha_bits and surface_id_bits (they apply to "
@@ -315,7 +337,9 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       // The identity: what the input is, every parameter, what the metrics
       // compare against, and the tool that computes them.
       nlohmann::ordered_json id;
-      id["input"] = in.trace.empty() ? "scene:" + in.scene : "trace:" + in.trace;
+      id["input"] = !in.trace.empty()  ? "trace:" + in.trace
+                    : !in.mesh.empty() ? "mesh:" + in.mesh
+                                       : "scene:" + in.scene;
       id["params"] = p.params_json();
       id["reference"] = s.reference;
       id["reference_spp"] = s.reference_spp;
@@ -327,7 +351,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
   return points;
 }
 
-ResolvedPoint resolve_point(const Study& s, const StudyPoint& p) {
+ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   ResolvedPoint r;
   const StudyInput& in = input_of(s, p.input);
   auto get = [&](const char* key) -> const StudyValue* {
@@ -338,7 +362,28 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p) {
     const StudyValue* v = get(key);
     return v ? std::get<int64_t>(*v) : def;
   };
-  if (in.trace.empty()) {
+  if (!in.mesh.empty()) {
+    r.capture_scene = in.mesh;
+    SceneOverrides& o = r.capture_overrides;
+    if (get("spp")) o.spp = int(get_int("spp", 16));
+    if (get("width")) o.width = uint32_t(get_int("width", 0));
+    if (get("height")) o.height = uint32_t(get_int("height", 0));
+    if (get("scene_seed")) o.seed = uint64_t(get_int("scene_seed", 1));
+    if (const StudyValue* v = get("order")) {
+      DrawOrder d;
+      parse_draw_order(std::get<std::string>(*v), d);
+      o.order = d;
+    }
+    nlohmann::ordered_json id;
+    id["mesh"] = in.mesh;
+    id["spp"] = o.spp ? *o.spp : 0;
+    id["width"] = o.width ? *o.width : 0;
+    id["height"] = o.height ? *o.height : 0;
+    id["seed"] = o.seed ? *o.seed : 0;
+    id["order"] = o.order ? to_string(*o.order) : "";
+    r.capture_key = hex16(hash_text(id.dump()));
+    r.input.trace_path = (std::filesystem::path(dir) / "traces" / (r.capture_key + ".rtr")).string();
+  } else if (in.trace.empty()) {
     r.input.scene.name = in.scene;
     r.input.scene.spp = int(get_int("spp", 16));
     r.input.scene.width = uint32_t(get_int("width", 0));
@@ -366,7 +411,9 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p) {
     r.reference_input = r.input;
     if (s.reference_spp) r.reference_input.scene.spp = s.reference_spp;
     nlohmann::ordered_json id;
-    id["input"] = in.trace.empty() ? "scene:" + in.scene : "trace:" + in.trace;
+    id["input"] = !in.trace.empty()  ? "trace:" + in.trace
+                  : !in.mesh.empty() ? "capture:" + r.capture_key
+                                     : "scene:" + in.scene;
     id["spp"] = r.reference_input.scene.spp;
     id["width"] = r.reference_input.scene.width;
     id["height"] = r.reference_input.scene.height;

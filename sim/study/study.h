@@ -13,6 +13,7 @@
 
 #include "driver.h"
 #include "hw_config.h"
+#include "scene_file.h"
 
 namespace ropsim {
 
@@ -21,11 +22,13 @@ using StudyValue = std::variant<int64_t, double, bool, std::string>;
 std::string to_string(const StudyValue& v);
 nlohmann::ordered_json to_json(const StudyValue& v);
 
-/// One input of a study: a built-in scene or a trace file.
+/// One input of a study: a built-in scene, a trace file, or a mesh scene file
+/// captured on demand.
 struct StudyInput {
-  std::string label;  ///< the name the results use: the scene's name, or the trace file's stem
+  std::string label;  ///< the name the results use: the scene's name, or the file's stem
   std::string scene;  ///< a built-in scene, or
-  std::string trace;  ///< a trace file (absolute, resolved against the study file's folder)
+  std::string trace;  ///< a trace file (absolute, resolved against the study file's folder), or
+  std::string mesh;   ///< a mesh scene file (absolute), captured once per resolution, spp, seed and order
 };
 
 struct StudyAxis {
@@ -71,6 +74,9 @@ std::vector<std::string> study_param_keys(const Study& s);
 /// What a point runs: the input, the method, the fidelity and the design.
 /// Throws UserError (e.g. a cache shape only this combination breaks).
 struct ResolvedPoint {
+  std::string capture_key;           ///< mesh inputs: the capture, DIR/traces/<key>.rtr ("" otherwise)
+  std::string capture_scene;         ///< mesh inputs: the scene file
+  SceneOverrides capture_overrides;  ///< mesh inputs: spp, resolution, seed and draw order
   InputSpec input;
   MethodConfig method;
   bool cycle = false;
@@ -78,6 +84,7 @@ struct ResolvedPoint {
   std::string reference_key;  ///< "" when the study has no reference
   InputSpec reference_input;  ///< the input the reference is rendered from
 };
-ResolvedPoint resolve_point(const Study& s, const StudyPoint& p);
+/// dir: the study folder, where a mesh input's capture is (traces/<key>.rtr).
+ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::string& dir = "");
 
 }  // namespace ropsim

@@ -17,6 +17,7 @@
 #include <set>
 #include <sstream>
 
+#include "capture.h"
 #include "cycle_report.h"
 #include "cycle_run.h"
 #include "errors.h"
@@ -33,8 +34,8 @@ namespace {
 // ------------------------------------------------------------------ tasks
 
 struct Task {
-  char kind;     ///< 'r': render a reference, 'p': run a point
-  size_t index;  ///< into refs (the point that names the reference) or points
+  char kind;     ///< 'c': capture a mesh input, 'r': render a reference, 'p': run a point
+  size_t index;  ///< the point (for 'c' and 'r': a point that names the capture or reference)
 };
 
 std::string read_file(const fs::path& p) {
@@ -47,9 +48,19 @@ std::string read_file(const fs::path& p) {
 fs::path point_dir(const std::string& dir, const StudyPoint& p) { return fs::path(dir) / "points" / p.hash; }
 fs::path ref_path(const std::string& dir, const std::string& key) { return fs::path(dir) / "refs" / (key + ".exr"); }
 
+fs::path capture_path(const std::string& dir, const std::string& key) {
+  return fs::path(dir) / "traces" / (key + ".rtr");
+}
+
+/// The capture of a point's mesh input.
+void capture_input(const Study& s, const StudyPoint& p, const std::string& dir) {
+  const ResolvedPoint r = resolve_point(s, p, dir);
+  capture_to_file(load_scene_file(r.capture_scene, r.capture_overrides), capture_path(dir, r.capture_key).string());
+}
+
 /// The reference of a point: the A-buffer on its reference input.
 void render_reference(const Study& s, const StudyPoint& p, const std::string& dir) {
-  const ResolvedPoint r = resolve_point(s, p);
+  const ResolvedPoint r = resolve_point(s, p, dir);
   MethodConfig m = r.method;
   m.method = Method::kReference;
   const FunctionalRun run = run_functional(r.reference_input, m);
@@ -64,7 +75,7 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   const fs::path pd = point_dir(dir, p);
   fs::create_directories(pd);
   write_text_output((pd / "params.json").string(), p.params_json().dump(2) + "\n");
-  const ResolvedPoint r = resolve_point(s, p);
+  const ResolvedPoint r = resolve_point(s, p, dir);
   std::optional<Image> reference;
   if (!r.reference_key.empty()) {
     reference = read_image(ref_path(dir, r.reference_key).string());
@@ -103,7 +114,9 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
     bool ok = true;
     std::string error;
     try {
-      if (kind == 'r')
+      if (kind == 'c')
+        capture_input(s, points.at(index), dir);
+      else if (kind == 'r')
         render_reference(s, points.at(index), dir);
       else
         run_point(s, points.at(index), dir);
@@ -113,8 +126,9 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
     }
     if (!ok) {
       try {
-        const fs::path f = kind == 'r' ? fs::path(dir) / "refs" / (points.at(index).hash + ".error")
-                                       : point_dir(dir, points.at(index)) / "error.txt";
+        const fs::path f = kind == 'c'   ? fs::path(dir) / "traces" / (points.at(index).hash + ".error")
+                           : kind == 'r' ? fs::path(dir) / "refs" / (points.at(index).hash + ".error")
+                                         : point_dir(dir, points.at(index)) / "error.txt";
         fs::create_directories(f.parent_path());
         write_text_output(f.string(), error + "\n");
       } catch (...) {
@@ -307,12 +321,15 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   std::error_code ec;
   fs::create_directories(fs::path(o.out_dir) / "points", ec);
   if (!ec) fs::create_directories(fs::path(o.out_dir) / "refs", ec);
+  if (!ec) fs::create_directories(fs::path(o.out_dir) / "traces", ec);
   if (ec) throw UserError(o.out_dir + ": cannot create the study folder: " + ec.message());
   write_text_output((fs::path(o.out_dir) / "study.toml").string(), read_file(s.path));
 
-  std::vector<size_t> todo;              // point indices to run
-  std::map<std::string, size_t> ref_of;  // reference key -> a point naming it
-  std::map<size_t, std::string> key_of;  // point -> its reference key
+  std::vector<size_t> todo;                  // point indices to run
+  std::map<std::string, size_t> ref_of;      // reference key -> a point naming it
+  std::map<size_t, std::string> key_of;      // point -> its reference key
+  std::map<std::string, size_t> capture_of;  // capture key -> a point naming it
+  std::map<size_t, std::string> capkey_of;   // point -> its capture key
   {
     Db db((fs::path(o.out_dir) / "results.db").string());
     db.set_meta("name", s.name);
@@ -341,7 +358,11 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
       fs::remove(point_dir(o.out_dir, p) / "error.txt");
       // A point the parameters already make impossible fails here.
       try {
-        const ResolvedPoint r = resolve_point(s, p);
+        const ResolvedPoint r = resolve_point(s, p, o.out_dir);
+        if (!r.capture_key.empty()) {
+          capkey_of[p.index] = r.capture_key;
+          if (!fs::exists(capture_path(o.out_dir, r.capture_key))) capture_of.emplace(r.capture_key, p.index);
+        }
         if (!r.reference_key.empty()) {
           key_of[p.index] = r.reference_key;
           if (!fs::exists(ref_path(o.out_dir, r.reference_key))) ref_of.emplace(r.reference_key, p.index);
@@ -358,13 +379,15 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   }
   if (todo.empty()) return sum;
 
-  // The work graph: every missing reference, then the points.
-  std::deque<Task> refs, runs;
+  // The work graph: every missing capture, then every missing reference,
+  // then the points.
+  std::deque<Task> caps, refs, runs;
+  for (const auto& [key, pi] : capture_of) caps.push_back(Task{'c', pi});
   for (const auto& [key, pi] : ref_of) refs.push_back(Task{'r', pi});
   for (size_t pi : todo) runs.push_back(Task{'p', pi});
-  std::set<std::string> failed_refs;
+  std::set<std::string> failed_refs, failed_caps;
 
-  const size_t n_workers = std::max<size_t>(1, std::min<size_t>(o.jobs, refs.size() + runs.size()));
+  const size_t n_workers = std::max<size_t>(1, std::min<size_t>(o.jobs, caps.size() + refs.size() + runs.size()));
   std::vector<Worker> workers(n_workers);
   std::fflush(nullptr);
   for (auto& w : workers) {
@@ -407,25 +430,49 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
                  tty && !final ? "   " : "\n");
   };
 
+  auto busy_with = [&](char kind) {
+    for (const auto& w : workers)
+      if (w.busy && w.busy->kind == kind) return true;
+    return false;
+  };
+  // Why task t cannot run: its capture (or, for a point, its reference) failed.
+  auto broken = [&](const Task& t) -> std::string {
+    auto c = capkey_of.find(t.index);
+    if (c != capkey_of.end() && failed_caps.count(c->second))
+      return "its capture failed: " +
+             read_file(fs::path(o.out_dir) / "traces" / (points[capture_of[c->second]].hash + ".error"));
+    auto k = key_of.find(t.index);
+    if (t.kind == 'p' && k != key_of.end() && failed_refs.count(k->second))
+      return "its reference failed: " +
+             read_file(fs::path(o.out_dir) / "refs" / (points[ref_of[k->second]].hash + ".error"));
+    return "";
+  };
   auto next_task = [&]() -> std::optional<Task> {
-    if (!refs.empty()) {
-      Task t = refs.front();
-      refs.pop_front();
+    if (!caps.empty()) {
+      Task t = caps.front();
+      caps.pop_front();
       return t;
     }
-    // The points wait until every reference is rendered.
-    for (const auto& w : workers)
-      if (w.busy && w.busy->kind == 'r') return std::nullopt;
+    // References wait for the captures, points for both.
+    if (busy_with('c')) return std::nullopt;
+    while (!refs.empty()) {
+      Task t = refs.front();
+      refs.pop_front();
+      if (!broken(t).empty()) {
+        failed_refs.insert(key_of[t.index]);
+        continue;
+      }
+      return t;
+    }
+    if (busy_with('r')) return std::nullopt;
     while (!runs.empty()) {
       Task t = runs.front();
       runs.pop_front();
-      auto k = key_of.find(t.index);
-      if (k != key_of.end() && failed_refs.count(k->second)) {
+      if (std::string e = broken(t); !e.empty()) {
+        while (!e.empty() && e.back() == '\n') e.pop_back();
         const StudyPoint& p = points[t.index];
-        const std::string e = "its reference failed: " +
-                              read_file(fs::path(o.out_dir) / "refs" / (points[ref_of[k->second]].hash + ".error"));
         fs::create_directories(point_dir(o.out_dir, p));
-        write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), e);
+        write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), e + "\n");
         db.put_row(row_of(p, "failed", e, nullptr));
         ++sum.failed;
         ++done_now;
@@ -446,6 +493,10 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   };
   auto finish = [&](const Task& t, bool ok) {
     const StudyPoint& p = points[t.index];
+    if (t.kind == 'c') {
+      if (!ok) failed_caps.insert(capkey_of[t.index]);
+      return;
+    }
     if (t.kind == 'r') {
       if (!ok) failed_refs.insert(key_of[t.index]);
       return;
