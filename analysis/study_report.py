@@ -374,7 +374,9 @@ def section_axes(rep, df, params):
     metrics = [(c, t) for c, t in KEY_METRICS if num(ok, c).notna().any()]
     has_method = "method" in ok.columns
     inputs = list(pd.unique(ok["input"])) if "input" in ok.columns else [None]
-    styles = ["-", "--", ":", "-."]
+    styles = ["-", "--", ":", "-."]  # one per input; the colour is the method's
+    methods = list(pd.unique(ok["method"])) if has_method else []
+    colours = plt.get_cmap("tab10")
     for p in numeric:
         fig, axes = plt.subplots(1, len(metrics), figsize=(4.2 * len(metrics), 3.6), squeeze=False)
         for ax, (col, title) in zip(axes[0], metrics):
@@ -387,7 +389,8 @@ def section_axes(rep, df, params):
                 for m, g in (s.groupby("method", sort=False) if has_method else [("points", s)]):
                     g = g.groupby("_x")["_y"].mean()
                     lab = f"{m}" + (f" · {inp}" if len(inputs) > 1 else "")
-                    ax.plot(g.index, g.values, "o" + styles[ii % len(styles)], label=lab, ms=4)
+                    colour = colours(methods.index(m) % 10) if m in methods else None
+                    ax.plot(g.index, g.values, "o" + styles[ii % len(styles)], label=lab, ms=4, color=colour)
             ax.set_xlabel(p)
             ax.set_title(title, fontsize=10)
             ax.grid(alpha=.3)
