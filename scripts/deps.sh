@@ -7,7 +7,8 @@ ROPSIM_PACKAGES=(
   libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libzstd-dev
   libtomlplusplus-dev libassimp-dev libosmesa6-dev libsqlite3-dev
-  clang-format python3-numpy python3-matplotlib
+  clang-format python3-numpy python3-matplotlib python3-pandas
+  chromium
 )
 missing=()
 for p in "${ROPSIM_PACKAGES[@]}"; do

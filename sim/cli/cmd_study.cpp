@@ -1,11 +1,17 @@
 // `ropsim study`: run a what-if study (docs/studies.md) on this machine, list
-// its points, or export its results.
+// its points, export its results, or write its HTML report (which is drawn by
+// analysis/study_report.py on Debian's /usr/bin/python3).
 #include <fmt/format.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <memory>
 #include <thread>
+#include <vector>
 
 #include "cli_common.h"
 #include "study.h"
@@ -43,6 +49,49 @@ int cmd_study_points(const StudyOpts& o) {
   return 0;
 }
 
+#ifndef ROPSIM_SOURCE_DIR
+#define ROPSIM_SOURCE_DIR ""
+#endif
+
+constexpr const char* kPython = "/usr/bin/python3";
+
+/// analysis/study_report.py next to the executable (<exe dir>/../analysis:
+/// the source tree for build/ropsim), else in the source tree it was built from.
+std::string study_report_script() {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> tried;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) tried.push_back(exe.parent_path().parent_path() / "analysis" / "study_report.py");
+  if (*ROPSIM_SOURCE_DIR) tried.push_back(fs::path(ROPSIM_SOURCE_DIR) / "analysis" / "study_report.py");
+  for (const auto& p : tried)
+    if (fs::is_regular_file(p, ec)) return p.lexically_normal().string();
+  std::string where;
+  for (const auto& p : tried) where += (where.empty() ? "" : ", ") + p.lexically_normal().string();
+  throw UserError("study report: analysis/study_report.py not found (looked for " + where + ")");
+}
+
+int cmd_study_report(const StudyOpts& o) {
+  const std::string script = study_report_script();
+  if (::access(kPython, X_OK) != 0)
+    throw UserError(std::string("study report: ") + kPython + ": " + std::strerror(errno) +
+                    " (install python3-pandas and python3-matplotlib: scripts/deps.sh)");
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw UserError(std::string("study report: fork: ") + std::strerror(errno));
+  if (pid == 0) {
+    ::execl(kPython, kPython, script.c_str(), o.dir.c_str(), static_cast<char*>(nullptr));
+    std::fprintf(stderr, "ropsim: error: study report: %s: %s\n", kPython, std::strerror(errno));
+    ::_exit(1);
+  }
+  int st = 0;
+  while (::waitpid(pid, &st, 0) < 0)
+    if (errno != EINTR) throw UserError(std::string("study report: waitpid: ") + std::strerror(errno));
+  if (WIFEXITED(st)) return WEXITSTATUS(st);
+  throw UserError(fmt::format("study report: {} was killed by signal {}", script, WTERMSIG(st)));
+}
+
 }  // namespace
 
 VerbRunner add_study_command(CLI::App& app) {
@@ -60,7 +109,9 @@ VerbRunner add_study_command(CLI::App& app) {
   CLI::App* exp = st->add_subcommand("export", "Write a study folder's results as CSV");
   exp->add_option("DIR", o->dir, "Study folder")->required();
   exp->add_option("--csv", o->csv, "CSV file to write (- for standard output)")->required();
-  return [o, st, run, pts, exp]() {
+  CLI::App* rep = st->add_subcommand("report", "Write a study folder's HTML report and Markdown summary (DIR/report)");
+  rep->add_option("DIR", o->dir, "Study folder")->required();
+  return [o, st, run, pts, exp, rep]() {
     if (!st->parsed()) return -1;
     if (run->parsed()) return cmd_study_run(*o);
     if (pts->parsed()) return cmd_study_points(*o);
@@ -68,6 +119,7 @@ VerbRunner add_study_command(CLI::App& app) {
       export_study_csv(o->dir, o->csv);
       return 0;
     }
+    if (rep->parsed()) return cmd_study_report(*o);
     return -1;
   };
 }
