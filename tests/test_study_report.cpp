@@ -227,3 +227,25 @@ TEST(StudyReport, AFolderThatIsNotAStudyIsAOneLineError) {
     EXPECT_FALSE(fs::exists(s.dir / d / "report")) << d;
   }
 }
+
+// The built-in smoke study (studies/smoke.toml), end to end as CI runs it:
+// every point ok in the database, the CSV export, the report rendering in
+// headless Chromium.
+TEST(StudyReport, TheBuiltInSmokeStudyRunsEndToEnd) {
+  Scratch s;
+  const Ran run = ropsim(s.dir, "study run '" ROPSIM_SOURCE_DIR "/studies/smoke.toml' --out st -j 2 --quiet");
+  ASSERT_EQ(run.status, 0) << run.err << run.out;
+  const Ran csv = ropsim(s.dir, "study export st --csv st.csv");
+  ASSERT_EQ(csv.status, 0) << csv.err;
+  const std::string table = slurp(s.dir / "st.csv");
+  EXPECT_EQ(count(table, "\n"), 61u) << "a header and 60 points";
+  EXPECT_EQ(count(table, ",ok,"), 60u) << "every point ok";
+  const Ran rep = ropsim(s.dir, "study report st");
+  ASSERT_EQ(rep.status, 0) << rep.err << rep.out;
+  const size_t images = count(slurp(s.dir / "st" / "report" / "index.html"), "<img");
+  EXPECT_GE(images, 8u) << "quality against cost, parameters, bottlenecks and image strips";
+  const std::string page = check_report(s.dir, s.dir / "st", images,
+                                        {"Study smoke", "Points", "Quality against cost", "Parameters against metrics",
+                                         "Bottlenecks and stall reasons", "Image strips"});
+  EXPECT_NE(page.find("60 points: 60 ok, 0 failed"), std::string::npos);
+}
