@@ -244,7 +244,7 @@ Study load_study(const std::string& path) {
       if (!run && !hw)
         fail(s, at,
              "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
-             "surface_id_bits, width, height, scene_seed, repeat; or a hardware key: ropsim config --markdown)");
+             "surface_id_bits, width, height, scene_seed, repeat, order; or a hardware key: ropsim config --markdown)");
       StudyAxis axis{key, {}};
       if (const toml::array* a = node.as_array()) {
         if (a->empty()) fail(s, at, "an axis needs at least one value");
