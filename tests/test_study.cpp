@@ -329,3 +329,42 @@ height = 60
     if (row.at("method") == "lk") written[row.at("order")] = std::stol(row.at("counters.samples_written"));
   EXPECT_LT(written["near-to-far"], written["far-to-near"]);
 }
+
+// The tasks of a study run one by one in separate processes (as another
+// executor's jobs do: `study plan`, `study task`, `study collect`) give the
+// results of `study run`.
+TEST(Study, TasksRunOneByOneAndCollectedEqualAStudyRun) {
+  Scratch s;
+  s.put("small.toml", kSmall);
+  ASSERT_EQ(ropsim(s.dir, "study run small.toml --out whole -j 2 --quiet").status, 0);
+  const Ran plan = ropsim(s.dir, "study plan small.toml --out tasks");
+  ASSERT_EQ(plan.status, 0) << plan.err;
+  // {"...","references":[a,b],"runs":[...]}: run every reference, then every point.
+  auto list = [&](const std::string& key) {
+    std::vector<size_t> v;
+    const size_t at = plan.out.find("\"" + key + "\":[");
+    EXPECT_NE(at, std::string::npos) << plan.out;
+    std::istringstream in(plan.out.substr(at + key.size() + 4));
+    for (size_t x; in >> x;) {
+      v.push_back(x);
+      if (in.peek() != ',') break;
+      in.ignore();
+    }
+    return v;
+  };
+  const auto refs = list("references"), runs = list("runs");
+  EXPECT_EQ(refs.size(), 4u) << "2 inputs x 2 spp";
+  EXPECT_EQ(runs.size(), 24u);
+  for (size_t r : refs)
+    ASSERT_EQ(ropsim(s.dir, "study task small.toml --out tasks --kind r --index " + std::to_string(r)).status, 0);
+  for (size_t i = 0; i + 1 < runs.size(); ++i)  // all but the last
+    ASSERT_EQ(ropsim(s.dir, "study task small.toml --out tasks --kind p --index " + std::to_string(runs[i])).status, 0);
+  const Ran partial = ropsim(s.dir, "study collect tasks");
+  EXPECT_EQ(partial.status, 1) << "a point is not run yet";
+  EXPECT_NE(partial.out.find("23 done, 0 failed, 1 not run yet"), std::string::npos) << partial.out;
+  ASSERT_EQ(ropsim(s.dir, "study task small.toml --out tasks --kind p --index " + std::to_string(runs.back())).status,
+            0);
+  const Ran all = ropsim(s.dir, "study collect tasks");
+  EXPECT_EQ(all.status, 0) << all.out;
+  EXPECT_EQ(model_results(export_rows(s.dir, "tasks")), model_results(export_rows(s.dir, "whole")));
+}

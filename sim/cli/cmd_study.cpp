@@ -22,15 +22,61 @@ namespace ropsim {
 namespace {
 
 struct StudyOpts {
-  std::string file, out, dir, csv;
+  std::string file, out, dir, csv, kind;
   unsigned jobs = 0;
+  size_t index = 0;
   bool retry_failed = false, quiet = false;
 };
+
+std::string out_dir(const StudyOpts& o, const Study& s) { return o.out.empty() ? "out/study/" + s.name : o.out; }
+
+/// `study plan`: records what the folder holds, prints what is left as JSON.
+int cmd_study_plan(const StudyOpts& o) {
+  const Study s = load_study(o.file);
+  StudyRunOptions ro;
+  ro.out_dir = out_dir(o, s);
+  ro.retry_failed = o.retry_failed;
+  StudySummary sum;
+  const StudyPlan plan = plan_study(s, ro, sum);
+  nlohmann::ordered_json j;
+  j["study"] = s.name;
+  j["folder"] = ro.out_dir;
+  j["points"] = sum.points;
+  j["done"] = sum.reused;
+  j["failed"] = sum.failed;
+  j["captures"] = plan.captures;
+  j["references"] = plan.references;
+  j["runs"] = plan.points;
+  fmt::print("{}\n", j.dump());
+  return 0;
+}
+
+/// `study task`: one capture, reference or point, in this process.
+int cmd_study_task(const StudyOpts& o) {
+  const Study s = load_study(o.file);
+  const std::string dir = out_dir(o, s);
+  if (run_study_task(s, o.kind[0], o.index, dir)) return 0;
+  std::fprintf(stderr, "ropsim: error: study task %s %zu failed (its error file holds why)\n", o.kind.c_str(), o.index);
+  return 1;
+}
+
+/// `study collect`: records every finished task's result in the database.
+int cmd_study_collect(const StudyOpts& o) {
+  const Study s = load_study(study_file_of(o.dir));
+  StudyRunOptions ro;
+  ro.out_dir = o.dir;
+  StudySummary sum;
+  const StudyPlan plan = plan_study(s, ro, sum);
+  fmt::print("study {}: {} points: {} done, {} failed, {} not run yet; results in {}/results.db\n", s.name, sum.points,
+             sum.reused, sum.failed, plan.points.size(), o.dir);
+  for (const auto& [point, error] : sum.failures) fmt::print("  failed: {}: {}\n", point, error);
+  return sum.failed || !plan.points.empty() ? 1 : 0;
+}
 
 int cmd_study_run(const StudyOpts& o) {
   const Study s = load_study(o.file);  // a bad file is refused before anything runs
   StudyRunOptions ro;
-  ro.out_dir = o.out.empty() ? "out/study/" + s.name : o.out;
+  ro.out_dir = out_dir(o, s);
   ro.jobs = o.jobs ? o.jobs : std::max(1u, std::thread::hardware_concurrency());
   ro.retry_failed = o.retry_failed;
   ro.progress = !o.quiet;
@@ -109,9 +155,23 @@ VerbRunner add_study_command(CLI::App& app) {
   CLI::App* exp = st->add_subcommand("export", "Write a study folder's results as CSV");
   exp->add_option("DIR", o->dir, "Study folder")->required();
   exp->add_option("--csv", o->csv, "CSV file to write (- for standard output)")->required();
+  CLI::App* plan = st->add_subcommand("plan", "Record what a study folder holds; print the tasks left as JSON");
+  plan->add_option("STUDY", o->file, "Study file (TOML)")->required();
+  plan->add_option("--out", o->out, "Study folder (default out/study/NAME)");
+  plan->add_flag("--retry-failed", o->retry_failed, "Plan the points whose error is recorded again");
+  CLI::App* task = st->add_subcommand("task", "Run one task of a study in this process (for other executors)");
+  task->add_option("STUDY", o->file, "Study file (TOML)")->required();
+  task->add_option("--out", o->out, "Study folder (default out/study/NAME)");
+  task->add_option("--kind", o->kind, "c (capture), r (reference) or p (point)")
+      ->required()
+      ->check(CLI::IsMember({"c", "r", "p"}));
+  task->add_option("--index", o->index, "The point (for c and r: the point that names the capture or reference)")
+      ->required();
+  CLI::App* col = st->add_subcommand("collect", "Record every finished task of a study folder in its database");
+  col->add_option("DIR", o->dir, "Study folder")->required();
   CLI::App* rep = st->add_subcommand("report", "Write a study folder's HTML report and Markdown summary (DIR/report)");
   rep->add_option("DIR", o->dir, "Study folder")->required();
-  return [o, st, run, pts, exp, rep]() {
+  return [o, st, run, pts, exp, rep, plan, task, col]() {
     if (!st->parsed()) return -1;
     if (run->parsed()) return cmd_study_run(*o);
     if (pts->parsed()) return cmd_study_points(*o);
@@ -120,6 +180,9 @@ VerbRunner add_study_command(CLI::App& app) {
       return 0;
     }
     if (rep->parsed()) return cmd_study_report(*o);
+    if (plan->parsed()) return cmd_study_plan(*o);
+    if (task->parsed()) return cmd_study_task(*o);
+    if (col->parsed()) return cmd_study_collect(*o);
     return -1;
   };
 }

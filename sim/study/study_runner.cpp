@@ -105,42 +105,6 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
 
 /// A worker process: reads tasks ("r N" or "p N") from in_fd, answers
 /// "N ok" or "N fail" on out_fd; the error goes to the task's error file.
-[[noreturn]] void worker_main(const Study& s, const std::vector<StudyPoint>& points, const std::string& dir, int in_fd,
-                              int out_fd) {
-  FILE* in = fdopen(in_fd, "r");
-  char kind = 0;
-  size_t index = 0;
-  while (in && std::fscanf(in, " %c %zu", &kind, &index) == 2) {
-    bool ok = true;
-    std::string error;
-    try {
-      if (kind == 'c')
-        capture_input(s, points.at(index), dir);
-      else if (kind == 'r')
-        render_reference(s, points.at(index), dir);
-      else
-        run_point(s, points.at(index), dir);
-    } catch (const std::exception& e) {
-      ok = false;
-      error = e.what();
-    }
-    if (!ok) {
-      try {
-        const fs::path f = kind == 'c'   ? fs::path(dir) / "traces" / (points.at(index).hash + ".error")
-                           : kind == 'r' ? fs::path(dir) / "refs" / (points.at(index).hash + ".error")
-                                         : point_dir(dir, points.at(index)) / "error.txt";
-        fs::create_directories(f.parent_path());
-        write_text_output(f.string(), error + "\n");
-      } catch (...) {
-      }
-    }
-    const std::string reply = fmt::format("{} {} {}\n", kind, index, ok ? "ok" : "fail");
-    if (::write(out_fd, reply.data(), reply.size()) != ssize_t(reply.size())) break;
-  }
-  std::fflush(nullptr);
-  _exit(0);
-}
-
 // ------------------------------------------------------------------ database
 
 class Db {
@@ -314,9 +278,10 @@ struct Worker {
 
 }  // namespace
 
-StudySummary run_study(const Study& s, const StudyRunOptions& o) {
+StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum) {
   const std::vector<StudyPoint> points = expand_study(s);
-  StudySummary sum;
+  StudyPlan plan;
+  sum = StudySummary{};
   sum.points = points.size();
   std::error_code ec;
   fs::create_directories(fs::path(o.out_dir) / "points", ec);
@@ -324,60 +289,116 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   if (!ec) fs::create_directories(fs::path(o.out_dir) / "traces", ec);
   if (ec) throw UserError(o.out_dir + ": cannot create the study folder: " + ec.message());
   write_text_output((fs::path(o.out_dir) / "study.toml").string(), read_file(s.path));
-
-  std::vector<size_t> todo;                  // point indices to run
-  std::map<std::string, size_t> ref_of;      // reference key -> a point naming it
-  std::map<size_t, std::string> key_of;      // point -> its reference key
-  std::map<std::string, size_t> capture_of;  // capture key -> a point naming it
-  std::map<size_t, std::string> capkey_of;   // point -> its capture key
-  {
-    Db db((fs::path(o.out_dir) / "results.db").string());
-    db.set_meta("name", s.name);
-    db.set_meta("file", s.path);
-    db.set_meta("points", std::to_string(points.size()));
-    auto status = db.statuses();
-    for (const auto& p : points) {
-      auto it = status.find(p.hash);
-      const bool failed = it != status.end() && it->second != "ok";
-      if (it != status.end() && !(failed && o.retry_failed)) {
-        ++(failed ? sum.failed : sum.reused);
-        if (failed) sum.failures.emplace_back(describe(p), "(recorded before)");
-        continue;
-      }
-      if (failed) fs::remove(point_dir(o.out_dir, p) / "error.txt");
-      // A point finished by a run that was killed before recording it.
-      if (!failed && record_from_folder(db, o.out_dir, p)) {
-        if (fs::exists(point_dir(o.out_dir, p) / "report.json")) {
-          ++sum.reused;
-        } else {
-          ++sum.failed;
-          sum.failures.emplace_back(describe(p), read_file(point_dir(o.out_dir, p) / "error.txt"));
-        }
-        continue;
-      }
-      fs::remove(point_dir(o.out_dir, p) / "error.txt");
-      // A point the parameters already make impossible fails here.
-      try {
-        const ResolvedPoint r = resolve_point(s, p, o.out_dir);
-        if (!r.capture_key.empty()) {
-          capkey_of[p.index] = r.capture_key;
-          if (!fs::exists(capture_path(o.out_dir, r.capture_key))) capture_of.emplace(r.capture_key, p.index);
-        }
-        if (!r.reference_key.empty()) {
-          key_of[p.index] = r.reference_key;
-          if (!fs::exists(ref_path(o.out_dir, r.reference_key))) ref_of.emplace(r.reference_key, p.index);
-        }
-        todo.push_back(p.index);
-      } catch (const std::exception& e) {
-        fs::create_directories(point_dir(o.out_dir, p));
-        write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), std::string(e.what()) + "\n");
-        db.put_row(row_of(p, "failed", e.what(), nullptr));
+  std::map<std::string, size_t> ref_of, capture_of;  // key -> the first point naming it
+  Db db((fs::path(o.out_dir) / "results.db").string());
+  db.set_meta("name", s.name);
+  db.set_meta("file", s.path);
+  db.set_meta("points", std::to_string(points.size()));
+  auto status = db.statuses();
+  for (const auto& p : points) {
+    auto it = status.find(p.hash);
+    const bool failed = it != status.end() && it->second != "ok";
+    if (it != status.end() && !(failed && o.retry_failed)) {
+      ++(failed ? sum.failed : sum.reused);
+      if (failed) sum.failures.emplace_back(describe(p), "(recorded before)");
+      continue;
+    }
+    if (failed) fs::remove(point_dir(o.out_dir, p) / "error.txt");
+    // A point finished by a run that was killed before recording it, or by
+    // another executor's task.
+    if (!failed && record_from_folder(db, o.out_dir, p)) {
+      if (fs::exists(point_dir(o.out_dir, p) / "report.json")) {
+        ++sum.reused;
+      } else {
         ++sum.failed;
-        sum.failures.emplace_back(describe(p), e.what());
+        sum.failures.emplace_back(describe(p), read_file(point_dir(o.out_dir, p) / "error.txt"));
       }
+      continue;
+    }
+    fs::remove(point_dir(o.out_dir, p) / "error.txt");
+    // A point the parameters already make impossible fails here.
+    try {
+      const ResolvedPoint r = resolve_point(s, p, o.out_dir);
+      if (!r.capture_key.empty() && !fs::exists(capture_path(o.out_dir, r.capture_key)) &&
+          capture_of.emplace(r.capture_key, p.index).second)
+        plan.captures.push_back(p.index);
+      if (!r.reference_key.empty() && !fs::exists(ref_path(o.out_dir, r.reference_key)) &&
+          ref_of.emplace(r.reference_key, p.index).second)
+        plan.references.push_back(p.index);
+      plan.points.push_back(p.index);
+    } catch (const std::exception& e) {
+      fs::create_directories(point_dir(o.out_dir, p));
+      write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), std::string(e.what()) + "\n");
+      db.put_row(row_of(p, "failed", e.what(), nullptr));
+      ++sum.failed;
+      sum.failures.emplace_back(describe(p), e.what());
     }
   }
-  if (todo.empty()) return sum;
+  return plan;
+}
+
+bool run_study_task(const Study& s, char kind, size_t point_index, const std::string& dir) {
+  const std::vector<StudyPoint> points = expand_study(s);
+  if (point_index >= points.size()) throw UserError(fmt::format("{}: no point {}", s.path, point_index));
+  const StudyPoint& p = points[point_index];
+  try {
+    if (kind == 'c')
+      capture_input(s, p, dir);
+    else if (kind == 'r')
+      render_reference(s, p, dir);
+    else if (kind == 'p')
+      run_point(s, p, dir);
+    else
+      throw UserError(std::string("study task: unknown kind ") + kind + " (c, r or p)");
+    return true;
+  } catch (const std::exception& e) {
+    const fs::path f = kind == 'c'   ? fs::path(dir) / "traces" / (p.hash + ".error")
+                       : kind == 'r' ? fs::path(dir) / "refs" / (p.hash + ".error")
+                                     : point_dir(dir, p) / "error.txt";
+    fs::create_directories(f.parent_path());
+    write_text_output(f.string(), std::string(e.what()) + "\n");
+    return false;
+  }
+}
+
+namespace {
+
+/// A worker process: reads tasks ("c N", "r N" or "p N") from in_fd, answers
+/// "N ok" or "N fail" on out_fd; the error goes to the task's error file.
+[[noreturn]] void worker_main(const Study& s, const std::string& dir, int in_fd, int out_fd) {
+  FILE* in = fdopen(in_fd, "r");
+  char kind = 0;
+  size_t index = 0;
+  while (in && std::fscanf(in, " %c %zu", &kind, &index) == 2) {
+    bool ok = false;
+    try {
+      ok = run_study_task(s, kind, index, dir);
+    } catch (...) {
+    }
+    const std::string reply = fmt::format("{} {} {}\n", kind, index, ok ? "ok" : "fail");
+    if (::write(out_fd, reply.data(), reply.size()) != ssize_t(reply.size())) break;
+  }
+  std::fflush(nullptr);
+  _exit(0);
+}
+
+}  // namespace
+
+StudySummary run_study(const Study& s, const StudyRunOptions& o) {
+  const std::vector<StudyPoint> points = expand_study(s);
+  StudySummary sum;
+  const StudyPlan plan = plan_study(s, o, sum);
+  if (plan.points.empty()) return sum;
+  std::map<std::string, size_t> ref_of, capture_of;  // key -> the point whose task makes it
+  std::map<size_t, std::string> key_of, capkey_of;   // point -> its reference and capture keys
+  for (size_t pi : plan.points) {
+    const ResolvedPoint r = resolve_point(s, points[pi], o.out_dir);
+    if (!r.reference_key.empty()) key_of[pi] = r.reference_key;
+    if (!r.capture_key.empty()) capkey_of[pi] = r.capture_key;
+  }
+  for (size_t pi : plan.references) ref_of[key_of[pi]] = pi;
+  for (size_t pi : plan.captures) capture_of[capkey_of[pi]] = pi;
+  const std::vector<size_t>& todo = plan.points;
 
   // The work graph: every missing capture, then every missing reference,
   // then the points.
@@ -403,7 +424,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
           ::close(other.to);
           ::close(other.from);
         }
-      worker_main(s, points, o.out_dir, down[0], up[1]);
+      worker_main(s, o.out_dir, down[0], up[1]);
     }
     ::close(down[0]);
     ::close(up[1]);
@@ -577,6 +598,18 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   }
   progress(true);
   return sum;
+}
+
+std::string study_file_of(const std::string& dir) {
+  const fs::path db_path = fs::path(dir) / "results.db";
+  if (!fs::exists(db_path)) throw UserError(dir + ": not a study folder (no results.db)");
+  Db db(db_path.string());
+  sqlite3_stmt* st = db.prepare("SELECT value FROM study WHERE key = 'file'");
+  std::string file;
+  if (sqlite3_step(st) == SQLITE_ROW) file = reinterpret_cast<const char*>(sqlite3_column_text(st, 0));
+  sqlite3_finalize(st);
+  if (file.empty()) throw UserError(dir + ": the database does not name its study file");
+  return file;
 }
 
 void export_study_csv(const std::string& dir, const std::string& csv_path) {

@@ -27,10 +27,28 @@ struct StudySummary {
   std::vector<std::pair<std::string, std::string>> failures;  ///< (point hash and parameters, error)
 };
 
+/// What a study folder still needs, as point indices: the captures and the
+/// references to make (each named by its first point), then the points to run.
+struct StudyPlan {
+  std::vector<size_t> captures, references, points;
+};
+/// Creates the folder, records in the database every point whose folder holds
+/// its result or its error (a killed run's, or another executor's tasks'), and
+/// returns what is left. `sum` gets the points recorded.
+StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum);
+
+/// Runs one task in this process: 'c' the capture, 'r' the reference or 'p'
+/// the point named by point_index. Returns false when it failed (its error
+/// written to the task's error file); throws UserError for a bad index or kind.
+bool run_study_task(const Study& s, char kind, size_t point_index, const std::string& dir);
+
 /// Runs the points of s that the folder does not hold yet. A point that fails
 /// records its error and the others go on. Throws UserError when the folder
 /// cannot be used.
 StudySummary run_study(const Study& s, const StudyRunOptions& o);
+
+/// The study file a study folder was made from (its database records it).
+std::string study_file_of(const std::string& dir);
 
 /// Writes the results table of a study folder as CSV: one row per point, one
 /// column per parameter and metric (the report JSON left out). Throws UserError.
