@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Quick start 1/2: installs what is missing, builds Release, runs the default
 # scene (cloth, 16 spp) with the main methods and writes images and reports
-# under out/demo/.
+# under out/demo/; then the smoke study (out/study/smoke, report/index.html).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$root/scripts/build.sh"
@@ -30,3 +30,8 @@ done
 echo
 echo "wrote under $out:"
 ls -1 "$out" | sed 's/^/  /'
+# A what-if study: every method x 2 spp x both fidelities x 2 ROP-unit counts on
+# two scenes, on every core, into a database, with its HTML report.
+echo
+"$ropsim" study run "$root/studies/smoke.toml" --out "$root/out/study/smoke" --quiet
+"$ropsim" study report "$root/out/study/smoke"
