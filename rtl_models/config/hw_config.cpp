@@ -168,13 +168,22 @@ std::string value_to_string(const Param& p, HwConfig& c) {
   return os.str();
 }
 
+/// A whole number as an integer (1073741824), else the fewest digits that
+/// read back as v (0.01, 1e+30).
+std::string shortest(double v) {
+  if (v == std::floor(v) && std::fabs(v) < 1e15) return std::to_string(int64_t(v));
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
 std::string range_of(const Param& p) {
   std::ostringstream os;
   switch (p.kind) {
     case Kind::kU32:
     case Kind::kInt:
     case Kind::kReal:
-      os << p.lo << " .. " << p.hi << (p.pow2 ? ", power of two" : "");
+      os << shortest(p.lo) << " .. " << shortest(p.hi) << (p.pow2 ? ", power of two" : "");
       break;
     case Kind::kBool:
       os << "true, false";
