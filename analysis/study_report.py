@@ -358,6 +358,50 @@ def section_quality(rep, df, params):
                   caption="The Pareto front: points no other point of the same input beats in both cost and RMSE.")
 
 
+def section_equal_quality(rep, df, params):
+    """For target RMSEs, the smallest spp at which each curve reaches them and its cost there."""
+    rep.heading(2, "Equal quality", "equal-quality")
+    ok = df[(df["status"] == "ok")].copy()
+    ok["_rmse"] = num(ok, RMSE)
+    ok = ok[ok["_rmse"].notna()]
+    if ok.empty or "spp" not in ok.columns or ok["spp"].nunique() < 2:
+        rep.para("The equal-quality table needs an RMSE against a reference and at least two spp values.")
+        return
+    cyc = is_cycle(ok)
+    ok["_dram"] = num(ok, DRAM_R) + num(ok, DRAM_W)
+    ok["_state"] = num(ok, STATE_R) + num(ok, STATE_W)
+    ok["_cycles"] = num(ok, CYCLES)
+    sub, costs = (ok[cyc], [("_cycles", "cycles"), ("_dram", "DRAM bytes")]) if cyc.any() else \
+        (ok[~cyc], [("_state", "state bytes")])
+    keys = curve_key(params, sub)
+    rows = []
+    inputs = list(pd.unique(sub["input"])) if "input" in sub.columns else [None]
+    for inp in inputs:
+        s = sub if inp is None else sub[sub["input"] == inp]
+        agg = s.groupby(keys + ["spp"], dropna=False)[["_rmse"] + [c for c, _ in costs]].mean().reset_index()
+        best = agg.groupby("spp")["_rmse"].min().sort_index()
+        # The targets: what the best curve reaches at each spp (rounded up a little).
+        targets = sorted({float(f"{v * 1.02:.3g}") for v in best.to_numpy(float)}, reverse=True)[:6]
+        groups = agg.groupby(keys if len(keys) > 1 else keys[0], sort=False) if keys else [((), agg)]
+        for t in targets:
+            for gk, g in groups:
+                g = g.sort_values("spp")
+                hit = g[g["_rmse"] <= t]
+                label = label_of(keys, gk)
+                if hit.empty:
+                    rows.append([fmt_value(inp), t, label, "not reached", round(float(g["_rmse"].min()), 3)] +
+                                ["" for _ in costs])
+                else:
+                    r = hit.iloc[0]
+                    rows.append([fmt_value(inp), t, label, fmt_value(r["spp"]), round(float(r["_rmse"]), 3)] +
+                                [int(round(float(r[c]))) for c, _ in costs])
+    fidelity = "cycle" if cyc.any() else "functional"
+    rep.table(["input", "target RMSE", "curve", "spp", "RMSE there"] + [w for _, w in costs], rows,
+              caption=f"For each target RMSE (8-bit units; what the best curve reaches at each spp), the smallest "
+                      f"spp at which each curve reaches it and its cost there ({fidelity} points, means over the "
+                      f"other parameters); \"not reached\" gives the curve's best RMSE.")
+
+
 KEY_METRICS = [(RMSE, "RMSE (8-bit)"), (CYCLES, "total cycles"), ("_dram", "DRAM bytes"), (SAMPLES, "samples written")]
 
 
@@ -577,6 +621,7 @@ def build(study_dir):
              "(analysis/study_report.py, docs/studies.md \"The report\").")
     section_points(rep, name, declared, df, params)
     section_quality(rep, df, params)
+    section_equal_quality(rep, df, params)
     section_axes(rep, df, params)
     section_bottlenecks(rep, df, params)
     section_images(rep, study_dir, df, params)

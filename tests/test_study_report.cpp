@@ -173,12 +173,15 @@ height = 32
   // per input.
   const std::string page =
       check_report(s.dir, s.dir / "st", 3 + 1 + 2 + 2,
-                   {"Study report-small", "Points", "Failures", "Quality against cost", "Parameters against metrics",
-                    "Bottlenecks and stall reasons", "Image strips"});
+                   {"Study report-small", "Points", "Failures", "Quality against cost", "Equal quality",
+                    "Parameters against metrics", "Bottlenecks and stall reasons", "Image strips"});
   EXPECT_NE(page.find("24 points: 24 ok, 0 failed"), std::string::npos);
   EXPECT_NE(page.find("Pareto front"), std::string::npos);
   const std::string summary = slurp(s.dir / "st" / "report" / "summary.md");
   EXPECT_NE(summary.find("| unit kind | busy |"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("| input | target RMSE | curve | spp | RMSE there | cycles | DRAM bytes |"), std::string::npos)
+      << "the equal-quality table:\n"
+      << summary;
   // Written again over itself: the same files, nothing left behind.
   ASSERT_EQ(ropsim(s.dir, "study report st").status, 0);
   EXPECT_EQ(std::distance(fs::directory_iterator(s.dir / "st" / "report"), fs::directory_iterator()), 2);
