@@ -21,6 +21,7 @@ usage() {
 cmd="$1"
 dir="$2"
 timeout="${SLURM_LOCAL_TIMEOUT:-60}"
+trap '' PIPE
 
 stop() {
   local d="$1"
@@ -52,9 +53,13 @@ logs() {
 }
 
 fail() {
-  echo "slurm_local.sh: $*" >&2
-  logs "$dir"
+  # Stop first (a reader that went away must not leave the daemons running),
+  # then print the logs kept aside.
+  local kept
+  kept="$(logs "$dir" 2>&1)"
   stop "$dir"
+  echo "slurm_local.sh: $*" >&2
+  echo "$kept" >&2
   exit 1
 }
 
