@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cli_common.h"
+#include "slurm_executor.h"
 #include "study.h"
 #include "study_runner.h"
 
@@ -26,6 +27,10 @@ struct StudyOpts {
   unsigned jobs = 0;
   size_t index = 0;
   bool retry_failed = false, quiet = false;
+  std::string executor = "local";
+  bool wait = false;
+  StudySlurm slurm;  ///< --slurm-* (empty: the study file's)
+  std::vector<std::string> slurm_args;
 };
 
 std::string out_dir(const StudyOpts& o, const Study& s) { return o.out.empty() ? "out/study/" + s.name : o.out; }
@@ -60,23 +65,58 @@ int cmd_study_task(const StudyOpts& o) {
   return 1;
 }
 
+int collect_summary(const Study& s, const std::string& dir);
+
 /// `study collect`: records every finished task's result in the database.
-int cmd_study_collect(const StudyOpts& o) {
-  const Study s = load_study(study_file_of(o.dir));
+int cmd_study_collect(const StudyOpts& o) { return collect_summary(load_study(study_file_of(o.dir)), o.dir); }
+
+/// Prints the summary of a study folder after its tasks ran elsewhere; 1 when
+/// a point failed or did not run.
+int collect_summary(const Study& s, const std::string& dir) {
   StudyRunOptions ro;
-  ro.out_dir = o.dir;
+  ro.out_dir = dir;
   StudySummary sum;
   const StudyPlan plan = plan_study(s, ro, sum);
   fmt::print("study {}: {} points: {} done, {} failed, {} not run yet; results in {}/results.db\n", s.name, sum.points,
-             sum.reused, sum.failed, plan.points.size(), o.dir);
+             sum.reused, sum.failed, plan.points.size(), dir);
   for (const auto& [point, error] : sum.failures) fmt::print("  failed: {}: {}\n", point, error);
   return sum.failed || !plan.points.empty() ? 1 : 0;
+}
+
+/// `study run --executor slurm`: submits what the folder lacks as job arrays.
+int cmd_study_run_slurm(const StudyOpts& o, const Study& s, const StudyRunOptions& ro) {
+  SlurmOptions so;
+  so.sbatch = s.slurm;
+  if (!o.slurm.partition.empty()) so.sbatch.partition = o.slurm.partition;
+  if (!o.slurm.time.empty()) so.sbatch.time = o.slurm.time;
+  if (!o.slurm.mem.empty()) so.sbatch.mem = o.slurm.mem;
+  if (o.slurm.throttle) so.sbatch.throttle = o.slurm.throttle;
+  for (const auto& a : o.slurm_args) so.sbatch.args.push_back(a);
+  so.wait = o.wait;
+  StudySummary sum;
+  const SlurmSubmission sub = submit_study_slurm(s, ro, so, sum);
+  fmt::print("study {}: {} points: {} already done, {} failed; submitted {} captures, {} references, {} points\n",
+             s.name, sum.points, sum.reused, sum.failed, sub.plan.captures.size(), sub.plan.references.size(),
+             sub.plan.points.size());
+  for (size_t i = 0; i < sub.job_ids.size(); ++i)
+    fmt::print("  job {}: {}\n", sub.job_ids[i],
+               sub.kinds[i] == 'c'   ? "captures"
+               : sub.kinds[i] == 'r' ? "references"
+                                     : "points");
+  std::fflush(stdout);
+  if (!o.wait) return sum.failed ? 1 : 0;
+  wait_slurm_jobs(sub.job_ids, so.poll_ms);
+  return collect_summary(s, ro.out_dir);
 }
 
 int cmd_study_run(const StudyOpts& o) {
   const Study s = load_study(o.file);  // a bad file is refused before anything runs
   StudyRunOptions ro;
   ro.out_dir = out_dir(o, s);
+  if (o.executor == "slurm") {
+    ro.retry_failed = o.retry_failed;
+    return cmd_study_run_slurm(o, s, ro);
+  }
   ro.jobs = o.jobs ? o.jobs : std::max(1u, std::thread::hardware_concurrency());
   ro.retry_failed = o.retry_failed;
   ro.progress = !o.quiet;
@@ -150,6 +190,15 @@ VerbRunner add_study_command(CLI::App& app) {
   run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
   run->add_flag("--retry-failed", o->retry_failed, "Run again the points whose error is recorded");
   run->add_flag("--quiet", o->quiet, "No progress line; print only failures");
+  run->add_option("--executor", o->executor, "local (worker processes here) or slurm (job arrays, sbatch)")
+      ->check(CLI::IsMember({"local", "slurm"}));
+  run->add_flag("--wait", o->wait, "slurm: wait for the jobs to end, then record their results (study collect)");
+  run->add_option("--slurm-partition", o->slurm.partition, "slurm: sbatch --partition (over [slurm] partition)");
+  run->add_option("--slurm-time", o->slurm.time, "slurm: sbatch --time per task (over [slurm] time)");
+  run->add_option("--slurm-mem", o->slurm.mem, "slurm: sbatch --mem per task (over [slurm] mem)");
+  run->add_option("--slurm-throttle", o->slurm.throttle, "slurm: array tasks at once (over [slurm] throttle)")
+      ->check(CLI::Range(1u, 100000u));
+  run->add_option("--slurm-arg", o->slurm_args, "slurm: an extra sbatch argument (repeatable; after [slurm] args)");
   CLI::App* pts = st->add_subcommand("points", "List the points of a study (hash and parameters) without running");
   pts->add_option("STUDY", o->file, "Study file (TOML)")->required();
   CLI::App* exp = st->add_subcommand("export", "Write a study folder's results as CSV");

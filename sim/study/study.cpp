@@ -4,7 +4,9 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <set>
 
@@ -149,7 +151,8 @@ Study load_study(const std::string& path) {
   const std::filesystem::path dir = std::filesystem::absolute(path).parent_path();
   for (const auto& [k, node] : t) {
     const std::string key(k.str());
-    if (key != "study" && key != "inputs" && key != "axes") fail(s, key, "unknown section (study, inputs, axes)");
+    if (key != "study" && key != "inputs" && key != "axes" && key != "slurm")
+      fail(s, key, "unknown section (study, inputs, axes, slurm)");
     if (!node.is_table()) fail(s, key, "expected a table [" + key + "]");
   }
   s.name = std::filesystem::path(path).stem().string();
@@ -178,6 +181,46 @@ Study load_study(const std::string& path) {
         s.save_images = *v;
       } else {
         fail(s, key, "unknown key (name, combine, reference, reference_spp, save_images)");
+      }
+    }
+  }
+  if (const toml::table* sl = t["slurm"].as_table()) {
+    // Checked here so that a bad value is refused before anything is submitted.
+    auto word = [](const std::string& v, const char* extra) {
+      if (v.empty()) return false;
+      for (char c : v)
+        if (!std::isalnum(static_cast<unsigned char>(c)) && !std::strchr(extra, c)) return false;
+      return true;
+    };
+    for (const auto& [k, node] : *sl) {
+      const std::string key = "slurm." + std::string(k.str());
+      auto v = node.value_exact<std::string>();
+      if (key == "slurm.partition") {
+        if (!v || !word(*v, "_-.,")) fail(s, key, "expected a partition name (letters, digits, _-.,)");
+        s.slurm.partition = *v;
+      } else if (key == "slurm.time") {
+        if (!v || !word(*v, ":-") || !std::isdigit(static_cast<unsigned char>((*v)[0])))
+          fail(s, key, "expected a SLURM time limit such as \"30\", \"01:00:00\" or \"1-00:00:00\"");
+        s.slurm.time = *v;
+      } else if (key == "slurm.mem") {
+        if (!v || !word(*v, "") || !std::isdigit(static_cast<unsigned char>((*v)[0])) ||
+            v->find_first_not_of("0123456789") < v->size() - 1 || !std::strchr("0123456789KMGT", v->back()))
+          fail(s, key, "expected a memory size such as \"512M\" or \"2G\"");
+        s.slurm.mem = *v;
+      } else if (key == "slurm.throttle") {
+        auto n = node.value_exact<int64_t>();
+        if (!n || *n < 1 || *n > 100000) fail(s, key, "expected an integer in [1, 100000]");
+        s.slurm.throttle = unsigned(*n);
+      } else if (key == "slurm.args") {
+        const toml::array* a = node.as_array();
+        if (!a) fail(s, key, "expected a list of sbatch options, e.g. [\"--qos=short\"]");
+        for (const auto& e : *a) {
+          auto arg = e.value_exact<std::string>();
+          if (!arg || arg->rfind("-", 0) != 0) fail(s, key, "expected a list of sbatch options, each starting with -");
+          s.slurm.args.push_back(*arg);
+        }
+      } else {
+        fail(s, key, "unknown key (partition, time, mem, throttle, args)");
       }
     }
   }

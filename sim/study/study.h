@@ -36,6 +36,17 @@ struct StudyAxis {
   std::vector<StudyValue> values;
 };
 
+/// The [slurm] section: options of `study run --executor slurm`
+/// (slurm_executor.h); the command line overrides them. Not part of any
+/// point's identity.
+struct StudySlurm {
+  std::string partition;          ///< sbatch --partition ("" = the cluster's default)
+  std::string time;               ///< sbatch --time, e.g. "00:30:00" ("" = the partition's default)
+  std::string mem;                ///< sbatch --mem, e.g. "2G" ("" = the partition's default)
+  unsigned throttle = 0;          ///< at most this many array tasks at once (0 = no limit)
+  std::vector<std::string> args;  ///< extra sbatch arguments, e.g. "--qos=short"
+};
+
 struct Study {
   std::string path;  ///< the study file
   std::string name;
@@ -48,6 +59,7 @@ struct Study {
   bool reference = true;
   int reference_spp = 0;
   bool save_images = false;  ///< each point's image as image.png in its folder
+  StudySlurm slurm;
 };
 
 /// Reads and checks a study file. Every unknown key and bad value throws

@@ -1,0 +1,173 @@
+#include "slurm_executor.h"
+
+#include <fmt/format.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "errors.h"
+
+namespace ropsim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// s quoted for the shell.
+std::string sh(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// Runs a shell command; returns its exit status (-1 when killed) and its
+/// standard output and error together.
+int run_command(const std::string& cmd, std::string& out) {
+  out.clear();
+  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) throw UserError("study run: cannot run " + cmd);
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int st = ::pclose(p);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.erase(0, 1);
+  return s;
+}
+
+/// The array job ids squeue lists (every user's queued and running jobs);
+/// false when squeue failed.
+bool queued_jobs(std::set<std::string>& ids, std::string& out) {
+  ids.clear();
+  if (run_command("squeue -h -o %F", out) != 0) return false;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line))
+    if (!trim(line).empty()) ids.insert(trim(line));
+  return true;
+}
+
+const char* phase_name(char kind) { return kind == 'c' ? "captures" : kind == 'r' ? "references" : "points"; }
+
+}  // namespace
+
+void wait_slurm_jobs(const std::vector<std::string>& job_ids, unsigned poll_ms) {
+  int failures = 0;
+  const int max_failures = std::max(1, int(30000 / std::max(1u, poll_ms)));  // about 30 s of errors
+  for (;;) {
+    std::set<std::string> q;
+    std::string out;
+    if (!queued_jobs(q, out)) {
+      if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + trim(out));
+    } else {
+      failures = 0;
+      bool any = false;
+      for (const auto& id : job_ids) any = any || q.count(id);
+      if (!any) return;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(poll_ms));
+  }
+}
+
+SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, const SlurmOptions& so,
+                                   StudySummary& sum) {
+  const fs::path dir = fs::absolute(o.out_dir).lexically_normal();
+  const fs::path sdir = dir / "slurm";
+  // Jobs of an earlier submission still queued would run the same tasks again.
+  {
+    std::ifstream prev(sdir / "jobs.txt");
+    std::vector<std::string> ids;
+    for (std::string id; prev >> id;) ids.push_back(id);
+    std::set<std::string> q;
+    std::string out;
+    if (!ids.empty() && queued_jobs(q, out)) {
+      std::string busy;
+      for (const auto& id : ids)
+        if (q.count(id)) busy += (busy.empty() ? "" : " ") + id;
+      if (!busy.empty())
+        throw UserError(
+            fmt::format("study run: {}: SLURM jobs {} of an earlier submission are still queued or "
+                        "running (wait for them, or scancel them)",
+                        dir.string(), busy));
+    }
+  }
+  SlurmSubmission sub;
+  sub.plan = plan_study(s, o, sum);
+  std::error_code ec;
+  fs::create_directories(sdir, ec);
+  if (ec) throw UserError("study run: " + sdir.string() + ": " + ec.message());
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw UserError("study run: /proc/self/exe: " + ec.message());
+  const std::string study_file = fs::absolute(s.path).lexically_normal().string();
+  const StudySlurm& b = so.sbatch;
+
+  std::string after;  // the job the next phase depends on
+  const std::pair<char, const std::vector<size_t>*> phases[] = {
+      {'c', &sub.plan.captures}, {'r', &sub.plan.references}, {'p', &sub.plan.points}};
+  for (const auto& [kind, list] : phases) {
+    if (list->empty()) continue;
+    const std::string name = phase_name(kind);
+    const fs::path txt = sdir / (name + ".txt"), script = sdir / (name + ".sbatch");
+    {
+      std::ofstream f(txt);
+      for (size_t i : *list) f << i << "\n";
+      if (!f) throw UserError("study run: cannot write " + txt.string());
+    }
+    {
+      std::ofstream f(script);
+      f << "#!/bin/bash\n";
+      f << "# Written by `ropsim study run --executor slurm`: the " << name << " of study " << s.name << ",\n";
+      f << "# one array task per line of " << txt.filename().string() << ".\n";
+      f << "#SBATCH --job-name="
+        << "ropsim-" << kind << "-" << s.name << "\n";
+      f << "#SBATCH --output=" << (sdir / "%A_%a.log").string() << "\n";
+      f << "#SBATCH --array=0-" << list->size() - 1;
+      if (b.throttle) f << "%" << b.throttle;
+      f << "\n";
+      f << "#SBATCH --ntasks=1\n";
+      if (!b.partition.empty()) f << "#SBATCH --partition=" << b.partition << "\n";
+      if (!b.time.empty()) f << "#SBATCH --time=" << b.time << "\n";
+      if (!b.mem.empty()) f << "#SBATCH --mem=" << b.mem << "\n";
+      f << "set -eu\n";
+      f << "index=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " << sh(txt.string()) << ")\n";
+      f << "exec " << sh(exe.string()) << " study task " << sh(study_file) << " --out " << sh(dir.string())
+        << " --kind " << kind << " --index \"$index\"\n";
+      if (!f) throw UserError("study run: cannot write " + script.string());
+    }
+    std::string cmd = "sbatch --parsable";
+    if (!after.empty()) cmd += " --dependency=afterok:" + after + " --kill-on-invalid-dep=yes";
+    for (const auto& a : b.args) cmd += " " + sh(a);
+    cmd += " " + sh(script.string());
+    std::string out;
+    const int st = run_command(cmd, out);
+    if (st != 0)
+      throw UserError(fmt::format("study run: sbatch of the {} failed (exit status {}): {}", name, st, trim(out)));
+    // --parsable prints "jobid" or "jobid;cluster" (after any warnings).
+    std::string id = trim(out);
+    if (const auto nl = id.rfind('\n'); nl != std::string::npos) id = id.substr(nl + 1);
+    id = id.substr(0, id.find(';'));
+    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
+      throw UserError("study run: sbatch printed no job id: " + trim(out));
+    sub.job_ids.push_back(id);
+    sub.kinds.push_back(kind);
+    after = id;
+  }
+  std::ofstream jobs(sdir / "jobs.txt");
+  for (const auto& id : sub.job_ids) jobs << id << "\n";
+  return sub;
+}
+
+}  // namespace ropsim
