@@ -6,7 +6,7 @@ ROPSIM_PACKAGES=(
   cmake g++ make pkg-config
   libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev
   libcli11-dev nlohmann-json3-dev libzstd-dev
-  libtomlplusplus-dev libassimp-dev libosmesa6-dev libsqlite3-dev
+  libtomlplusplus-dev libassimp-dev libosmesa6-dev libsqlite3-dev sqlite3
   clang-format python3-numpy python3-matplotlib python3-pandas
   chromium
 )
