@@ -368,3 +368,41 @@ TEST(Study, TasksRunOneByOneAndCollectedEqualAStudyRun) {
   EXPECT_EQ(all.status, 0) << all.out;
   EXPECT_EQ(model_results(export_rows(s.dir, "tasks")), model_results(export_rows(s.dir, "whole")));
 }
+
+// A design axis: each point runs the named design file (hardware keys
+// override it), exactly as `ropsim run --fidelity cycle --hw FILE`.
+TEST(Study, ADesignAxisRunsEachDesignFileAsRunDoes) {
+  Scratch s;
+  s.put("d.toml", std::string(R"(
+[inputs]
+scenes = ["eight-layers"]
+
+[axes]
+fidelity = "cycle"
+spp = 4
+width = 40
+height = 40
+design = [")") + ROPSIM_SOURCE_DIR +
+                      R"(/configs/default.toml", ")" + ROPSIM_SOURCE_DIR + R"(/configs/narrow.toml"]
+)");
+  ASSERT_EQ(ropsim(s.dir, "study run d.toml --out st -j 2 --quiet").status, 0);
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& row : rows) {
+    const Ran r = ropsim(s.dir, "run --fidelity cycle --scene eight-layers --spp 4 --width 40 --height 40 --hw '" +
+                                    row.at("design") + "' --quiet --report r.json");
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream f(s.dir / "r.json");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    EXPECT_NE(ss.str().find("\"total_cycles\": " + row.at("timing.total_cycles") + ","), std::string::npos)
+        << row.at("design") << ": the study's cycles differ from run --hw";
+  }
+  EXPECT_NE(rows[0].at("timing.total_cycles"), rows[1].at("timing.total_cycles")) << "the designs must differ";
+  // A design file that does not load is refused before anything runs.
+  s.put("bad.toml", "[inputs]\nscenes = [\"cloth\"]\n[axes]\nfidelity = \"cycle\"\ndesign = \"nosuch.toml\"\n");
+  const Ran bad = ropsim(s.dir, "study run bad.toml --out b");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("bad.toml: axes.design: "), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(s.dir / "b"));
+}

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <set>
+#include <sstream>
 
 #include "errors.h"
 #include "random_hash.h"
@@ -50,6 +52,7 @@ constexpr RunParam kRunParams[] = {
     {"scene_seed", "seed of the scene generator (scenes)"},
     {"repeat", "draw the input this many times into one frame"},
     {"order", "draw order of a mesh input's capture: authored, shuffled, far-to-near, near-to-far"},
+    {"design", "a hardware design file (cycle points; hardware keys override it)"},
 };
 
 bool is_run_param(const std::string& k) {
@@ -64,8 +67,24 @@ bool is_hw_key(const std::string& k) {
   return false;
 }
 
+bool is_hardware(const std::string& k) { return k == "design" || is_hw_key(k); }
+
 [[noreturn]] void fail(const Study& s, const std::string& key, const std::string& why) {
   throw UserError(s.path + ": " + key + ": " + why);
+}
+
+/// A design file's path, relative to the study file's folder.
+std::string design_path(const Study& s, const std::string& f) {
+  std::filesystem::path p(f);
+  if (p.is_relative()) p = std::filesystem::absolute(s.path).parent_path() / p;
+  return p.lexically_normal().string();
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
 }
 
 StudyValue value_of(const Study& s, const std::string& key, const toml::node& n) {
@@ -105,6 +124,14 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
     int_of(s, at, v, 1, kMaxScreenSide);
   } else if (key == "repeat") {
     int_of(s, at, v, 1, 1000);
+  } else if (key == "design") {
+    const std::string* f = std::get_if<std::string>(&v);
+    if (!f) fail(s, at, "expected the path of a design file");
+    try {
+      load_hw_config(design_path(s, *f));
+    } catch (const std::exception& e) {
+      fail(s, at, e.what());
+    }
   } else if (key == "order") {
     DrawOrder o;
     if (!std::holds_alternative<std::string>(v) || !parse_draw_order(std::get<std::string>(v), o))
@@ -310,7 +337,7 @@ Study load_study(const std::string& path) {
         fail(s, at,
              "sweep the numerics with the axes hash_bits, alpha_bits and surface_id_bits (they apply to "
              "both fidelities)");
-      any_hw = any_hw || hw;
+      any_hw = any_hw || hw || key == "design";
       s.axes.push_back(std::move(axis));
     }
   }
@@ -376,7 +403,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       auto f = p.params.find("fidelity");
       if (f == p.params.end() || std::get<std::string>(f->second) != "cycle")
         for (auto it = p.params.begin(); it != p.params.end();)
-          it = is_hw_key(it->first) ? p.params.erase(it) : std::next(it);
+          it = is_hardware(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
       // compare against, and the tool that computes them.
       nlohmann::ordered_json id;
@@ -384,6 +411,8 @@ std::vector<StudyPoint> expand_study(const Study& s) {
                     : !in.mesh.empty() ? "mesh:" + in.mesh
                                        : "scene:" + in.scene;
       id["params"] = p.params_json();
+      if (auto d = p.params.find("design"); d != p.params.end())  // the design's content, not only its name
+        id["design"] = read_text(design_path(s, std::get<std::string>(d->second)));
       id["reference"] = s.reference;
       id["reference_spp"] = s.reference_spp;
       id["ropsim"] = std::string(ropsim_version()) + " " + ropsim_commit();
@@ -447,8 +476,9 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   for (const auto& [k, v] : p.params)
     if (is_hw_key(k)) overrides.push_back(k + "=" + to_string(v));
   if (r.cycle) {
-    r.hw = resolve_hw_config("", overrides);
-    r.hw.name = "study " + s.name;
+    const StudyValue* design = get("design");
+    r.hw = resolve_hw_config(design ? design_path(s, std::get<std::string>(*design)) : "", overrides);
+    r.hw.name = "study " + s.name + (design ? ", design " + std::get<std::string>(*design) : "");
   }
   if (s.reference) {
     r.reference_input = r.input;
