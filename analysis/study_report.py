@@ -402,7 +402,8 @@ def section_equal_quality(rep, df, params):
                       f"other parameters); \"not reached\" gives the curve's best RMSE.")
 
 
-KEY_METRICS = [(RMSE, "RMSE (8-bit)"), (CYCLES, "total cycles"), ("_dram", "DRAM bytes"), (SAMPLES, "samples written")]
+KEY_METRICS = [(RMSE, "RMSE (8-bit)"), ("vs_reference.bias_8bit", "bias (8-bit, signed)"), (CYCLES, "total cycles"),
+               ("_dram", "DRAM bytes"), (SAMPLES, "samples written")]
 
 
 def section_axes(rep, df, params):

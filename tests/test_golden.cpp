@@ -413,3 +413,17 @@ TEST(DepthModes, PerSampleTraceGivesThePlaneTracesImage) {
   ASSERT_EQ(img[0].rgb.size(), img[1].rgb.size());
   EXPECT_TRUE(img[0].rgb == img[1].rgb) << "plane and per-sample depth traces of one scene resolve differently";
 }
+
+// Bias: the mean signed error, zero for equal images, its sign the direction.
+TEST(CompareImages, BiasIsTheMeanSignedErrorIn8BitUnits) {
+  Image a;
+  a.width = 4;
+  a.height = 2;
+  a.rgb.assign(4 * 2 * 3, 0.5f);
+  Image b = a;
+  EXPECT_EQ(compare_images(a, b).bias_8bit, 0.0);
+  for (size_t i = 0; i < b.rgb.size(); i += 2) b.rgb[i] += 0.1f;  // half the channels brighter by 0.1
+  EXPECT_NEAR(compare_images(b, a).bias_8bit, 0.05 * 255, 1e-3);
+  EXPECT_NEAR(compare_images(a, b).bias_8bit, -0.05 * 255, 1e-3);
+  EXPECT_GT(compare_images(a, b).rmse_8bit, 0.0);
+}

@@ -72,6 +72,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
           "with --vs-reference: RMSE of the image against the A-buffer reference of the same stream (linear, x 255)");
     v.put("psnr_db", std::isfinite(c.psnr_db) ? c.psnr_db : 999.0, "dB", "PSNR against the reference (999: identical)");
     v.put("max_error_8bit", c.max_error_8bit, "8-bit units", "largest channel error against the reference");
+    v.put("bias_8bit", c.bias_8bit, "8-bit units",
+          "mean signed error against the reference (image minus reference): a systematic darkening or brightening");
   }
   r.put("outputs", ctx.outputs, "-", "files written");
   return j;

@@ -111,6 +111,9 @@ CompareResult compare_images(const Image& a, const Image& b) {
   c.psnr_db = r.rms_error > 0 ? r.PSNR : std::numeric_limits<double>::infinity();
   c.max_error_8bit = r.maxerror * 255.0;
   c.mean_error_8bit = r.meanerror * 255.0;
+  double sum = 0;  // in sample order: deterministic
+  for (size_t i = 0; i < a.rgb.size(); ++i) sum += double(a.rgb[i]) - double(b.rgb[i]);
+  c.bias_8bit = a.rgb.empty() ? 0.0 : sum / double(a.rgb.size()) * 255.0;
   return c;
 }
 

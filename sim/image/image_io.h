@@ -32,6 +32,7 @@ struct CompareResult {
   double psnr_db = 0;    ///< 20 log10(1 / RMSE) with RMSE in [0, 1] units
   double max_error_8bit = 0;
   double mean_error_8bit = 0;
+  double bias_8bit = 0;  ///< mean signed error (a minus b) over all pixels and RGB channels, x 255
 };
 
 /// Compares two images of the same size with ImageBufAlgo::compare.
