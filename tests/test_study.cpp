@@ -19,106 +19,12 @@
 #include <thread>
 #include <vector>
 
-#ifndef ROPSIM_BINARY
-#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
-#endif
+#include "study_test_util.h"
 
 namespace fs = std::filesystem;
+using namespace ropsim_test;
 
 namespace {
-
-fs::path work() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path d = fs::temp_directory_path() /
-                     ("ropsim-test-study-" + std::to_string(::getpid()) + "-" + (info ? info->name() : "x"));
-  return d;
-}
-
-struct Scratch {
-  fs::path dir = work();
-  Scratch() {
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  ~Scratch() { fs::remove_all(dir); }
-  fs::path put(const std::string& name, const std::string& text) const {
-    std::ofstream(dir / name) << text;
-    return dir / name;
-  }
-};
-
-/// Runs ropsim with args in dir; returns the exit status, stdout and stderr.
-struct Ran {
-  int status;
-  std::string out, err;
-};
-Ran ropsim(const fs::path& dir, const std::string& args) {
-  const std::string o = (dir / ".stdout").string(), e = (dir / ".stderr").string();
-  const std::string cmd = "cd '" + dir.string() + "' && '" ROPSIM_BINARY "' " + args + " >'" + o + "' 2>'" + e + "'";
-  const int st = std::system(cmd.c_str());
-  auto slurp = [](const std::string& p) {
-    std::ifstream f(p);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-  };
-  return Ran{WIFEXITED(st) ? WEXITSTATUS(st) : -1, slurp(o), slurp(e)};
-}
-
-/// A CSV export as rows of column -> value.
-using Rows = std::vector<std::map<std::string, std::string>>;
-std::vector<std::string> csv_fields(const std::string& line) {
-  std::vector<std::string> f;
-  std::string cur;
-  bool q = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (q) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        cur += '"';
-        ++i;
-      } else if (c == '"') {
-        q = false;
-      } else {
-        cur += c;
-      }
-    } else if (c == '"') {
-      q = true;
-    } else if (c == ',') {
-      f.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  f.push_back(cur);
-  return f;
-}
-Rows export_rows(const fs::path& dir, const std::string& study_dir) {
-  const Ran r = ropsim(dir, "study export '" + study_dir + "' --csv out.csv");
-  EXPECT_EQ(r.status, 0) << r.err;
-  std::ifstream f(dir / "out.csv");
-  std::string line;
-  std::getline(f, line);
-  const auto head = csv_fields(line);
-  Rows rows;
-  while (std::getline(f, line)) {
-    const auto v = csv_fields(line);
-    std::map<std::string, std::string> m;
-    for (size_t i = 0; i < head.size() && i < v.size(); ++i) m[head[i]] = v[i];
-    rows.push_back(m);
-  }
-  return rows;
-}
-
-/// The rows without the host's measurements (times, rates, memory), which
-/// differ from run to run.
-Rows model_results(Rows rows) {
-  for (auto& r : rows)
-    for (auto it = r.begin(); it != r.end();)
-      it = it->first.rfind("host.", 0) == 0 || it->first.rfind("timing.host.", 0) == 0 ? r.erase(it) : std::next(it);
-  return rows;
-}
 
 const char* kSmall = R"(
 [study]
@@ -186,10 +92,12 @@ TEST(Study, TwoWorkersGiveTheResultsOfOneAndEveryPointOnce) {
     if (r.at("fidelity") == "cycle") {
       ++cycle;
       EXPECT_FALSE(r.at("timing.total_cycles").empty());
-      for (const auto& f : r1)
+      for (const auto& f : r1) {
         if (f.at("fidelity") == "functional" && f.at("input") == r.at("input") && f.at("method") == r.at("method") &&
-            f.at("spp") == r.at("spp"))
+            f.at("spp") == r.at("spp")) {
           EXPECT_EQ(f.at("counters.samples_written"), r.at("counters.samples_written"));
+        }
+      }
     }
   EXPECT_EQ(cycle, 12u);
   // Running it again runs nothing and changes nothing.

@@ -18,48 +18,18 @@
 #include <string>
 #include <vector>
 
-#ifndef ROPSIM_BINARY
-#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
-#endif
+#include "study_test_util.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+using namespace ropsim_test;
 
-struct Scratch {
-  fs::path dir;
-  Scratch() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir = fs::temp_directory_path() /
-          ("ropsim-test-study-report-" + std::to_string(::getpid()) + "-" + (info ? info->name() : "x"));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  ~Scratch() { fs::remove_all(dir); }
-  void put(const std::string& name, const std::string& text) const { std::ofstream(dir / name) << text; }
+/// A scratch folder named for this suite.
+struct ReportScratch : Scratch {
+  ReportScratch() : Scratch("ropsim-test-study-report") {}
 };
-
-struct Ran {
-  int status;
-  std::string out, err;
-};
-
-/// Runs a shell command in dir; returns the exit status, stdout and stderr.
-Ran shell(const fs::path& dir, const std::string& cmd) {
-  const std::string o = (dir / ".stdout").string(), e = (dir / ".stderr").string();
-  const std::string full = "cd '" + dir.string() + "' && " + cmd + " >'" + o + "' 2>'" + e + "'";
-  const int st = std::system(full.c_str());
-  return Ran{WIFEXITED(st) ? WEXITSTATUS(st) : -1, slurp(o), slurp(e)};
-}
-
-Ran ropsim(const fs::path& dir, const std::string& args) { return shell(dir, "'" ROPSIM_BINARY "' " + args); }
 
 size_t count(const std::string& s, const std::string& what) {
   size_t n = 0;
@@ -146,7 +116,7 @@ std::string check_report(const fs::path& work, const fs::path& study_dir, size_t
 }  // namespace
 
 TEST(StudyReport, ASmallStudysReportIsSelfContainedAndRendersInChromium) {
-  Scratch s;
+  ReportScratch s;
   s.put("small.toml", R"(
 [study]
 name = "report-small"
@@ -188,7 +158,7 @@ height = 32
 }
 
 TEST(StudyReport, AFailedPointAndOnlyFunctionalPointsStillGiveAReportThatRenders) {
-  Scratch s;
+  ReportScratch s;
   // A point fails at run time: its trace input exists when the study is
   // loaded, but is not a trace (a bad value in the study file is refused
   // before anything runs instead).
@@ -220,7 +190,7 @@ method = ["lk", "enderton"]
 }
 
 TEST(StudyReport, AFolderThatIsNotAStudyIsAOneLineError) {
-  Scratch s;
+  ReportScratch s;
   fs::create_directories(s.dir / "empty");
   for (const std::string d : {"empty", "nosuch"}) {
     const Ran r = ropsim(s.dir, "study report " + d);
@@ -235,7 +205,7 @@ TEST(StudyReport, AFolderThatIsNotAStudyIsAOneLineError) {
 // every point ok in the database, the CSV export, the report rendering in
 // headless Chromium.
 TEST(StudyReport, TheBuiltInSmokeStudyRunsEndToEnd) {
-  Scratch s;
+  ReportScratch s;
   const Ran run = ropsim(s.dir, "study run '" ROPSIM_SOURCE_DIR "/studies/smoke.toml' --out st -j 2 --quiet");
   ASSERT_EQ(run.status, 0) << run.err << run.out;
   const Ran csv = ropsim(s.dir, "study export st --csv st.csv");

@@ -18,9 +18,8 @@
 #include <string>
 #include <vector>
 
-#ifndef ROPSIM_BINARY
-#error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
-#endif
+#include "study_test_util.h"
+
 #ifndef ROPSIM_SOURCE_DIR
 #error "ROPSIM_SOURCE_DIR must name the source tree (tests/CMakeLists.txt)"
 #endif
@@ -29,75 +28,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-struct Ran {
-  int status;
-  std::string out, err;
-};
-/// Runs a shell command in dir, killed after timeout_s seconds (status 124).
-Ran shell(const fs::path& dir, const std::string& cmd, int timeout_s) {
-  const std::string o = (dir / ".stdout").string(), e = (dir / ".stderr").string();
-  const std::string full = "cd '" + dir.string() + "' && timeout -k 5 " + std::to_string(timeout_s) + " " + cmd +
-                           " >'" + o + "' 2>'" + e + "'";
-  const int st = std::system(full.c_str());
-  return Ran{WIFEXITED(st) ? WEXITSTATUS(st) : -1, slurp(o), slurp(e)};
-}
-Ran ropsim(const fs::path& dir, const std::string& args, int timeout_s = 120) {
-  return shell(dir, "'" ROPSIM_BINARY "' " + args, timeout_s);
-}
-
-std::vector<std::string> csv_fields(const std::string& line) {
-  std::vector<std::string> f;
-  std::string cur;
-  bool q = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (q) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        cur += '"';
-        ++i;
-      } else if (c == '"') {
-        q = false;
-      } else {
-        cur += c;
-      }
-    } else if (c == '"') {
-      q = true;
-    } else if (c == ',') {
-      f.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  f.push_back(cur);
-  return f;
-}
+using namespace ropsim_test;
 
 /// A study folder's results (study export) without the host's measurements.
-using Rows = std::vector<std::map<std::string, std::string>>;
 Rows model_results(const fs::path& dir, const std::string& study_dir) {
-  const Ran r = ropsim(dir, "study export '" + study_dir + "' --csv out.csv");
-  EXPECT_EQ(r.status, 0) << r.err;
-  std::ifstream f(dir / "out.csv");
-  std::string line;
-  std::getline(f, line);
-  const auto head = csv_fields(line);
-  Rows rows;
-  while (std::getline(f, line)) {
-    const auto v = csv_fields(line);
-    std::map<std::string, std::string> m;
-    for (size_t i = 0; i < head.size() && i < v.size(); ++i)
-      if (head[i].rfind("host.", 0) != 0 && head[i].rfind("timing.host.", 0) != 0) m[head[i]] = v[i];
-    rows.push_back(m);
-  }
-  return rows;
+  return ropsim_test::model_results(export_rows(dir, study_dir));
 }
 
 const char* kStudy = R"(
