@@ -1,14 +1,17 @@
 // The golden model: the properties Laine & Karras 2011 prove or claim, the
 // comparison methods, and the numerical extremes.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "driver.h"
 #include "golden_model.h"
 #include "half.h"
 #include "image_io.h"
+#include "pixel_kinds.h"
 #include "random_hash.h"
 #include "sample_patterns.h"
 
@@ -426,4 +429,56 @@ TEST(CompareImages, BiasIsTheMeanSignedErrorIn8BitUnits) {
   EXPECT_NEAR(compare_images(b, a).bias_8bit, 0.05 * 255, 1e-3);
   EXPECT_NEAR(compare_images(a, b).bias_8bit, -0.05 * 255, 1e-3);
   EXPECT_GT(compare_images(a, b).rmse_8bit, 0.0);
+}
+
+// Pixel kinds: each rule on a crafted trace, and the RMSE restricted to a kind.
+TEST(PixelKinds, EachKindOnACraftedTraceAndTheErrorWithinIt) {
+  TraceHeader h;
+  h.width = 8;
+  h.height = 1;
+  h.spp = 4;
+  h.positions = standard_sample_positions(4);
+  const std::string path = ::testing::TempDir() + "pixel_kinds_" + std::to_string(::getpid()) + ".rtr";
+  {
+    TraceWriter w(path, h);
+    auto frag = [&](uint16_t x, uint64_t cov, float z) {
+      Fragment f;
+      f.x = x;
+      f.coverage = cov;
+      f.z0 = z;
+      f.rgb = {0.5f, 0.5f, 0.5f};
+      f.alpha = 0.5f;
+      w.write(f);
+    };
+    frag(0, 0xF, 0.5f);                                          // single layer
+    frag(1, 0x3, 0.5f), frag(1, 0xC, 0.5f);                      // interior edge
+    frag(2, 0x7, 0.5f);                                          // silhouette
+    frag(3, 0xF, 0.8f), frag(3, 0xF, 0.2f);                      // two layers, the later nearer
+    frag(4, 0xF, 0.2f), frag(4, 0xF, 0.8f);                      // two layers, the later farther
+    frag(5, 0xF, 0.3f), frag(5, 0xF, 0.2f), frag(5, 0xF, 0.1f);  // three layers
+    w.finish();
+  }
+  InputSpec in;
+  in.trace_path = path;
+  const PixelKinds k = classify_pixels(in);
+  std::remove(path.c_str());
+  const PixelKind want[8] = {PixelKind::kSingle,       PixelKind::kInteriorEdge, PixelKind::kSilhouette,
+                             PixelKind::kTwoFarToNear, PixelKind::kTwoNearToFar, PixelKind::kMany,
+                             PixelKind::kEmpty,        PixelKind::kEmpty};
+  ASSERT_EQ(k.kind.size(), 8u);
+  for (int i = 0; i < 8; ++i)
+    EXPECT_EQ(k.kind[size_t(i)], want[i]) << "pixel " << i << ": " << to_string(k.kind[size_t(i)]);
+  EXPECT_EQ(k.count[size_t(PixelKind::kEmpty)], 2u);
+  Image ref;
+  ref.width = 8;
+  ref.height = 1;
+  ref.rgb.assign(24, 0.25f);
+  Image img = ref;
+  img.rgb[3 * 3 + 1] += 0.3f;  // one channel of the far-to-near pixel
+  const auto r = rmse_by_kind(k, img, ref);
+  for (int j = 0; j < kPixelKinds; ++j)
+    if (PixelKind(j) == PixelKind::kTwoFarToNear)
+      EXPECT_NEAR(r[size_t(j)], std::sqrt(0.3 * 0.3 / 3.0) * 255.0, 1e-3);
+    else
+      EXPECT_EQ(r[size_t(j)], 0.0) << to_string(PixelKind(j));
 }

@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_common.h"
+#include "driver.h"
+#include "pixel_kinds.h"
 #include "tile_map.h"
 #include "trace.h"
 
@@ -20,6 +22,8 @@ struct TraceOpts {
   std::string path, out = "-";
   uint64_t dump_limit = UINT64_MAX;
   bool json = false;
+  std::vector<std::string> methods;
+  uint64_t seed = 1;
 };
 
 int cmd_trace_info(const std::string& path, bool validate_only, bool json = false) {
@@ -113,6 +117,37 @@ int cmd_trace_dump(const std::string& path, const std::string& out_path, uint64_
   return 0;
 }
 
+/// Pixels by kind (pixel_kinds.h), and each method's RMSE against the A-buffer
+/// reference within each kind, as a Markdown table.
+int cmd_trace_kinds(const std::string& path, const std::vector<std::string>& methods, uint64_t seed) {
+  InputSpec in;
+  in.trace_path = path;
+  const PixelKinds k = classify_pixels(in);
+  MethodConfig rc;
+  rc.method = Method::kReference;
+  const Image reference = run_functional(in, rc).image;
+  std::vector<std::array<double, kPixelKinds>> rmse;
+  for (const auto& name : methods) {
+    MethodConfig m;
+    if (!parse_method(name, m.method)) throw UserError("trace kinds: unknown method " + name);
+    m.seed = seed;
+    rmse.push_back(rmse_by_kind(k, run_functional(in, m).image, reference));
+  }
+  std::string head = "| pixel kind | pixels |", rule = "|---|---:|";
+  for (const auto& name : methods) {
+    head += " " + name + " RMSE |";
+    rule += "---:|";
+  }
+  fmt::print("{}\n{}\n", head, rule);
+  for (int j = 0; j < kPixelKinds; ++j) {
+    if (!k.count[size_t(j)] || PixelKind(j) == PixelKind::kEmpty) continue;
+    std::string row = fmt::format("| {} | {} |", to_string(PixelKind(j)), k.count[size_t(j)]);
+    for (const auto& r : rmse) row += fmt::format(" {:.3f} |", r[size_t(j)]);
+    fmt::print("{}\n", row);
+  }
+  return 0;
+}
+
 }  // namespace
 
 VerbRunner add_trace_command(CLI::App& app) {
@@ -128,7 +163,16 @@ VerbRunner add_trace_command(CLI::App& app) {
   tdump->add_option("FILE", o->path, "Trace file")->required();
   tdump->add_option("--limit", o->dump_limit, "Dump at most this many fragments");
   tdump->add_option("-o,--output", o->out, "File to write (default -: standard output)");
-  return [o, tinfo, tval, tdump]() {
+  CLI::App* tkinds = trc->add_subcommand("kinds", "Pixels by kind and each method's RMSE within each kind");
+  tkinds->add_option("FILE", o->path, "Trace file")->required();
+  tkinds
+      ->add_option("--method", o->methods, "A method to compare with the reference; repeatable (default lk, enderton)")
+      ->check(CLI::IsMember(method_names()));
+  tkinds->add_option("--seed", o->seed, "Seed of the methods' hash-based random numbers (default 1)");
+  return [o, tinfo, tval, tdump, tkinds]() {
+    if (tkinds->parsed())
+      return cmd_trace_kinds(o->path, o->methods.empty() ? std::vector<std::string>{"lk", "enderton"} : o->methods,
+                             o->seed);
     if (tinfo->parsed()) return cmd_trace_info(o->path, false, o->json);
     if (tval->parsed()) return cmd_trace_info(o->path, true);
     if (tdump->parsed()) return cmd_trace_dump(o->path, o->out, o->dump_limit);
