@@ -99,6 +99,4 @@ std::string functional_summary(const ReportContext& ctx, const FunctionalRun& ru
   return s;
 }
 
-void write_text_file_atomic(const std::string& path, const std::string& text) { write_text_output(path, text); }
-
 }  // namespace ropsim

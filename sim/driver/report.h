@@ -26,8 +26,4 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
 /// A short human summary of a functional run (a few lines).
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);
 
-/// Writes text to path through OutputFile (util/output_file.h): a unique
-/// temporary file and a rename; UserError on any failure.
-void write_text_file_atomic(const std::string& path, const std::string& text);
-
 }  // namespace ropsim

@@ -37,14 +37,6 @@ struct Counters {
 #undef ROPSIM_X
     return *this;
   }
-  bool operator==(const Counters& o) const {
-    bool eq = true;
-#define ROPSIM_X(name, unit, meaning) eq = eq && name == o.name;
-    ROPSIM_COUNTERS(ROPSIM_X)
-#undef ROPSIM_X
-    return eq;
-  }
-  bool operator!=(const Counters& o) const { return !(*this == o); }
   /// Per-pixel state bytes moved: depth, colour and tracker, read and written.
   uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read; }
   uint64_t state_bytes_written() const { return depth_bytes_written + color_bytes_written + tracker_bytes_written; }

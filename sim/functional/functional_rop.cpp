@@ -2,13 +2,8 @@
 
 #include <stdexcept>
 
-#include "alpha_ref.h"
-#include "depth.h"
 #include "hilbert.h"
 #include "method_kernels.h"
-#include "opacity.h"
-#include "random_hash.h"
-#include "sort_order.h"
 
 namespace ropsim {
 

@@ -24,23 +24,21 @@ struct MethodTraits {
   bool tracker;          ///< lk: the coverage-bitmask surface tracker (per-pixel state)
   bool sorter;           ///< lk: survivors sorted by the depth already stored
   bool reference;        ///< lk, enderton, naive: the alpha-reference generator (hashes)
-  bool seeded;           ///< its random choices depend on the run's seed
 };
 
 /// The traits of every method, in the order of method_names().
-//                                                  pipeline select tracker sorter reference seeded
+//                                                  pipeline select tracker sorter reference
 inline constexpr MethodTraits kMethodTable[] = {
-    {Method::kLk, "lk", "Laine & Karras 2011: stratified stochastic transparency", true, false, true, true, true,
-     false},
+    {Method::kLk, "lk", "Laine & Karras 2011: stratified stochastic transparency", true, false, true, true, true},
     {Method::kEnderton, "enderton", "Enderton et al. 2010: R = floor(alpha m + xi) depth survivors chosen at random",
-     true, false, false, false, true, true},
+     true, false, false, false, true},
     {Method::kNaive, "naive", "naive stochastic transparency: one random reference per sample", true, false, false,
-     false, true, true},
-    {Method::kA2c, "a2c", "alpha-to-coverage: a dithered fixed sample mask", true, true, false, false, false, false},
+     false, true},
+    {Method::kA2c, "a2c", "alpha-to-coverage: a dithered fixed sample mask", true, true, false, false, false},
     {Method::kOpaque, "opaque", "a plain z-buffer: every covered sample that passes is written", true, false, false,
-     false, false, false},
+     false, false},
     {Method::kReference, "reference", "A-buffer ground truth: every fragment of every sample, sorted", false, false,
-     false, false, false, false},
+     false, false, false},
 };
 
 /// The traits of a method (usable at compile time).

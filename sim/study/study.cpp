@@ -358,15 +358,6 @@ nlohmann::ordered_json StudyPoint::params_json() const {
   return j;
 }
 
-std::vector<std::string> study_param_keys(const Study& s) {
-  std::vector<std::string> keys = {"input"};
-  for (const auto& a : s.axes)
-    if (is_run_param(a.key)) keys.push_back(a.key);
-  for (const auto& a : s.axes)
-    if (!is_run_param(a.key)) keys.push_back(a.key);
-  return keys;
-}
-
 std::vector<StudyPoint> expand_study(const Study& s) {
   std::vector<std::map<std::string, StudyValue>> combos;
   if (s.axes.empty()) {

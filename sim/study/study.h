@@ -79,10 +79,6 @@ struct StudyPoint {
 /// in file order (product), or the axes' i-th values together (zip).
 std::vector<StudyPoint> expand_study(const Study& s);
 
-/// The keys the points of a study set, in column order: input, then the
-/// run parameters, then the hardware keys.
-std::vector<std::string> study_param_keys(const Study& s);
-
 /// What a point runs: the input, the method, the fidelity and the design.
 /// Throws UserError (e.g. a cache shape only this combination breaks).
 struct ResolvedPoint {

@@ -337,8 +337,11 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
   return plan;
 }
 
-bool run_study_task(const Study& s, char kind, size_t point_index, const std::string& dir) {
-  const std::vector<StudyPoint> points = expand_study(s);
+namespace {
+
+/// run_study_task on points already expanded (a worker runs many tasks).
+bool run_task(const Study& s, const std::vector<StudyPoint>& points, char kind, size_t point_index,
+              const std::string& dir) {
   if (point_index >= points.size()) throw UserError(fmt::format("{}: no point {}", s.path, point_index));
   const StudyPoint& p = points[point_index];
   try {
@@ -361,18 +364,25 @@ bool run_study_task(const Study& s, char kind, size_t point_index, const std::st
   }
 }
 
+}  // namespace
+
+bool run_study_task(const Study& s, char kind, size_t point_index, const std::string& dir) {
+  return run_task(s, expand_study(s), kind, point_index, dir);
+}
+
 namespace {
 
 /// A worker process: reads tasks ("c N", "r N" or "p N") from in_fd, answers
 /// "N ok" or "N fail" on out_fd; the error goes to the task's error file.
-[[noreturn]] void worker_main(const Study& s, const std::string& dir, int in_fd, int out_fd) {
+[[noreturn]] void worker_main(const Study& s, const std::vector<StudyPoint>& points, const std::string& dir, int in_fd,
+                              int out_fd) {
   FILE* in = fdopen(in_fd, "r");
   char kind = 0;
   size_t index = 0;
   while (in && std::fscanf(in, " %c %zu", &kind, &index) == 2) {
     bool ok = false;
     try {
-      ok = run_study_task(s, kind, index, dir);
+      ok = run_task(s, points, kind, index, dir);
     } catch (...) {
     }
     const std::string reply = fmt::format("{} {} {}\n", kind, index, ok ? "ok" : "fail");
@@ -424,7 +434,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
           ::close(other.to);
           ::close(other.from);
         }
-      worker_main(s, o.out_dir, down[0], up[1]);
+      worker_main(s, points, o.out_dir, down[0], up[1]);
     }
     ::close(down[0]);
     ::close(up[1]);
