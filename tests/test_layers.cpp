@@ -31,6 +31,7 @@ struct Layer {
 constexpr Layer kLayers[] = {
     {"util", 0, "base: output files and errors"},
     {"util/containers", 0, "base: generic containers"},
+    {"util/codec", 0, "base: image decoding and encoding (OpenImageIO, loaded on first use)"},
     {"rtl_models/algo", 0, "base: bit-level algorithms"},
     {"traces/format", 10, "input: trace format v1"},
     {"traces/raster", 11, "input: rasterizer, sample patterns"},
