@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "bits.h"
+#include "toml_guard.h"
 
 namespace ropsim {
 
@@ -248,9 +249,12 @@ namespace {
 HwConfig read_hw_file(const std::string& path) {
   HwConfig c;
   c.name = path;
+  std::string text;
+  if (!read_text_file(path, text)) throw ConfigError(path + ": cannot read the design file");
+  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw ConfigError(bad);
   toml::table doc;
   try {
-    doc = toml::parse_file(path);
+    doc = toml::parse(text, path);
   } catch (const toml::parse_error& e) {
     std::ostringstream os;
     os << path << ":" << e.source().begin.line << ": " << e.description();

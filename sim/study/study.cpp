@@ -14,6 +14,7 @@
 
 #include "errors.h"
 #include "random_hash.h"
+#include "toml_guard.h"
 #include "version.h"
 
 namespace ropsim {
@@ -169,9 +170,12 @@ const StudyInput& input_of(const Study& s, const std::string& label) {
 Study load_study(const std::string& path) {
   Study s;
   s.path = path;
+  std::string text;
+  if (!read_text_file(path, text)) throw UserError(path + ": cannot read the study file");
+  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw UserError(bad);
   toml::table t;
   try {
-    t = toml::parse_file(path);
+    t = toml::parse(text, path);
   } catch (const toml::parse_error& e) {
     throw UserError(fmt::format("{}: line {}: {}", path, e.source().begin.line, e.description()));
   }
