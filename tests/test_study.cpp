@@ -43,6 +43,13 @@ height = 48
 
 }  // namespace
 
+/// "[1, 2, ..., n]"
+std::string int_list(int n) {
+  std::string l = "[";
+  for (int i = 1; i <= n; ++i) l += std::to_string(i) + (i < n ? ", " : "]");
+  return l;
+}
+
 TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
   Scratch s;
   const std::vector<std::pair<std::string, std::string>> bad = {
@@ -59,6 +66,9 @@ TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
       {"[inputs]\nscenes = [\"cloth\"]\n[study]\nnme = \"x\"\n", "study.nme"},
       {"[inputs]\nscenes = [\"cloth\"]\n[extra]\n", "extra"},
       {"[inputs]\nscenes = [\"cloth\"\n", "line"},  // not TOML
+      {"[inputs]\nscenes = [\"cloth\", \"smoke\"]\n[axes]\nseed = " + int_list(400) + "\nwidth = " + int_list(200) +
+           "\n",
+       "axes: the inputs and axes give more than 100000 points"},  // 2 x 400 x 200, refused before expanding
   };
   for (const auto& [text, key] : bad) {
     const fs::path f = s.put("bad.toml", text);

@@ -352,6 +352,21 @@ Study load_study(const std::string& path) {
         fail(s, "axes." + a.key,
              fmt::format("combine = \"zip\" needs lists of one length ({} here, {} for {})", a.values.size(),
                          s.axes.front().values.size(), s.axes.front().key));
+  // Bounded before anything is expanded: a product of long lists is refused,
+  // not allocated.
+  uint64_t points = std::max<size_t>(1, s.inputs.size());
+  for (const auto& a : s.axes) {
+    const uint64_t n = s.combine == Study::Combine::kZip ? 1 : a.values.size();
+    if (n > 0 && points > kMaxStudyPoints / n) {
+      points = kMaxStudyPoints + 1;
+      break;
+    }
+    points *= n;
+  }
+  if (s.combine == Study::Combine::kZip && !s.axes.empty())
+    points = std::max<size_t>(1, s.inputs.size()) * uint64_t(s.axes.front().values.size());
+  if (points > kMaxStudyPoints)
+    fail(s, "axes", fmt::format("the inputs and axes give more than {} points", kMaxStudyPoints));
   return s;
 }
 

@@ -62,6 +62,10 @@ struct Study {
   StudySlurm slurm;
 };
 
+/// The most points a study may have (inputs x axes, before functional points
+/// are deduplicated); a study file with more is refused.
+inline constexpr uint64_t kMaxStudyPoints = 100000;
+
 /// Reads and checks a study file. Every unknown key and bad value throws
 /// UserError "FILE: KEY: reason" before anything runs.
 Study load_study(const std::string& path);
