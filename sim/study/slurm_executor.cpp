@@ -48,6 +48,16 @@ std::string trim(std::string s) {
   return s;
 }
 
+/// A command's output as one line (an error message is one line): its lines
+/// joined by "; ".
+std::string one_line(const std::string& s) {
+  std::string r;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);)
+    if (!trim(l).empty()) r += (r.empty() ? "" : "; ") + trim(l);
+  return r;
+}
+
 /// The array job ids squeue lists (every user's queued and running jobs);
 /// false when squeue failed.
 bool queued_jobs(std::set<std::string>& ids, std::string& out) {
@@ -71,7 +81,7 @@ void wait_slurm_jobs(const std::vector<std::string>& job_ids, unsigned poll_ms) 
     std::set<std::string> q;
     std::string out;
     if (!queued_jobs(q, out)) {
-      if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + trim(out));
+      if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + one_line(out));
     } else {
       failures = 0;
       bool any = false;
@@ -143,8 +153,12 @@ SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, con
       if (!b.mem.empty()) f << "#SBATCH --mem=" << b.mem << "\n";
       f << "set -eu\n";
       f << "index=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " << sh(txt.string()) << ")\n";
+      // A capture or reference that fails records its error and exits 0, so
+      // that the next phase runs and its points record that error as theirs
+      // (afterok would cancel every point of the study). A task that could
+      // not record (killed, out of time or memory) still fails the phase.
       f << "exec " << sh(exe.string()) << " study task " << sh(study_file) << " --out " << sh(dir.string())
-        << " --kind " << kind << " --index \"$index\"\n";
+        << " --kind " << kind << " --index \"$index\"" << (kind == 'p' ? "" : " --recorded-ok") << "\n";
       if (!f) throw UserError("study run: cannot write " + script.string());
     }
     std::string cmd = "sbatch --parsable";
@@ -153,16 +167,28 @@ SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, con
     cmd += " " + sh(script.string());
     std::string out;
     const int st = run_command(cmd, out);
-    if (st != 0)
-      throw UserError(fmt::format("study run: sbatch of the {} failed (exit status {}): {}", name, st, trim(out)));
     // --parsable prints "jobid" or "jobid;cluster" (after any warnings).
     std::string id = trim(out);
     if (const auto nl = id.rfind('\n'); nl != std::string::npos) id = id.substr(nl + 1);
     id = id.substr(0, id.find(';'));
-    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
-      throw UserError("study run: sbatch printed no job id: " + trim(out));
+    if (st != 0 || id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
+      std::string why = st != 0 ? fmt::format("sbatch of the {} failed (exit status {}): {}", name, st, one_line(out))
+                                : "sbatch of the " + name + " printed no job id: " + one_line(out);
+      if (!b.mem.empty() && out.find("Memory specification can not be satisfied") != std::string::npos)
+        why += fmt::format(" (--mem={} per task: more than any node of the partition has)", b.mem);
+      // The phases already submitted would run without the rest: cancel them.
+      if (!sub.job_ids.empty()) {
+        std::string ids, scancel_out;
+        for (const auto& j : sub.job_ids) ids += (ids.empty() ? "" : " ") + j;
+        const int cst = run_command("scancel " + ids, scancel_out);
+        why += cst == 0 ? "; cancelled the jobs already submitted (" + ids + ")"
+                        : "; could not cancel the jobs already submitted (" + ids + "): " + one_line(scancel_out);
+      }
+      throw UserError("study run: " + why);
+    }
     sub.job_ids.push_back(id);
     sub.kinds.push_back(kind);
+    sub.after.push_back(after);
     after = id;
   }
   std::ofstream jobs(sdir / "jobs.txt");
