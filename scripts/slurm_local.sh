@@ -133,6 +133,11 @@ stop() {
     [ -z "$any" ] && break
     sleep 0.1
   done
+  if [ -f "$d/run.dir" ]; then
+    local run
+    run="$(cat "$d/run.dir")"
+    case "$run" in /tmp/slurm-local.??????) rm -rf "$run" ;; esac
+  fi
   rm -rf "$d"
   if [ ${#left[@]} -gt 0 ]; then
     echo "slurm_local.sh: processes of $d still run: ${left[*]}" >&2
@@ -204,14 +209,22 @@ start() {
   }
   install_packages
   rm -rf "$dir"
-  mkdir -p "$dir/state" "$dir/spool" "$dir/munge"
+  mkdir -p "$dir/state" "$dir/munge"
   dir="$(cd "$dir" && pwd)"
   chmod 700 "$dir" "$dir/munge"
 
   # munged with its own key and socket (clients find it through AuthInfo).
   dd if=/dev/urandom of="$dir/munge/munge.key" bs=1024 count=1 status=none
   chmod 400 "$dir/munge/munge.key"
-  local sock="$dir/munge/munge.socket"
+  # The sockets (munged's, and the job steps' in slurmd's spool folder) go
+  # to a short folder: a socket's path is at most 108 bytes, which a deep DIR
+  # would exceed (the steps then fail to launch). stop removes it.
+  local run
+  run="$(mktemp -d /tmp/slurm-local.XXXXXX)"
+  chmod 755 "$run"
+  echo "$run" >"$dir/run.dir"
+  mkdir -p "$run/spool"
+  local sock="$run/munge.socket"
   /usr/sbin/munged --force --key-file="$dir/munge/munge.key" --socket="$sock" \
     --pid-file="$dir/munged.pid" --log-file="$dir/munged.log" --seed-file="$dir/munge/munge.seed" ||
     fail "munged did not start"
@@ -240,7 +253,7 @@ AuthType=auth/munge
 CredType=cred/munge
 AuthInfo=socket=$sock
 StateSaveLocation=$dir/state
-SlurmdSpoolDir=$dir/spool
+SlurmdSpoolDir=$run/spool
 SlurmctldPidFile=$dir/slurmctld.pid
 SlurmdPidFile=$dir/slurmd.pid
 SlurmctldLogFile=$dir/slurmctld.log
