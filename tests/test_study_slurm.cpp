@@ -526,3 +526,29 @@ TEST(StudySlurmFile, ALaterPhaseRefusedBySbatchCancelsThePhasesAlreadySubmitted)
   EXPECT_EQ(slurp(s.dir / "cancelled"), "4242\n") << "the references' job was not cancelled";
   EXPECT_FALSE(fs::exists(s.dir / "st" / "slurm" / "jobs.txt"));
 }
+
+// --wait gives up on a job that will never run (held after a failed launch:
+// the steps could not start), in one line that names it, instead of waiting
+// for ever. Fake sbatch and squeue stand for the cluster.
+TEST(StudySlurmFile, WaitGivesUpOnAJobThatWillNeverRun) {
+  Scratch s("ropsim-test-slurm-fake");
+  fs::create_directories(s.dir / "bin");
+  auto tool = [&](const std::string& name, const std::string& body) {
+    s.put("bin/" + name, "#!/bin/sh\n" + body);
+    fs::permissions(s.dir / "bin" / name, fs::perms::owner_all);
+  };
+  tool("sbatch", "n=$(cat '" + s.dir.string() + "/n' 2>/dev/null || echo 7); echo $((n + 1)) > '" + s.dir.string() +
+                     "/n'\necho $((n + 1))\n");
+  tool("squeue", "echo '8|PENDING|launch failed requeued held'\necho '9|PENDING|Dependency'\n");
+  s.put("tiny.toml", kStudy);
+  const Ran r = shell(s.dir,
+                      "env PATH='" + (s.dir / "bin").string() +
+                          ":/usr/bin:/bin' '" ROPSIM_BINARY "' study run tiny.toml --out st --executor slurm --wait",
+                      60);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("job 8: references"), std::string::npos) << r.out;
+  EXPECT_EQ(lines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("ropsim: error: study run: SLURM job 8 will not run (pending: launch failed requeued held)"),
+            std::string::npos)
+      << r.err;
+}

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -59,14 +60,28 @@ std::string one_line(const std::string& s) {
 }
 
 /// The array job ids squeue lists (every user's queued and running jobs);
-/// false when squeue failed.
-bool queued_jobs(std::set<std::string>& ids, std::string& out) {
+/// false when squeue failed. stuck: the jobs pending for a reason that only
+/// someone's action ends (held after a failed launch or by an
+/// administrator, a dependency that can never be satisfied), with it.
+bool queued_jobs(std::set<std::string>& ids, std::string& out, std::map<std::string, std::string>* stuck = nullptr) {
   ids.clear();
-  if (run_command("squeue -h -o %F", out) != 0) return false;
+  if (run_command("squeue -h -o '%F|%T|%r'", out) != 0) return false;
+  static const char* const kStuck[] = {"launch failed requeued held", "JobHeldAdmin", "DependencyNeverSatisfied",
+                                       "BadConstraints"};
   std::istringstream in(out);
   std::string line;
-  while (std::getline(in, line))
-    if (!trim(line).empty()) ids.insert(trim(line));
+  while (std::getline(in, line)) {
+    line = trim(line);
+    if (line.empty()) continue;
+    const size_t a = line.find('|'), b = line.find('|', a == std::string::npos ? a : a + 1);
+    const std::string id = line.substr(0, a);
+    ids.insert(id);
+    if (stuck && b != std::string::npos && line.substr(a + 1, b - a - 1) == "PENDING") {
+      const std::string reason = line.substr(b + 1);
+      for (const char* r : kStuck)
+        if (reason == r) (*stuck)[id] = reason;
+    }
+  }
   return true;
 }
 
@@ -79,13 +94,22 @@ void wait_slurm_jobs(const std::vector<std::string>& job_ids, unsigned poll_ms) 
   const int max_failures = std::max(1, int(30000 / std::max(1u, poll_ms)));  // about 30 s of errors
   for (;;) {
     std::set<std::string> q;
+    std::map<std::string, std::string> stuck;
     std::string out;
-    if (!queued_jobs(q, out)) {
+    if (!queued_jobs(q, out, &stuck)) {
       if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + one_line(out));
     } else {
       failures = 0;
       bool any = false;
-      for (const auto& id : job_ids) any = any || q.count(id);
+      for (const auto& id : job_ids) {
+        any = any || q.count(id);
+        // Waiting would never end.
+        if (auto it = stuck.find(id); it != stuck.end())
+          throw UserError(fmt::format(
+              "study run: SLURM job {} will not run (pending: {}); see the cluster's logs, then scancel {} and "
+              "submit again (the tasks that ran are recorded by `ropsim study collect`)",
+              id, it->second, id));
+      }
       if (!any) return;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(poll_ms));
