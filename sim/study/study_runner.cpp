@@ -400,7 +400,9 @@ bool run_task(const Study& s, const std::vector<StudyPoint>& points, char kind, 
     fs::path f = point_dir(dir, p) / "error.txt";
     if (kind == 'c' || kind == 'r') {
       const ResolvedPoint r = resolve_point(s, p, dir);  // planned, so it resolves
-      f = kind == 'c' ? capture_error_path(dir, r.capture_key) : ref_error_path(dir, r.reference_key);
+      const std::string& key = kind == 'c' ? r.capture_key : r.reference_key;
+      const std::string name = key.empty() ? p.hash : key;  // a task the point does not need
+      f = kind == 'c' ? capture_error_path(dir, name) : ref_error_path(dir, name);
     }
     fs::create_directories(f.parent_path());
     write_text_output(f.string(), std::string(e.what()) + "\n");
