@@ -28,9 +28,9 @@ timeout="${SLURM_LOCAL_TIMEOUT:-60}"
 trap '' PIPE
 
 # The processes of the cluster in DIR, one pid a line: the daemons (their
-# command line names DIR), the job steps (slurmstepd started by this slurmd:
-# SLURM_CONF=DIR/slurm.conf in its environment) and everything below a step
-# (the jobs' scripts and programs). Zombies are left out.
+# command line or SLURM_CONF=DIR/slurm.conf in their environment names DIR),
+# the job steps (slurmstepd started by this slurmd) and everything below a step
+# (the jobs' scripts and programs).
 ours() {
   local d="$1" pid exe steps=() p
   for p in /proc/[0-9]*; do
@@ -38,13 +38,13 @@ ours() {
     [ "$pid" = "$$" ] && continue
     exe="$(readlink "$p/exe" 2>/dev/null)" || continue
     case "$exe" in
-    */slurmctld | */slurmd | */munged)
-      tr '\0' ' ' <"$p/cmdline" 2>/dev/null | grep -qF -- "$d/" && echo "$pid"
-      ;;
-    */slurmstepd)
-      if tr '\0' '\n' <"$p/environ" 2>/dev/null | grep -qxF -- "SLURM_CONF=$d/slurm.conf"; then
+    */slurmctld | */slurmd | */slurmstepd | */munged)
+      # slurmctld's helper slurmscriptd and the steps have DIR only in their
+      # environment (start exports SLURM_CONF before the daemons).
+      if tr '\0' ' ' <"$p/cmdline" 2>/dev/null | grep -qF -- "$d/" ||
+        tr '\0' '\n' <"$p/environ" 2>/dev/null | grep -qxF -- "SLURM_CONF=$d/slurm.conf"; then
         echo "$pid"
-        steps+=("$pid")
+        case "$exe" in */slurmstepd) steps+=("$pid") ;; esac
       fi
       ;;
     esac
@@ -304,12 +304,17 @@ EOF
   echo "$SLURM_CONF"
 }
 
-case "$cmd" in
-start) start ;;
-stop) stop "$dir" ;;
-watch)
-  [ -n "${3:-}" ] || usage
-  watch "$dir" "$3"
-  ;;
-*) usage ;;
-esac
+# In one block, read whole before it runs: a watcher runs for as long as its
+# test, and must not read a script edited meanwhile.
+{
+  case "$cmd" in
+  start) start ;;
+  stop) stop "$dir" ;;
+  watch)
+    [ -n "${3:-}" ] || usage
+    watch "$dir" "$3"
+    ;;
+  *) usage ;;
+  esac
+  exit
+}

@@ -373,7 +373,19 @@ traces = ["good.rtr", "bad.rtr"]
 [axes]
 method = ["lk", "enderton"]
 )";
-  const Ran a = ropsim(root_, "study run two.toml --out st --executor slurm --wait", kClusterTimeout);
+  // Submitted without --wait: the test waits for the queue to empty (at most
+  // 60 s), then `study collect` records what the tasks left in the folder.
+  const Ran sub = ropsim(root_, "study run two.toml --out st --executor slurm", kClusterTimeout);
+  ASSERT_EQ(sub.status, 0) << sub.out << sub.err;
+  EXPECT_NE(sub.out.find("submitted 0 captures, 2 references, 4 points"), std::string::npos) << sub.out;
+  bool empty = false;
+  for (int t = 0; t < 120 && !empty; ++t) {
+    const Ran q = shell(root_, "squeue -h", 30);
+    empty = q.status == 0 && q.out.empty();
+    if (!empty) ::usleep(500000);
+  }
+  ASSERT_TRUE(empty) << "the jobs did not end in 60 s\n" << logs("st");
+  const Ran a = ropsim(root_, "study collect st", kClusterTimeout);
   EXPECT_EQ(a.status, 1) << "a failed point makes the exit status 1\n" << a.out << a.err << logs("st");
   EXPECT_NE(a.out.find("4 points: 2 done, 2 failed, 0 not run yet"), std::string::npos) << a.out << logs("st");
   Rows rows = model_results(root_, "st");
