@@ -168,10 +168,14 @@ const StudyInput& input_of(const Study& s, const std::string& label) {
 }  // namespace
 
 Study load_study(const std::string& path) {
-  Study s;
-  s.path = path;
   std::string text;
   if (!read_text_file(path, text)) throw UserError(path + ": cannot read the study file");
+  return parse_study(text, path);
+}
+
+Study parse_study(const std::string& text, const std::string& path) {
+  Study s;
+  s.path = path;
   if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw UserError(bad);
   toml::table t;
   try {
