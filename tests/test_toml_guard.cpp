@@ -31,6 +31,8 @@ TEST(TomlGuard, RefusesEveryPlaceToml330TestsANonAsciiCharacterForWhitespace) {
       {"a =\xc2\xa0 1\n", 1, 4},                           // as whitespace (U+00A0)
       {"s = \"x\\\xc3\xa9\"\n", 1, 8},                     // after a backslash in a basic string
       {"[t\xc3\xa9]\n", 1, 3},                             // in a table header
+      {"s =5\"\xc2\xa7\"\n", 1, 6},                        // a quote where no string starts (found by fuzzing)
+      {"a = 1 'x\xc3\xa9'\n", 1, 9},
   };
   for (const auto& c : cases) {
     const ropsim::TomlGuardProblem p = ropsim::toml_guard(c.text);

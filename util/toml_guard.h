@@ -7,8 +7,9 @@
 // that question only where TOML allows nothing but ASCII: outside strings and
 // comments (between tokens, after a value, at the start of a line), after a
 // backslash in a basic string, and where a line-ending backslash in a
-// multi-line basic string skips the whitespace that follows it. This check
-// refuses exactly those places, so the parser's undefined path is never
+// multi-line basic string skips the whitespace that follows it. (A quote
+// opens a string only where TOML lets one start; after a bare value the parser
+// scans on through a quote.) This check refuses exactly those places, so the parser's undefined path is never
 // reached; UTF-8 inside strings and comments is untouched.
 #pragma once
 #include <cstddef>
