@@ -14,7 +14,9 @@
 #include "depth.h"
 #include "half.h"
 #include "hilbert.h"
+#include "method_kernels.h"
 #include "opacity.h"
+#include "random_hash.h"
 #include "sort_order.h"
 #include "tracker.h"
 
@@ -387,4 +389,55 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
   // The tracker row for a conflict: covered 0x00ff, surviving 0x0180 -> new surface 4, n 0.
   const std::string t = make_vectors("tracker", 3, 1, Numerics{});
   EXPECT_NE(t.find("16,32,00000000000000ff,3,0000000000000180,1,0,4,0000000000000180"), std::string::npos) << t;
+}
+
+// hashed-a2c (Wyman & McGuire 2017, Eq. 9): for every power-of-two n, a
+// fragment's n thresholds fall one in each stratum [s/n, (s+1)/n), the offset
+// and the odd increment are in range, and over many fragments every offset and
+// every odd increment occurs (they come from the hash, not a fixed pattern).
+TEST(HashedA2c, ThresholdsFallOneInEachStratum) {
+  for (uint32_t n = 1; n <= 64; n *= 2) {
+    std::vector<int> offsets(n, 0), increments(n, 0);
+    for (uint32_t k = 0; k < 4000; ++k) {
+      const uint64_t key = fragment_key(1, k % 7, k, k % 13, k % 17);
+      const HashedA2cPattern p = hashed_a2c_pattern(key, n);
+      ASSERT_LT(p.offset, n);
+      ASSERT_EQ(p.increment % 2, 1u) << "the increment is odd";
+      ASSERT_LE(p.increment, n == 1 ? 1u : n - 1);
+      ++offsets[p.offset];
+      ++increments[p.increment];
+      std::vector<int> in_stratum(n, 0);
+      for (uint32_t i = 0; i < n; ++i) {
+        const uint64_t t = hashed_a2c_threshold(p, n, i);  // threshold * n * 2^32
+        ASSERT_EQ(t & 0xFFFFFFFFu, p.chi) << "n " << n << ": the jitter is the fragment's chi";
+        ++in_stratum[size_t(t >> 32)];
+      }
+      for (uint32_t s = 0; s < n; ++s)
+        ASSERT_EQ(in_stratum[s], 1) << "n " << n << " key " << key << ": stratum " << s << " holds " << in_stratum[s]
+                                    << " thresholds";
+    }
+    for (uint32_t s = 0; s < n; ++s) EXPECT_GT(offsets[s], 0) << "n " << n << ": offset " << s << " never drawn";
+    for (uint32_t s = 1; s < n; s += 2)
+      EXPECT_GT(increments[s], 0) << "n " << n << ": increment " << s << " never drawn";
+  }
+}
+
+// With one chi per fragment the kept count is floor(alpha n + 1 - chi): never
+// more than one away from alpha n; alpha 0 keeps none, alpha 1 keeps all.
+TEST(HashedA2c, MaskKeepsAlphaNRoundedEitherWay) {
+  for (uint32_t n = 1; n <= 64; n *= 2)
+    for (float alpha : {0.0f, 1e-6f, 0.25f, 0.5f, 0.61f, 1.0f - 1e-6f, 1.0f})
+      for (uint32_t k = 0; k < 200; ++k) {
+        const uint64_t key = fragment_key(3, 0, k, 1, 2);
+        const uint64_t a = alpha_to_fixed(alpha, 32);
+        const uint64_t mask = hashed_a2c_mask(a, 32, n, key);
+        ASSERT_EQ(mask & ~low_mask(int(n)), 0u);
+        const int kept = __builtin_popcountll(mask);
+        const double an = double(alpha) * n;
+        ASSERT_GE(kept, int(std::floor(an))) << "n " << n << " alpha " << alpha;
+        ASSERT_LE(kept, int(std::ceil(an))) << "n " << n << " alpha " << alpha;
+        const HashedA2cPattern p = hashed_a2c_pattern(key, n);
+        for (uint32_t i = 0; i < n; ++i)  // kept exactly where alpha > threshold
+          ASSERT_EQ((mask >> i) & 1, uint64_t(double(a) * n > double(hashed_a2c_threshold(p, n, i))));
+      }
 }

@@ -93,7 +93,8 @@ TEST_P(BitExact, EveryMethodAndSppMatchesTheGoldenModel) {
   const auto& [scene, config] = GetParam();
   const HwConfig hw = load_hw_config(config);
   for (int spp : {1, 4, 16, 64})
-    for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk})
+    for (Method m :
+         {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk, Method::kHashed, Method::kHashedA2c})
       expect_bit_exact(scene_input(scene, spp), m, hw,
                        scene + " " + std::to_string(spp) + " spp " + to_string(m) + " on " + config);
 }
@@ -524,6 +525,13 @@ TEST(Timing, MethodsInstantiateOnlyTheUnitsTheyUse) {
   EXPECT_EQ(kinds(Method::kEnderton).count("alpha_ref_gen"), 1u);
   EXPECT_EQ(kinds(Method::kOpaque).count("alpha_ref_gen"), 0u);
   EXPECT_EQ(kinds(Method::kA2c).count("coverage_tracker"), 0u);
+  // hashed and hashed-a2c are stateless: their thresholds are hashed in the
+  // coverage selection before the depth test, so no tracker, sorter or
+  // alpha-reference generator.
+  for (Method m : {Method::kHashed, Method::kHashedA2c}) {
+    const std::set<std::string> want = {"trace_source", "distributor", "pixel_ordering", "depth_test", "writeback"};
+    EXPECT_EQ(kinds(m), want) << to_string(m);
+  }
 }
 
 // ------------------------------------------------------------ sorter algorithms
@@ -966,7 +974,8 @@ TEST(ReportFields, DocsAreGeneratedFromTheDeclarationsAndCoverEveryReport) {
   EXPECT_EQ(generated_section(ss.str()), want)
       << "docs/reports.md is out of date: regenerate its table with `ropsim report-fields --markdown`";
 
-  for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque}) {
+  for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque, Method::kHashed,
+                   Method::kHashedA2c}) {
     InputSpec in = scene_input("smoke", 4);
     ReportContext ctx;
     ctx.input = in;

@@ -338,7 +338,8 @@ TEST(Methods, AlphaOneIsAPlainZBuffer) {
   GoldenConfig cfg;
   cfg.method = Method::kOpaque;
   const Image zbuf = run_functional(in, cfg).image;
-  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c}) {
+  for (Method meth :
+       {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
     cfg.method = meth;
     EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << to_string(meth);
   }
@@ -356,6 +357,50 @@ TEST(Methods, A2cHasStaticAssignment) {
   EXPECT_NEAR(far_lk, 0.25, 1e-9);
   // One surface: a2c coverage is alpha within the dither's resolution.
   EXPECT_NEAR(mean_coverage(Method::kA2c, 16, 64, {{0.5f, 0.3f}}, 0.5f), 0.3, 1.0 / 32);
+}
+
+// Wyman & McGuire 2017 §8: two overlapping alpha 0.5 surfaces. hashed-a2c
+// draws each fragment's stratum order from its own hash, so the two masks are
+// independent and the union covers 1 - 0.5^2 = 0.75 of the samples in
+// expectation; a2c's fixed dither gives both the same samples: exactly 0.5.
+// Bound: per pixel the uncovered count lies in [0, spp/2], so its variance is
+// at most spp^2/16 (Popoviciu) and the mean fraction over P pixels has
+// sigma <= 1/(4 sqrt(P)); 6 sigma with P = 128^2 is 0.0117.
+TEST(Methods, HashedA2cDecorrelatesOverlappingSurfaces) {
+  const uint32_t W = 128;
+  const double b = 6.0 / (4.0 * std::sqrt(double(W) * W));
+  for (int spp : {4, 16, 64}) {
+    auto union_coverage = [&](Method meth) {
+      const std::vector<Layer> layers = {{0.2f, 0.5f}, {0.8f, 0.5f}};
+      return mean_coverage(meth, spp, W, layers, 0.2f) + mean_coverage(meth, spp, W, layers, 0.8f);
+    };
+    EXPECT_NEAR(union_coverage(Method::kHashedA2c), 0.75, b) << spp << " spp (bound " << b << ")";
+    EXPECT_EQ(union_coverage(Method::kA2c), 0.5) << spp << " spp: a2c's known correlation";
+  }
+}
+
+// hashed: one threshold per fragment, so a pixel is all or nothing; the mean
+// over pixels is alpha (6-sigma binomial bound over the W^2 pixels, not the
+// samples). hashed-a2c: alpha within the stratified bound over the samples.
+TEST(Unbiased, HashedMethodsMeanCoverageIsAlpha) {
+  const int spp = 16;
+  const uint32_t W = 256;
+  for (float alpha : {0.0f, 0.25f, 0.61f, 1.0f}) {
+    const double hashed = mean_coverage(Method::kHashed, spp, W, {{0.5f, alpha}}, 0.5f);
+    EXPECT_NEAR(hashed, double(alpha), bound(alpha, double(W) * W)) << "hashed alpha " << alpha;
+    const double ha2c = mean_coverage(Method::kHashedA2c, spp, W, {{0.5f, alpha}}, 0.5f);
+    EXPECT_NEAR(ha2c, double(alpha), bound(alpha, double(W) * W * spp)) << "hashed-a2c alpha " << alpha;
+  }
+  // All or nothing per pixel: every touched pixel has 0 or spp samples of the surface.
+  TraceHeader h = header(64, 64, spp);
+  StochasticModel m = model(h, Method::kHashed);
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) m.draw(frag(x, y, full_mask(spp), 0.5f, 0.5f));
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      const int n = samples_at_depth(m, x, y, 0.5f);
+      ASSERT_TRUE(n == 0 || n == spp) << "hashed kept " << n << " of " << spp << " samples at " << x << "," << y;
+    }
 }
 
 TEST(Determinism, SameSeedSameBitsOtherSeedOtherBits) {

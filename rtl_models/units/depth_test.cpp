@@ -76,7 +76,13 @@ void DepthTest::step(uint64_t now) {
 }
 
 std::vector<Unit::Extra> DepthTest::extras() const {
-  return {{"killed", double(killed_), "fragments", "fragments with no surviving sample, retired here"}};
+  std::vector<Extra> e = {{"killed", double(killed_), "fragments", "fragments with no surviving sample, retired here"}};
+  const Method m = rop_.setup().cfg.method;
+  if (m == Method::kHashed || m == Method::kHashedA2c)
+    e.push_back({"selection_hashes", double(rop_.depth().selection_hashes()), "hashes",
+                 "hashed, hashed-a2c: random numbers the coverage selection hashed (1 or 3 per fragment), "
+                 "pipelined beside the depth read"});
+  return e;
 }
 
 }  // namespace ropsim

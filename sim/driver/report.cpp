@@ -54,7 +54,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   in.put("height", run.header.height, "pixels", "screen height");
   in.put("spp", run.header.spp, "samples", "samples per pixel");
   r.put("method", to_string(ctx.config.method), "-", "the transparency method");
-  r.put("seed", ctx.config.seed, "-", "the seed of the method's hash-based random numbers (enderton, naive)");
+  r.put("seed", ctx.config.seed, "-",
+        "the seed of the method's hash-based random numbers (enderton, naive, hashed, hashed-a2c)");
   put_numerics(r.obj("numerics"), ctx.config.numerics);
   put_counters(r.obj("counters"), run.counters);
   Fields host = r.obj("host");

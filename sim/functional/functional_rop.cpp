@@ -60,6 +60,12 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     case Method::kOpaque:
       process_ = &FunctionalRop::process_as<Method::kOpaque>;
       break;
+    case Method::kHashed:
+      process_ = &FunctionalRop::process_as<Method::kHashed>;
+      break;
+    case Method::kHashedA2c:
+      process_ = &FunctionalRop::process_as<Method::kHashedA2c>;
+      break;
     case Method::kReference:
       throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
   }

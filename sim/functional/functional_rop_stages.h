@@ -22,21 +22,25 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
 // golden model runs the specialisation of its method (process_as<M>, every
 // stage inlined), the units run the same code through run()'s dispatch.
 
-#define ROPSIM_DISPATCH(call)            \
-  switch (s_.cfg.method) {               \
-    case Method::kLk:                    \
-      return call<Method::kLk>(w);       \
-    case Method::kEnderton:              \
-      return call<Method::kEnderton>(w); \
-    case Method::kNaive:                 \
-      return call<Method::kNaive>(w);    \
-    case Method::kA2c:                   \
-      return call<Method::kA2c>(w);      \
-    case Method::kOpaque:                \
-      return call<Method::kOpaque>(w);   \
-    case Method::kReference:             \
-      break;                             \
-  }                                      \
+#define ROPSIM_DISPATCH(call)             \
+  switch (s_.cfg.method) {                \
+    case Method::kLk:                     \
+      return call<Method::kLk>(w);        \
+    case Method::kEnderton:               \
+      return call<Method::kEnderton>(w);  \
+    case Method::kNaive:                  \
+      return call<Method::kNaive>(w);     \
+    case Method::kA2c:                    \
+      return call<Method::kA2c>(w);       \
+    case Method::kOpaque:                 \
+      return call<Method::kOpaque>(w);    \
+    case Method::kHashed:                 \
+      return call<Method::kHashed>(w);    \
+    case Method::kHashedA2c:              \
+      return call<Method::kHashedA2c>(w); \
+    case Method::kReference:              \
+      break;                              \
+  }                                       \
   return 0;
 
 template <Method M>
@@ -49,10 +53,21 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
   if constexpr (kT.coverage_select) {
-    // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
-    // opacity decision, made before the depth test.
-    const uint32_t k = a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
-    tested &= s_.a2c_prefix[k];
+    // The opacity decision as a sample mask, made before the depth test.
+    const uint64_t a = memo_.fixed_alpha(f.alpha);
+    const int alpha_bits = s_.cfg.numerics.alpha_bits;
+    if constexpr (M == Method::kA2c) {
+      // a2c: k = floor(alpha spp + dither) samples of a fixed order.
+      tested &= s_.a2c_prefix[a2c_sample_count(a, alpha_bits, s_.spp, f.x, f.y)];
+    } else if constexpr (M == Method::kHashed) {
+      // hashed: all covered samples or none, against one hashed threshold.
+      if (!hashed_alpha_passes(a, alpha_bits, s_.random_key(f))) tested = 0;
+      selection_hashes_ += 1;
+    } else if constexpr (M == Method::kHashedA2c) {
+      // hashed-a2c: one threshold per 1/spp stratum, in a hashed order (Eq. 9).
+      tested &= hashed_a2c_mask(a, alpha_bits, uint32_t(s_.spp), s_.random_key(f));
+      selection_hashes_ += 3;
+    }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
   if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
@@ -153,7 +168,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
       }
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-  } else {  // a2c (its opacity decision was the mask, before the depth test) and opaque
+  } else {  // a2c, hashed, hashed-a2c (their opacity decision was the mask, before the depth test), opaque
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
       px.write_sample(i, z[i], rgb16);
