@@ -101,7 +101,7 @@ TEST_P(BitExact, EveryMethodAndSppMatchesTheGoldenModel) {
 
 INSTANTIATE_TEST_SUITE_P(AllScenesAllConfigs, BitExact,
                          ::testing::Combine(::testing::Values("testcard", "eight-layers", "enderton-1", "enderton-2",
-                                                              "cloth", "smoke", "opaque"),
+                                                              "cloth", "smoke", "opaque", "foliage"),
                                             ::testing::ValuesIn(config_files())),
                          [](const auto& info) {
                            std::string s = std::get<0>(info.param) + "_" +
