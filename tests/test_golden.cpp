@@ -308,6 +308,55 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
     }
 }
 
+// slab with k at least the number of layers is stochastic transparency with
+// b samples, so its mean pixel is the exact composite in expectation. Bound:
+// as above, with the W x H x b mask bits as the samples (the bits of one
+// layer are stratified, at most the binomial variance; layers independent).
+TEST(Slab, KLargeMeanPixelIsTheExactComposite) {
+  struct Ex {
+    const char* scene;
+    std::array<double, 3> exact;
+  };
+  const Ex examples[] = {{"enderton-1", {0.45, 0.2475, 0.3025}},
+                         {"enderton-2", {0.7626953125, 0.7626953125, 0.7626953125}}};
+  for (const auto& ex : examples)
+    for (int spp : {1, 4})
+      for (int bits : {8, 32}) {
+        InputSpec in;
+        in.scene.name = ex.scene;
+        in.scene.spp = spp;
+        in.scene.width = in.scene.height = 128;
+        GoldenConfig cfg;
+        cfg.method = Method::kSlab;
+        cfg.slab_layers = 16;
+        cfg.slab_bits = bits;
+        FunctionalRun r = run_functional(in, cfg);
+        const auto m = mean_pixel(r.image);
+        const double samples = double(r.header.width) * r.header.height * bits;
+        const double b = 4 * bound(0.5, samples) + 1e-3;
+        for (int c = 0; c < 3; ++c)
+          EXPECT_NEAR(m[size_t(c)], ex.exact[size_t(c)], b)
+              << ex.scene << " spp " << spp << " b " << bits << " channel " << c << " (bound " << b << ")";
+      }
+}
+
+// slab with k = 1 on opaque input keeps the nearest fragment of each pixel: at
+// 1 spp exactly the z-buffer's image.
+TEST(Slab, KOneOnOpaqueInputIsTheZBufferImage) {
+  InputSpec in;
+  in.scene.name = "opaque";
+  in.scene.spp = 1;
+  GoldenConfig cfg;
+  cfg.method = Method::kOpaque;
+  const Image zbuf = run_functional(in, cfg).image;
+  cfg.method = Method::kSlab;
+  cfg.slab_layers = 1;
+  for (int bits : {1, 32}) {
+    cfg.slab_bits = bits;
+    EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << "b " << bits;
+  }
+}
+
 // LK Table 1 on the built-in cloth: lk beats enderton at every spp, and the
 // ratio lk / enderton falls as spp rises (seeds fixed; see docs/results.md).
 TEST(ClothRmse, LkBeatsEndertonAndTheRatioFalls) {

@@ -35,6 +35,8 @@ struct RopSetup {
   uint32_t tracker_bytes;                        ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
   std::array<float, 64> offset_x{}, offset_y{};  ///< sample offsets from the pixel centre
   std::array<uint64_t, 65> a2c_prefix{};         ///< a2c: mask of the first k samples
+  std::array<uint64_t, 64> slab_bits_of{};       ///< slab: the mask bits sample s owns
+  uint32_t slab_bytes = 0;                       ///< slab: one pixel's layers in memory (slab_pixel_bytes)
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
   /// from its plane, or its stored per-sample depths.
@@ -71,8 +73,8 @@ class DepthStage : public Stage {
   uint32_t run(FragWork& w);
   template <Method M>
   uint32_t run_as(FragWork& w);  ///< run() for method M, specialised at compile time
-  /// hashed, hashed-a2c: the hashes the coverage selection computed (1 and 3
-  /// per fragment: chi; xi1, xi2, chi).
+  /// hashed, hashed-a2c, slab: the hashes the coverage selection computed (1
+  /// and 3 per fragment: chi; xi1, xi2, chi; slab: R + 1 for its R mask bits).
   uint64_t selection_hashes() const { return selection_hashes_; }
 
  private:

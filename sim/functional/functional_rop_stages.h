@@ -8,6 +8,7 @@
 #include "method_kernels.h"
 #include "opacity.h"
 #include "random_hash.h"
+#include "slab.h"
 #include "sort_order.h"
 
 namespace ropsim {
@@ -38,6 +39,8 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
       return call<Method::kHashed>(w);    \
     case Method::kHashedA2c:              \
       return call<Method::kHashedA2c>(w); \
+    case Method::kSlab:                   \
+      return call<Method::kSlab>(w);      \
     case Method::kReference:              \
       break;                              \
   }                                       \
@@ -71,6 +74,38 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
   if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  if constexpr (M == Method::kSlab) {
+    // SLAB has no per-sample depth: it reads the pixel's layers, draws the
+    // fragment's stratified b-bit mask among the bits of its covered samples
+    // and lets it on only where nearer layers leave some of its bits open.
+    c_.depth_bytes_read -= kDepthSampleBytes * covered;  // no per-sample depth read
+    c_.tracker_bytes_read += s_.slab_bytes;
+    float z[64];
+    s_.sample_depths(f, f.coverage, z);
+    float zf = 0;
+    uint64_t candidates = 0;
+    bool first = true;
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      zf = first || z[i] < zf ? z[i] : zf;
+      first = false;
+      candidates |= s_.slab_bits_of[size_t(i)];
+    }
+    uint32_t hashes = 0;
+    const uint64_t mask = candidates ? slab_mask(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, candidates,
+                                                 s_.random_key(f), &hashes)
+                                     : 0;
+    selection_hashes_ += hashes;
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(mask));
+    const bool open = mask != 0 && !slab_occluded(*w.px.slab, zf, mask);
+    w.slab.z = zf;
+    w.slab.mask = mask;
+    w.covered = tested;
+    w.survivors = open ? tested : 0;
+    w.m = open ? covered : 0;
+    c_.samples_depth_passed += w.m;
+    return covered;
+  }
   // Each tested sample's depth and its test, in one pass; branch-free:
   // pass/fail is data-dependent.
   uint64_t S = 0;
@@ -140,7 +175,16 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   uint32_t examined = w.m;
   PixelRef px = w.px;
   const float* z = w.z;
-  if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+  if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
+    const int at = slab_insert(*px.slab, s_.cfg.slab_layers, w.slab.z, w.slab.mask, rgb16);
+    w.slab.kept = at < s_.cfg.slab_layers;
+    if (w.slab.kept) {
+      c_.samples_written += uint64_t(__builtin_popcountll(w.slab.mask));
+      c_.tracker_bytes_written += s_.slab_bytes;  // the pixel's layers, rewritten
+    }
+    w.written = 0;
+    return 1;
+  } else if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];

@@ -20,9 +20,10 @@ enum class Method {
   kReference,
   kHashed,
   kHashedA2c,
+  kSlab,
 };
 /// The last enumerator (method.cpp checks that every one has its row).
-inline constexpr Method kLastMethod = Method::kHashedA2c;
+inline constexpr Method kLastMethod = Method::kSlab;
 
 /// What a method needs of the ROP. Every method with a pipeline has the depth
 /// test and the writeback (opacity test and write); the rest is per method.
@@ -55,6 +56,9 @@ inline constexpr MethodTraits kMethodTable[] = {
     {Method::kHashedA2c, "hashed-a2c",
      "Wyman & McGuire 2017 Eq. 9: hashed alpha-to-coverage, one threshold per 1/spp stratum in a hashed order", true,
      true, false, false, false},
+    {Method::kSlab, "slab",
+     "Wyman 2016: stochastic layered alpha blending, k layers of depth, colour and a b-bit mask per pixel", true, false,
+     false, false, false},
 };
 
 /// The traits of a method (usable at compile time).
@@ -72,7 +76,9 @@ const std::vector<std::string>& method_names();
 struct MethodConfig {
   Method method = Method::kLk;
   Numerics numerics;
-  uint64_t seed = 1;  ///< seeds the hash-based random numbers of enderton, naive, hashed and hashed-a2c
+  uint64_t seed = 1;    ///< seeds the hash-based random numbers of enderton, naive, hashed, hashed-a2c and slab
+  int slab_layers = 8;  ///< slab: k, layers per pixel (1..16; Wyman 2016's k = 8)
+  int slab_bits = 32;   ///< slab: b, bits of each layer's coverage mask (1..64; Wyman 2016's b = 32)
 };
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;
