@@ -87,6 +87,9 @@ void BM_Memory4k64(benchmark::State& state) {
 BENCHMARK_CAPTURE(BM_Golden, lk, Method::kLk)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Golden, enderton, Method::kEnderton)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Golden, opaque, Method::kOpaque)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Golden, hashed, Method::kHashed)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Golden, hashed_a2c, Method::kHashedA2c)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Golden, slab, Method::kSlab)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RunScene)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Memory4k64)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

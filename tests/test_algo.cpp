@@ -14,7 +14,10 @@
 #include "depth.h"
 #include "half.h"
 #include "hilbert.h"
+#include "method_kernels.h"
 #include "opacity.h"
+#include "random_hash.h"
+#include "slab.h"
 #include "sort_order.h"
 #include "tracker.h"
 
@@ -387,4 +390,178 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
   // The tracker row for a conflict: covered 0x00ff, surviving 0x0180 -> new surface 4, n 0.
   const std::string t = make_vectors("tracker", 3, 1, Numerics{});
   EXPECT_NE(t.find("16,32,00000000000000ff,3,0000000000000180,1,0,4,0000000000000180"), std::string::npos) << t;
+}
+
+// hashed-a2c (Wyman & McGuire 2017, Eq. 9): for every power-of-two n, a
+// fragment's n thresholds fall one in each stratum [s/n, (s+1)/n), the offset
+// and the odd increment are in range, and over many fragments every offset and
+// every odd increment occurs (they come from the hash, not a fixed pattern).
+TEST(HashedA2c, ThresholdsFallOneInEachStratum) {
+  for (uint32_t n = 1; n <= 64; n *= 2) {
+    std::vector<int> offsets(n, 0), increments(n, 0);
+    for (uint32_t k = 0; k < 4000; ++k) {
+      const uint64_t key = fragment_key(1, k % 7, k, k % 13, k % 17);
+      const HashedA2cPattern p = hashed_a2c_pattern(key, n);
+      ASSERT_LT(p.offset, n);
+      ASSERT_EQ(p.increment % 2, 1u) << "the increment is odd";
+      ASSERT_LE(p.increment, n == 1 ? 1u : n - 1);
+      ++offsets[p.offset];
+      ++increments[p.increment];
+      std::vector<int> in_stratum(n, 0);
+      for (uint32_t i = 0; i < n; ++i) {
+        const uint64_t t = hashed_a2c_threshold(p, n, i);  // threshold * n * 2^32
+        ASSERT_EQ(t & 0xFFFFFFFFu, p.chi) << "n " << n << ": the jitter is the fragment's chi";
+        ++in_stratum[size_t(t >> 32)];
+      }
+      for (uint32_t s = 0; s < n; ++s)
+        ASSERT_EQ(in_stratum[s], 1) << "n " << n << " key " << key << ": stratum " << s << " holds " << in_stratum[s]
+                                    << " thresholds";
+    }
+    for (uint32_t s = 0; s < n; ++s) EXPECT_GT(offsets[s], 0) << "n " << n << ": offset " << s << " never drawn";
+    for (uint32_t s = 1; s < n; s += 2)
+      EXPECT_GT(increments[s], 0) << "n " << n << ": increment " << s << " never drawn";
+  }
+}
+
+// With one chi per fragment the kept count is floor(alpha n + 1 - chi): never
+// more than one away from alpha n; alpha 0 keeps none, alpha 1 keeps all.
+TEST(HashedA2c, MaskKeepsAlphaNRoundedEitherWay) {
+  for (uint32_t n = 1; n <= 64; n *= 2)
+    for (float alpha : {0.0f, 1e-6f, 0.25f, 0.5f, 0.61f, 1.0f - 1e-6f, 1.0f})
+      for (uint32_t k = 0; k < 200; ++k) {
+        const uint64_t key = fragment_key(3, 0, k, 1, 2);
+        const uint64_t a = alpha_to_fixed(alpha, 32);
+        const uint64_t mask = hashed_a2c_mask(a, 32, n, key);
+        ASSERT_EQ(mask & ~low_mask(int(n)), 0u);
+        const int kept = __builtin_popcountll(mask);
+        const double an = double(alpha) * n;
+        ASSERT_GE(kept, int(std::floor(an))) << "n " << n << " alpha " << alpha;
+        ASSERT_LE(kept, int(std::ceil(an))) << "n " << n << " alpha " << alpha;
+        const HashedA2cPattern p = hashed_a2c_pattern(key, n);
+        for (uint32_t i = 0; i < n; ++i)  // kept exactly where alpha > threshold
+          ASSERT_EQ((mask >> i) & 1, uint64_t(double(a) * n > double(hashed_a2c_threshold(p, n, i))));
+      }
+}
+
+namespace {
+/// Stochastic transparency with b samples, by brute force: each bit takes the
+/// colour of the nearest fragment covering it (later wins ties), else clear.
+void brute_force_st(const std::vector<float>& z, const std::vector<uint64_t>& masks,
+                    const std::vector<std::array<float, 3>>& rgb, int bits, const float clear[3], double out[3]) {
+  for (int c = 0; c < 3; ++c) out[c] = 0;
+  for (int j = 0; j < bits; ++j) {
+    int best = -1;
+    for (size_t f = 0; f < z.size(); ++f)
+      if ((masks[f] >> j) & 1)
+        if (best < 0 || z[f] <= z[size_t(best)]) best = int(f);
+    for (int c = 0; c < 3; ++c) out[c] += best < 0 ? clear[c] : rgb[size_t(best)][c];
+  }
+  for (int c = 0; c < 3; ++c) out[c] /= bits;
+}
+}  // namespace
+
+// With k at least the number of fragments, SLAB is stochastic transparency
+// with b samples: for the same masks, its front-to-back resolve equals the
+// per-bit nearest-fragment estimate (to binary32 rounding of the resolve),
+// whatever the draw order; fragments it refuses as occluded change nothing.
+TEST(Slab, KLargeIsStochasticTransparencyWithBSamples) {
+  const float clear[3] = {0.1f, 0.2f, 0.3f};
+  for (int bits : {1, 4, 8, 32, 64})
+    for (uint32_t trial = 0; trial < 300; ++trial) {
+      const uint64_t key = fragment_key(9, trial, uint32_t(bits), 0, 0);
+      const int n = 1 + int(fragment_random(key, 0) % 12);
+      std::vector<float> z;
+      std::vector<uint64_t> masks;
+      std::vector<std::array<float, 3>> rgb;
+      SlabPixel p;
+      float layer_rgb[kMaxSlabLayers][3];
+      for (int f = 0; f < n; ++f) {
+        z.push_back(float(fragment_random(key, 10 + uint32_t(f)) % 1000) / 1000.0f);
+        const uint64_t m =
+            (uint64_t(fragment_random(key, 30 + uint32_t(f))) << 32 | fragment_random(key, 50 + uint32_t(f))) &
+            low_mask(bits);
+        masks.push_back(m);
+        const std::array<float, 3> c = {float(f) / 16, 1.0f - float(f) / 16, 0.5f};  // exact in binary16
+        rgb.push_back(c);
+        const uint16_t c16[3] = {float_to_half(c[0]), float_to_half(c[1]), float_to_half(c[2])};
+        if (m && !slab_occluded(p, z.back(), m)) slab_insert(p, kMaxSlabLayers, z.back(), m, c16);
+      }
+      for (int l = 0; l < p.count; ++l)
+        for (int c = 0; c < 3; ++c) layer_rgb[l][c] = half_to_float(p.rgb[l][c]);
+      float got[3];
+      slab_resolve(p, bits, layer_rgb, clear, got);
+      double want[3];
+      brute_force_st(z, masks, rgb, bits, clear, want);
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(got[c], want[c], 1e-6) << "b " << bits << " trial " << trial << " channel " << c;
+      for (int l = 1; l < p.count; ++l) ASSERT_LE(p.depth[l - 1], p.depth[l]) << "layers are kept nearest first";
+    }
+}
+
+// k = 1 with opaque input (every bit covered) is a z-buffer: the one layer is
+// always the nearest fragment so far (the later one on a tie).
+TEST(Slab, KOneWithOpaqueInputIsAZBuffer) {
+  for (uint32_t trial = 0; trial < 200; ++trial) {
+    SlabPixel p;
+    float nearest = 2;
+    uint16_t nearest_id = 0;
+    for (uint32_t f = 0; f < 20; ++f) {
+      const float z = float(fragment_random(fragment_key(5, trial, f, 0, 0), 0) % 16) / 16.0f;
+      const uint16_t c[3] = {uint16_t(f), 0, 0};
+      if (!slab_occluded(p, z, low_mask(32))) slab_insert(p, 1, z, low_mask(32), c);
+      if (z <= nearest) {
+        nearest = z;
+        nearest_id = uint16_t(f);
+      }
+      ASSERT_EQ(p.count, 1);
+      ASSERT_EQ(p.depth[0], nearest);
+      ASSERT_EQ(p.rgb[0][0], nearest_id) << "trial " << trial << " after fragment " << f;
+    }
+  }
+}
+
+// Beyond k layers the furthest is the one dropped: whether the new fragment
+// lands in front of the stored layers (the last stored layer falls off) or
+// behind all of them (it is itself dropped).
+TEST(Slab, TheFurthestLayerIsDropped) {
+  const uint16_t c[3] = {0, 0, 0};
+  SlabPixel p;
+  // Disjoint masks: no layer occludes another, so only k limits the list.
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(slab_insert(p, 3, 0.2f + 0.2f * float(i), uint64_t{1} << i, c), i);
+  ASSERT_EQ(p.count, 3);
+  EXPECT_EQ(slab_insert(p, 3, 0.9f, uint64_t{1} << 3, c), 3) << "the furthest new fragment is dropped";
+  EXPECT_EQ(p.count, 3);
+  EXPECT_EQ(p.depth[2], 0.6f);
+  EXPECT_EQ(slab_insert(p, 3, 0.3f, uint64_t{1} << 4, c), 1) << "inserted between 0.2 and 0.4";
+  ASSERT_EQ(p.count, 3);
+  EXPECT_EQ(p.depth[0], 0.2f);
+  EXPECT_EQ(p.depth[1], 0.3f);
+  EXPECT_EQ(p.depth[2], 0.4f) << "0.6, the furthest, was dropped";
+  EXPECT_EQ(p.mask[2], uint64_t{1} << 1);
+  EXPECT_EQ(slab_insert(p, 3, 0.1f, uint64_t{1} << 5, c), 0);
+  EXPECT_EQ(p.depth[2], 0.3f) << "0.4, now the furthest, was dropped";
+}
+
+// The stratified mask: floor(alpha |C| + xi) bits (so within one of alpha |C|),
+// all among the candidate bits, alpha 0 none and alpha 1 all of them.
+TEST(Slab, MaskIsStratifiedAmongTheCandidateBits) {
+  for (uint32_t t = 0; t < 2000; ++t) {
+    const uint64_t key = fragment_key(2, t, 0, 1, 1);
+    const uint64_t cand = (uint64_t(fragment_random(key, 100)) << 32 | fragment_random(key, 101)) | 1;
+    const int nc = __builtin_popcountll(cand);
+    for (float alpha : {0.0f, 0.3f, 0.5f, 1.0f}) {
+      uint32_t hashes = 0;
+      const uint64_t m = slab_mask(alpha_to_fixed(alpha, 32), 32, cand, key, &hashes);
+      ASSERT_EQ(m & ~cand, 0u);
+      const int r = __builtin_popcountll(m);
+      ASSERT_GE(r, int(std::floor(double(alpha) * nc)));
+      ASSERT_LE(r, int(std::ceil(double(alpha) * nc)));
+      ASSERT_EQ(hashes, uint32_t(r) + 1);
+    }
+  }
+  // Sample s owns bits [s b / spp, (s + 1) b / spp) when b >= spp.
+  const auto own = slab_sample_bits(4, 32);
+  EXPECT_EQ(own[0], 0xFFull);
+  EXPECT_EQ(own[3], 0xFF000000ull);
+  EXPECT_EQ(slab_sample_bits(16, 4)[4], 0x2ull) << "b < spp: bit j stands for sample j spp / b";
 }

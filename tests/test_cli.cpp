@@ -246,6 +246,8 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   expect_cli_error(box, "run --scene enderton-1 --spp 3" + outs, {"--spp", "3"});
   expect_cli_error(box, "run --scene enderton-1 --spp 0" + outs, {"--spp", "0"});
   expect_cli_error(box, "run --scene enderton-1 --hash-bits 40" + outs, {"--hash-bits", "40"});
+  expect_cli_error(box, "run --scene enderton-1 --method slab --slab-layers 17" + outs, {"--slab-layers", "17"});
+  expect_cli_error(box, "run --scene enderton-1 --method slab --slab-bits 0" + outs, {"--slab-bits", "0"});
   expect_cli_error(box, "run --scene enderton-1 --out x.jpg --report r.json", {"x.jpg"});
   expect_cli_error(box, "run --scene enderton-1 --out ok.png --out x.jpg --report r.json", {"x.jpg"});
   expect_cli_error(box, "scene bogus -o b.trace", {"bogus"});

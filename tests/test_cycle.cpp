@@ -51,14 +51,14 @@ GoldenConfig method_config(Method m) {
 
 /// Golden and cycle runs of one input; fails naming the first difference in
 /// the full per-sample state, the image or the counters.
-void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what,
+void expect_bit_exact(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, const std::string& what,
                       bool lockstep = false) {
   const FragmentList list = load_fragments(in);
-  StochasticModel golden(list.header, method_config(m));
+  StochasticModel golden(list.header, cfg);
   for (const auto& f : list.fragments) golden.draw(f);
   CycleOptions opt;
   opt.lockstep = lockstep;
-  const CycleRun cyc = run_cycle(in, method_config(m), hw, opt);
+  const CycleRun cyc = run_cycle(in, cfg, hw, opt);
   const std::string diff = first_state_difference(golden.store(), *cyc.state);
   EXPECT_EQ(diff, "") << what << ": the cycle model's final state differs from the golden model's";
   EXPECT_TRUE(golden.resolve().rgb == cyc.image.rgb) << what << ": resolved images differ";
@@ -73,6 +73,11 @@ void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const s
   EXPECT_EQ(a.sorts, b.sorts) << what;
   EXPECT_EQ(a.tracker_bytes_written, b.tracker_bytes_written) << what;
   EXPECT_GT(cyc.stats.total_cycles, 0u) << what;
+}
+
+void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what,
+                      bool lockstep = false) {
+  expect_bit_exact(in, method_config(m), hw, what, lockstep);
 }
 
 InputSpec scene_input(const std::string& name, int spp, uint32_t repeat = 1) {
@@ -93,14 +98,15 @@ TEST_P(BitExact, EveryMethodAndSppMatchesTheGoldenModel) {
   const auto& [scene, config] = GetParam();
   const HwConfig hw = load_hw_config(config);
   for (int spp : {1, 4, 16, 64})
-    for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk})
+    for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk, Method::kHashed, Method::kHashedA2c,
+                     Method::kSlab})
       expect_bit_exact(scene_input(scene, spp), m, hw,
                        scene + " " + std::to_string(spp) + " spp " + to_string(m) + " on " + config);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllScenesAllConfigs, BitExact,
                          ::testing::Combine(::testing::Values("testcard", "eight-layers", "enderton-1", "enderton-2",
-                                                              "cloth", "smoke", "opaque"),
+                                                              "cloth", "smoke", "opaque", "foliage"),
                                             ::testing::ValuesIn(config_files())),
                          [](const auto& info) {
                            std::string s = std::get<0>(info.param) + "_" +
@@ -135,6 +141,23 @@ TEST(BitExactTiming, ExtremeTimingParametersNeverChangeTheImage) {
       expect_bit_exact(scene_input("eight-layers", 4), Method::kEnderton, hw, what + (lockstep ? "lockstep" : ""),
                        lockstep);
     }
+  }
+}
+
+// slab's k and b change its state's size and so its memory traffic: the
+// extremes of both, against the golden model, with the narrow and wide designs.
+TEST(BitExactTiming, SlabAtEveryLayerAndBitCountExtreme) {
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    for (int k : {1, 2, 16})
+      for (int b : {1, 4, 64}) {
+        GoldenConfig cfg = method_config(Method::kSlab);
+        cfg.slab_layers = k;
+        cfg.slab_bits = b;
+        const std::string what = "slab k " + std::to_string(k) + " b " + std::to_string(b) + " on " + config;
+        expect_bit_exact(scene_input("cloth", 4), cfg, hw, what);
+        expect_bit_exact(scene_input("smoke", 4), cfg, hw, what);
+      }
   }
 }
 
@@ -524,6 +547,14 @@ TEST(Timing, MethodsInstantiateOnlyTheUnitsTheyUse) {
   EXPECT_EQ(kinds(Method::kEnderton).count("alpha_ref_gen"), 1u);
   EXPECT_EQ(kinds(Method::kOpaque).count("alpha_ref_gen"), 0u);
   EXPECT_EQ(kinds(Method::kA2c).count("coverage_tracker"), 0u);
+  // hashed and hashed-a2c are stateless: their thresholds are hashed in the
+  // coverage selection before the depth test, so no tracker, sorter or
+  // alpha-reference generator.
+  // slab reads and writes its layers at the depth test and the writeback.
+  for (Method m : {Method::kHashed, Method::kHashedA2c, Method::kSlab}) {
+    const std::set<std::string> want = {"trace_source", "distributor", "pixel_ordering", "depth_test", "writeback"};
+    EXPECT_EQ(kinds(m), want) << to_string(m);
+  }
 }
 
 // ------------------------------------------------------------ sorter algorithms
@@ -966,7 +997,8 @@ TEST(ReportFields, DocsAreGeneratedFromTheDeclarationsAndCoverEveryReport) {
   EXPECT_EQ(generated_section(ss.str()), want)
       << "docs/reports.md is out of date: regenerate its table with `ropsim report-fields --markdown`";
 
-  for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque}) {
+  for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque, Method::kHashed,
+                   Method::kHashedA2c, Method::kSlab}) {
     InputSpec in = scene_input("smoke", 4);
     ReportContext ctx;
     ctx.input = in;

@@ -308,6 +308,55 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
     }
 }
 
+// slab with k at least the number of layers is stochastic transparency with
+// b samples, so its mean pixel is the exact composite in expectation. Bound:
+// as above, with the W x H x b mask bits as the samples (the bits of one
+// layer are stratified, at most the binomial variance; layers independent).
+TEST(Slab, KLargeMeanPixelIsTheExactComposite) {
+  struct Ex {
+    const char* scene;
+    std::array<double, 3> exact;
+  };
+  const Ex examples[] = {{"enderton-1", {0.45, 0.2475, 0.3025}},
+                         {"enderton-2", {0.7626953125, 0.7626953125, 0.7626953125}}};
+  for (const auto& ex : examples)
+    for (int spp : {1, 4})
+      for (int bits : {8, 32}) {
+        InputSpec in;
+        in.scene.name = ex.scene;
+        in.scene.spp = spp;
+        in.scene.width = in.scene.height = 128;
+        GoldenConfig cfg;
+        cfg.method = Method::kSlab;
+        cfg.slab_layers = 16;
+        cfg.slab_bits = bits;
+        FunctionalRun r = run_functional(in, cfg);
+        const auto m = mean_pixel(r.image);
+        const double samples = double(r.header.width) * r.header.height * bits;
+        const double b = 4 * bound(0.5, samples) + 1e-3;
+        for (int c = 0; c < 3; ++c)
+          EXPECT_NEAR(m[size_t(c)], ex.exact[size_t(c)], b)
+              << ex.scene << " spp " << spp << " b " << bits << " channel " << c << " (bound " << b << ")";
+      }
+}
+
+// slab with k = 1 on opaque input keeps the nearest fragment of each pixel: at
+// 1 spp exactly the z-buffer's image.
+TEST(Slab, KOneOnOpaqueInputIsTheZBufferImage) {
+  InputSpec in;
+  in.scene.name = "opaque";
+  in.scene.spp = 1;
+  GoldenConfig cfg;
+  cfg.method = Method::kOpaque;
+  const Image zbuf = run_functional(in, cfg).image;
+  cfg.method = Method::kSlab;
+  cfg.slab_layers = 1;
+  for (int bits : {1, 32}) {
+    cfg.slab_bits = bits;
+    EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << "b " << bits;
+  }
+}
+
 // LK Table 1 on the built-in cloth: lk beats enderton at every spp, and the
 // ratio lk / enderton falls as spp rises (seeds fixed; see docs/results.md).
 TEST(ClothRmse, LkBeatsEndertonAndTheRatioFalls) {
@@ -338,7 +387,8 @@ TEST(Methods, AlphaOneIsAPlainZBuffer) {
   GoldenConfig cfg;
   cfg.method = Method::kOpaque;
   const Image zbuf = run_functional(in, cfg).image;
-  for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c}) {
+  for (Method meth :
+       {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
     cfg.method = meth;
     EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << to_string(meth);
   }
@@ -356,6 +406,50 @@ TEST(Methods, A2cHasStaticAssignment) {
   EXPECT_NEAR(far_lk, 0.25, 1e-9);
   // One surface: a2c coverage is alpha within the dither's resolution.
   EXPECT_NEAR(mean_coverage(Method::kA2c, 16, 64, {{0.5f, 0.3f}}, 0.5f), 0.3, 1.0 / 32);
+}
+
+// Wyman & McGuire 2017 §8: two overlapping alpha 0.5 surfaces. hashed-a2c
+// draws each fragment's stratum order from its own hash, so the two masks are
+// independent and the union covers 1 - 0.5^2 = 0.75 of the samples in
+// expectation; a2c's fixed dither gives both the same samples: exactly 0.5.
+// Bound: per pixel the uncovered count lies in [0, spp/2], so its variance is
+// at most spp^2/16 (Popoviciu) and the mean fraction over P pixels has
+// sigma <= 1/(4 sqrt(P)); 6 sigma with P = 128^2 is 0.0117.
+TEST(Methods, HashedA2cDecorrelatesOverlappingSurfaces) {
+  const uint32_t W = 128;
+  const double b = 6.0 / (4.0 * std::sqrt(double(W) * W));
+  for (int spp : {4, 16, 64}) {
+    auto union_coverage = [&](Method meth) {
+      const std::vector<Layer> layers = {{0.2f, 0.5f}, {0.8f, 0.5f}};
+      return mean_coverage(meth, spp, W, layers, 0.2f) + mean_coverage(meth, spp, W, layers, 0.8f);
+    };
+    EXPECT_NEAR(union_coverage(Method::kHashedA2c), 0.75, b) << spp << " spp (bound " << b << ")";
+    EXPECT_EQ(union_coverage(Method::kA2c), 0.5) << spp << " spp: a2c's known correlation";
+  }
+}
+
+// hashed: one threshold per fragment, so a pixel is all or nothing; the mean
+// over pixels is alpha (6-sigma binomial bound over the W^2 pixels, not the
+// samples). hashed-a2c: alpha within the stratified bound over the samples.
+TEST(Unbiased, HashedMethodsMeanCoverageIsAlpha) {
+  const int spp = 16;
+  const uint32_t W = 256;
+  for (float alpha : {0.0f, 0.25f, 0.61f, 1.0f}) {
+    const double hashed = mean_coverage(Method::kHashed, spp, W, {{0.5f, alpha}}, 0.5f);
+    EXPECT_NEAR(hashed, double(alpha), bound(alpha, double(W) * W)) << "hashed alpha " << alpha;
+    const double ha2c = mean_coverage(Method::kHashedA2c, spp, W, {{0.5f, alpha}}, 0.5f);
+    EXPECT_NEAR(ha2c, double(alpha), bound(alpha, double(W) * W * spp)) << "hashed-a2c alpha " << alpha;
+  }
+  // All or nothing per pixel: every touched pixel has 0 or spp samples of the surface.
+  TraceHeader h = header(64, 64, spp);
+  StochasticModel m = model(h, Method::kHashed);
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) m.draw(frag(x, y, full_mask(spp), 0.5f, 0.5f));
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      const int n = samples_at_depth(m, x, y, 0.5f);
+      ASSERT_TRUE(n == 0 || n == spp) << "hashed kept " << n << " of " << spp << " samples at " << x << "," << y;
+    }
 }
 
 TEST(Determinism, SameSeedSameBitsOtherSeedOtherBits) {

@@ -230,7 +230,8 @@ TEST(Scenes, EveryScenePerSppIsValidAndDeterministic) {
         collect(h2, c2);
         EXPECT_EQ(hash, h2) << info.name;
         EXPECT_EQ(count, c2) << info.name;
-        if (info.name == "cloth" || info.name == "smoke" || info.name == "opaque" || info.name == "eight-layers") {
+        if (info.name == "cloth" || info.name == "smoke" || info.name == "opaque" || info.name == "eight-layers" ||
+            info.name == "foliage") {
           in.scene.seed = 2;
           uint64_t h3 = 0, c3 = 0;
           collect(h3, c3);
@@ -279,6 +280,30 @@ TEST(Scenes, SmokeHasDozensOfLayers) {
   int max_layers = 0;
   for (auto [k, v] : hist) max_layers = std::max(max_layers, k);
   EXPECT_GE(max_layers, 24);
+}
+
+// Foliage is alpha-tested content: most fragments have alpha exactly 0 or 1
+// (measured 75 % at 4 spp, seed 1), a soft rim has the rest (25 %), and
+// leaves overlap (several layers somewhere).
+TEST(Scenes, FoliageAlphaIsMostlyZeroOrOneWithSoftEdges) {
+  InputSpec in;
+  in.scene.name = "foliage";
+  in.scene.spp = 4;
+  auto src = open_fragments(in);
+  uint64_t n = 0, zero = 0, one = 0;
+  for (Fragment f; src->next(f);) {
+    ++n;
+    zero += f.alpha == 0.0f;
+    one += f.alpha == 1.0f;
+  }
+  ASSERT_GT(n, 10000u);
+  const double binary = double(zero + one) / double(n), soft = 1.0 - binary;
+  EXPECT_GE(binary, 0.65) << "fraction of fragments with alpha 0 or 1";
+  EXPECT_GE(soft, 0.10) << "fraction of fragments on the soft rim";
+  EXPECT_GE(double(zero) / double(n), 0.2) << "the quads' transparent texels reach the ROP";
+  EXPECT_GE(double(one) / double(n), 0.2);
+  const auto hist = layer_histogram("foliage", 4);
+  EXPECT_GE(hist.rbegin()->first, 8) << "overlapping leaves";
 }
 
 TEST(Scenes, UnknownSceneAndBadSppAreErrors) {

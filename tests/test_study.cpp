@@ -57,6 +57,8 @@ TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethd = [\"lk\"]\n", "axes.methd"},
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethod = [\"lk\", \"bogus\"]\n", "axes.method"},
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nspp = [3]\n", "axes.spp"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethod = \"slab\"\nslab_layers = [4, 17]\n", "axes.slab_layers"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nmethod = \"slab\"\nslab_bits = [0]\n", "axes.slab_bits"},
       {"[inputs]\nscenes = [\"nosuch\"]\n", "inputs.scenes"},
       {"[inputs]\ntraces = [\"missing.rtr\"]\n", "inputs.traces"},
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nfidelity = \"cycle\"\n\"cache.ways\" = [0]\n", "axes.cache.ways"},

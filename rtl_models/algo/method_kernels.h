@@ -1,12 +1,14 @@
 // Per-fragment decisions of the comparison methods, shared by the golden model
-// and the SystemC units: alpha-to-coverage's sample mask and Enderton et al.'s
-// random sample count and picks. No SystemC, no state.
+// and the SystemC units: alpha-to-coverage's sample mask, Enderton et al.'s
+// random sample count and picks, and the hashed alpha test's and hashed
+// alpha-to-coverage's thresholds. No SystemC, no state.
 #pragma once
 #include <algorithm>
 #include <array>
 #include <cstdint>
 
 #include "numerics.h"
+#include "opacity.h"
 #include "random_hash.h"
 
 namespace ropsim {
@@ -48,6 +50,49 @@ inline void enderton_pick(int* list, uint32_t m, uint32_t r, uint64_t key) {
     const uint32_t pick = j + uint32_t((uint64_t(fragment_random(key, j + 1)) * (m - j)) >> 32);
     std::swap(list[j], list[pick]);
   }
+}
+
+/// hashed (Wyman & McGuire 2017, §4): the alpha test against one hashed
+/// threshold chi per fragment; every covered sample is kept if alpha > chi, so
+/// P(kept) = alpha. chi is the fragment's random lane 0.
+inline bool hashed_alpha_passes(uint64_t a_fixed, int alpha_bits, uint64_t key) {
+  return opacity_passes(a_fixed, alpha_bits, fragment_random(key, 0), 32);
+}
+
+/// hashed-a2c (Wyman & McGuire 2017, §8, Eq. 9): a fragment's offset
+/// alpha_o = floor(n xi1), odd increment alpha_+ = 2 floor(0.5 n xi2) + 1 and
+/// jitter chi, from its random lanes 0, 1 and 2. One chi per fragment (the
+/// paper allows chi_i = chi_j): then the samples kept are exactly
+/// floor(alpha n + 1 - chi) of them, the fewest a stratified choice can vary.
+struct HashedA2cPattern {
+  uint32_t offset;     ///< alpha_o in [0, n)
+  uint32_t increment;  ///< alpha_+, odd, in [1, n)
+  uint32_t chi;        ///< the jitter, in 2^-32 units
+};
+
+inline HashedA2cPattern hashed_a2c_pattern(uint64_t key, uint32_t n) {
+  HashedA2cPattern p;
+  p.offset = uint32_t((uint64_t{fragment_random(key, 0)} * n) >> 32);
+  p.increment = 2 * uint32_t((uint64_t{fragment_random(key, 1)} * (n / 2)) >> 32) + 1;
+  p.chi = fragment_random(key, 2);
+  return p;
+}
+
+/// Sample i's threshold (chi + ((alpha_o + i alpha_+) mod n)) / n as the
+/// integer threshold * n * 2^32 (exact). n is a power of two, so the odd
+/// increment makes i -> stratum a permutation: one threshold in each 1/n.
+inline uint64_t hashed_a2c_threshold(const HashedA2cPattern& p, uint32_t n, uint32_t i) {
+  return uint64_t{(p.offset + i * p.increment) & (n - 1)} << 32 | p.chi;
+}
+
+/// The samples of [0, n) whose threshold alpha exceeds (alpha > threshold, as
+/// the opacity test: alpha 0 keeps none, alpha 1 keeps all).
+inline uint64_t hashed_a2c_mask(uint64_t a_fixed, int alpha_bits, uint32_t n, uint64_t key) {
+  const HashedA2cPattern p = hashed_a2c_pattern(key, n);
+  const uint64_t a_n = (a_fixed << (32 - alpha_bits)) * n;  // alpha n 2^32, at most 2^38
+  uint64_t mask = 0;
+  for (uint32_t i = 0; i < n; ++i) mask |= uint64_t{a_n > hashed_a2c_threshold(p, n, i)} << i;
+  return mask;
 }
 
 }  // namespace ropsim

@@ -2,7 +2,8 @@
 // colour, tracker), each laid out in 8 x 8-pixel tiles, pixel-major inside a
 // tile and sample-major inside a pixel. Depth is binary32 (4 bytes/sample),
 // colour RGB binary16 (6 bytes/sample), the tracker ceil((spp + id bits) / 8)
-// bytes per pixel. Buffers are 2^48 bytes apart.
+// bytes per pixel; slab's layers (slab_pixel_bytes) per pixel, a fourth
+// surface. Buffers are 2^48 bytes apart.
 #pragma once
 #include <cstdint>
 
@@ -11,18 +12,19 @@
 
 namespace ropsim {
 
-enum class Buffer : int { kDepth, kColor, kTracker };
-constexpr int kBuffers = 3;
+enum class Buffer : int { kDepth, kColor, kTracker, kLayers };
+constexpr int kBuffers = 4;
 inline const char* to_string(Buffer b) {
-  return b == Buffer::kDepth ? "depth" : b == Buffer::kColor ? "color" : "tracker";
+  return b == Buffer::kDepth ? "depth" : b == Buffer::kColor ? "color" : b == Buffer::kTracker ? "tracker" : "layers";
 }
 
 class AddressMap {
  public:
-  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes)
+  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes, uint32_t layer_bytes = 0)
       : tiles_x_(ceil_div(width, 8u)),
         spp_(uint32_t(spp)),
         tracker_bytes_(tracker_bytes),
+        layer_bytes_(layer_bytes),
         line_shift_(log2_ceil(line_bytes)) {}
   uint64_t pixel_index(uint32_t x, uint32_t y) const {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
@@ -58,10 +60,16 @@ class AddressMap {
     const uint64_t a = base(Buffer::kTracker) + pixel_index(x, y) * tracker_bytes_;
     for (uint64_t l = a >> line_shift_; l <= (a + tracker_bytes_ - 1) >> line_shift_; ++l) f(l << line_shift_);
   }
+  /// The same for the pixel's SLAB layers (slab).
+  template <class F>
+  void for_each_layer_line(uint32_t x, uint32_t y, F&& f) const {
+    const uint64_t a = base(Buffer::kLayers) + pixel_index(x, y) * layer_bytes_;
+    for (uint64_t l = a >> line_shift_; l <= (a + layer_bytes_ - 1) >> line_shift_; ++l) f(l << line_shift_);
+  }
 
  private:
   uint64_t tiles_x_;
-  uint64_t spp_, tracker_bytes_;
+  uint64_t spp_, tracker_bytes_, layer_bytes_;
   int line_shift_;
 };
 

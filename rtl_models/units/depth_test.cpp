@@ -11,6 +11,11 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   stats_.samples += rop_.depth().run(*t);
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
+  if (rop_.setup().cfg.method == Method::kSlab) {  // slab: the pixel's layers, no per-sample depth
+    amap_.for_each_layer_line(t->f->x, t->f->y,
+                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now)); });
+    return ready;
+  }
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered,
                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
   if (rop_.traits().tracker)
@@ -76,7 +81,13 @@ void DepthTest::step(uint64_t now) {
 }
 
 std::vector<Unit::Extra> DepthTest::extras() const {
-  return {{"killed", double(killed_), "fragments", "fragments with no surviving sample, retired here"}};
+  std::vector<Extra> e = {{"killed", double(killed_), "fragments", "fragments with no surviving sample, retired here"}};
+  const Method m = rop_.setup().cfg.method;
+  if (m == Method::kHashed || m == Method::kHashedA2c || m == Method::kSlab)
+    e.push_back({"selection_hashes", double(rop_.depth().selection_hashes()), "hashes",
+                 "hashed, hashed-a2c, slab: random numbers the coverage selection hashed (1 or 3 per fragment; "
+                 "slab: R + 1), pipelined beside the depth read"});
+  return e;
 }
 
 }  // namespace ropsim

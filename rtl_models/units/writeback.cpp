@@ -17,6 +17,9 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   if (rop_.traits().tracker)
     amap_.for_each_tracker_line(t->f->x, t->f->y,
                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now); });
+  // slab: the pixel's layers, rewritten when the fragment was inserted.
+  if (rop_.setup().cfg.method == Method::kSlab && t->slab.kept)
+    amap_.for_each_layer_line(t->f->x, t->f->y, [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now); });
   return examined;
 }
 

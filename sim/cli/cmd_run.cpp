@@ -16,6 +16,7 @@
 #include "hw_config.h"
 #include "image_io.h"
 #include "report.h"
+#include "slab.h"
 
 namespace ropsim {
 
@@ -30,6 +31,7 @@ struct RunOpts {
   int spp = 16;
   uint32_t width = 0, height = 0;
   uint64_t seed = 1, scene_seed = 1;
+  int slab_layers = MethodConfig{}.slab_layers, slab_bits = MethodConfig{}.slab_bits;
   Numerics num;
   bool vs_reference = false, quiet = false, lockstep = false;
 };
@@ -154,6 +156,13 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   parse_method(o.method, cfg.method);
   cfg.numerics = hw.numerics;
   cfg.seed = o.seed;
+  cfg.slab_layers = o.slab_layers;
+  cfg.slab_bits = o.slab_bits;
+  if (validate_slab(o.slab_layers, o.slab_bits)) {
+    if (o.slab_layers < 1 || o.slab_layers > kMaxSlabLayers)
+      throw UserError("--slab-layers " + std::to_string(o.slab_layers) + ": must be in [1, 16]");
+    throw UserError("--slab-bits " + std::to_string(o.slab_bits) + ": must be in [1, 64]");
+  }
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
   if (outs.empty() && report.empty()) {
@@ -165,6 +174,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     // resolved design (numerics included), a functional run its numerics
     // when they are not the defaults.
     const Numerics& n = cfg.numerics;
+    if (cfg.method == Method::kSlab) base += fmt::format("-k{}b{}", cfg.slab_layers, cfg.slab_bits);
     if (cycle)
       base += "-cycle-hw" + hw_digest_hex(hw);
     else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
@@ -210,6 +220,8 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::Range(1u, kMaxScreenSide));
   run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
+  run->add_option("--slab-layers", ro->slab_layers, "slab: k, layers per pixel (1..16, default 8)");
+  run->add_option("--slab-bits", ro->slab_bits, "slab: b, bits of each layer's coverage mask (1..64, default 32)");
   run->add_option("--hash-bits", ro->num.hash_bits,
                   "Alpha-reference hash datapath width, bits (8..32; default: the design's numerics.hash_bits, 32)")
       ->check(CLI::Range(8, 32));

@@ -10,6 +10,7 @@
 #include "image_io.h"
 #include "output_file.h"
 #include "report_fields.h"
+#include "slab.h"
 #include "version.h"
 
 namespace ropsim {
@@ -54,7 +55,15 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   in.put("height", run.header.height, "pixels", "screen height");
   in.put("spp", run.header.spp, "samples", "samples per pixel");
   r.put("method", to_string(ctx.config.method), "-", "the transparency method");
-  r.put("seed", ctx.config.seed, "-", "the seed of the method's hash-based random numbers (enderton, naive)");
+  r.put("seed", ctx.config.seed, "-",
+        "the seed of the method's hash-based random numbers (enderton, naive, hashed, hashed-a2c, slab)");
+  if (ctx.config.method == Method::kSlab) {
+    Fields slab = r.obj("slab");
+    slab.put("layers", ctx.config.slab_layers, "layers", "slab: k, layers per pixel");
+    slab.put("bits", ctx.config.slab_bits, "bits", "slab: b, bits of each layer's coverage mask");
+    slab.put("pixel_bytes", slab_pixel_bytes(ctx.config.slab_layers, ctx.config.slab_bits), "bytes",
+             "slab: one pixel's layers in memory, k (4 + 6 + ceil(b / 8)) + 1");
+  }
   put_numerics(r.obj("numerics"), ctx.config.numerics);
   put_counters(r.obj("counters"), run.counters);
   Fields host = r.obj("host");

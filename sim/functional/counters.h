@@ -9,20 +9,24 @@
 namespace ropsim {
 
 // X(name, unit, meaning)
-#define ROPSIM_COUNTERS(X)                                                                                        \
-  X(fragments, "fragments", "fragments processed")                                                                \
-  X(samples_tested, "samples", "covered samples of those fragments")                                              \
-  X(samples_depth_passed, "samples", "samples that passed the depth test (a2c: among the samples its mask kept)") \
-  X(samples_opacity_passed, "samples",                                                                            \
-    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c: the mask)")     \
-  X(samples_written, "samples", "samples whose depth and colour were written")                                    \
-  X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict")                               \
-  X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort")                                 \
-  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth)")                                            \
-  X(depth_bytes_written, "bytes", "4 per written sample")                                                         \
-  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)")                                          \
-  X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment")                            \
-  X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample")                         \
+#define ROPSIM_COUNTERS(X)                                                                                            \
+  X(fragments, "fragments", "fragments processed")                                                                    \
+  X(samples_tested, "samples", "covered samples of those fragments")                                                  \
+  X(samples_depth_passed, "samples",                                                                                  \
+    "samples that passed the depth test (a2c, hashed, hashed-a2c: among the samples the mask kept)")                  \
+  X(samples_opacity_passed, "samples",                                                                                \
+    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c, hashed, "           \
+    "hashed-a2c: the mask)")                                                                                          \
+  X(samples_written, "samples", "samples whose depth and colour were written (slab: mask bits of inserted layers)")   \
+  X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict")                                   \
+  X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort")                                     \
+  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth; slab: none, its layers hold the depth)")         \
+  X(depth_bytes_written, "bytes", "4 per written sample")                                                             \
+  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)")                                              \
+  X(tracker_bytes_read, "bytes",                                                                                      \
+    "lk: ceil((spp + surface_id_bits) / 8) per fragment; slab: its layers, k (4 + 6 + ceil(b / 8)) + 1 per fragment") \
+  X(tracker_bytes_written, "bytes",                                                                                   \
+    "lk: the same, per fragment with a surviving sample; slab: the same, per fragment inserted")                      \
   X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")
 
 /// Event counts of one run.

@@ -35,10 +35,16 @@ struct FragWork {
   struct Naive {
     uint32_t ref[64];  ///< random reference of survivor sample i, at index i
   };
+  struct Slab {
+    float z;        ///< the fragment's depth: the nearest of its covered samples'
+    uint64_t mask;  ///< its stratified b-bit coverage mask (not occluded when it reaches the write)
+    bool kept;      ///< the write inserted it (false: it was the furthest beyond k, dropped)
+  };
   union {
     Lk lk;              ///< lk
     Enderton enderton;  ///< enderton
     Naive naive;        ///< naive
+    Slab slab;          ///< slab
   };
   FragWork() : lk() {}
 

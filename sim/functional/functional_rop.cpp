@@ -16,6 +16,11 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
       tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)),
       a2c_prefix(a2c_prefix_table(h.spp)) {
   if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
+  if (c.method == Method::kSlab) {
+    if (const char* err = validate_slab(c.slab_layers, c.slab_bits)) throw std::invalid_argument(err);
+    slab_bits_of = slab_sample_bits(h.spp, c.slab_bits);
+    slab_bytes = slab_pixel_bytes(c.slab_layers, c.slab_bits);
+  }
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
@@ -38,7 +43,7 @@ void FunctionalRop::process_as(FragWork& w) {
 
 FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     : setup_(h, cfg),
-      store_(h, setup_.traits.tracker),
+      store_(h, setup_.traits.tracker, cfg.method == Method::kSlab ? cfg.slab_bits : 0),
       depth_(setup_),
       track_(setup_),
       sort_(setup_),
@@ -59,6 +64,15 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
       break;
     case Method::kOpaque:
       process_ = &FunctionalRop::process_as<Method::kOpaque>;
+      break;
+    case Method::kHashed:
+      process_ = &FunctionalRop::process_as<Method::kHashed>;
+      break;
+    case Method::kHashedA2c:
+      process_ = &FunctionalRop::process_as<Method::kHashedA2c>;
+      break;
+    case Method::kSlab:
+      process_ = &FunctionalRop::process_as<Method::kSlab>;
       break;
     case Method::kReference:
       throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");

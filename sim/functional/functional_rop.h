@@ -35,11 +35,14 @@ struct RopSetup {
   uint32_t tracker_bytes;                        ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
   std::array<float, 64> offset_x{}, offset_y{};  ///< sample offsets from the pixel centre
   std::array<uint64_t, 65> a2c_prefix{};         ///< a2c: mask of the first k samples
+  std::array<uint64_t, 64> slab_bits_of{};       ///< slab: the mask bits sample s owns
+  uint32_t slab_bytes = 0;                       ///< slab: one pixel's layers in memory (slab_pixel_bytes)
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
   /// from its plane, or its stored per-sample depths.
   void sample_depths(const Fragment& f, uint64_t mask, float* z) const;
-  /// The key of the fragment's hash-based random numbers (enderton, naive).
+  /// The key of the fragment's hash-based random numbers (enderton, naive,
+  /// hashed, hashed-a2c).
   uint64_t random_key(const Fragment& f) const;
 };
 
@@ -60,7 +63,8 @@ class Stage {
 };
 
 /// Depth test (LK Figure 7 lines 1-3): the samples whose depth is less than or
-/// equal to the stored one survive. a2c first keeps only its dithered mask.
+/// equal to the stored one survive. a2c, hashed and hashed-a2c first keep only
+/// the samples their opacity decision chose (the coverage selection).
 /// Loads the pixel's tracker state too (lk), so counts its read.
 class DepthStage : public Stage {
  public:
@@ -69,9 +73,13 @@ class DepthStage : public Stage {
   uint32_t run(FragWork& w);
   template <Method M>
   uint32_t run_as(FragWork& w);  ///< run() for method M, specialised at compile time
+  /// hashed, hashed-a2c, slab: the hashes the coverage selection computed (1
+  /// and 3 per fragment: chi; xi1, xi2, chi; slab: R + 1 for its R mask bits).
+  uint64_t selection_hashes() const { return selection_hashes_; }
 
  private:
   ConversionMemo memo_;
+  uint64_t selection_hashes_ = 0;
 };
 
 /// Coverage-bitmask surface tracker (lk; Figure 7 lines 4-8 and 18).

@@ -8,6 +8,7 @@
 #include "method_kernels.h"
 #include "opacity.h"
 #include "random_hash.h"
+#include "slab.h"
 #include "sort_order.h"
 
 namespace ropsim {
@@ -22,21 +23,27 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
 // golden model runs the specialisation of its method (process_as<M>, every
 // stage inlined), the units run the same code through run()'s dispatch.
 
-#define ROPSIM_DISPATCH(call)            \
-  switch (s_.cfg.method) {               \
-    case Method::kLk:                    \
-      return call<Method::kLk>(w);       \
-    case Method::kEnderton:              \
-      return call<Method::kEnderton>(w); \
-    case Method::kNaive:                 \
-      return call<Method::kNaive>(w);    \
-    case Method::kA2c:                   \
-      return call<Method::kA2c>(w);      \
-    case Method::kOpaque:                \
-      return call<Method::kOpaque>(w);   \
-    case Method::kReference:             \
-      break;                             \
-  }                                      \
+#define ROPSIM_DISPATCH(call)             \
+  switch (s_.cfg.method) {                \
+    case Method::kLk:                     \
+      return call<Method::kLk>(w);        \
+    case Method::kEnderton:               \
+      return call<Method::kEnderton>(w);  \
+    case Method::kNaive:                  \
+      return call<Method::kNaive>(w);     \
+    case Method::kA2c:                    \
+      return call<Method::kA2c>(w);       \
+    case Method::kOpaque:                 \
+      return call<Method::kOpaque>(w);    \
+    case Method::kHashed:                 \
+      return call<Method::kHashed>(w);    \
+    case Method::kHashedA2c:              \
+      return call<Method::kHashedA2c>(w); \
+    case Method::kSlab:                   \
+      return call<Method::kSlab>(w);      \
+    case Method::kReference:              \
+      break;                              \
+  }                                       \
   return 0;
 
 template <Method M>
@@ -49,13 +56,56 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
   if constexpr (kT.coverage_select) {
-    // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
-    // opacity decision, made before the depth test.
-    const uint32_t k = a2c_sample_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, s_.spp, f.x, f.y);
-    tested &= s_.a2c_prefix[k];
+    // The opacity decision as a sample mask, made before the depth test.
+    const uint64_t a = memo_.fixed_alpha(f.alpha);
+    const int alpha_bits = s_.cfg.numerics.alpha_bits;
+    if constexpr (M == Method::kA2c) {
+      // a2c: k = floor(alpha spp + dither) samples of a fixed order.
+      tested &= s_.a2c_prefix[a2c_sample_count(a, alpha_bits, s_.spp, f.x, f.y)];
+    } else if constexpr (M == Method::kHashed) {
+      // hashed: all covered samples or none, against one hashed threshold.
+      if (!hashed_alpha_passes(a, alpha_bits, s_.random_key(f))) tested = 0;
+      selection_hashes_ += 1;
+    } else if constexpr (M == Method::kHashedA2c) {
+      // hashed-a2c: one threshold per 1/spp stratum, in a hashed order (Eq. 9).
+      tested &= hashed_a2c_mask(a, alpha_bits, uint32_t(s_.spp), s_.random_key(f));
+      selection_hashes_ += 3;
+    }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
   if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  if constexpr (M == Method::kSlab) {
+    // SLAB has no per-sample depth: it reads the pixel's layers, draws the
+    // fragment's stratified b-bit mask among the bits of its covered samples
+    // and lets it on only where nearer layers leave some of its bits open.
+    c_.depth_bytes_read -= kDepthSampleBytes * covered;  // no per-sample depth read
+    c_.tracker_bytes_read += s_.slab_bytes;
+    float z[64];
+    s_.sample_depths(f, f.coverage, z);
+    float zf = 0;
+    uint64_t candidates = 0;
+    bool first = true;
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      const int i = __builtin_ctzll(m);
+      zf = first || z[i] < zf ? z[i] : zf;
+      first = false;
+      candidates |= s_.slab_bits_of[size_t(i)];
+    }
+    uint32_t hashes = 0;
+    const uint64_t mask = candidates ? slab_mask(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, candidates,
+                                                 s_.random_key(f), &hashes)
+                                     : 0;
+    selection_hashes_ += hashes;
+    c_.samples_opacity_passed += uint64_t(__builtin_popcountll(mask));
+    const bool open = mask != 0 && !slab_occluded(*w.px.slab, zf, mask);
+    w.slab.z = zf;
+    w.slab.mask = mask;
+    w.covered = tested;
+    w.survivors = open ? tested : 0;
+    w.m = open ? covered : 0;
+    c_.samples_depth_passed += w.m;
+    return covered;
+  }
   // Each tested sample's depth and its test, in one pass; branch-free:
   // pass/fail is data-dependent.
   uint64_t S = 0;
@@ -125,7 +175,16 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   uint32_t examined = w.m;
   PixelRef px = w.px;
   const float* z = w.z;
-  if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+  if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
+    const int at = slab_insert(*px.slab, s_.cfg.slab_layers, w.slab.z, w.slab.mask, rgb16);
+    w.slab.kept = at < s_.cfg.slab_layers;
+    if (w.slab.kept) {
+      c_.samples_written += uint64_t(__builtin_popcountll(w.slab.mask));
+      c_.tracker_bytes_written += s_.slab_bytes;  // the pixel's layers, rewritten
+    }
+    w.written = 0;
+    return 1;
+  } else if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];
@@ -153,7 +212,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
       }
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-  } else {  // a2c (its opacity decision was the mask, before the depth test) and opaque
+  } else {  // a2c, hashed, hashed-a2c (their opacity decision was the mask, before the depth test), opaque
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
       px.write_sample(i, z[i], rgb16);

@@ -7,7 +7,7 @@ constexpr bool every_method_has_its_row() {
   int i = 0;
   for (const auto& t : kMethodTable)
     if (int(t.method) != i++) return false;
-  return i == int(Method::kReference) + 1;
+  return i == int(kLastMethod) + 1;
 }
 static_assert(every_method_has_its_row(), "kMethodTable: one row per Method, in enumerator order");
 }  // namespace

@@ -9,8 +9,12 @@
 
 namespace ropsim {
 
-SampleStore::SampleStore(const TraceHeader& h, bool with_tracker)
-    : header_(h), with_tracker_(with_tracker), tiles_(h.width, h.height), clear_depth_(canonical_depth(h.clear_depth)) {
+SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, int slab_bits)
+    : header_(h),
+      with_tracker_(with_tracker),
+      slab_bits_(slab_bits),
+      tiles_(h.width, h.height),
+      clear_depth_(canonical_depth(h.clear_depth)) {
   for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
 }
 
@@ -25,11 +29,12 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
     for (size_t i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
     if (with_tracker_) tile->tracker.reset(new TrackerState[64]());
+    if (slab_bits_ > 0) tile->slab.reset(new SlabPixel[64]());
     return tile;
   });
   const int p = pixel_in_tile(x, y);
   return PixelRef{t.depth.get() + size_t(p) * spp, t.rgb.get() + size_t(p) * spp * 3,
-                  t.tracker ? t.tracker.get() + p : nullptr};
+                  t.tracker ? t.tracker.get() + p : nullptr, t.slab ? t.slab.get() + p : nullptr};
 }
 
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
@@ -37,7 +42,7 @@ PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   if (!t) return {};
   const int p = pixel_in_tile(x, y), spp = header_.spp;
   return PixelView{t->depth.get() + size_t(p) * spp, t->rgb.get() + size_t(p) * spp * 3,
-                   t->tracker ? t->tracker.get() + p : nullptr};
+                   t->tracker ? t->tracker.get() + p : nullptr, t->slab ? t->slab.get() + p : nullptr};
 }
 
 Image SampleStore::resolve() const {
@@ -60,6 +65,14 @@ Image SampleStore::resolve() const {
       for (int s = 0; s < spp; ++s)  // summed in sample order: deterministic
         for (int ch = 0; ch < 3; ++ch) sum[ch] += half_to_float(c[3 * s + ch]);
       float* o = img.at(x, y);
+      if (t.slab) {  // slab: its layers, front to back (the samples are unused)
+        const SlabPixel& sp = t.slab[size_t(p)];
+        float rgb[kMaxSlabLayers][3];
+        for (int l = 0; l < sp.count; ++l)
+          for (int ch = 0; ch < 3; ++ch) rgb[l][ch] = half_to_float(sp.rgb[l][ch]);
+        slab_resolve(sp, slab_bits_, rgb, clear, o);
+        continue;
+      }
       for (int ch = 0; ch < 3; ++ch) o[ch] = sum[ch] * inv;
     }
   });
@@ -68,7 +81,8 @@ Image SampleStore::resolve() const {
 
 size_t SampleStore::state_bytes() const {
   const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) +
-                          (with_tracker_ ? 64 * sizeof(TrackerState) : 0);
+                          (with_tracker_ ? 64 * sizeof(TrackerState) : 0) +
+                          (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0);
   return tiles_.tiles() * per_tile + tiles_.directory_bytes();
 }
 
@@ -77,6 +91,7 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
   if (h.width != b.header().width || h.height != b.header().height || h.spp != b.header().spp)
     return "the stores have different screen sizes or spp";
   if (a.has_tracker() != b.has_tracker()) return "one store tracks surfaces, the other does not";
+  if (a.has_slab() != b.has_slab()) return "one store holds SLAB layers, the other does not";
   const int spp = h.spp;
   const float clear_z = canonical_depth(h.clear_depth);
   uint16_t clear_c[3];
@@ -107,6 +122,14 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
         if (!(ta == tb)) {
           os << "pixel (" << x << ", " << y << "): tracker (id " << ta.surface_id << ", mask " << std::hex << ta.covered
              << std::dec << ") vs (id " << tb.surface_id << ", mask " << std::hex << tb.covered << std::dec << ")";
+          return false;
+        }
+      }
+      if (a.has_slab()) {
+        const SlabPixel sa = va.slab ? *va.slab : SlabPixel{}, sb = vb.slab ? *vb.slab : SlabPixel{};
+        if (!(sa == sb)) {
+          os << "pixel (" << x << ", " << y << "): SLAB layers differ (" << int(sa.count) << " vs " << int(sb.count)
+             << " layers)";
           return false;
         }
       }

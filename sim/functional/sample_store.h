@@ -8,6 +8,7 @@
 #include <string>
 
 #include "image.h"
+#include "slab.h"
 #include "tile_map.h"
 #include "trace.h"
 #include "tracker.h"
@@ -19,6 +20,7 @@ struct SampleTile {
   std::unique_ptr<float[]> depth;           ///< [pixel * spp + sample]
   std::unique_ptr<uint16_t[]> rgb;          ///< [(pixel * spp + sample) * 3 + channel]
   std::unique_ptr<TrackerState[]> tracker;  ///< [pixel], nullptr unless tracking
+  std::unique_ptr<SlabPixel[]> slab;        ///< [pixel], nullptr unless slab
 };
 
 /// Mutable pointers to one pixel's state.
@@ -26,6 +28,7 @@ struct PixelRef {
   float* depth;           ///< [spp]
   uint16_t* rgb;          ///< [spp * 3], binary16
   TrackerState* tracker;  ///< nullptr unless tracking
+  SlabPixel* slab;        ///< nullptr unless slab
   void write_sample(int i, float z, const uint16_t* rgb16) {
     depth[i] = z;
     rgb[3 * i] = rgb16[0];
@@ -39,14 +42,16 @@ struct PixelView {
   const float* depth = nullptr;
   const uint16_t* rgb = nullptr;
   const TrackerState* tracker = nullptr;
+  const SlabPixel* slab = nullptr;
 };
 
 inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
 
 class SampleStore {
  public:
-  /// with_tracker: allocate the LK tracker state (lk only).
-  SampleStore(const TraceHeader& h, bool with_tracker);
+  /// with_tracker: allocate the LK tracker state (lk only); slab_bits > 0:
+  /// allocate SLAB layers with b-bit masks and resolve them (slab only).
+  SampleStore(const TraceHeader& h, bool with_tracker, int slab_bits = 0);
   /// The pixel's state, its tile allocated and cleared on first touch.
   PixelRef pixel(uint32_t x, uint32_t y);
   PixelView view(uint32_t x, uint32_t y) const;
@@ -58,17 +63,19 @@ class SampleStore {
   const TileMap<SampleTile>& tile_map() const { return tiles_; }
   const TraceHeader& header() const { return header_; }
   bool has_tracker() const { return with_tracker_; }
+  bool has_slab() const { return slab_bits_ > 0; }
 
  private:
   TraceHeader header_;
   bool with_tracker_;
+  int slab_bits_;
   TileMap<SampleTile> tiles_;
   float clear_depth_;
   uint16_t clear_rgb16_[3];
 };
 
 /// The first difference between two stores' full state (every sample's depth
-/// and colour bits, every tracker), as "pixel (x, y) sample s: depth a vs b";
+/// and colour bits, every tracker, every SLAB layer), as "pixel (x, y) sample s: depth a vs b";
 /// empty if they are identical. Untouched tiles compare as the clear values.
 std::string first_state_difference(const SampleStore& a, const SampleStore& b);
 

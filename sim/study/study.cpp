@@ -14,6 +14,7 @@
 
 #include "errors.h"
 #include "random_hash.h"
+#include "slab.h"
 #include "toml_guard.h"
 #include "version.h"
 
@@ -54,6 +55,8 @@ constexpr RunParam kRunParams[] = {
     {"repeat", "draw the input this many times into one frame"},
     {"order", "draw order of a mesh input's capture: authored, shuffled, far-to-near, near-to-far"},
     {"design", "a hardware design file (cycle points; hardware keys override it)"},
+    {"slab_layers", "slab: k, layers per pixel (1..16)"},
+    {"slab_bits", "slab: b, bits of each layer's coverage mask (1..64)"},
 };
 
 bool is_run_param(const std::string& k) {
@@ -108,7 +111,9 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
   if (key == "method") {
     Method m;
     if (!std::holds_alternative<std::string>(v) || !parse_method(std::get<std::string>(v), m))
-      fail(s, at, to_string(v) + " is not a method (one of lk, enderton, naive, a2c, opaque, reference)");
+      fail(s, at,
+           to_string(v) + " is not a method (one of lk, enderton, naive, a2c, opaque, reference, hashed, " +
+               "hashed-a2c, slab)");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
     if (!f || (*f != "functional" && *f != "cycle")) fail(s, at, to_string(v) + " is not functional or cycle");
@@ -125,6 +130,10 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
     int_of(s, at, v, 1, kMaxScreenSide);
   } else if (key == "repeat") {
     int_of(s, at, v, 1, 1000);
+  } else if (key == "slab_layers") {
+    int_of(s, at, v, 1, kMaxSlabLayers);
+  } else if (key == "slab_bits") {
+    int_of(s, at, v, 1, kMaxSlabBits);
   } else if (key == "design") {
     const std::string* f = std::get_if<std::string>(&v);
     if (!f) fail(s, at, "expected the path of a design file");
@@ -322,7 +331,8 @@ Study parse_study(const std::string& text, const std::string& path) {
       if (!run && !hw)
         fail(s, at,
              "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
-             "surface_id_bits, width, height, scene_seed, repeat, order; or a hardware key: ropsim config --markdown)");
+             "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits; or a hardware key: "
+             "ropsim config --markdown)");
       StudyAxis axis{key, {}};
       if (const toml::array* a = node.as_array()) {
         if (a->empty()) fail(s, at, "an axis needs at least one value");
@@ -484,6 +494,8 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   r.method.numerics.hash_bits = int(get_int("hash_bits", 32));
   r.method.numerics.alpha_bits = int(get_int("alpha_bits", 32));
   r.method.numerics.surface_id_bits = int(get_int("surface_id_bits", 32));
+  r.method.slab_layers = int(get_int("slab_layers", MethodConfig{}.slab_layers));
+  r.method.slab_bits = int(get_int("slab_bits", MethodConfig{}.slab_bits));
   const StudyValue* f = get("fidelity");
   r.cycle = f && std::get<std::string>(*f) == "cycle";
   std::vector<std::string> overrides;

@@ -18,7 +18,8 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
       input_(std::move(input)),
       rop_(input_->header(), method),
       retirement_(pool_),
-      amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes),
+      amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes,
+            rop_.setup().slab_bytes),
       dram_(hw.dram),
       in_dram_(hw.cache.line_bytes) {
   const MethodTraits& mt = rop_.traits();

@@ -197,6 +197,59 @@ void opaque(Scene& s, SceneRng& rng) {
   }
 }
 
+/// Foliage: small alpha-mapped leaf quads in clusters (branches), the case
+/// hashed alpha testing is made for (Wyman & McGuire 2017). A leaf is a square
+/// quad 9-22 px wide at a random angle carrying a kLeafMap x kLeafMap alpha
+/// map, sampled nearest-texel: each texel is its own flat-alpha cell of the
+/// quad (the rasterizer has no textures). A texel's alpha is the fraction of
+/// it inside the leaf's outline (a pointed ellipse), so most texels are 0 or 1
+/// and the outline is soft. Each branch is one draw; leaves in generation order.
+void foliage(Scene& s, SceneRng& rng) {
+  const double W = s.header.width, H = s.header.height;
+  s.header.clear_color = {0.55f, 0.70f, 0.90f};  // sky
+  constexpr int kBranches = 14, kLeavesPerBranch = 22, kLeafMap = 8, kTexelSamples = 4;
+  // The alpha map, the same for every leaf: local (u, v) in [-1, 1]^2, u along the leaf.
+  static const auto map = [] {
+    std::array<float, kLeafMap * kLeafMap> a{};
+    for (int j = 0; j < kLeafMap; ++j)
+      for (int i = 0; i < kLeafMap; ++i) {
+        int in = 0;
+        for (int sj = 0; sj < kTexelSamples; ++sj)
+          for (int si = 0; si < kTexelSamples; ++si) {
+            const double u = 2.0 * (i + (si + 0.5) / kTexelSamples) / kLeafMap - 1.0;
+            const double v = 2.0 * (j + (sj + 0.5) / kTexelSamples) / kLeafMap - 1.0;
+            in += std::fabs(v) < 0.55 * std::sqrt(std::max(0.0, 1.0 - u * u));
+          }
+        a[size_t(j * kLeafMap + i)] = float(in) / float(kTexelSamples * kTexelSamples);
+      }
+    return a;
+  }();
+  for (int b = 0; b < kBranches; ++b) {
+    const double bx = W * rng.uniform(0.15, 0.85), by = H * rng.uniform(0.15, 0.85);
+    const double bz = rng.uniform(0.15, 0.85), spread = W * rng.uniform(0.06, 0.12);
+    const Rgb base{static_cast<float>(rng.uniform(0.10, 0.30)), static_cast<float>(rng.uniform(0.40, 0.70)),
+                   static_cast<float>(rng.uniform(0.08, 0.25))};
+    for (int l = 0; l < kLeavesPerBranch; ++l) {
+      const double cx = bx + spread * rng.normal(), cy = by + spread * rng.normal();
+      const double half = rng.uniform(4.5, 11.0) * W / 256.0, ang = rng.uniform(0, 2 * kPi);
+      const double z = std::clamp(bz + 0.05 * rng.normal(), 0.02, 0.98);
+      const float shade = static_cast<float>(rng.uniform(0.7, 1.15));
+      const Rgb c{std::min(1.0f, base[0] * shade), std::min(1.0f, base[1] * shade), std::min(1.0f, base[2] * shade)};
+      const double ca = std::cos(ang), sa = std::sin(ang);
+      auto at = [&](int i, int j, float alpha) {
+        const double u = 2.0 * i / kLeafMap - 1.0, v = 2.0 * j / kLeafMap - 1.0;
+        const double lx = u * half, ly = v * half;
+        return vert(cx + ca * lx - sa * ly, cy + sa * lx + ca * ly, z + 0.002 * u, c, alpha);
+      };
+      for (int j = 0; j < kLeafMap; ++j)
+        for (int i = 0; i < kLeafMap; ++i) {
+          const float a = map[size_t(j * kLeafMap + i)];
+          add_quad(s.triangles, uint32_t(b), at(i, j, a), at(i + 1, j, a), at(i + 1, j + 1, a), at(i, j + 1, a));
+        }
+    }
+  }
+}
+
 struct Builder {
   SceneInfo info;
   void (*build)(Scene&, SceneRng&);
@@ -214,6 +267,8 @@ const std::vector<Builder>& builders() {
        cloth},
       {{"smoke", "96 overlapping billboards, alpha 0.05, unsorted (LK Fig. 8)", 256, 256}, smoke},
       {{"opaque", "24 interpenetrating opaque triangles", 256, 256}, opaque},
+      {{"foliage", "308 alpha-mapped leaves in 14 branches: alpha mostly 0 or 1, soft edges (hashed alpha)", 256, 256},
+       foliage},
   };
   return b;
 }
