@@ -19,6 +19,11 @@
 
 namespace fs = std::filesystem;
 
+namespace ropsim_fuzz {
+/// The test's parameter as the target's name (not its bytes).
+void PrintTo(const Target& t, std::ostream* os) { *os << t.name; }
+}  // namespace ropsim_fuzz
+
 namespace {
 
 std::vector<fs::path> inputs_of(const std::string& target) {

@@ -1,14 +1,18 @@
 #include "study_runner.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <poll.h>
 #include <signal.h>
 #include <sqlite3.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -314,6 +318,25 @@ std::string describe_point(const StudyPoint& p) {
   return s + ")";
 }
 
+void hold_study_folder(const std::string& dir) {
+  static std::map<std::string, int> held;  // folder -> its lock's descriptor, kept until the process ends
+  const std::string key = fs::weakly_canonical(dir).string();
+  if (held.count(key)) return;
+  const std::string path = (fs::path(dir) / ".lock").string();
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) throw UserError(path + ": cannot open the study folder's lock: " + std::strerror(errno));
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int e = errno;
+    ::close(fd);
+    if (e == EWOULDBLOCK)
+      throw UserError(dir +
+                      ": another ropsim is running or collecting a study in this folder; wait for it to "
+                      "finish, or use another --out");
+    throw UserError(path + ": cannot lock the study folder: " + std::strerror(e));
+  }
+  held[key] = fd;
+}
+
 StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum) {
   const std::vector<StudyPoint> points = expand_study(s);
   StudyPlan plan;
@@ -324,6 +347,7 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
   if (!ec) fs::create_directories(fs::path(o.out_dir) / "refs", ec);
   if (!ec) fs::create_directories(fs::path(o.out_dir) / "traces", ec);
   if (ec) throw UserError(o.out_dir + ": cannot create the study folder: " + ec.message());
+  hold_study_folder(o.out_dir);
   write_text_output((fs::path(o.out_dir) / "study.toml").string(), read_file(s.path));
   std::map<std::string, size_t> ref_of, capture_of;  // key -> the first point naming it
   Db db((fs::path(o.out_dir) / "results.db").string());

@@ -35,9 +35,16 @@ std::string describe_point(const StudyPoint& p);
 struct StudyPlan {
   std::vector<size_t> captures, references, points;
 };
-/// Creates the folder, records in the database every point whose folder holds
-/// its result or its error (a killed run's, or another executor's tasks'), and
-/// returns what is left. `sum` gets the points recorded.
+/// Takes the study folder's lock (DIR/.lock, flock) for the rest of the
+/// process: one `study run` or `study collect` writes a folder at a time (the
+/// per-point tasks of a cluster run do not take it). Another holder is a
+/// UserError naming the folder. Idempotent within a process.
+void hold_study_folder(const std::string& dir);
+
+/// Creates the folder and takes its lock (hold_study_folder), records in the
+/// database every point whose folder holds its result or its error (a killed
+/// run's, or another executor's tasks'), and returns what is left. `sum` gets
+/// the points recorded.
 StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum);
 
 /// Runs one task in this process: 'c' the capture, 'r' the reference or 'p'
