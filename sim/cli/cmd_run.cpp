@@ -106,11 +106,14 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (!cycle) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
-    // A functional run takes only the design's numerics (the rest is timing).
+    // A functional run takes only the design's numerics and blend-target
+    // formats (the rest is timing).
     for (const auto& a : o.hw_sets)
-      if (a.rfind("numerics.", 0) != 0)
+      if (a.rfind("numerics.", 0) != 0 && a.rfind("blend.transmittance_format=", 0) != 0 &&
+          a.rfind("blend.accum_format=", 0) != 0)
         throw UserError("--hw-set " + a +
-                        " applies to --fidelity cycle (a functional run takes only the numerics.* keys of a design)");
+                        " applies to --fidelity cycle (a functional run takes only the numerics.* and "
+                        "blend.*_format keys of a design)");
   }
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
   // The design (a functional run uses only its numerics); the run's numerics
@@ -153,6 +156,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   GoldenConfig cfg;
   parse_method(o.method, cfg.method);
   cfg.numerics = hw.numerics;
+  cfg.formats = hw.blend.formats;
   cfg.seed = o.seed;
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;

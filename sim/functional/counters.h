@@ -9,21 +9,24 @@
 namespace ropsim {
 
 // X(name, unit, meaning)
-#define ROPSIM_COUNTERS(X)                                                                                        \
-  X(fragments, "fragments", "fragments processed")                                                                \
-  X(samples_tested, "samples", "covered samples of those fragments")                                              \
-  X(samples_depth_passed, "samples", "samples that passed the depth test (a2c: among the samples its mask kept)") \
-  X(samples_opacity_passed, "samples",                                                                            \
-    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c: the mask)")     \
-  X(samples_written, "samples", "samples whose depth and colour were written")                                    \
-  X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict")                               \
-  X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort")                                 \
-  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth)")                                            \
-  X(depth_bytes_written, "bytes", "4 per written sample")                                                         \
-  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)")                                          \
-  X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment")                            \
-  X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample")                         \
-  X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")
+#define ROPSIM_COUNTERS(X)                                                                                           \
+  X(fragments, "fragments", "fragments processed")                                                                   \
+  X(samples_tested, "samples", "covered samples of those fragments")                                                 \
+  X(samples_depth_passed, "samples", "samples that passed the depth test (a2c: among the samples its mask kept)")    \
+  X(samples_opacity_passed, "samples",                                                                               \
+    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c: the mask)")        \
+  X(samples_written, "samples", "samples whose depth and colour were written")                                       \
+  X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict")                                  \
+  X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort")                                    \
+  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth)")                                               \
+  X(depth_bytes_written, "bytes", "4 per written sample")                                                            \
+  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)")                                             \
+  X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment")                               \
+  X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample")                            \
+  X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")                                           \
+  X(samples_blended, "samples", "blend passes: samples blended into the render targets (methods with blend passes)") \
+  X(target_bytes_read, "bytes", "blend passes: render-target bytes read by the blend (read-modify-write)")           \
+  X(target_bytes_written, "bytes", "blend passes: render-target bytes written by the blend")
 
 /// Event counts of one run.
 struct Counters {
@@ -37,9 +40,11 @@ struct Counters {
 #undef ROPSIM_X
     return *this;
   }
-  /// Per-pixel state bytes moved: depth, colour and tracker, read and written.
-  uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read; }
-  uint64_t state_bytes_written() const { return depth_bytes_written + color_bytes_written + tracker_bytes_written; }
+  /// Per-pixel state bytes moved: depth, colour, tracker and render targets, read and written.
+  uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read + target_bytes_read; }
+  uint64_t state_bytes_written() const {
+    return depth_bytes_written + color_bytes_written + tracker_bytes_written + target_bytes_written;
+  }
   /// Calls f(name, value) for every counter, in declaration order.
   template <class F>
   void for_each(F&& f) const {

@@ -3,6 +3,7 @@
 // (included by functional_rop.h only).
 #pragma once
 #include "alpha_ref.h"
+#include "blend.h"
 #include "depth.h"
 #include "hilbert.h"
 #include "method_kernels.h"
@@ -22,32 +23,48 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
 // golden model runs the specialisation of its method (process_as<M>, every
 // stage inlined), the units run the same code through run()'s dispatch.
 
-#define ROPSIM_DISPATCH(call)            \
-  switch (s_.cfg.method) {               \
-    case Method::kLk:                    \
-      return call<Method::kLk>(w);       \
-    case Method::kEnderton:              \
-      return call<Method::kEnderton>(w); \
-    case Method::kNaive:                 \
-      return call<Method::kNaive>(w);    \
-    case Method::kA2c:                   \
-      return call<Method::kA2c>(w);      \
-    case Method::kOpaque:                \
-      return call<Method::kOpaque>(w);   \
-    case Method::kReference:             \
-      break;                             \
-  }                                      \
+#define ROPSIM_DISPATCH(call)                   \
+  switch (s_.cfg.method) {                      \
+    case Method::kLk:                           \
+      return call<Method::kLk>(w);              \
+    case Method::kEnderton:                     \
+      return call<Method::kEnderton>(w);        \
+    case Method::kNaive:                        \
+      return call<Method::kNaive>(w);           \
+    case Method::kA2c:                          \
+      return call<Method::kA2c>(w);             \
+    case Method::kOpaque:                       \
+      return call<Method::kOpaque>(w);          \
+    case Method::kWboit:                        \
+      return call<Method::kWboit>(w);           \
+    case Method::kLkAc:                         \
+      return call<Method::kLkAc>(w);            \
+    case Method::kLkDepth:                      \
+      return call<Method::kLkDepth>(w);         \
+    case Method::kLkDepthAc:                    \
+      return call<Method::kLkDepthAc>(w);       \
+    case Method::kEndertonAc:                   \
+      return call<Method::kEndertonAc>(w);      \
+    case Method::kEndertonDepth:                \
+      return call<Method::kEndertonDepth>(w);   \
+    case Method::kEndertonDepthAc:              \
+      return call<Method::kEndertonDepthAc>(w); \
+    case Method::kReference:                    \
+      break;                                    \
+  }                                             \
   return 0;
 
 template <Method M>
 inline uint32_t DepthStage::run_as(FragWork& w) {
-  constexpr MethodTraits kT = traits(M);
+  constexpr MethodTraits kT = traits(selection_of(M));
   const Fragment& f = *w.f;
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
   c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
+  // Blend passes: the plain test, no coverage selection, no tracker.
+  [[maybe_unused]] const bool stochastic = !(passes_of(M).count > 1 || traits(M).wboit) || !is_blend_pass(s_.pass);
   if constexpr (kT.coverage_select) {
     // a2c: k = floor(alpha spp + dither) samples of a fixed order; they are its
     // opacity decision, made before the depth test.
@@ -55,7 +72,8 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     tested &= s_.a2c_prefix[k];
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
-  if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
+  if constexpr (kT.tracker)
+    if (stochastic) c_.tracker_bytes_read += s_.tracker_bytes;
   // Each tested sample's depth and its test, in one pass; branch-free:
   // pass/fail is data-dependent.
   uint64_t S = 0;
@@ -91,12 +109,12 @@ inline uint32_t SortStage::run(FragWork& w) {
 template <Method M>
 inline uint32_t ReferenceStage::run_as(FragWork& w) {
   const Fragment& f = *w.f;
-  if constexpr (M == Method::kLk) {
+  if constexpr (selection_of(M) == Method::kLk) {
     const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
     calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
                     s_.cfg.numerics.hash_bits, w.lk.ref);
     return w.m;
-  } else if constexpr (M == Method::kEnderton) {
+  } else if constexpr (selection_of(M) == Method::kEnderton) {
     int n = 0;
     for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
     const uint64_t key = s_.random_key(f);
@@ -125,20 +143,28 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   uint32_t examined = w.m;
   PixelRef px = w.px;
   const float* z = w.z;
-  if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+  // Depth-based methods' stochastic pass stores depth only (Enderton et al. 3.4).
+  constexpr bool kColor = stochastic_writes_color(M);
+  auto write = [&px, rgb16](int i, float zi) {
+    if constexpr (kColor)
+      px.write_sample(i, zi, rgb16);
+    else
+      px.depth[i] = zi;
+  };
+  if constexpr (selection_of(M) == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];
       if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
-        px.write_sample(i, z[i], rgb16);
+        write(i, z[i]);
         wrote |= uint64_t{1} << i;
       }
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-  } else if constexpr (M == Method::kEnderton) {
+  } else if constexpr (selection_of(M) == Method::kEnderton) {
     for (uint32_t j = 0; j < w.enderton.count; ++j) {
       const int i = w.enderton.list[j];
-      px.write_sample(i, z[i], rgb16);
+      write(i, z[i]);
       wrote |= uint64_t{1} << i;
     }
     c_.samples_opacity_passed += w.enderton.count;
@@ -164,12 +190,39 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
   c_.samples_written += n;
   c_.depth_bytes_written += kDepthSampleBytes * n;
-  c_.color_bytes_written += kColorSampleBytes * n;
+  if constexpr (kColor) c_.color_bytes_written += kColorSampleBytes * n;
   w.written = wrote;
   return examined;
 }
 
 inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+inline uint32_t BlendStage::run(FragWork& w) {
+  const Fragment& f = *w.f;
+  const float a = f.alpha;
+  const BlendFormats& fmt = s_.cfg.formats;
+  const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
+  const PassKind pass = s_.pass;
+  const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
+  const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
+  for (uint64_t s = w.survivors; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    if (trans) blend_multiply(fmt.transmittance, w.px.trans + size_t(i) * tb, 1.0f - a);
+    if (accum) {
+      // accumulate: (alpha c, alpha); wboit: the same times its weight w(z, alpha).
+      const float k = pass == PassKind::kWboit ? a * wboit_weight(w.z[i], a) : a;
+      const float src[4] = {k * f.rgb[0], k * f.rgb[1], k * f.rgb[2], k};
+      blend_add(fmt.accum, w.px.accum + size_t(i) * ab, src);
+    }
+  }
+  const uint32_t n = w.m;
+  c_.samples_blended += n;
+  const uint64_t bytes = uint64_t(n) * ((trans ? tb : 0) + (accum ? ab : 0));
+  c_.target_bytes_read += bytes;
+  c_.target_bytes_written += bytes;
+  w.written = w.survivors;
+  return n;
+}
 
 #undef ROPSIM_DISPATCH
 

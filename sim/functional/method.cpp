@@ -7,12 +7,26 @@ constexpr bool every_method_has_its_row() {
   int i = 0;
   for (const auto& t : kMethodTable)
     if (int(t.method) != i++) return false;
-  return i == int(Method::kReference) + 1;
+  return i == int(Method::kEndertonDepthAc) + 1;
 }
 static_assert(every_method_has_its_row(), "kMethodTable: one row per Method, in enumerator order");
 }  // namespace
 
 const char* to_string(Method m) { return traits(m).name; }
+
+const char* to_string(PassKind p) {
+  switch (p) {
+    case PassKind::kTotalAlpha:
+      return "total_alpha";
+    case PassKind::kStochastic:
+      return "stochastic";
+    case PassKind::kAccumulate:
+      return "accumulate";
+    case PassKind::kWboit:
+      return "wboit";
+  }
+  return "?";
+}
 
 bool parse_method(const std::string& s, Method& out) {
   for (const auto& t : kMethodTable)

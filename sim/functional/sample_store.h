@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "blend.h"
 #include "image.h"
 #include "tile_map.h"
 #include "trace.h"
@@ -19,6 +20,16 @@ struct SampleTile {
   std::unique_ptr<float[]> depth;           ///< [pixel * spp + sample]
   std::unique_ptr<uint16_t[]> rgb;          ///< [(pixel * spp + sample) * 3 + channel]
   std::unique_ptr<TrackerState[]> tracker;  ///< [pixel], nullptr unless tracking
+  std::unique_ptr<uint8_t[]> trans;         ///< transmittance target, [(pixel * spp + sample) * bytes]; or nullptr
+  std::unique_ptr<uint8_t[]> accum;         ///< accumulation target, the same; or nullptr
+};
+
+/// The render targets beyond depth and colour that a method blends into
+/// (allocated only when used).
+struct StoreTargets {
+  bool transmittance = false;  ///< one channel, cleared to 1
+  bool accum = false;          ///< RGBA, cleared to 0
+  BlendFormats formats;
 };
 
 /// Mutable pointers to one pixel's state.
@@ -26,6 +37,8 @@ struct PixelRef {
   float* depth;           ///< [spp]
   uint16_t* rgb;          ///< [spp * 3], binary16
   TrackerState* tracker;  ///< nullptr unless tracking
+  uint8_t* trans;         ///< [spp * bytes] transmittance target, nullptr unless used
+  uint8_t* accum;         ///< [spp * bytes] accumulation target, nullptr unless used
   void write_sample(int i, float z, const uint16_t* rgb16) {
     depth[i] = z;
     rgb[3 * i] = rgb16[0];
@@ -39,6 +52,8 @@ struct PixelView {
   const float* depth = nullptr;
   const uint16_t* rgb = nullptr;
   const TrackerState* tracker = nullptr;
+  const uint8_t* trans = nullptr;
+  const uint8_t* accum = nullptr;
 };
 
 inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
@@ -46,7 +61,7 @@ inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x
 class SampleStore {
  public:
   /// with_tracker: allocate the LK tracker state (lk only).
-  SampleStore(const TraceHeader& h, bool with_tracker);
+  SampleStore(const TraceHeader& h, bool with_tracker, const StoreTargets& targets = {});
   /// The pixel's state, its tile allocated and cleared on first touch.
   PixelRef pixel(uint32_t x, uint32_t y);
   PixelView view(uint32_t x, uint32_t y) const;
@@ -58,17 +73,19 @@ class SampleStore {
   const TileMap<SampleTile>& tile_map() const { return tiles_; }
   const TraceHeader& header() const { return header_; }
   bool has_tracker() const { return with_tracker_; }
+  const StoreTargets& targets() const { return targets_; }
 
  private:
   TraceHeader header_;
   bool with_tracker_;
+  StoreTargets targets_;
   TileMap<SampleTile> tiles_;
   float clear_depth_;
   uint16_t clear_rgb16_[3];
 };
 
 /// The first difference between two stores' full state (every sample's depth
-/// and colour bits, every tracker), as "pixel (x, y) sample s: depth a vs b";
+/// and colour bits, every tracker, every render target's bits), as "pixel (x, y) sample s: depth a vs b";
 /// empty if they are identical. Untouched tiles compare as the clear values.
 std::string first_state_difference(const SampleStore& a, const SampleStore& b);
 

@@ -470,6 +470,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     const StudyValue* design = get("design");
     r.hw = resolve_hw_config(design ? design_path(s, std::get<std::string>(*design)) : "", overrides);
     r.hw.name = "study " + s.name + (design ? ", design " + std::get<std::string>(*design) : "");
+    r.method.formats = r.hw.blend.formats;  // the blend targets' formats are functional too
   }
   if (s.reference) {
     r.reference_input = r.input;
