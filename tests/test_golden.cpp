@@ -292,7 +292,10 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
         else
           ASSERT_NEAR(ref.image.rgb[i], ex.exact[i % 3], 2e-8 + 1e-7) << ex.scene << ": reference (alpha = 0.45f)";
       }
-      for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive}) {
+      // The depth-based methods without alpha correction are unbiased too
+      // (Enderton et al. 3.4: each fragment weighted by an unbiased estimate
+      // of its visibility, the background by the uncovered fraction).
+      for (Method meth : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kLkDepth, Method::kEndertonDepth}) {
         cfg.method = meth;
         FunctionalRun r = run_functional(in, cfg);
         const auto m = mean_pixel(r.image);
@@ -481,4 +484,151 @@ TEST(PixelKinds, EachKindOnACraftedTraceAndTheErrorWithinIt) {
       EXPECT_NEAR(r[size_t(j)], std::sqrt(0.3 * 0.3 / 3.0) * 255.0, 1e-3);
     else
       EXPECT_EQ(r[size_t(j)], 0.0) << to_string(PixelKind(j));
+}
+
+// ------------------------------------------------------------ blend passes
+
+namespace {
+
+/// A golden run over a fragment list, every pass replaying it.
+Image run_passes(const TraceHeader& h, Method m, const std::vector<Fragment>& frags, BlendFormats formats = {}) {
+  GoldenConfig c;
+  c.method = m;
+  c.formats = formats;
+  StochasticModel model(h, c);
+  for (int pass = 0; pass < model.passes(); ++pass) {
+    model.begin_pass(pass);
+    for (const auto& f : frags) model.draw(f);
+  }
+  return model.resolve();
+}
+
+struct BlendLayer {
+  float z, alpha;
+  std::array<float, 3> rgb;
+};
+
+}  // namespace
+
+// Weighted blended OIT (McGuire & Bavoil 2013, Eq. 6 with the weight of
+// Eq. 10): C = sum(a_i c_i w_i) / sum(a_i w_i) (1 - prod(1 - a_i)) + prod(1 -
+// a_i) background, w_i = a_i max(1e-2, 3e3 (1 - z_i)^3), computed here in
+// double. Per-sample targets hold binary16: each stored sum is rounded to 11
+// significant bits after each of at most 3 additions, so the ratio is within
+// a relative 4 x 3 x 2^-11 of the exact one (<= 6e-3 of a colour <= 1); with
+// binary32 targets within 1e-5.
+TEST(Wboit, MatchesItsClosedFormOnTwoAndThreeLayers) {
+  const std::array<float, 3> bg = {0.25f, 0.25f, 0.25f};  // exact in binary16
+  const std::vector<std::vector<BlendLayer>> cases = {
+      {{0.3f, 0.5f, {1, 0, 0}}, {0.6f, 0.4f, {0, 1, 0}}},
+      {{0.6f, 0.4f, {0, 1, 0}}, {0.3f, 0.5f, {1, 0, 0}}},  // the same, drawn far first
+      {{0.1f, 0.25f, {0, 0, 1}}, {0.5f, 0.75f, {1, 1, 0}}, {0.9f, 0.6f, {0.2f, 0.7f, 0.4f}}},
+      {{0.95f, 0.3f, {1, 1, 1}}, {0.05f, 0.9f, {0.5f, 0, 0.5f}}, {0.4f, 0.1f, {0, 0.3f, 0}}},
+  };
+  for (const auto& layers : cases) {
+    double num[3] = {0, 0, 0}, den = 0, T = 1;
+    for (const auto& l : layers) {
+      const double w = l.alpha * std::max(1e-2, 3e3 * std::pow(1.0 - l.z, 3));
+      for (int c = 0; c < 3; ++c) num[c] += double(l.alpha) * l.rgb[size_t(c)] * w;
+      den += double(l.alpha) * w;
+      T *= 1.0 - l.alpha;
+    }
+    for (int spp : {1, 4, 16}) {
+      const TraceHeader h = header(4, 4, spp, bg);
+      std::vector<Fragment> frags;
+      for (uint32_t y = 0; y < 4; ++y)
+        for (uint32_t x = 0; x < 4; ++x) {
+          uint32_t d = 0;
+          for (const auto& l : layers) frags.push_back(frag(x, y, full_mask(spp), l.z, l.alpha, l.rgb, d++));
+        }
+      for (bool wide : {false, true}) {
+        BlendFormats f;
+        if (wide) f = {TargetFormat::kR32F, TargetFormat::kRGBA32F};
+        const Image img = run_passes(h, Method::kWboit, frags, f);
+        const double tol = wide ? 1e-5 : 6e-3;
+        for (size_t i = 0; i < img.rgb.size(); ++i) {
+          const int c = int(i % 3);
+          const double exact = num[c] / den * (1.0 - T) + T * bg[size_t(c)];
+          ASSERT_NEAR(img.rgb[i], exact, tol)
+              << layers.size() << " layers, spp " << spp << (wide ? " r32f" : " r16f") << " channel " << c;
+        }
+      }
+    }
+  }
+}
+
+// Alpha correction (Enderton et al. 3.3): a pixel with a single transparent
+// layer is exact, alpha c + (1 - alpha) background, whatever samples the
+// stochastic pass chose -- as long as it chose one: with the stratified count
+// floor(alpha S + xi) that holds for alpha >= 1/S (+ac); the depth-based
+// variants accumulate every covered sample, so any alpha. The bound is the
+// binary16 rounding of the stored transmittance (2^-11 relative) and colour.
+TEST(AlphaCorrection, ASingleTransparentLayerIsExact) {
+  const std::array<float, 3> bg = {0.0f, 0.0f, 1.0f};
+  const std::array<float, 3> rgb = {1.0f, 0.5f, 0.0f};
+  for (Method m : {Method::kLkAc, Method::kEndertonAc, Method::kLkDepthAc, Method::kEndertonDepthAc})
+    for (int spp : {1, 4, 16, 64})
+      for (float alpha : {0.05f, 0.3f, 0.45f, 0.7f, 0.95f, 1.0f}) {
+        if (!traits(m).depth_based && alpha * float(spp) < 1.0f) continue;  // the stochastic pass may write nothing
+        const TraceHeader h = header(16, 16, spp, bg);
+        std::vector<Fragment> frags;
+        for (uint32_t y = 0; y < 16; ++y)
+          for (uint32_t x = 0; x < 16; ++x)
+            frags.push_back(frag(x, y, full_mask(spp), 0.5f, alpha, rgb, 0, y * 16 + x));
+        const Image img = run_passes(h, m, frags);
+        for (size_t i = 0; i < img.rgb.size(); ++i) {
+          const int c = int(i % 3);
+          const double exact = double(alpha) * rgb[size_t(c)] + (1.0 - alpha) * bg[size_t(c)];
+          ASSERT_NEAR(img.rgb[i], exact, 2e-3)
+              << to_string(m) << " spp " << spp << " alpha " << alpha << " channel " << c << " pixel " << i / 3;
+        }
+      }
+  // Without the correction a single layer is noisy: lk at 4 spp and alpha 0.3
+  // writes 1 or 2 samples, never 1.2 -- so some pixel is off by >= 0.05.
+  const TraceHeader h = header(16, 16, 4, bg);
+  std::vector<Fragment> frags;
+  for (uint32_t y = 0; y < 16; ++y)
+    for (uint32_t x = 0; x < 16; ++x) frags.push_back(frag(x, y, 0xF, 0.5f, 0.3f, rgb, 0, y * 16 + x));
+  const Image img = run_passes(h, Method::kLk, frags);
+  double worst = 0;
+  for (size_t i = 0; i < img.rgb.size(); i += 3) worst = std::max(worst, std::fabs(img.rgb[i] - 0.3));
+  EXPECT_GE(worst, 0.05) << "lk without alpha correction should not be exact on a single layer";
+}
+
+// The blend passes' depth test does not write: the accumulation pass leaves
+// the stochastic depth as it is, and a total-alpha pass alone leaves the
+// clear depth.
+TEST(BlendPasses, TheirDepthTestDoesNotWrite) {
+  const TraceHeader h = header(8, 8, 4);
+  std::vector<Fragment> frags;
+  for (uint32_t y = 0; y < 8; ++y)
+    for (uint32_t x = 0; x < 8; ++x) {
+      frags.push_back(frag(x, y, 0xF, 0.7f, 0.5f, {1, 0, 0}, 0, x));
+      frags.push_back(frag(x, y, 0xF, 0.3f, 0.5f, {0, 1, 0}, 1, x));
+    }
+  GoldenConfig c;
+  c.method = Method::kWboit;
+  StochasticModel wb(h, c);
+  for (const auto& f : frags) wb.draw(f);
+  EXPECT_EQ(samples_at_depth(wb, 3, 3, 1.0f), 4) << "wboit wrote depth";
+  EXPECT_EQ(wb.counters().samples_blended, 2u * 4 * 64) << "every covered sample passes a non-writing depth test";
+  c.method = Method::kLkDepth;
+  StochasticModel ld(h, c);
+  ld.begin_pass(0);
+  for (const auto& f : frags) ld.draw(f);
+  std::vector<float> after_stochastic;
+  for (uint32_t y = 0; y < 8; ++y)
+    for (uint32_t x = 0; x < 8; ++x) {
+      const auto v = ld.pixel_view(x, y);
+      after_stochastic.insert(after_stochastic.end(), v.depth, v.depth + 4);
+    }
+  ld.begin_pass(1);
+  for (const auto& f : frags) ld.draw(f);
+  size_t k = 0;
+  for (uint32_t y = 0; y < 8; ++y)
+    for (uint32_t x = 0; x < 8; ++x) {
+      const auto v = ld.pixel_view(x, y);
+      for (int s = 0; s < 4; ++s) ASSERT_EQ(v.depth[s], after_stochastic[k++]) << "the accumulation pass wrote depth";
+    }
+  EXPECT_EQ(ld.counters().color_bytes_written, 0u) << "a depth-based stochastic pass stores depth only";
 }
