@@ -43,10 +43,12 @@ std::vector<std::string> config_files() {
   return v;
 }
 
-GoldenConfig method_config(Method m, const BlendFormats& formats = {}) {
+GoldenConfig method_config(Method m, const BlendFormats& formats = {},
+                           EndertonSelection sel = EndertonSelection::kDepthFirst) {
   GoldenConfig c;
   c.method = m;
   c.formats = formats;
+  c.enderton_selection = sel;
   return c;
 }
 
@@ -54,17 +56,17 @@ GoldenConfig method_config(Method m, const BlendFormats& formats = {}) {
 /// the full per-sample state, the image or the counters. A multi-pass method
 /// replays the input once per pass in both; the render targets have the
 /// design's formats.
-void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what,
-                      bool lockstep = false) {
+void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what, bool lockstep = false,
+                      EndertonSelection sel = EndertonSelection::kDepthFirst) {
   const FragmentList list = load_fragments(in);
-  StochasticModel golden(list.header, method_config(m, hw.blend.formats));
+  StochasticModel golden(list.header, method_config(m, hw.blend.formats, sel));
   for (int pass = 0; pass < golden.passes(); ++pass) {
     golden.begin_pass(pass);
     for (const auto& f : list.fragments) golden.draw(f);
   }
   CycleOptions opt;
   opt.lockstep = lockstep;
-  const CycleRun cyc = run_cycle(in, method_config(m, hw.blend.formats), hw, opt);
+  const CycleRun cyc = run_cycle(in, method_config(m, hw.blend.formats, sel), hw, opt);
   const std::string diff = first_state_difference(golden.store(), *cyc.state);
   EXPECT_EQ(diff, "") << what << ": the cycle model's final state differs from the golden model's";
   EXPECT_TRUE(golden.resolve().rgb == cyc.image.rgb) << what << ": resolved images differ";
@@ -146,6 +148,15 @@ TEST(BitExactTiming, ExtremeTimingParametersNeverChangeTheImage) {
                        lockstep);
     }
   }
+}
+
+TEST(BitExactTiming, EndertonOriginalSelectionMatchesToo) {
+  for (const auto& config : config_files())
+    for (Method m : {Method::kEnderton, Method::kEndertonAc, Method::kEndertonDepthAc})
+      for (const char* scene : {"cloth", "eight-layers"})
+        expect_bit_exact(scene_input(scene, 16), m, load_hw_config(config),
+                         std::string(scene) + " " + to_string(m) + " original selection on " + config, false,
+                         EndertonSelection::kOriginal);
 }
 
 TEST(BitExactTiming, NaiveMethodAndPerSampleDepthTracesRunToo) {

@@ -30,6 +30,7 @@ struct RunOpts {
   int spp = 16;
   uint32_t width = 0, height = 0;
   uint64_t seed = 1, scene_seed = 1;
+  std::string enderton_selection = "depth-first";
   Numerics num;
   bool vs_reference = false, quiet = false, lockstep = false;
 };
@@ -158,6 +159,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   cfg.numerics = hw.numerics;
   cfg.formats = hw.blend.formats;
   cfg.seed = o.seed;
+  parse_enderton_selection(o.enderton_selection, cfg.enderton_selection);
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
   if (outs.empty() && report.empty()) {
@@ -214,6 +216,10 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::Range(1u, kMaxScreenSide));
   run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
+  run->add_option("--enderton-selection", ro->enderton_selection,
+                  "enderton and its variants choose R among: depth-first (the depth survivors; default) or original "
+                  "(all covered samples, before the depth test)")
+      ->check(CLI::IsMember({"depth-first", "original"}));
   run->add_option("--hash-bits", ro->num.hash_bits,
                   "Alpha-reference hash datapath width, bits (8..32; default: the design's numerics.hash_bits, 32)")
       ->check(CLI::Range(8, 32));

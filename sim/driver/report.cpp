@@ -55,6 +55,10 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   in.put("spp", run.header.spp, "samples", "samples per pixel");
   r.put("method", to_string(ctx.config.method), "-", "the transparency method");
   r.put("seed", ctx.config.seed, "-", "the seed of the method's hash-based random numbers (enderton, naive)");
+  if (selection_of(ctx.config.method) == Method::kEnderton)
+    r.put("enderton_selection", to_string(ctx.config.enderton_selection), "-",
+          "enderton and its variants: depth-first (R of the depth survivors) or original (R of the covered samples, "
+          "before the depth test)");
   put_numerics(r.obj("numerics"), ctx.config.numerics);
   put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method));
   if (has_blend_pass(ctx.config.method)) {

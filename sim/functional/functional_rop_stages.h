@@ -115,12 +115,24 @@ inline uint32_t ReferenceStage::run_as(FragWork& w) {
                     s_.cfg.numerics.hash_bits, w.lk.ref);
     return w.m;
   } else if constexpr (selection_of(M) == Method::kEnderton) {
-    int n = 0;
-    for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
+    // Depth-first: R of the m depth survivors. Original: R of the c covered
+    // samples, then only the chosen that passed the depth test are written.
+    const bool original = s_.cfg.enderton_selection == EndertonSelection::kOriginal;
+    const uint64_t pool = original ? w.covered : w.survivors;
+    const uint32_t n = uint32_t(__builtin_popcountll(pool));
+    int k = 0;
+    for (uint64_t s = pool; s; s &= s - 1) w.enderton.list[k++] = __builtin_ctzll(s);
     const uint64_t key = s_.random_key(f);
-    w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
-    enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
-    return w.enderton.count + 1;  // the count's hash and one per pick
+    const uint32_t r = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, n, key);
+    enderton_pick(w.enderton.list, n, r, key);
+    w.enderton.count = r;
+    if (original) {  // keep the chosen survivors, in choice order
+      uint32_t kept = 0;
+      for (uint32_t j = 0; j < r; ++j)
+        if (w.survivors >> w.enderton.list[j] & 1) w.enderton.list[kept++] = w.enderton.list[j];
+      w.enderton.count = kept;
+    }
+    return r + 1;  // the count's hash and one per pick
   } else if constexpr (M == Method::kNaive) {
     const uint64_t key = s_.random_key(f);
     for (uint64_t s = w.survivors; s; s &= s - 1) {

@@ -14,6 +14,17 @@ static_assert(every_method_has_its_row(), "kMethodTable: one row per Method, in 
 
 const char* to_string(Method m) { return traits(m).name; }
 
+const char* to_string(EndertonSelection s) { return s == EndertonSelection::kOriginal ? "original" : "depth-first"; }
+
+bool parse_enderton_selection(const std::string& s, EndertonSelection& out) {
+  for (EndertonSelection e : {EndertonSelection::kDepthFirst, EndertonSelection::kOriginal})
+    if (s == to_string(e)) {
+      out = e;
+      return true;
+    }
+  return false;
+}
+
 const char* to_string(PassKind p) {
   switch (p) {
     case PassKind::kTotalAlpha:

@@ -136,12 +136,22 @@ const char* to_string(Method m);
 bool parse_method(const std::string& s, Method& out);
 const std::vector<std::string>& method_names();
 
+/// Which samples enderton (and its +ac, +depth variants) chooses its R among:
+/// the samples that passed the depth test (depth-first, the variant Laine &
+/// Karras compare against; the default), or all covered samples before the
+/// depth test, as Enderton et al.'s original (R = floor(alpha c + xi) of the c
+/// covered samples, then the depth test; only those that pass are written).
+enum class EndertonSelection : uint8_t { kDepthFirst, kOriginal };
+const char* to_string(EndertonSelection s);
+bool parse_enderton_selection(const std::string& s, EndertonSelection& out);
+
 /// A method and what parameterises it.
 struct MethodConfig {
   Method method = Method::kLk;
   Numerics numerics;
   uint64_t seed = 1;     ///< seeds the hash-based random numbers of enderton and naive
   BlendFormats formats;  ///< the blend targets' formats (the design's blend.*_format)
+  EndertonSelection enderton_selection = EndertonSelection::kDepthFirst;  ///< enderton and its variants
 };
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;

@@ -53,6 +53,7 @@ constexpr RunParam kRunParams[] = {
     {"repeat", "draw the input this many times into one frame"},
     {"order", "draw order of a mesh input's capture: authored, shuffled, far-to-near, near-to-far"},
     {"design", "a hardware design file (cycle points; hardware keys override it)"},
+    {"enderton_selection", "enderton and its variants: depth-first (default) or original (docs/methods.md)"},
 };
 
 bool is_run_param(const std::string& k) {
@@ -107,7 +108,11 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
   if (key == "method") {
     Method m;
     if (!std::holds_alternative<std::string>(v) || !parse_method(std::get<std::string>(v), m))
-      fail(s, at, to_string(v) + " is not a method (one of lk, enderton, naive, a2c, opaque, reference)");
+      fail(s, at, to_string(v) + " is not a method (ropsim run --help lists them)");
+  } else if (key == "enderton_selection") {
+    EndertonSelection e;
+    if (!std::holds_alternative<std::string>(v) || !parse_enderton_selection(std::get<std::string>(v), e))
+      fail(s, at, to_string(v) + " is not depth-first or original");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
     if (!f || (*f != "functional" && *f != "cycle")) fail(s, at, to_string(v) + " is not functional or cycle");
@@ -314,7 +319,8 @@ Study load_study(const std::string& path) {
       if (!run && !hw)
         fail(s, at,
              "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
-             "surface_id_bits, width, height, scene_seed, repeat, order; or a hardware key: ropsim config --markdown)");
+             "surface_id_bits, width, height, scene_seed, repeat, order, enderton_selection; or a hardware key: ropsim "
+             "config --markdown)");
       StudyAxis axis{key, {}};
       if (const toml::array* a = node.as_array()) {
         if (a->empty()) fail(s, at, "an axis needs at least one value");
@@ -458,6 +464,8 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   r.input.repeat = uint32_t(get_int("repeat", 1));
   if (const StudyValue* m = get("method")) parse_method(std::get<std::string>(*m), r.method.method);
   r.method.seed = uint64_t(get_int("seed", 1));
+  if (const StudyValue* e = get("enderton_selection"))
+    parse_enderton_selection(std::get<std::string>(*e), r.method.enderton_selection);
   r.method.numerics.hash_bits = int(get_int("hash_bits", 32));
   r.method.numerics.alpha_bits = int(get_int("alpha_bits", 32));
   r.method.numerics.surface_id_bits = int(get_int("surface_id_bits", 32));
