@@ -16,6 +16,7 @@
 
 #include "address_map.h"
 #include "alpha_ref_gen.h"
+#include "blend_unit.h"
 #include "coverage_tracker.h"
 #include "cycle_report.h"
 #include "cycle_run.h"
@@ -407,6 +408,46 @@ TEST(UnitAlone, DepthTestSamplesPerClockSetsTheInterval) {
     ASSERT_EQ(seen.size(), 10u);
     for (size_t i = 1; i < seen.size(); ++i) EXPECT_EQ(seen[i] - seen[i - 1], 4u) << "16 samples / 4 per clock";
   }
+}
+
+// The blend unit retires a fragment latency_cycles after it takes it (it has
+// no output FIFO: the pixel leaves the scoreboard), and takes one fragment
+// every ceil(samples / samples_per_clock) clocks. Tokens pushed at cycle 0
+// are visible at 1, so the first retires at 1 + L, never at L.
+TEST(UnitAlone, BlendUnitLatencyAndSamplesPerClock) {
+  struct NoScoreboard : PixelRelease {
+    void release(uint64_t, uint64_t) override {}
+  };
+  for (bool decoupled : {false, true})
+    for (uint32_t L : {1u, 4u})
+      for (uint32_t per_clock : {16u, 4u}) {
+        SCOPED_TRACE(std::string(decoupled ? "decoupled" : "lockstep") + " L " + std::to_string(L) + " per clock " +
+                     std::to_string(per_clock));
+        Harness h(16, Method::kWboit);
+        NoScoreboard board;
+        h.retirement.attach(0, &board);
+        std::vector<uint64_t> retired;
+        h.retirement.hook = [&](const FragToken&, uint64_t c) { retired.push_back(c); };
+        HwConfig::Blend cfg;
+        cfg.latency_cycles = L;
+        cfg.samples_per_clock = per_clock;
+        Dram dram{HwConfig::Dram{}};
+        LineSet in_dram{64};
+        RopCache cache(HwConfig::Cache{}, dram, in_dram);
+        auto toks = h.tokens(back_to_back(12), 16);
+        for (auto& [cycle, t] : toks)
+          for (int s = 0; s < 16; ++s) t->z[s] = 0.5f;
+        ScriptSource src("src", h.clk, *h.in, toks);
+        BlendUnit unit("blend", h.clk, h.rop, h.retirement, h.amap, cfg, cache, *h.in);
+        unit.set_decoupled(decoupled);
+        h.in->connect(&src, &unit);
+        sc_core::sc_start();
+        ASSERT_EQ(retired.size(), 12u);
+        EXPECT_EQ(retired[0], 1 + L) << "the first fragment retires at entry + latency";
+        for (size_t i = 1; i < retired.size(); ++i)
+          EXPECT_EQ(retired[i] - retired[i - 1], 16 / per_clock) << "16 samples at " << per_clock << " per clock";
+        EXPECT_EQ(h.rop.counters().samples_blended, 12u * 16) << "every sample blended";
+      }
 }
 
 // ------------------------------------------------------------ pixel ordering

@@ -241,7 +241,7 @@ std::vector<FieldDoc> report_field_docs() {
   // A method with every kind of blend pass and render target: passes, targets,
   // the blend counters and unit.
   ctx.input.trace_path.clear();
-  for (Method bm : {Method::kLkDepthAc, Method::kWboit}) {
+  for (Method bm : {Method::kLkDepthAc, Method::kWboit, Method::kEndertonAc}) {
     ctx.config.method = m.method = bm;
     const FunctionalRun fb = run_functional(in, m, false);
     functional_report(ctx, fb, &sink);
