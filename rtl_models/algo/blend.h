@@ -80,6 +80,17 @@ inline void blend_add(TargetFormat f, uint8_t* dst, const float* src) {
   for (int c = 0; c < channels(f); ++c) target_store(f, dst, c, target_load(f, dst, c) + src[c]);
 }
 
+/// The same two blends for a format known at compile time (the blend stage
+/// dispatches once per fragment, not per channel); identical results.
+template <TargetFormat F>
+inline void blend_multiply_as(uint8_t* dst, float factor) {
+  for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) * factor);
+}
+template <TargetFormat F>
+inline void blend_add_as(uint8_t* dst, const float* src) {
+  for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) + src[c]);
+}
+
 /// Weighted blended OIT's weight (McGuire & Bavoil 2013, Eq. 10): alpha
 /// times max(10^-2, 3 10^3 (1 - z)^3), z the fragment's depth-buffer depth
 /// in [0, 1]; nearer fragments weigh more, at most 3000 alpha.

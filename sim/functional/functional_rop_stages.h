@@ -209,27 +209,47 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
 
 inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 
-inline uint32_t BlendStage::run(FragWork& w) {
+namespace detail {
+/// The blend stage's loop for one pair of target formats.
+template <TargetFormat TF, TargetFormat AF>
+inline void blend_survivors(FragWork& w, PassKind pass) {
   const Fragment& f = *w.f;
   const float a = f.alpha;
-  const BlendFormats& fmt = s_.cfg.formats;
-  const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
-  const PassKind pass = s_.pass;
+  constexpr uint32_t tb = sample_bytes(TF), ab = sample_bytes(AF);
   const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
   const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
+  const bool weighted = pass == PassKind::kWboit;
   for (uint64_t s = w.survivors; s; s &= s - 1) {
     const int i = __builtin_ctzll(s);
-    if (trans) blend_multiply(fmt.transmittance, w.px.trans + size_t(i) * tb, 1.0f - a);
+    if (trans) blend_multiply_as<TF>(w.px.trans + size_t(i) * tb, 1.0f - a);
     if (accum) {
       // accumulate: (alpha c, alpha); wboit: the same times its weight w(z, alpha).
-      const float k = pass == PassKind::kWboit ? a * wboit_weight(w.z[i], a) : a;
+      const float k = weighted ? a * wboit_weight(w.z[i], a) : a;
       const float src[4] = {k * f.rgb[0], k * f.rgb[1], k * f.rgb[2], k};
-      blend_add(fmt.accum, w.px.accum + size_t(i) * ab, src);
+      blend_add_as<AF>(w.px.accum + size_t(i) * ab, src);
     }
   }
+}
+}  // namespace detail
+
+inline uint32_t BlendStage::run(FragWork& w) {
+  const BlendFormats& fmt = s_.cfg.formats;
+  const PassKind pass = s_.pass;
+  const bool half_t = fmt.transmittance == TargetFormat::kR16F, half_a = fmt.accum == TargetFormat::kRGBA16F;
+  if (half_t && half_a)
+    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA16F>(w, pass);
+  else if (half_t)
+    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA32F>(w, pass);
+  else if (half_a)
+    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA16F>(w, pass);
+  else
+    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA32F>(w, pass);
+  const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
+  const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
   const uint32_t n = w.m;
   c_.samples_blended += n;
-  const uint64_t bytes = uint64_t(n) * ((trans ? tb : 0) + (accum ? ab : 0));
+  const uint64_t bytes =
+      uint64_t(n) * ((trans ? sample_bytes(fmt.transmittance) : 0) + (accum ? sample_bytes(fmt.accum) : 0));
   c_.target_bytes_read += bytes;
   c_.target_bytes_written += bytes;
   w.written = w.survivors;

@@ -30,16 +30,16 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
     for (size_t i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
     if (with_tracker_) tile->tracker.reset(new TrackerState[64]());
-    if (targets_.transmittance) {
-      const TargetFormat f = targets_.formats.transmittance;
-      tile->trans.reset(new uint8_t[n * sample_bytes(f)]);
-      for (size_t i = 0; i < n; ++i) target_clear(f, tile->trans.get() + i * sample_bytes(f), 1.0f);
-    }
-    if (targets_.accum) {
-      const TargetFormat f = targets_.formats.accum;
-      tile->accum.reset(new uint8_t[n * sample_bytes(f)]);
-      for (size_t i = 0; i < n; ++i) target_clear(f, tile->accum.get() + i * sample_bytes(f), 0.0f);
-    }
+    // The clear value encoded once, then copied to every sample.
+    auto clear_target = [n](std::unique_ptr<uint8_t[]>& buf, TargetFormat f, float v) {
+      const uint32_t b = sample_bytes(f);
+      uint8_t one[16];
+      target_clear(f, one, v);
+      buf.reset(new uint8_t[n * b]);
+      for (size_t i = 0; i < n; ++i) std::memcpy(buf.get() + i * b, one, b);
+    };
+    if (targets_.transmittance) clear_target(tile->trans, targets_.formats.transmittance, 1.0f);
+    if (targets_.accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
     return tile;
   });
   const int p = pixel_in_tile(x, y);
