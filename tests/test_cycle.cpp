@@ -948,7 +948,7 @@ TEST(Decoupling, EqualsLockstepExactlyWhenMemoryOrderCannotMatter) {
 TEST(Decoupling, EqualsLockstepExactlyWithRealMemory) {
   for (const auto& config : config_files()) {
     const HwConfig hw = load_hw_config(config);
-    for (Method m : {Method::kOpaque, Method::kEnderton, Method::kLk}) {
+    for (Method m : {Method::kOpaque, Method::kEnderton, Method::kLk, Method::kWboit, Method::kLkDepthAc}) {
       const std::string what = std::string("cloth 16 spp ") + to_string(m) + " on " + config;
       const CycleRun lock = run_mode(scene_input("cloth", 16), m, hw, true);
       const CycleRun dec = run_mode(scene_input("cloth", 16), m, hw, false);

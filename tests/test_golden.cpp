@@ -721,9 +721,10 @@ TEST(EndertonExamples, RmsErrorsMatchTheDerivationAndThePaper) {
     for (int c = 0; c < 3; ++c) {
       EXPECT_NEAR(got[size_t(c)], r.exact[size_t(c)], b)
           << r.scene << " " << to_string(r.method) << " channel " << c << ": the derived RMS (bound " << b << ")";
-      if (r.paper_agrees[size_t(c)])
+      if (r.paper_agrees[size_t(c)]) {
         EXPECT_NEAR(got[size_t(c)], r.paper[size_t(c)], 0.01)
             << r.scene << " " << to_string(r.method) << " channel " << c << ": the paper's figure";
+      }
     }
   }
 }

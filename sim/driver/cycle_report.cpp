@@ -260,6 +260,9 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
   out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
                      s.dram.total_bytes_read(), s.dram.total_bytes_written(), s.dram_achieved_gbps, s.dram_peak_gbps,
                      100 * s.dram_utilization);
+  for (const auto& p : s.passes)
+    out += fmt::format("  pass {}: {} cycles; DRAM {} B read, {} B written\n", p.name, p.total_cycles,
+                       p.dram.total_bytes_read(), p.dram.total_bytes_written());
   out += "  " + format_bottleneck(s) + "\n";
   out += fmt::format("  host: {:.3f} s simulated, {:.2f} M fragments/s\n", run.sim_seconds,
                      run.sim_seconds > 0 ? run.counters.fragments / run.sim_seconds / 1e6 : 0.0);
