@@ -31,6 +31,7 @@ struct Layer {
 constexpr Layer kLayers[] = {
     {"util", 0, "base: output files and errors"},
     {"util/containers", 0, "base: generic containers"},
+    {"util/codec", 0, "base: image decoding and encoding (OpenImageIO, loaded on first use)"},
     {"rtl_models/algo", 0, "base: bit-level algorithms"},
     {"traces/format", 10, "input: trace format v1"},
     {"traces/raster", 11, "input: rasterizer, sample patterns"},
@@ -50,7 +51,7 @@ constexpr Layer kLayers[] = {
     {"sim/cli", 43, "drivers: the ropsim command"},
 };
 // Folders with sources that sit above every layer (nothing includes them).
-const std::set<std::string> kTop = {"tests", "bench"};
+const std::set<std::string> kTop = {"tests", "bench", "fuzz"};
 
 bool is_source(const fs::path& p) {
   const auto e = p.extension().string();

@@ -44,6 +44,13 @@ height = 48
 
 }  // namespace
 
+/// "[1, 2, ..., n]"
+std::string int_list(int n) {
+  std::string l = "[";
+  for (int i = 1; i <= n; ++i) l += std::to_string(i) + (i < n ? ", " : "]");
+  return l;
+}
+
 TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
   Scratch s;
   const std::vector<std::pair<std::string, std::string>> bad = {
@@ -61,6 +68,9 @@ TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
       {"[inputs]\nscenes = [\"cloth\"]\n[extra]\n", "extra"},
       {"[inputs]\nscenes = [\"cloth\"\n", "line"},  // not TOML
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nenderton_selection = [\"sideways\"]\n", "axes.enderton_selection"},
+      {"[inputs]\nscenes = [\"cloth\", \"smoke\"]\n[axes]\nseed = " + int_list(400) + "\nwidth = " + int_list(200) +
+           "\n",
+       "axes: the inputs and axes give more than 100000 points"},  // 2 x 400 x 200, refused before expanding
   };
   for (const auto& [text, key] : bad) {
     const fs::path f = s.put("bad.toml", text);
@@ -192,6 +202,30 @@ height = 32
     }
   }
   EXPECT_TRUE(fs::exists(s.dir / "st" / "points" / rows[1].at("point") / "error.txt"));
+}
+
+// A broken input: its reference fails, and its points record that error
+// (the reference's, not a missing file) while the other input's complete.
+TEST(Study, APointWhoseReferenceFailedRecordsThatError) {
+  Scratch s;
+  ASSERT_EQ(ropsim(s.dir, "scene eight-layers --spp 4 --width 32 --height 32 -o good.rtr").status, 0);
+  std::ifstream f(s.dir / "good.rtr", std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  s.put("bad.rtr", ss.str().substr(0, ss.str().size() / 2));
+  s.put("two.toml", "[inputs]\ntraces = [\"good.rtr\", \"bad.rtr\"]\n[axes]\nmethod = [\"lk\", \"enderton\"]\n");
+  const Ran r = ropsim(s.dir, "study run two.toml --out st -j 2 --quiet");
+  EXPECT_EQ(r.status, 1) << r.err << r.out;
+  EXPECT_NE(r.out.find("2 run now, 0 already done, 2 failed"), std::string::npos) << r.out;
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 4u);
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.at("status"), row.at("input") == "bad" ? "failed" : "ok") << row.at("error");
+    if (row.at("input") == "bad") {
+      EXPECT_NE(row.at("error").find("its reference failed: "), std::string::npos) << row.at("error");
+      EXPECT_NE(row.at("error").find("bad.rtr: record "), std::string::npos) << row.at("error");
+    }
+  }
 }
 
 TEST(Study, MeshInputsAreCapturedOncePerCaptureAndEqualAManualCapture) {

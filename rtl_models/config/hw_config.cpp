@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "bits.h"
+#include "toml_guard.h"
 
 namespace ropsim {
 
@@ -281,12 +282,13 @@ const std::vector<ParamInfo>& hw_params() {
 namespace {
 
 // A design file over the defaults, each key checked on its own.
-HwConfig read_hw_file(const std::string& path) {
+HwConfig read_hw_text(const std::string& text, const std::string& path) {
   HwConfig c;
   c.name = path;
+  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw ConfigError(bad);
   toml::table doc;
   try {
-    doc = toml::parse_file(path);
+    doc = toml::parse(text, path);
   } catch (const toml::parse_error& e) {
     std::ostringstream os;
     os << path << ":" << e.source().begin.line << ": " << e.description();
@@ -335,7 +337,21 @@ HwConfig read_hw_file(const std::string& path) {
   return c;
 }
 
+HwConfig read_hw_file(const std::string& path) {
+  std::string text;
+  if (!read_text_file(path, text)) throw ConfigError(path + ": cannot read the design file");
+  return read_hw_text(text, path);
+}
+
 }  // namespace
+
+HwConfig parse_hw_config(const std::string& text, const std::string& name, const std::vector<std::string>& overrides) {
+  HwConfig c = read_hw_text(text, name);
+  for (const auto& a : overrides) apply_hw_override(c, a);
+  validate_hw_config(c);
+  if (!overrides.empty()) c.name += " with --hw-set";
+  return c;
+}
 
 HwConfig load_hw_config(const std::string& path) {
   HwConfig c = read_hw_file(path);

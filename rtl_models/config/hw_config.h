@@ -130,6 +130,9 @@ std::string hw_digest_hex(const HwConfig& cfg);
 /// keys, wrong types, out-of-range values and broken constraints throw
 /// ConfigError naming the file and key.
 HwConfig load_hw_config(const std::string& path);
+/// resolve_hw_config of a design file's text; name stands for the file in errors.
+HwConfig parse_hw_config(const std::string& text, const std::string& name,
+                         const std::vector<std::string>& overrides = {});
 /// The design of a run: the design file `path` (the built-in defaults when
 /// empty), then every "section.key=value" override in order, then the
 /// cross-parameter constraints once, on the result -- so overrides that are

@@ -32,7 +32,7 @@ int cmd_compare(const CompareOpts& o) {
 
 VerbRunner add_compare_command(CLI::App& app) {
   auto o = std::make_shared<CompareOpts>();
-  CLI::App* cmp = app.add_subcommand("compare", "RMSE (8-bit units) and PSNR of image A against image B (OpenImageIO)");
+  CLI::App* cmp = app.add_subcommand("compare", "RMSE (8-bit units) and PSNR of image A against image B");
   cmp->add_option("A", o->a, "Image")->required()->check(CLI::ExistingFile);
   cmp->add_option("B", o->b, "Reference image")->required()->check(CLI::ExistingFile);
   cmp->add_flag("--json", o->json, "Print JSON");

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -27,6 +28,7 @@ struct StudyOpts {
   unsigned jobs = 0;
   size_t index = 0;
   bool retry_failed = false, quiet = false;
+  bool recorded_ok = false;  ///< study task: a failure whose error is recorded exits 0
   std::string executor = "local";
   bool wait = false;
   StudySlurm slurm;  ///< --slurm-* (empty: the study file's)
@@ -61,18 +63,26 @@ int cmd_study_task(const StudyOpts& o) {
   const Study s = load_study(o.file);
   const std::string dir = out_dir(o, s);
   if (run_study_task(s, o.kind[0], o.index, dir)) return 0;
+  if (o.recorded_ok && o.kind != "p") {
+    std::fprintf(stderr, "ropsim: study task %s %zu failed; its error is recorded for the points that need it\n",
+                 o.kind.c_str(), o.index);
+    return 0;
+  }
   std::fprintf(stderr, "ropsim: error: study task %s %zu failed (its error file holds why)\n", o.kind.c_str(), o.index);
   return 1;
 }
 
-int collect_summary(const Study& s, const std::string& dir);
+/// Point index -> its task's log and the logs of the phase before it.
+using TaskLogs = std::map<size_t, std::pair<std::string, std::string>>;
+int collect_summary(const Study& s, const std::string& dir, const TaskLogs& logs = {});
 
 /// `study collect`: records every finished task's result in the database.
 int cmd_study_collect(const StudyOpts& o) { return collect_summary(load_study(study_file_of(o.dir)), o.dir); }
 
 /// Prints the summary of a study folder after its tasks ran elsewhere; 1 when
-/// a point failed or did not run.
-int collect_summary(const Study& s, const std::string& dir) {
+/// a point failed or did not run. logs: the task log of a point submitted
+/// (by index), named for the points that did not run.
+int collect_summary(const Study& s, const std::string& dir, const TaskLogs& logs) {
   StudyRunOptions ro;
   ro.out_dir = dir;
   StudySummary sum;
@@ -80,6 +90,17 @@ int collect_summary(const Study& s, const std::string& dir) {
   fmt::print("study {}: {} points: {} done, {} failed, {} not run yet; results in {}/results.db\n", s.name, sum.points,
              sum.reused, sum.failed, plan.points.size(), dir);
   for (const auto& [point, error] : sum.failures) fmt::print("  failed: {}: {}\n", point, error);
+  const std::vector<StudyPoint> points = logs.empty() ? std::vector<StudyPoint>{} : expand_study(s);
+  for (size_t pi : plan.points)
+    if (auto it = logs.find(pi); it != logs.end()) {
+      std::error_code ec;
+      if (std::filesystem::exists(it->second.first, ec))
+        fmt::print("  not run: {}: its task ended without a result (killed? out of time or memory?); log: {}\n",
+                   describe_point(points.at(pi)), it->second.first);
+      else
+        fmt::print("  not run: {}: its task never started; the phase before it failed: {}\n",
+                   describe_point(points.at(pi)), it->second.second);
+    }
   return sum.failed || !plan.points.empty() ? 1 : 0;
 }
 
@@ -98,15 +119,23 @@ int cmd_study_run_slurm(const StudyOpts& o, const Study& s, const StudyRunOption
   fmt::print("study {}: {} points: {} already done, {} failed; submitted {} captures, {} references, {} points\n",
              s.name, sum.points, sum.reused, sum.failed, sub.plan.captures.size(), sub.plan.references.size(),
              sub.plan.points.size());
-  for (size_t i = 0; i < sub.job_ids.size(); ++i)
-    fmt::print("  job {}: {}\n", sub.job_ids[i],
+  TaskLogs logs;
+  const std::filesystem::path sdir = (std::filesystem::absolute(ro.out_dir) / "slurm").lexically_normal();
+  for (size_t i = 0; i < sub.job_ids.size(); ++i) {
+    fmt::print("  job {}: {}{}\n", sub.job_ids[i],
                sub.kinds[i] == 'c'   ? "captures"
                : sub.kinds[i] == 'r' ? "references"
-                                     : "points");
+                                     : "points",
+               sub.after[i].empty() ? "" : " (afterok " + sub.after[i] + ")");
+    if (sub.kinds[i] == 'p')
+      for (size_t t = 0; t < sub.plan.points.size(); ++t)
+        logs[sub.plan.points[t]] = {(sdir / fmt::format("{}_{}.log", sub.job_ids[i], t)).string(),
+                                    (sdir / fmt::format("{}_*.log", sub.after[i])).string()};
+  }
   std::fflush(stdout);
   if (!o.wait) return sum.failed ? 1 : 0;
   wait_slurm_jobs(sub.job_ids, so.poll_ms);
-  return collect_summary(s, ro.out_dir);
+  return collect_summary(s, ro.out_dir, logs);
 }
 
 int cmd_study_run(const StudyOpts& o) {
@@ -216,6 +245,9 @@ VerbRunner add_study_command(CLI::App& app) {
       ->check(CLI::IsMember({"c", "r", "p"}));
   task->add_option("--index", o->index, "The point (for c and r: the point that names the capture or reference)")
       ->required();
+  task->add_flag("--recorded-ok", o->recorded_ok,
+                 "Exit 0 when the task failed but recorded its error (a capture's or reference's: the points "
+                 "that need it record it as theirs)");
   CLI::App* col = st->add_subcommand("collect", "Record every finished task of a study folder in its database");
   col->add_option("DIR", o->dir, "Study folder")->required();
   CLI::App* rep = st->add_subcommand("report", "Write a study folder's HTML report and Markdown summary (DIR/report)");

@@ -1,15 +1,12 @@
 #include "image_io.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/imageio.h>
-
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <vector>
 
+#include "image_codec.h"
 #include "output_file.h"
 
 namespace ropsim {
@@ -25,13 +22,6 @@ std::string extension_of(const std::string& path) {
   return e;
 }
 
-OIIO::ImageBuf to_imagebuf(const Image& img) {
-  OIIO::ImageSpec spec(int(img.width), int(img.height), 3, OIIO::TypeDesc::FLOAT);
-  OIIO::ImageBuf buf(spec);
-  buf.set_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, img.rgb.data());
-  return buf;
-}
-
 }  // namespace
 
 float linear_to_srgb(float v) {
@@ -44,33 +34,14 @@ std::vector<unsigned char> encode_image(const Image& img, const std::string& pat
   const std::string ext = extension_of(path);
   if (ext != "exr" && ext != "png")
     throw ImageError(path + ": unsupported image extension '." + ext + "' (use .exr or .png)");
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw ImageError(path + ": cannot create an image writer: " + OIIO::geterror());
-  if (!out->supports("ioproxy")) throw ImageError(path + ": this OpenImageIO cannot encode ." + ext + " into memory");
-  const OIIO::TypeDesc type = ext == "exr" ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
-  OIIO::ImageSpec spec(int(img.width), int(img.height), 3, type);
-  std::vector<uint8_t> px;
-  const void* data = img.rgb.data();
-  if (ext == "exr") {
-    spec.attribute("oiio:ColorSpace", "Linear");
-    spec.attribute("compression", "zip");
-  } else {
-    spec.attribute("oiio:ColorSpace", "sRGB");
-    px.resize(img.rgb.size());
+  try {
+    if (ext == "exr") return encode_exr_rgb(img.rgb.data(), int(img.width), int(img.height), path);
+    std::vector<unsigned char> px(img.rgb.size());
     for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(std::lround(linear_to_srgb(img.rgb[i]) * 255.0f));
-    data = px.data();
+    return encode_png_rgb8(px.data(), int(img.width), int(img.height), path);
+  } catch (const ImageCodecError& e) {
+    throw ImageError(e.what());
   }
-  // No wall-clock time in the metadata, so the same run gives the same bytes:
-  // without a DateTime, OpenImageIO's EXR writer stores the current time as
-  // capDate; an empty DateTime is stored as an empty capDate.
-  spec.attribute("DateTime", "");
-  OIIO::Filesystem::IOVecOutput mem;
-  if (!out->set_ioproxy(&mem)) throw ImageError(path + ": cannot encode into memory: " + out->geterror());
-  bool ok = out->open(path, spec) && out->write_image(type, data);
-  ok = out->close() && ok;
-  if (!ok || mem.buffer().empty())
-    throw ImageError(path + ": cannot encode the image: " + (ok ? std::string("no bytes") : out->geterror()));
-  return std::move(mem.buffer());
 }
 
 void write_image(const Image& img, const std::string& path) {
@@ -82,20 +53,19 @@ void write_image(const Image& img, const std::string& path) {
 }
 
 Image read_image(const std::string& path) {
-  OIIO::ImageBuf buf(path);
-  if (!buf.read(0, 0, true, OIIO::TypeDesc::FLOAT)) throw ImageError(path + ": cannot read image: " + buf.geterror());
-  const auto& spec = buf.spec();
-  if (spec.nchannels < 3)
-    throw ImageError(path + ": image has " + std::to_string(spec.nchannels) + " channels, need RGB");
+  DecodedImage d;
+  try {
+    d = decode_image_file(path);
+  } catch (const ImageCodecError& e) {
+    throw ImageError(e.what());
+  }
+  if (d.channels < 3) throw ImageError(path + ": image has " + std::to_string(d.channels) + " channels, need RGB");
   Image img;
-  img.width = uint32_t(spec.width);
-  img.height = uint32_t(spec.height);
+  img.width = uint32_t(d.width);
+  img.height = uint32_t(d.height);
   img.rgb.resize(size_t(img.width) * img.height * 3);
-  OIIO::ROI roi = buf.roi();
-  roi.chbegin = 0;
-  roi.chend = 3;
-  if (!buf.get_pixels(roi, OIIO::TypeDesc::FLOAT, img.rgb.data()))
-    throw ImageError(path + ": cannot read pixels: " + buf.geterror());
+  for (size_t i = 0; i < size_t(img.width) * img.height; ++i)
+    for (size_t c = 0; c < 3; ++c) img.rgb[i * 3 + c] = d.px[i * size_t(d.channels) + c];
   return img;
 }
 
@@ -103,17 +73,23 @@ CompareResult compare_images(const Image& a, const Image& b) {
   if (a.width != b.width || a.height != b.height)
     throw ImageError("images differ in size: " + std::to_string(a.width) + "x" + std::to_string(a.height) + " vs " +
                      std::to_string(b.width) + "x" + std::to_string(b.height));
-  OIIO::ImageBuf A = to_imagebuf(a), B = to_imagebuf(b);
-  auto r = OIIO::ImageBufAlgo::compare(A, B, 1e30f, 1e30f);
-  if (r.error) throw ImageError("image comparison failed: " + OIIO::geterror());
+  // Every sum in sample order, in double: deterministic.
+  double sum = 0, sum_abs = 0, sum_sq = 0, max_abs = 0;
+  for (size_t i = 0; i < a.rgb.size(); ++i) {
+    const double d = double(a.rgb[i]) - double(b.rgb[i]);
+    sum += d;
+    sum_abs += std::fabs(d);
+    sum_sq += d * d;
+    max_abs = std::max(max_abs, std::fabs(d));
+  }
+  const double n = double(a.rgb.size());
   CompareResult c;
-  c.rmse_8bit = r.rms_error * 255.0;
-  c.psnr_db = r.rms_error > 0 ? r.PSNR : std::numeric_limits<double>::infinity();
-  c.max_error_8bit = r.maxerror * 255.0;
-  c.mean_error_8bit = r.meanerror * 255.0;
-  double sum = 0;  // in sample order: deterministic
-  for (size_t i = 0; i < a.rgb.size(); ++i) sum += double(a.rgb[i]) - double(b.rgb[i]);
-  c.bias_8bit = a.rgb.empty() ? 0.0 : sum / double(a.rgb.size()) * 255.0;
+  const double rms = n > 0 ? std::sqrt(sum_sq / n) : 0.0;
+  c.rmse_8bit = rms * 255.0;
+  c.psnr_db = rms > 0 ? 20.0 * std::log10(1.0 / rms) : std::numeric_limits<double>::infinity();
+  c.max_error_8bit = max_abs * 255.0;
+  c.mean_error_8bit = n > 0 ? sum_abs / n * 255.0 : 0.0;
+  c.bias_8bit = n > 0 ? sum / n * 255.0 : 0.0;
   return c;
 }
 

@@ -1,6 +1,8 @@
-// Image output through OpenImageIO: linear EXR and sRGB PNG, encoded in
-// memory and written through OutputFile (util/output_file.h), so a failure
-// (a full disk included) is an error and leaves no partial file.
+// Image files: linear EXR and sRGB PNG, encoded in memory (through
+// OpenImageIO, loaded on first use: util/codec/image_codec.h) and written
+// through OutputFile (util/output_file.h), so a failure (a full disk included)
+// is an error and leaves no partial file; any readable image read back; and
+// image comparison.
 #pragma once
 #include <stdexcept>
 #include <string>
@@ -24,7 +26,8 @@ std::vector<unsigned char> encode_image(const Image& img, const std::string& pat
 void write_image(const Image& img, const std::string& path);
 
 /// Reads any OpenImageIO-readable image as float RGB, values as stored
-/// (an 8-bit PNG gives its code values / 255, an EXR its linear values).
+/// (an 8-bit PNG gives its code values / 255, an EXR its linear values;
+/// colour is not premultiplied by an alpha channel).
 Image read_image(const std::string& path);
 
 struct CompareResult {
@@ -35,7 +38,7 @@ struct CompareResult {
   double bias_8bit = 0;  ///< mean signed error (a minus b) over all pixels and RGB channels, x 255
 };
 
-/// Compares two images of the same size with ImageBufAlgo::compare.
+/// Compares two images of the same size over every pixel and RGB channel.
 CompareResult compare_images(const Image& a, const Image& b);
 CompareResult compare_image_files(const std::string& a, const std::string& b);
 

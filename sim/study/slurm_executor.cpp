@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -48,15 +49,39 @@ std::string trim(std::string s) {
   return s;
 }
 
+/// A command's output as one line (an error message is one line): its lines
+/// joined by "; ".
+std::string one_line(const std::string& s) {
+  std::string r;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);)
+    if (!trim(l).empty()) r += (r.empty() ? "" : "; ") + trim(l);
+  return r;
+}
+
 /// The array job ids squeue lists (every user's queued and running jobs);
-/// false when squeue failed.
-bool queued_jobs(std::set<std::string>& ids, std::string& out) {
+/// false when squeue failed. stuck: the jobs pending for a reason that only
+/// someone's action ends (held after a failed launch or by an
+/// administrator, a dependency that can never be satisfied), with it.
+bool queued_jobs(std::set<std::string>& ids, std::string& out, std::map<std::string, std::string>* stuck = nullptr) {
   ids.clear();
-  if (run_command("squeue -h -o %F", out) != 0) return false;
+  if (run_command("squeue -h -o '%F|%T|%r'", out) != 0) return false;
+  static const char* const kStuck[] = {"launch failed requeued held", "JobHeldAdmin", "DependencyNeverSatisfied",
+                                       "BadConstraints"};
   std::istringstream in(out);
   std::string line;
-  while (std::getline(in, line))
-    if (!trim(line).empty()) ids.insert(trim(line));
+  while (std::getline(in, line)) {
+    line = trim(line);
+    if (line.empty()) continue;
+    const size_t a = line.find('|'), b = line.find('|', a == std::string::npos ? a : a + 1);
+    const std::string id = line.substr(0, a);
+    ids.insert(id);
+    if (stuck && b != std::string::npos && line.substr(a + 1, b - a - 1) == "PENDING") {
+      const std::string reason = line.substr(b + 1);
+      for (const char* r : kStuck)
+        if (reason == r) (*stuck)[id] = reason;
+    }
+  }
   return true;
 }
 
@@ -69,13 +94,22 @@ void wait_slurm_jobs(const std::vector<std::string>& job_ids, unsigned poll_ms) 
   const int max_failures = std::max(1, int(30000 / std::max(1u, poll_ms)));  // about 30 s of errors
   for (;;) {
     std::set<std::string> q;
+    std::map<std::string, std::string> stuck;
     std::string out;
-    if (!queued_jobs(q, out)) {
-      if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + trim(out));
+    if (!queued_jobs(q, out, &stuck)) {
+      if (++failures >= max_failures) throw UserError("study run: squeue keeps failing: " + one_line(out));
     } else {
       failures = 0;
       bool any = false;
-      for (const auto& id : job_ids) any = any || q.count(id);
+      for (const auto& id : job_ids) {
+        any = any || q.count(id);
+        // Waiting would never end.
+        if (auto it = stuck.find(id); it != stuck.end())
+          throw UserError(fmt::format(
+              "study run: SLURM job {} will not run (pending: {}); see the cluster's logs, then scancel {} and "
+              "submit again (the tasks that ran are recorded by `ropsim study collect`)",
+              id, it->second, id));
+      }
       if (!any) return;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(poll_ms));
@@ -143,8 +177,12 @@ SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, con
       if (!b.mem.empty()) f << "#SBATCH --mem=" << b.mem << "\n";
       f << "set -eu\n";
       f << "index=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " << sh(txt.string()) << ")\n";
+      // A capture or reference that fails records its error and exits 0, so
+      // that the next phase runs and its points record that error as theirs
+      // (afterok would cancel every point of the study). A task that could
+      // not record (killed, out of time or memory) still fails the phase.
       f << "exec " << sh(exe.string()) << " study task " << sh(study_file) << " --out " << sh(dir.string())
-        << " --kind " << kind << " --index \"$index\"\n";
+        << " --kind " << kind << " --index \"$index\"" << (kind == 'p' ? "" : " --recorded-ok") << "\n";
       if (!f) throw UserError("study run: cannot write " + script.string());
     }
     std::string cmd = "sbatch --parsable";
@@ -153,16 +191,28 @@ SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, con
     cmd += " " + sh(script.string());
     std::string out;
     const int st = run_command(cmd, out);
-    if (st != 0)
-      throw UserError(fmt::format("study run: sbatch of the {} failed (exit status {}): {}", name, st, trim(out)));
     // --parsable prints "jobid" or "jobid;cluster" (after any warnings).
     std::string id = trim(out);
     if (const auto nl = id.rfind('\n'); nl != std::string::npos) id = id.substr(nl + 1);
     id = id.substr(0, id.find(';'));
-    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
-      throw UserError("study run: sbatch printed no job id: " + trim(out));
+    if (st != 0 || id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
+      std::string why = st != 0 ? fmt::format("sbatch of the {} failed (exit status {}): {}", name, st, one_line(out))
+                                : "sbatch of the " + name + " printed no job id: " + one_line(out);
+      if (!b.mem.empty() && out.find("Memory specification can not be satisfied") != std::string::npos)
+        why += fmt::format(" (--mem={} per task: more than any node of the partition has)", b.mem);
+      // The phases already submitted would run without the rest: cancel them.
+      if (!sub.job_ids.empty()) {
+        std::string ids, scancel_out;
+        for (const auto& j : sub.job_ids) ids += (ids.empty() ? "" : " ") + j;
+        const int cst = run_command("scancel " + ids, scancel_out);
+        why += cst == 0 ? "; cancelled the jobs already submitted (" + ids + ")"
+                        : "; could not cancel the jobs already submitted (" + ids + "): " + one_line(scancel_out);
+      }
+      throw UserError("study run: " + why);
+    }
     sub.job_ids.push_back(id);
     sub.kinds.push_back(kind);
+    sub.after.push_back(after);
     after = id;
   }
   std::ofstream jobs(sdir / "jobs.txt");

@@ -25,6 +25,7 @@ struct SlurmSubmission {
   StudyPlan plan;                    ///< what was submitted (point indices)
   std::vector<std::string> job_ids;  ///< one per non-empty phase, in order
   std::vector<char> kinds;           ///< the phase of each job: 'c', 'r' or 'p'
+  std::vector<std::string> after;    ///< the job each one depends on (afterok), "" for none
 };
 
 /// Plans the study and submits what the folder lacks. Writes DIR/slurm/:

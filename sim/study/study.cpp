@@ -14,6 +14,7 @@
 
 #include "errors.h"
 #include "random_hash.h"
+#include "toml_guard.h"
 #include "version.h"
 
 namespace ropsim {
@@ -172,11 +173,18 @@ const StudyInput& input_of(const Study& s, const std::string& label) {
 }  // namespace
 
 Study load_study(const std::string& path) {
+  std::string text;
+  if (!read_text_file(path, text)) throw UserError(path + ": cannot read the study file");
+  return parse_study(text, path);
+}
+
+Study parse_study(const std::string& text, const std::string& path) {
   Study s;
   s.path = path;
+  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw UserError(bad);
   toml::table t;
   try {
-    t = toml::parse_file(path);
+    t = toml::parse(text, path);
   } catch (const toml::parse_error& e) {
     throw UserError(fmt::format("{}: line {}: {}", path, e.source().begin.line, e.description()));
   }
@@ -354,6 +362,21 @@ Study load_study(const std::string& path) {
         fail(s, "axes." + a.key,
              fmt::format("combine = \"zip\" needs lists of one length ({} here, {} for {})", a.values.size(),
                          s.axes.front().values.size(), s.axes.front().key));
+  // Bounded before anything is expanded: a product of long lists is refused,
+  // not allocated.
+  uint64_t points = std::max<size_t>(1, s.inputs.size());
+  for (const auto& a : s.axes) {
+    const uint64_t n = s.combine == Study::Combine::kZip ? 1 : a.values.size();
+    if (n > 0 && points > kMaxStudyPoints / n) {
+      points = kMaxStudyPoints + 1;
+      break;
+    }
+    points *= n;
+  }
+  if (s.combine == Study::Combine::kZip && !s.axes.empty())
+    points = std::max<size_t>(1, s.inputs.size()) * uint64_t(s.axes.front().values.size());
+  if (points > kMaxStudyPoints)
+    fail(s, "axes", fmt::format("the inputs and axes give more than {} points", kMaxStudyPoints));
   return s;
 }
 

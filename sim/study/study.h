@@ -62,9 +62,16 @@ struct Study {
   StudySlurm slurm;
 };
 
+/// The most points a study may have (inputs x axes, before functional points
+/// are deduplicated); a study file with more is refused.
+inline constexpr uint64_t kMaxStudyPoints = 100000;
+
 /// Reads and checks a study file. Every unknown key and bad value throws
 /// UserError "FILE: KEY: reason" before anything runs.
 Study load_study(const std::string& path);
+/// load_study of a study file's text; path names it in errors and locates
+/// the files it names relative to its folder.
+Study parse_study(const std::string& text, const std::string& path);
 
 /// A point of a study: one run's parameters.
 struct StudyPoint {

@@ -52,21 +52,56 @@ fs::path capture_path(const std::string& dir, const std::string& key) {
   return fs::path(dir) / "traces" / (key + ".rtr");
 }
 
+/// Where a failed capture or reference records its error, by its key: the
+/// points that need it (run by this process or by another executor's task)
+/// record the same error as theirs.
+fs::path capture_error_path(const std::string& dir, const std::string& key) {
+  return fs::path(dir) / "traces" / (key + ".error");
+}
+fs::path ref_error_path(const std::string& dir, const std::string& key) {
+  return fs::path(dir) / "refs" / (key + ".error");
+}
+
+/// The recorded error of a failed capture or reference, without its newline.
+std::string recorded_error(const fs::path& f) {
+  std::string e = read_file(f);
+  while (!e.empty() && e.back() == '\n') e.pop_back();
+  return e;
+}
+
+/// Throws the reason a task that needs r's capture (and, when with_reference,
+/// its reference) cannot run: it failed (its recorded error) or is missing.
+void require_inputs(const ResolvedPoint& r, const std::string& dir, bool with_reference) {
+  if (!r.capture_key.empty() && !fs::exists(capture_path(dir, r.capture_key))) {
+    const fs::path e = capture_error_path(dir, r.capture_key);
+    throw UserError(fs::exists(e) ? "its capture failed: " + recorded_error(e)
+                                  : "its capture " + capture_path(dir, r.capture_key).string() + " is missing");
+  }
+  if (with_reference && !r.reference_key.empty() && !fs::exists(ref_path(dir, r.reference_key))) {
+    const fs::path e = ref_error_path(dir, r.reference_key);
+    throw UserError(fs::exists(e) ? "its reference failed: " + recorded_error(e)
+                                  : "its reference " + ref_path(dir, r.reference_key).string() + " is missing");
+  }
+}
+
 /// The capture of a point's mesh input.
 void capture_input(const Study& s, const StudyPoint& p, const std::string& dir) {
   const ResolvedPoint r = resolve_point(s, p, dir);
   capture_to_file(load_scene_file(r.capture_scene, r.capture_overrides), capture_path(dir, r.capture_key).string());
+  fs::remove(capture_error_path(dir, r.capture_key));  // an earlier attempt's
 }
 
 /// The reference of a point: the A-buffer on its reference input.
 void render_reference(const Study& s, const StudyPoint& p, const std::string& dir) {
   const ResolvedPoint r = resolve_point(s, p, dir);
+  require_inputs(r, dir, false);
   MethodConfig m = r.method;
   m.method = Method::kReference;
   const FunctionalRun run = run_functional(r.reference_input, m);
   // The PNG first: the EXR's presence means the reference is done.
   write_image(run.image, (fs::path(dir) / "refs" / (r.reference_key + ".png")).string());
   write_image(run.image, ref_path(dir, r.reference_key).string());
+  fs::remove(ref_error_path(dir, r.reference_key));  // an earlier attempt's
 }
 
 /// One point: its run, its report (with the metrics against the reference)
@@ -76,6 +111,7 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   fs::create_directories(pd);
   write_text_output((pd / "params.json").string(), p.params_json().dump(2) + "\n");
   const ResolvedPoint r = resolve_point(s, p, dir);
+  require_inputs(r, dir, true);
   std::optional<Image> reference;
   if (!r.reference_key.empty()) {
     reference = read_image(ref_path(dir, r.reference_key).string());
@@ -263,12 +299,6 @@ bool record_from_folder(Db& db, const std::string& dir, const StudyPoint& p) {
   return false;
 }
 
-std::string describe(const StudyPoint& p) {
-  std::string s = p.hash + " (" + p.input;
-  for (const auto& [k, v] : p.params) s += ", " + k + "=" + to_string(v);
-  return s + ")";
-}
-
 struct Worker {
   pid_t pid = -1;
   int to = -1, from = -1;
@@ -277,6 +307,12 @@ struct Worker {
 };
 
 }  // namespace
+
+std::string describe_point(const StudyPoint& p) {
+  std::string s = p.hash + " (" + p.input;
+  for (const auto& [k, v] : p.params) s += ", " + k + "=" + to_string(v);
+  return s + ")";
+}
 
 StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum) {
   const std::vector<StudyPoint> points = expand_study(s);
@@ -299,8 +335,14 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
     auto it = status.find(p.hash);
     const bool failed = it != status.end() && it->second != "ok";
     if (it != status.end() && !(failed && o.retry_failed)) {
+      // A failed point retried by another executor's task (study run
+      // --executor slurm --retry-failed) holds its new result or error.
+      if (failed && record_from_folder(db, o.out_dir, p) && fs::exists(point_dir(o.out_dir, p) / "report.json")) {
+        ++sum.reused;
+        continue;
+      }
       ++(failed ? sum.failed : sum.reused);
-      if (failed) sum.failures.emplace_back(describe(p), "(recorded before)");
+      if (failed) sum.failures.emplace_back(describe_point(p), "(recorded before)");
       continue;
     }
     if (failed) fs::remove(point_dir(o.out_dir, p) / "error.txt");
@@ -311,7 +353,7 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
         ++sum.reused;
       } else {
         ++sum.failed;
-        sum.failures.emplace_back(describe(p), read_file(point_dir(o.out_dir, p) / "error.txt"));
+        sum.failures.emplace_back(describe_point(p), recorded_error(point_dir(o.out_dir, p) / "error.txt"));
       }
       continue;
     }
@@ -331,7 +373,7 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
       write_text_output((point_dir(o.out_dir, p) / "error.txt").string(), std::string(e.what()) + "\n");
       db.put_row(row_of(p, "failed", e.what(), nullptr));
       ++sum.failed;
-      sum.failures.emplace_back(describe(p), e.what());
+      sum.failures.emplace_back(describe_point(p), e.what());
     }
   }
   return plan;
@@ -355,9 +397,13 @@ bool run_task(const Study& s, const std::vector<StudyPoint>& points, char kind, 
       throw UserError(std::string("study task: unknown kind ") + kind + " (c, r or p)");
     return true;
   } catch (const std::exception& e) {
-    const fs::path f = kind == 'c'   ? fs::path(dir) / "traces" / (p.hash + ".error")
-                       : kind == 'r' ? fs::path(dir) / "refs" / (p.hash + ".error")
-                                     : point_dir(dir, p) / "error.txt";
+    fs::path f = point_dir(dir, p) / "error.txt";
+    if (kind == 'c' || kind == 'r') {
+      const ResolvedPoint r = resolve_point(s, p, dir);  // planned, so it resolves
+      const std::string& key = kind == 'c' ? r.capture_key : r.reference_key;
+      const std::string name = key.empty() ? p.hash : key;  // a task the point does not need
+      f = kind == 'c' ? capture_error_path(dir, name) : ref_error_path(dir, name);
+    }
     fs::create_directories(f.parent_path());
     write_text_output(f.string(), std::string(e.what()) + "\n");
     return false;
@@ -470,12 +516,10 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   auto broken = [&](const Task& t) -> std::string {
     auto c = capkey_of.find(t.index);
     if (c != capkey_of.end() && failed_caps.count(c->second))
-      return "its capture failed: " +
-             read_file(fs::path(o.out_dir) / "traces" / (points[capture_of[c->second]].hash + ".error"));
+      return "its capture failed: " + recorded_error(capture_error_path(o.out_dir, c->second));
     auto k = key_of.find(t.index);
     if (t.kind == 'p' && k != key_of.end() && failed_refs.count(k->second))
-      return "its reference failed: " +
-             read_file(fs::path(o.out_dir) / "refs" / (points[ref_of[k->second]].hash + ".error"));
+      return "its reference failed: " + recorded_error(ref_error_path(o.out_dir, k->second));
     return "";
   };
   auto next_task = [&]() -> std::optional<Task> {
@@ -507,7 +551,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
         db.put_row(row_of(p, "failed", e, nullptr));
         ++sum.failed;
         ++done_now;
-        sum.failures.emplace_back(describe(p), e);
+        sum.failures.emplace_back(describe_point(p), e);
         continue;
       }
       return t;
@@ -542,7 +586,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
       while (!e.empty() && e.back() == '\n') e.pop_back();
       db.put_row(row_of(p, "failed", e, nullptr));
       ++sum.failed;
-      sum.failures.emplace_back(describe(p), e);
+      sum.failures.emplace_back(describe_point(p), e);
     }
     progress(false);
   };
@@ -604,7 +648,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     runs.pop_front();
     db.put_row(row_of(p, "failed", "no worker process was left to run it", nullptr));
     ++sum.failed;
-    sum.failures.emplace_back(describe(p), "no worker process was left to run it");
+    sum.failures.emplace_back(describe_point(p), "no worker process was left to run it");
   }
   progress(true);
   return sum;

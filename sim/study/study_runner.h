@@ -27,6 +27,9 @@ struct StudySummary {
   std::vector<std::pair<std::string, std::string>> failures;  ///< (point hash and parameters, error)
 };
 
+/// A point as the summaries list it: its hash, input and parameters.
+std::string describe_point(const StudyPoint& p);
+
 /// What a study folder still needs, as point indices: the captures and the
 /// references to make (each named by its first point), then the points to run.
 struct StudyPlan {

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "toml_guard.h"
 #include "utf8.h"
 
 namespace ropsim {
@@ -122,6 +123,7 @@ Vec3d cross(const Vec3d& a, const Vec3d& b) {
 }  // namespace
 
 SceneSpec parse_scene_text(const std::string& text, const std::string& path, const SceneOverrides& o) {
+  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw CaptureError(bad);
   toml::table root;
   try {
     root = toml::parse(text, path);

@@ -1,10 +1,8 @@
 #include "texture.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-
 #include <cmath>
 
+#include "image_codec.h"
 #include "scene_file.h"
 
 namespace ropsim {
@@ -13,18 +11,14 @@ namespace {
 
 float srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
 
-Texture read(OIIO::ImageInput* in, const std::string& name, bool srgb) {
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw CaptureError(name + ": empty texture image");
-  std::vector<float> px(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, px.data()))
-    throw CaptureError(name + ": cannot decode the texture: " + in->geterror());
+Texture convert(const DecodedImage& d, const std::string& name, bool srgb) {
+  const std::vector<float>& px = d.px;
   Texture t;
   t.name = name;
-  t.width = spec.width;
-  t.height = spec.height;
+  t.width = d.width;
+  t.height = d.height;
   t.rgba.resize(size_t(t.width) * size_t(t.height) * 4);
-  const int nc = spec.nchannels;
+  const int nc = d.channels;
   for (size_t i = 0; i < size_t(t.width) * size_t(t.height); ++i) {
     const float* p = &px[i * size_t(nc)];
     float r = p[0], g = nc >= 3 ? p[1] : p[0], b = nc >= 3 ? p[2] : p[0];
@@ -62,29 +56,21 @@ std::array<float, 4> Texture::sample(double u, double v) const {
   return out;
 }
 
-/// Straight (not premultiplied) alpha, as glTF base colours are: OpenImageIO
-/// premultiplies PNG / TGA colour by alpha unless asked not to.
-static OIIO::ImageSpec straight_alpha() {
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
-  return config;
-}
-
 Texture load_texture_file(const std::string& path, bool srgb) {
-  const OIIO::ImageSpec config = straight_alpha();
-  auto in = OIIO::ImageInput::open(path, &config);
-  if (!in) throw CaptureError(path + ": cannot read the texture: " + OIIO::geterror());
-  return read(in.get(), path, srgb);
+  try {
+    return convert(decode_image_file(path), path, srgb);
+  } catch (const ImageCodecError& e) {
+    throw CaptureError(e.what());
+  }
 }
 
 Texture load_texture_memory(const void* data, size_t bytes, const std::string& hint, const std::string& name,
                             bool srgb) {
-  OIIO::Filesystem::IOMemReader mem(data, bytes);
-  const std::string fake = "embedded." + (hint.empty() ? std::string("png") : hint);
-  const OIIO::ImageSpec config = straight_alpha();
-  auto in = OIIO::ImageInput::open(fake, &config, &mem);
-  if (!in) throw CaptureError(name + ": cannot decode the embedded texture: " + OIIO::geterror());
-  return read(in.get(), name, srgb);
+  try {
+    return convert(decode_image_memory(data, bytes, hint, name), name, srgb);
+  } catch (const ImageCodecError& e) {
+    throw CaptureError(e.what());
+  }
 }
 
 }  // namespace ropsim

@@ -1,4 +1,5 @@
-// Textures for captures: decoded through OpenImageIO (PNG, JPEG, EXR, ...,
+// Textures for captures: decoded through OpenImageIO (util/codec, loaded on
+// first use; PNG, JPEG, EXR, ...,
 // from a file or from memory for glTF-embedded images), held as linear RGBA
 // floats, sampled bilinearly with repeat wrapping (no mipmaps).
 #pragma once

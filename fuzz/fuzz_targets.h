@@ -1,0 +1,44 @@
+// The fuzz targets (docs/testing.md "Fuzzing"): each takes arbitrary bytes as
+// one input file of its kind and runs it through what ropsim does with such a
+// file. An input error (a std::runtime_error: TraceError, ConfigError,
+// CaptureError, UserError, ...) is the expected outcome of a bad input and
+// returns normally; anything else -- a crash, a sanitizer report, an
+// InternalError, std::bad_alloc, an uncaught exception -- is a finding.
+//
+// Built two ways: as libFuzzer executables (clang, -DROPSIM_FUZZ=ON,
+// scripts/fuzz.sh), and into the normal test suite, where
+// FuzzRegressions.* replays the committed inputs of fuzz/regressions/.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ropsim_fuzz {
+
+/// A trace file (either payload encoding) read record by record into the lk
+/// golden model, then resolved.
+int fuzz_trace(const uint8_t* data, size_t size);
+/// A mesh scene file, parsed and checked (the meshes it names are not loaded).
+int fuzz_scene(const uint8_t* data, size_t size);
+/// A hardware design file, then --hw-set overrides (the lines after a line
+/// "%%"); a design that loads is printed, read back, and must be identical.
+int fuzz_design(const uint8_t* data, size_t size);
+/// A study file, parsed, checked and expanded into its points.
+int fuzz_study(const uint8_t* data, size_t size);
+
+struct Target {
+  const char* name;
+  int (*run)(const uint8_t*, size_t);
+};
+inline const std::vector<Target>& targets() {
+  static const std::vector<Target> t = {
+      {"trace", fuzz_trace}, {"scene", fuzz_scene}, {"design", fuzz_design}, {"study", fuzz_study}};
+  return t;
+}
+
+/// Writes the input to a file of this process (under $TMPDIR, or /tmp) with
+/// the given suffix, for readers that take a path; returns the path.
+std::string input_file(const uint8_t* data, size_t size, const char* suffix);
+
+}  // namespace ropsim_fuzz

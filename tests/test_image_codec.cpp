@@ -1,0 +1,102 @@
+// The image codec (util/codec): OpenImageIO is a module loaded on first use,
+// so no ropsim binary links it and a run that writes no image never loads it;
+// what it encodes decodes back; a missing module is a one-line error naming
+// the file being written, with no partial output; and image comparison gives
+// its closed-form figures.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "image_codec.h"
+#include "image_io.h"
+#include "study_test_util.h"
+
+namespace {
+
+using namespace ropsim_test;
+
+TEST(ImageCodec, NoBinaryLinksOpenImageIO) {
+  Scratch s("codec-ldd");
+  for (const char* bin : {ROPSIM_BINARY, "/proc/self/exe"}) {
+    const Ran r = shell(s.dir, std::string("ldd '") + bin + "'", 60);
+    ASSERT_EQ(r.status, 0) << "ldd " << bin << " failed: " << r.err;
+    EXPECT_EQ(r.out.find("OpenImageIO"), std::string::npos)
+        << bin << " links OpenImageIO: every process start would load its ~260 libraries\n"
+        << r.out;
+  }
+}
+
+TEST(ImageCodec, ExrRoundTripsExactlyAndPngToItsCodeValues) {
+  const int w = 5, h = 3;
+  std::vector<float> rgb(size_t(w * h * 3));
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = float(i) / 7.0f - 0.25f;  // negatives kept by EXR
+  const auto exr = ropsim::encode_exr_rgb(rgb.data(), w, h, "a.exr");
+  Scratch s("codec-rt");
+  const auto put = [&](const char* name, const std::vector<unsigned char>& b) {
+    std::ofstream(s.dir / name, std::ios::binary)
+        .write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
+    return (s.dir / name).string();
+  };
+  const ropsim::DecodedImage e = ropsim::decode_image_file(put("a.exr", exr));
+  ASSERT_EQ(e.width, w);
+  ASSERT_EQ(e.height, h);
+  ASSERT_EQ(e.channels, 3);
+  EXPECT_EQ(e.px, rgb) << "EXR (binary32) does not round-trip bit for bit";
+  EXPECT_EQ(ropsim::encode_exr_rgb(rgb.data(), w, h, "b.exr"), exr) << "the same pixels gave different bytes";
+
+  std::vector<unsigned char> rgb8(size_t(w * h * 3));
+  for (size_t i = 0; i < rgb8.size(); ++i) rgb8[i] = (unsigned char)(i * 17);
+  const auto png = ropsim::encode_png_rgb8(rgb8.data(), w, h, "a.png");
+  const ropsim::DecodedImage p = ropsim::decode_image_memory(png.data(), png.size(), "png", "memory");
+  ASSERT_EQ(p.px.size(), rgb8.size());
+  for (size_t i = 0; i < rgb8.size(); ++i)  // code value / 255, to float rounding
+    ASSERT_NEAR(p.px[i], float(rgb8[i]) / 255.0f, 1e-6f) << "PNG value " << i;
+}
+
+TEST(ImageCodec, BadDataAndWrongExtensionsAreErrorsNamingTheFile) {
+  const unsigned char junk[16] = {1, 2, 3};
+  try {
+    ropsim::decode_image_memory(junk, sizeof junk, "png", "embedded.png of scene.toml");
+    FAIL() << "junk decoded";
+  } catch (const ropsim::ImageCodecError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("embedded.png of scene.toml: ", 0), 0u) << e.what();
+  }
+  const float px[3] = {0, 0, 0};
+  EXPECT_THROW(ropsim::encode_exr_rgb(px, 1, 1, "x.png"), ropsim::ImageCodecError);
+}
+
+TEST(ImageCodec, AMissingModuleIsAOneLineErrorAndNoOutput) {
+  Scratch s("codec-missing");
+  const Ran r = shell(s.dir,
+                      "env ROPSIM_OIIO_MODULE=/nonexistent/libropsim_oiio.so '" ROPSIM_BINARY
+                      "' run --scene cloth --spp 4 --quiet --out out.png --report r.json",
+                      120);
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "not one line:\n" << r.err;
+  EXPECT_NE(r.err.find("out.png"), std::string::npos) << "the error does not name the file: " << r.err;
+  EXPECT_NE(r.err.find("/nonexistent/libropsim_oiio.so"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(s.dir / "out.png")) << "a partial image was left";
+}
+
+TEST(ImageCompare, ClosedFormFigures) {
+  ropsim::Image a, b;
+  a.width = b.width = 2;
+  a.height = b.height = 1;
+  a.rgb = {0, 0, 0, 0, 0, 0};
+  b.rgb = {0.1f, 0, 0, 0, 0, -0.2f};
+  const ropsim::CompareResult c = ropsim::compare_images(b, a);
+  const double d1 = double(0.1f), d2 = double(-0.2f);
+  const double rms = std::sqrt((d1 * d1 + d2 * d2) / 6);
+  EXPECT_DOUBLE_EQ(c.rmse_8bit, rms * 255);
+  EXPECT_DOUBLE_EQ(c.psnr_db, 20 * std::log10(1 / rms));
+  EXPECT_DOUBLE_EQ(c.max_error_8bit, 0.2 * 255 * (double(0.2f) / 0.2));
+  EXPECT_DOUBLE_EQ(c.mean_error_8bit, (d1 - d2) / 6 * 255);
+  EXPECT_DOUBLE_EQ(c.bias_8bit, (d1 + d2) / 6 * 255);
+  EXPECT_TRUE(std::isinf(ropsim::compare_images(a, a).psnr_db)) << "identical images have infinite PSNR";
+  b.width = 1;
+  EXPECT_THROW(ropsim::compare_images(a, b), ropsim::ImageError);
+}
+
+}  // namespace

@@ -1,0 +1,52 @@
+// Image decoding and encoding through OpenImageIO, loaded on first use.
+//
+// OpenImageIO pulls in some 260 shared libraries whose loading costs about
+// 0.15 s at every process start (more than a small simulation). So no ropsim
+// binary links it: its code is a module (libropsim_oiio.so, image_codec_oiio.cpp)
+// that this loader opens with dlopen() the first time an image is read or
+// written. A run that writes no image never pays for it.
+//
+// The module is looked for, in order: $ROPSIM_OIIO_MODULE (a path), beside the
+// executable, in ../lib/ropsim next to it (an install), then in the build tree
+// it was built in.
+#pragma once
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace ropsim {
+
+/// A failure to load the module, decode or encode; the message names the file.
+class ImageCodecError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A decoded image: channels as stored (1 to 4, alpha unassociated: colour is
+/// not premultiplied), as float, row by row from the top.
+struct DecodedImage {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::vector<float> px;  ///< [(y * width + x) * channels + c]
+};
+
+/// Decodes any image OpenImageIO reads. Throws ImageCodecError.
+DecodedImage decode_image_file(const std::string& path);
+/// Decodes an image held in memory; format_hint is its extension ("png",
+/// "jpg", ...; empty: png), name is used in messages. Throws ImageCodecError.
+DecodedImage decode_image_memory(const void* data, size_t bytes, const std::string& format_hint,
+                                 const std::string& name);
+
+/// Encodes RGB pixels into memory in the format of path's extension: "exr"
+/// (rgb are binary32, linear, zip) or "png" (rgb8 are 8-bit code values).
+/// No timestamp goes into the metadata, so the same pixels give the same bytes.
+/// Throws ImageCodecError.
+std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path);
+std::vector<unsigned char> encode_png_rgb8(const unsigned char* rgb8, int width, int height, const std::string& path);
+
+/// The module's path once loaded, else empty (for diagnostics and tests).
+std::string image_codec_module_path();
+
+}  // namespace ropsim
