@@ -30,15 +30,17 @@ Bottleneck classify(const CycleStats& s) {
   const double total = double(std::max<uint64_t>(1, s.total_cycles));
   for (const auto& k : kinds) {
     double p[3] = {0, 0, 0};
-    int n = 0;
+    uint64_t span = 0;  // the instances' cycles: each one's activities add up to its pass's cycles
     for (const auto& u : s.units)
       if (u.kind == k) {
         p[0] += double(u.stats.cycles[size_t(Activity::kBusy)]);
         p[1] += double(u.stats.cycles[size_t(Activity::kMemory)]);
         p[2] += double(u.stats.cycles[size_t(Activity::kHazard)]);
-        ++n;
+        for (uint64_t c : u.stats.cycles) span += c;
       }
-    for (double& x : p) x /= double(n) * total;
+    // One pass: span = instances x total_cycles. Several: each instance
+    // counts over its own pass, so the fractions are of the cycles it existed.
+    for (double& x : p) x /= span ? double(span) : total;
     if (p[0] + p[1] + p[2] > best_own) {
       best_own = p[0] + p[1] + p[2];
       b.unit_kind = k;
