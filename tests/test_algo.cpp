@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <set>
@@ -346,6 +347,61 @@ TEST(Half, RoundTripAndRounding) {
   EXPECT_EQ(float_to_half(1.0f + 0x1p-11f + 0x1p-20f), float_to_half(1.0f) + 1);
   EXPECT_EQ(float_to_half(70000.0f), 0x7C00);
   for (uint32_t h = 0; h < 0x7C00; ++h) ASSERT_EQ(float_to_half(half_to_float(uint16_t(h))), h) << h;
+}
+
+namespace {
+/// binary32 -> binary16 round to nearest even, computed in binary64 from the
+/// definition: the nearest multiple of the half's spacing at f's magnitude,
+/// ties to an even mantissa. Finite f only.
+uint16_t reference_half(float f) {
+  const double a = std::fabs(double(f));
+  const uint16_t sign = std::signbit(f) ? 0x8000 : 0;
+  if (a >= 65520.0) return sign | 0x7C00;
+  int e = a < 0x1p-14 ? -14 : std::ilogb(a);   // subnormals share the smallest exponent
+  const double ulp = std::ldexp(1.0, e - 10);  // spacing of halves at this magnitude
+  double q = a / ulp, n = std::floor(q);
+  if (q - n > 0.5 || (q - n == 0.5 && std::fmod(n, 2.0) == 1.0)) n += 1;
+  // n * ulp is the half; encode it.
+  const double v = n * ulp;
+  if (v == 0) return sign;
+  if (v < 0x1p-14) return uint16_t(sign | uint16_t(v / 0x1p-24));
+  const int ev = std::ilogb(v);
+  const uint16_t mant = uint16_t(std::ldexp(v, 10 - ev) - 1024.0);
+  return uint16_t(sign | uint16_t((ev + 15) << 10) | mant);
+}
+}  // namespace
+
+// The conversions have no data-dependent branch (blend.h's hot loop); they
+// must equal the definition: every binary16 round-trips, and binary32 values
+// across the whole range (every 251st bit pattern, about 17 million, plus the
+// rounding boundaries) round to the nearest half, ties to even.
+TEST(Half, EqualsTheDefinitionAcrossTheRange) {
+  for (uint32_t h = 0; h < 0x10000; ++h) {
+    const float f = half_to_float(uint16_t(h));
+    if ((h & 0x7C00) == 0x7C00) {
+      EXPECT_TRUE((h & 0x3FF) ? std::isnan(f) : std::isinf(f)) << h;
+      continue;
+    }
+    ASSERT_EQ(float_to_half(f), h) << h;
+    ASSERT_EQ(double(f),
+              (h & 0x8000 ? -1.0 : 1.0) * ((h & 0x7C00) ? std::ldexp(1024.0 + (h & 0x3FF), ((h >> 10) & 31) - 25)
+                                                        : std::ldexp(double(h & 0x3FF), -24)))
+        << h;
+  }
+  auto check = [](uint32_t bits) {
+    float f;
+    std::memcpy(&f, &bits, 4);
+    if (!std::isfinite(f)) return;
+    ASSERT_EQ(float_to_half(f), reference_half(f)) << std::hex << bits;
+  };
+  for (uint64_t b = 0; b <= 0xFFFFFFFFull; b += 251) check(uint32_t(b));
+  for (uint32_t h = 0; h < 0x7C00; ++h) {  // just below, at and just above each midpoint
+    const double mid = (double(half_to_float(uint16_t(h))) + double(half_to_float(uint16_t(h + 1)))) / 2;
+    const float m = float(mid);
+    uint32_t mb;
+    std::memcpy(&mb, &m, 4);
+    for (uint32_t d : {mb - 1, mb, mb + 1}) check(d);
+  }
 }
 
 TEST(SortOrder, GroupedSortEqualsKeySort) {

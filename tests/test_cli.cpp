@@ -556,3 +556,43 @@ TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
             std::string::npos)
       << text.describe();
 }
+
+// ------------------------------------------------------------------ blend methods
+
+// The blend methods' names parse on the command line, their reports name the
+// passes, the render-target formats and enderton's selection; the formats are
+// the functional part of a design; --vcd refuses a multi-pass method.
+TEST(CliBlend, MethodsParseAndReportTheirPassesFormatsAndSelection) {
+  CliSandbox box;
+  expect_ok(box.run("run --scene eight-layers --spp 4 --method lk+ac --quiet --out a.png --report a.json"), "lk+ac");
+  auto j = nlohmann::json::parse(slurp(box.work() / "a.json"));
+  EXPECT_EQ(j["method"], "lk+ac");
+  EXPECT_EQ(j["passes"], nlohmann::json::array({"total_alpha", "stochastic"}));
+  EXPECT_EQ(j["render_targets"]["transmittance"], "r16f");
+  EXPECT_FALSE(j.contains("enderton_selection")) << "lk has no enderton selection";
+  expect_ok(box.run("run --scene eight-layers --spp 4 --method wboit --hw-set blend.accum_format=rgba32f --quiet "
+                    "--out w.png --report w.json"),
+            "wboit with an rgba32f accumulation target");
+  j = nlohmann::json::parse(slurp(box.work() / "w.json"));
+  EXPECT_EQ(j["render_targets"]["accum"], "rgba32f");
+  expect_ok(box.run("run --scene eight-layers --spp 4 --method enderton+depth --enderton-selection original --quiet "
+                    "--out e.png --report e.json"),
+            "enderton+depth, original selection");
+  j = nlohmann::json::parse(slurp(box.work() / "e.json"));
+  EXPECT_EQ(j["enderton_selection"], "original");
+  EXPECT_EQ(j["passes"], nlohmann::json::array({"stochastic", "accumulate"}));
+  expect_ok(box.run("run --fidelity cycle --scene eight-layers --spp 4 --method lk+depth+ac --quiet --out c.png "
+                    "--report c.json"),
+            "cycle lk+depth+ac");
+  j = nlohmann::json::parse(slurp(box.work() / "c.json"));
+  ASSERT_EQ(j["timing"]["passes"].size(), 3u);
+  EXPECT_GT(j["timing"]["passes"][0]["dram"]["transmittance"]["bytes_written"].get<uint64_t>() +
+                j["timing"]["cache"]["transmittance"]["write_hits"].get<uint64_t>() +
+                j["timing"]["cache"]["transmittance"]["write_misses"].get<uint64_t>(),
+            0u);
+  expect_cli_error(box, "run --scene testcard --spp 1 --method wboit --hw-set blend.samples_per_clock=8",
+                   {"--hw-set", "cycle"});
+  expect_cli_error(box, "run --scene testcard --spp 1 --method lk --enderton-selection sideways",
+                   {"--enderton-selection"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --method lk+depth --vcd w.vcd", {"--vcd"});
+}

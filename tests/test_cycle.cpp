@@ -16,6 +16,7 @@
 
 #include "address_map.h"
 #include "alpha_ref_gen.h"
+#include "blend_unit.h"
 #include "coverage_tracker.h"
 #include "cycle_report.h"
 #include "cycle_run.h"
@@ -43,19 +44,26 @@ std::vector<std::string> config_files() {
   return v;
 }
 
-GoldenConfig method_config(Method m) {
+GoldenConfig method_config(Method m, const BlendFormats& formats = {},
+                           EndertonSelection sel = EndertonSelection::kDepthFirst) {
   GoldenConfig c;
   c.method = m;
+  c.formats = formats;
+  c.enderton_selection = sel;
   return c;
 }
 
 /// Golden and cycle runs of one input; fails naming the first difference in
-/// the full per-sample state, the image or the counters.
+/// the full per-sample state, the image or the counters. A multi-pass method
+/// replays the input once per pass in both.
 void expect_bit_exact(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, const std::string& what,
                       bool lockstep = false) {
   const FragmentList list = load_fragments(in);
   StochasticModel golden(list.header, cfg);
-  for (const auto& f : list.fragments) golden.draw(f);
+  for (int pass = 0; pass < golden.passes(); ++pass) {
+    golden.begin_pass(pass);
+    for (const auto& f : list.fragments) golden.draw(f);
+  }
   CycleOptions opt;
   opt.lockstep = lockstep;
   const CycleRun cyc = run_cycle(in, cfg, hw, opt);
@@ -72,12 +80,15 @@ void expect_bit_exact(const InputSpec& in, const GoldenConfig& cfg, const HwConf
   EXPECT_EQ(a.surface_id_changes, b.surface_id_changes) << what;
   EXPECT_EQ(a.sorts, b.sorts) << what;
   EXPECT_EQ(a.tracker_bytes_written, b.tracker_bytes_written) << what;
+  EXPECT_EQ(a.samples_blended, b.samples_blended) << what;
+  EXPECT_EQ(a.target_bytes_written, b.target_bytes_written) << what;
   EXPECT_GT(cyc.stats.total_cycles, 0u) << what;
 }
 
-void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what,
-                      bool lockstep = false) {
-  expect_bit_exact(in, method_config(m), hw, what, lockstep);
+/// The same for method m with the design's render-target formats.
+void expect_bit_exact(const InputSpec& in, Method m, const HwConfig& hw, const std::string& what, bool lockstep = false,
+                      EndertonSelection sel = EndertonSelection::kDepthFirst) {
+  expect_bit_exact(in, method_config(m, hw.blend.formats, sel), hw, what, lockstep);
 }
 
 InputSpec scene_input(const std::string& name, int spp, uint32_t repeat = 1) {
@@ -99,7 +110,8 @@ TEST_P(BitExact, EveryMethodAndSppMatchesTheGoldenModel) {
   const HwConfig hw = load_hw_config(config);
   for (int spp : {1, 4, 16, 64})
     for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk, Method::kHashed, Method::kHashedA2c,
-                     Method::kSlab})
+                     Method::kSlab, Method::kWboit, Method::kLkAc, Method::kLkDepth, Method::kLkDepthAc,
+                     Method::kEndertonAc, Method::kEndertonDepth, Method::kEndertonDepthAc})
       expect_bit_exact(scene_input(scene, spp), m, hw,
                        scene + " " + std::to_string(spp) + " spp " + to_string(m) + " on " + config);
 }
@@ -159,6 +171,15 @@ TEST(BitExactTiming, SlabAtEveryLayerAndBitCountExtreme) {
         expect_bit_exact(scene_input("smoke", 4), cfg, hw, what);
       }
   }
+}
+
+TEST(BitExactTiming, EndertonOriginalSelectionMatchesToo) {
+  for (const auto& config : config_files())
+    for (Method m : {Method::kEnderton, Method::kEndertonAc, Method::kEndertonDepthAc})
+      for (const char* scene : {"cloth", "eight-layers"})
+        expect_bit_exact(scene_input(scene, 16), m, load_hw_config(config),
+                         std::string(scene) + " " + to_string(m) + " original selection on " + config, false,
+                         EndertonSelection::kOriginal);
 }
 
 TEST(BitExactTiming, NaiveMethodAndPerSampleDepthTracesRunToo) {
@@ -411,6 +432,46 @@ TEST(UnitAlone, DepthTestSamplesPerClockSetsTheInterval) {
   }
 }
 
+// The blend unit retires a fragment latency_cycles after it takes it (it has
+// no output FIFO: the pixel leaves the scoreboard), and takes one fragment
+// every ceil(samples / samples_per_clock) clocks. Tokens pushed at cycle 0
+// are visible at 1, so the first retires at 1 + L, never at L.
+TEST(UnitAlone, BlendUnitLatencyAndSamplesPerClock) {
+  struct NoScoreboard : PixelRelease {
+    void release(uint64_t, uint64_t) override {}
+  };
+  for (bool decoupled : {false, true})
+    for (uint32_t L : {1u, 4u})
+      for (uint32_t per_clock : {16u, 4u}) {
+        SCOPED_TRACE(std::string(decoupled ? "decoupled" : "lockstep") + " L " + std::to_string(L) + " per clock " +
+                     std::to_string(per_clock));
+        Harness h(16, Method::kWboit);
+        NoScoreboard board;
+        h.retirement.attach(0, &board);
+        std::vector<uint64_t> retired;
+        h.retirement.hook = [&](const FragToken&, uint64_t c) { retired.push_back(c); };
+        HwConfig::Blend cfg;
+        cfg.latency_cycles = L;
+        cfg.samples_per_clock = per_clock;
+        Dram dram{HwConfig::Dram{}};
+        LineSet in_dram{64};
+        RopCache cache(HwConfig::Cache{}, dram, in_dram);
+        auto toks = h.tokens(back_to_back(12), 16);
+        for (auto& [cycle, t] : toks)
+          for (int s = 0; s < 16; ++s) t->z[s] = 0.5f;
+        ScriptSource src("src", h.clk, *h.in, toks);
+        BlendUnit unit("blend", h.clk, h.rop, h.retirement, h.amap, cfg, cache, *h.in);
+        unit.set_decoupled(decoupled);
+        h.in->connect(&src, &unit);
+        sc_core::sc_start();
+        ASSERT_EQ(retired.size(), 12u);
+        EXPECT_EQ(retired[0], 1 + L) << "the first fragment retires at entry + latency";
+        for (size_t i = 1; i < retired.size(); ++i)
+          EXPECT_EQ(retired[i] - retired[i - 1], 16 / per_clock) << "16 samples at " << per_clock << " per clock";
+        EXPECT_EQ(h.rop.counters().samples_blended, 12u * 16) << "every sample blended";
+      }
+}
+
 // ------------------------------------------------------------ pixel ordering
 
 TEST(PixelOrderingUnit, SamePixelNeverReordersWhileOthersOvertake) {
@@ -555,6 +616,74 @@ TEST(Timing, MethodsInstantiateOnlyTheUnitsTheyUse) {
     const std::set<std::string> want = {"trace_source", "distributor", "pixel_ordering", "depth_test", "writeback"};
     EXPECT_EQ(kinds(m), want) << to_string(m);
   }
+  // wboit: one blend pass, no stochastic units.
+  EXPECT_EQ(kinds(Method::kWboit).count("blend"), 1u);
+  EXPECT_EQ(kinds(Method::kWboit).count("writeback"), 0u);
+  EXPECT_EQ(kinds(Method::kWboit).count("alpha_ref_gen"), 0u);
+  // lk+depth+ac: a blend pipeline for total alpha and accumulation, lk's for the stochastic pass.
+  EXPECT_EQ(kinds(Method::kLkDepthAc).count("blend"), 1u);
+  EXPECT_EQ(kinds(Method::kLkDepthAc).count("coverage_tracker"), 1u);
+}
+
+// The cost of every pass: a multi-pass method reports each pass's cycles and
+// DRAM bytes per buffer, and the totals are their sums; the total-alpha pass
+// moves transmittance bytes only, the accumulation pass reads the stochastic
+// depth and moves accum bytes, the depth-only stochastic pass writes no
+// colour. A single-pass method reports no passes and no render targets.
+TEST(Timing, EveryPassIsChargedAndReportedPerBuffer) {
+  HwConfig hw;
+  apply_hw_override(hw, "cache.size_bytes=4096");  // small: the passes' lines reach DRAM
+  apply_hw_override(hw, "cache.ways=4");
+  const InputSpec in = scene_input("cloth", 16);
+  const CycleRun r = run_cycle(in, method_config(Method::kLkDepthAc), hw);
+  ASSERT_EQ(r.stats.passes.size(), 3u);
+  const auto idx = [](Buffer b) { return size_t(b); };
+  const PassStats &ta = r.stats.passes[0], &st = r.stats.passes[1], &ac = r.stats.passes[2];
+  EXPECT_EQ(ta.name, "total_alpha");
+  EXPECT_EQ(st.name, "stochastic");
+  EXPECT_EQ(ac.name, "accumulate");
+  EXPECT_GT(ta.dram.bytes_written[idx(Buffer::kTransmittance)], 0u);
+  EXPECT_EQ(ta.dram.bytes_written[idx(Buffer::kDepth)], 0u) << "the total-alpha pass wrote depth";
+  EXPECT_EQ(ta.dram.bytes_written[idx(Buffer::kAccum)], 0u);
+  EXPECT_GT(st.dram.bytes_written[idx(Buffer::kDepth)], 0u);
+  EXPECT_EQ(st.dram.bytes_written[idx(Buffer::kColor)], 0u) << "a depth-based stochastic pass stores depth only";
+  EXPECT_GT(ac.dram.bytes_written[idx(Buffer::kAccum)], 0u);
+  EXPECT_GT(ac.dram.bytes_read[idx(Buffer::kDepth)], 0u) << "the accumulation pass tests the stochastic depth";
+  EXPECT_EQ(ac.dram.bytes_written[idx(Buffer::kDepth)], 0u) << "the accumulation pass's depth test wrote";
+  uint64_t cycles = 0;
+  DramStats sum;
+  for (const auto& p : r.stats.passes) {
+    EXPECT_GT(p.total_cycles, 0u) << p.name;
+    cycles += p.total_cycles;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      sum.bytes_read[b] += p.dram.bytes_read[b];
+      sum.bytes_written[b] += p.dram.bytes_written[b];
+    }
+  }
+  EXPECT_EQ(r.stats.total_cycles, cycles);
+  EXPECT_EQ(r.stats.dram.bytes_read, sum.bytes_read);
+  EXPECT_EQ(r.stats.dram.bytes_written, sum.bytes_written);
+  // The report: per pass and per buffer; a single-pass method has neither.
+  ReportContext ctx;
+  ctx.input = in;
+  ctx.config = method_config(Method::kLkDepthAc);
+  const auto j = cycle_report(ctx, r, std::nullopt);
+  ASSERT_TRUE(j["timing"].contains("passes"));
+  EXPECT_EQ(j["timing"]["passes"][0]["dram"]["transmittance"]["bytes_written"].get<uint64_t>(),
+            ta.dram.bytes_written[idx(Buffer::kTransmittance)]);
+  EXPECT_EQ(j["timing"]["passes"][2]["dram"]["accum"]["bytes_written"].get<uint64_t>(),
+            ac.dram.bytes_written[idx(Buffer::kAccum)]);
+  const CycleRun lk = run_cycle(in, method_config(Method::kLk), hw);
+  EXPECT_TRUE(lk.stats.passes.empty());
+  ctx.config = method_config(Method::kLk);
+  const auto jl = cycle_report(ctx, lk, std::nullopt);
+  EXPECT_FALSE(jl["timing"].contains("passes")) << "a single-pass method reports no passes";
+  EXPECT_FALSE(jl["timing"]["dram"].contains("transmittance")) << "lk has no render targets";
+  EXPECT_FALSE(jl["timing"]["dram"].contains("accum"));
+  // A multi-pass method costs about its pass count in cycles, not more.
+  const double ratio = double(r.stats.total_cycles) / double(lk.stats.total_cycles);
+  EXPECT_GT(ratio, 1.5) << "three passes cost " << ratio << "x lk";
+  EXPECT_LT(ratio, 4.5) << "three passes cost " << ratio << "x lk";
 }
 
 // ------------------------------------------------------------ sorter algorithms
@@ -646,14 +775,15 @@ TEST(HwConfigFile, CommittedConfigsLoadAndDifferAndDocsListEveryKey) {
 // The design's digest (default output names) is a fixed function of the
 // resolved values: the same on every machine, different for another design.
 // FNV-1a 64 of the built-in defaults (a change of any default or key changes it).
-constexpr uint64_t kDefaultDesignDigest = 0x91b85c1800a3bc69ull;
+constexpr uint64_t kDefaultDesignDigest = 0x6da74c3f16bc57e4ull;
 
 TEST(HwConfigFile, DigestIsStableAndSeesEveryKey) {
   EXPECT_EQ(hw_digest_hex(HwConfig{}), hw_digest_hex(load_hw_config(kSource + "/configs/default.toml")));
   EXPECT_EQ(hw_config_digest(HwConfig{}), kDefaultDesignDigest) << "the digest of the defaults changed";
   std::set<std::string> seen{hw_digest_hex(HwConfig{})};
   for (const char* a : {"numerics.hash_bits=31", "numerics.alpha_bits=31", "numerics.surface_id_bits=31",
-                        "dram.channels=3", "sorter.kind=rank", "cache.fast_clear=false", "clock.frequency_ghz=1.25"}) {
+                        "dram.channels=3", "sorter.kind=rank", "cache.fast_clear=false", "clock.frequency_ghz=1.25",
+                        "blend.accum_format=rgba32f", "blend.samples_per_clock=8"}) {
     HwConfig hw;
     apply_hw_override(hw, a);
     EXPECT_TRUE(seen.insert(hw_digest_hex(hw)).second) << a << " did not change the digest";
@@ -848,7 +978,7 @@ TEST(Decoupling, EqualsLockstepExactlyWhenMemoryOrderCannotMatter) {
 TEST(Decoupling, EqualsLockstepExactlyWithRealMemory) {
   for (const auto& config : config_files()) {
     const HwConfig hw = load_hw_config(config);
-    for (Method m : {Method::kOpaque, Method::kEnderton, Method::kLk}) {
+    for (Method m : {Method::kOpaque, Method::kEnderton, Method::kLk, Method::kWboit, Method::kLkDepthAc}) {
       const std::string what = std::string("cloth 16 spp ") + to_string(m) + " on " + config;
       const CycleRun lock = run_mode(scene_input("cloth", 16), m, hw, true);
       const CycleRun dec = run_mode(scene_input("cloth", 16), m, hw, false);
@@ -997,8 +1127,9 @@ TEST(ReportFields, DocsAreGeneratedFromTheDeclarationsAndCoverEveryReport) {
   EXPECT_EQ(generated_section(ss.str()), want)
       << "docs/reports.md is out of date: regenerate its table with `ropsim report-fields --markdown`";
 
-  for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque, Method::kHashed,
-                   Method::kHashedA2c, Method::kSlab}) {
+  for (Method m :
+       {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kOpaque, Method::kHashed,
+        Method::kHashedA2c, Method::kSlab, Method::kWboit, Method::kLkAc, Method::kEndertonDepth, Method::kLkDepthAc}) {
     InputSpec in = scene_input("smoke", 4);
     ReportContext ctx;
     ctx.input = in;

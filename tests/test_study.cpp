@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -68,6 +69,7 @@ TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
       {"[inputs]\nscenes = [\"cloth\"]\n[study]\nnme = \"x\"\n", "study.nme"},
       {"[inputs]\nscenes = [\"cloth\"]\n[extra]\n", "extra"},
       {"[inputs]\nscenes = [\"cloth\"\n", "line"},  // not TOML
+      {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nenderton_selection = [\"sideways\"]\n", "axes.enderton_selection"},
       {"[inputs]\nscenes = [\"cloth\", \"smoke\"]\n[axes]\nseed = " + int_list(400) + "\nwidth = " + int_list(200) +
            "\n",
        "axes: the inputs and axes give more than 100000 points"},  // 2 x 400 x 200, refused before expanding
@@ -349,4 +351,45 @@ design = [")") + ROPSIM_SOURCE_DIR +
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.err.find("bad.toml: axes.design: "), std::string::npos) << bad.err;
   EXPECT_FALSE(fs::exists(s.dir / "b"));
+}
+
+// The blend methods are values of the method axis, enderton's selection an
+// axis of its own; a study's points equal the same `ropsim run`s.
+TEST(Study, BlendMethodsAndEndertonSelectionAreAxes) {
+  Scratch s;
+  s.put("blend.toml", R"(
+[study]
+name = "blend"
+
+[inputs]
+scenes = ["eight-layers"]
+
+[axes]
+method = ["wboit", "lk+depth+ac", "enderton+ac"]
+enderton_selection = ["depth-first", "original"]
+fidelity = ["functional", "cycle"]
+spp = 4
+width = 32
+height = 32
+)");
+  const Ran r = ropsim(s.dir, "study run blend.toml --out st -j 2 --quiet");
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const Rows rows = model_results(export_rows(s.dir, "st"));
+  ASSERT_EQ(rows.size(), 12u) << "3 methods x 2 selections x 2 fidelities";
+  std::map<std::string, std::string> rmse;  // method/selection/fidelity -> RMSE
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.at("status"), "ok") << row.at("point") << ": " << row.at("error");
+    rmse[row.at("method") + "/" + row.at("enderton_selection") + "/" + row.at("fidelity")] =
+        row.at("vs_reference.rmse_8bit");
+  }
+  for (const char* m : {"wboit", "lk+depth+ac", "enderton+ac"})
+    for (const char* sel : {"depth-first", "original"})
+      EXPECT_EQ(rmse[std::string(m) + "/" + sel + "/functional"], rmse[std::string(m) + "/" + sel + "/cycle"])
+          << m << " " << sel << ": the fidelities differ";
+  const Ran run = ropsim(s.dir,
+                         "run --scene eight-layers --spp 4 --width 32 --height 32 --method enderton+ac "
+                         "--enderton-selection original --vs-reference --quiet --out o.png --report o.json");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const auto j = nlohmann::json::parse(std::ifstream(s.dir / "o.json"));
+  EXPECT_NEAR(std::stod(rmse["enderton+ac/original/functional"]), j["vs_reference"]["rmse_8bit"].get<double>(), 1e-9);
 }

@@ -24,32 +24,26 @@ inline uint16_t float_to_half(float f) {
     if (rem > half || (rem == half && (h & 1u))) ++h;
     return static_cast<uint16_t>(sign | h);
   }
-  uint32_t h = ((absx - 0x38000000u) >> 13);
-  const uint32_t rem = absx & 0x1FFFu;
-  if (rem > 0x1000u || (rem == 0x1000u && (h & 1u))) ++h;
+  // Normal: rebias the exponent and round the 13 dropped bits to nearest
+  // even without a data-dependent branch: adding 0xFFF plus the kept LSB
+  // carries exactly when the rest is above half, or half with the LSB odd
+  // (a carry out of the mantissa increments the exponent, as it must).
+  const uint32_t h = (absx - 0x38000000u + 0xFFFu + ((absx >> 13) & 1u)) >> 13;
   return static_cast<uint16_t>(sign | h);
 }
 
 inline float half_to_float(uint16_t h) {
-  const uint32_t sign = uint32_t{h & 0x8000u} << 16;
-  uint32_t e = (h >> 10) & 0x1Fu;
-  uint32_t m = h & 0x3FFu;
-  uint32_t x;
-  if (e == 0x1F) {
-    x = sign | 0x7F800000u | (m << 13);
-  } else if (e != 0) {
-    x = sign | ((e + 112u) << 23) | (m << 13);
-  } else if (m == 0) {
-    x = sign;
-  } else {  // subnormal: normalise
-    e = 113;
-    while (!(m & 0x400u)) {
-      m <<= 1;
-      --e;
-    }
-    x = sign | (e << 23) | ((m & 0x3FFu) << 13);
-  }
+  // Exponent and mantissa moved into binary32 position, then scaled by
+  // 2^(127 - 15) (exact, subnormal halves included: the product is a normal
+  // binary32); an Inf or NaN half gets the all-ones exponent back, its
+  // mantissa kept. No data-dependent branch.
+  uint32_t x = uint32_t(h & 0x7FFFu) << 13;
   float f;
+  std::memcpy(&f, &x, 4);
+  f *= 0x1p112f;
+  std::memcpy(&x, &f, 4);
+  if ((h & 0x7C00u) == 0x7C00u) x |= 0x7F800000u;
+  x |= uint32_t(h & 0x8000u) << 16;
   std::memcpy(&f, &x, 4);
   return f;
 }

@@ -31,7 +31,13 @@ const char* to_string(Interleave k) { return k == Interleave::kDiagonal ? "diago
 
 namespace {
 
-enum class Kind { kU32, kInt, kReal, kBool, kSorter, kInterleave };
+enum class Kind { kU32, kInt, kReal, kBool, kSorter, kInterleave, kTransFormat, kAccumFormat };
+
+/// The formats a blend target of the kind may have.
+std::vector<TargetFormat> formats_of(Kind k) {
+  if (k == Kind::kTransFormat) return {TargetFormat::kR16F, TargetFormat::kR32F};
+  return {TargetFormat::kRGBA16F, TargetFormat::kRGBA32F};
+}
 
 struct Param {
   const char* key;
@@ -93,6 +99,17 @@ const std::vector<Param>& params() {
       U32(alpha_ref, fifo_depth, "entries", 1, 4096, false, "FIFO from the alpha-reference generator to writeback"),
       U32(writeback, samples_per_clock, "samples/clock", 1, 64, false, "opacity tests and sample writes per clock"),
       U32(writeback, latency_cycles, "cycles", 1, 64, false, "writeback latency; the pixel retires after it"),
+      U32(blend, samples_per_clock, "samples/clock", 1, 64, false,
+          "blend unit throughput: samples blended (read-modify-write of each target) per clock"),
+      U32(blend, latency_cycles, "cycles", 1, 64, false,
+          "blend unit latency (decode, add or multiply, encode); the pixel "
+          "retires after it"),
+      {"blend.transmittance_format", "-", Kind::kTransFormat, 0, 0, false,
+       "transmittance render target (product of 1 - alpha: total alpha, wboit revealage), per sample",
+       FIELD(blend, formats.transmittance)},
+      {"blend.accum_format", "-", Kind::kAccumFormat, 0, 0, false,
+       "accumulation render target (sum of alpha-weighted colour and alpha: depth-based, wboit), per sample",
+       FIELD(blend, formats.accum)},
       U32(cache, size_bytes, "bytes", 256, 1u << 30, true,
           "ROP cache capacity per ROP unit (depth, colour, tracker lines)"),
       U32(cache, line_bytes, "bytes", 16, 4096, true, "cache line and DRAM burst size"),
@@ -165,6 +182,10 @@ std::string value_to_string(const Param& p, HwConfig& c) {
     case Kind::kInterleave:
       os << '"' << to_string(*static_cast<Interleave*>(f)) << '"';
       break;
+    case Kind::kTransFormat:
+    case Kind::kAccumFormat:
+      os << '"' << to_string(*static_cast<TargetFormat*>(f)) << '"';
+      break;
   }
   return os.str();
 }
@@ -195,6 +216,15 @@ std::string range_of(const Param& p) {
     case Kind::kInterleave:
       os << "diagonal, row";
       break;
+    case Kind::kTransFormat:
+    case Kind::kAccumFormat: {
+      const char* sep = "";
+      for (TargetFormat f : formats_of(p.kind)) {
+        os << sep << to_string(f);
+        sep = ", ";
+      }
+      break;
+    }
   }
   return os.str();
 }
@@ -215,7 +245,13 @@ void set_real(const Param& p, HwConfig& c, double v, const std::string& at) {
   *static_cast<double*>(p.field(c)) = v;
 }
 void set_name(const Param& p, HwConfig& c, const std::string& s, const std::string& at) {
-  if (p.kind == Kind::kSorter) {
+  if (p.kind == Kind::kTransFormat || p.kind == Kind::kAccumFormat) {
+    for (TargetFormat f : formats_of(p.kind))
+      if (s == to_string(f)) {
+        *static_cast<TargetFormat*>(p.field(c)) = f;
+        return;
+      }
+  } else if (p.kind == Kind::kSorter) {
     for (SorterKind k : {SorterKind::kBitonic, SorterKind::kRank, SorterKind::kSerial})
       if (s == to_string(k)) {
         *static_cast<SorterKind*>(p.field(c)) = k;
@@ -290,6 +326,8 @@ HwConfig read_hw_text(const std::string& text, const std::string& path) {
           break;
         case Kind::kSorter:
         case Kind::kInterleave:
+        case Kind::kTransFormat:
+        case Kind::kAccumFormat:
           if (!v.is_string()) fail(path, key, "must be a string (" + range_of(*p) + ")");
           set_name(*p, c, v.as_string()->get(), at);
           break;
@@ -449,6 +487,10 @@ void for_each_hw_value(const HwConfig& cfg, const std::function<void(const Param
         break;
       case Kind::kInterleave:
         v = std::string(to_string(*static_cast<Interleave*>(f)));
+        break;
+      case Kind::kTransFormat:
+      case Kind::kAccumFormat:
+        v = std::string(to_string(*static_cast<TargetFormat*>(f)));
         break;
     }
     fn(info[i], v);

@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "blend.h"
 #include "numerics.h"
 
 namespace ropsim {
@@ -66,6 +67,13 @@ struct HwConfig {
     uint32_t samples_per_clock = 16;
     uint32_t latency_cycles = 2;
   } writeback;
+  /// The blend unit of the blend passes (wboit, total alpha, accumulation)
+  /// and its render targets' formats (which the functional ROP also uses).
+  struct Blend {
+    uint32_t samples_per_clock = 16;
+    uint32_t latency_cycles = 4;
+    BlendFormats formats;
+  } blend;
   struct Cache {
     uint32_t size_bytes = 65536;
     uint32_t line_bytes = 64;

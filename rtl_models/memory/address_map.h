@@ -1,31 +1,54 @@
-// Where the ROP's per-pixel buffers live in memory: three surfaces (depth,
-// colour, tracker), each laid out in 8 x 8-pixel tiles, pixel-major inside a
+// Where the ROP's per-pixel buffers live in memory: surfaces (depth, colour,
+// tracker, the blend methods' transmittance and accumulation render targets,
+// and slab's layers), each laid out in 8 x 8-pixel tiles, pixel-major inside a
 // tile and sample-major inside a pixel. Depth is binary32 (4 bytes/sample),
 // colour RGB binary16 (6 bytes/sample), the tracker ceil((spp + id bits) / 8)
-// bytes per pixel; slab's layers (slab_pixel_bytes) per pixel, a fourth
-// surface. Buffers are 2^48 bytes apart.
+// bytes per pixel, the render targets their format's bytes per sample
+// (blend.h), slab's layers slab_pixel_bytes per pixel. Buffers are 2^48
+// bytes apart.
 #pragma once
 #include <cstdint>
 
 #include "bits.h"
+#include "blend.h"
 #include "numerics.h"
 
 namespace ropsim {
 
-enum class Buffer : int { kDepth, kColor, kTracker, kLayers };
-constexpr int kBuffers = 4;
+enum class Buffer : int { kDepth, kColor, kTracker, kTransmittance, kAccum, kLayers };
+constexpr int kBuffers = 6;
+/// The buffers every method's report lists (the render targets and slab's
+/// layers only when the method has them).
+constexpr int kBaseBuffers = 3;
 inline const char* to_string(Buffer b) {
-  return b == Buffer::kDepth ? "depth" : b == Buffer::kColor ? "color" : b == Buffer::kTracker ? "tracker" : "layers";
+  switch (b) {
+    case Buffer::kDepth:
+      return "depth";
+    case Buffer::kColor:
+      return "color";
+    case Buffer::kTracker:
+      return "tracker";
+    case Buffer::kTransmittance:
+      return "transmittance";
+    case Buffer::kAccum:
+      return "accum";
+    case Buffer::kLayers:
+      return "layers";
+  }
+  return "?";
 }
 
 class AddressMap {
  public:
-  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes, uint32_t layer_bytes = 0)
+  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes, const BlendFormats& formats = {},
+             uint32_t layer_bytes = 0)
       : tiles_x_(ceil_div(width, 8u)),
         spp_(uint32_t(spp)),
         tracker_bytes_(tracker_bytes),
         layer_bytes_(layer_bytes),
-        line_shift_(log2_ceil(line_bytes)) {}
+        line_shift_(log2_ceil(line_bytes)),
+        trans_bytes_(sample_bytes(formats.transmittance)),
+        accum_bytes_(sample_bytes(formats.accum)) {}
   uint64_t pixel_index(uint32_t x, uint32_t y) const {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
   }
@@ -35,7 +58,10 @@ class AddressMap {
   /// mask in the depth or colour buffer, in increasing address order.
   template <class F>
   void for_each_sample_line(Buffer b, uint32_t x, uint32_t y, uint64_t mask, F&& f) const {
-    const uint64_t bps = b == Buffer::kDepth ? kDepthSampleBytes : kColorSampleBytes;
+    const uint64_t bps = b == Buffer::kDepth           ? kDepthSampleBytes
+                         : b == Buffer::kColor         ? kColorSampleBytes
+                         : b == Buffer::kTransmittance ? trans_bytes_
+                                                       : accum_bytes_;
     const uint64_t start = base(b) + pixel_index(x, y) * spp_ * bps;
     uint64_t last = ~uint64_t{0};
     while (mask) {
@@ -49,8 +75,9 @@ class AddressMap {
       // Samples lying wholly in lines <= l1 need nothing more; a sample that
       // starts in l1 and crosses into l1 + 1 stays and emits l1 + 1 next.
       const uint64_t past = ((l1 + 1) << line_shift_) - start;
-      const uint64_t k =
-          bps == kDepthSampleBytes ? past / kDepthSampleBytes : past / kColorSampleBytes;  // constant divisors
+      const uint64_t k = bps == kDepthSampleBytes   ? past / kDepthSampleBytes
+                         : bps == kColorSampleBytes ? past / kColorSampleBytes
+                                                    : past / bps;  // constant divisors for depth and colour
       mask = k >= 64 ? 0 : mask & (~uint64_t{0} << k);
     }
   }
@@ -71,6 +98,7 @@ class AddressMap {
   uint64_t tiles_x_;
   uint64_t spp_, tracker_bytes_, layer_bytes_;
   int line_shift_;
+  uint64_t trans_bytes_, accum_bytes_;
 };
 
 }  // namespace ropsim

@@ -1,5 +1,7 @@
 #include "depth_test.h"
 
+#include "blend_unit.h"
+
 namespace ropsim {
 
 DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
@@ -18,9 +20,16 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   }
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered,
                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
-  if (rop_.traits().tracker)
+  if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(
         t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
+  // Blend passes: the destination of the blend (read-modify-write), the
+  // render-target lines of the surviving samples, fetched with the depth.
+  const PassKind p = rop_.pass();
+  for (Buffer b : {Buffer::kTransmittance, Buffer::kAccum})
+    if (b == Buffer::kTransmittance ? pass_blends_transmittance(p) : pass_blends_accum(p))
+      amap_.for_each_sample_line(b, t->f->x, t->f->y, t->survivors,
+                                 [&](uint64_t line) { ready = std::max(ready, cache_.read(line, b, now)); });
   return ready;
 }
 

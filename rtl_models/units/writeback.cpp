@@ -11,10 +11,11 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   written_ += uint64_t(__builtin_popcountll(t->written));
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written,
                              [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now); });
-  amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written,
-                             [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now); });
+  if (stochastic_writes_color(rop_.setup().cfg.method))  // depth-based methods store depth only
+    amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written,
+                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now); });
   // lk: the tracker's updated state (written whatever the opacity test said).
-  if (rop_.traits().tracker)
+  if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(t->f->x, t->f->y,
                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now); });
   // slab: the pixel's layers, rewritten when the fragment was inserted.

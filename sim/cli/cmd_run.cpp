@@ -32,6 +32,7 @@ struct RunOpts {
   uint32_t width = 0, height = 0;
   uint64_t seed = 1, scene_seed = 1;
   int slab_layers = MethodConfig{}.slab_layers, slab_bits = MethodConfig{}.slab_bits;
+  std::string enderton_selection = "depth-first";
   Numerics num;
   bool vs_reference = false, quiet = false, lockstep = false;
 };
@@ -108,11 +109,14 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (!cycle) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
-    // A functional run takes only the design's numerics (the rest is timing).
+    // A functional run takes only the design's numerics and blend-target
+    // formats (the rest is timing).
     for (const auto& a : o.hw_sets)
-      if (a.rfind("numerics.", 0) != 0)
+      if (a.rfind("numerics.", 0) != 0 && a.rfind("blend.transmittance_format=", 0) != 0 &&
+          a.rfind("blend.accum_format=", 0) != 0)
         throw UserError("--hw-set " + a +
-                        " applies to --fidelity cycle (a functional run takes only the numerics.* keys of a design)");
+                        " applies to --fidelity cycle (a functional run takes only the numerics.* and "
+                        "blend.*_format keys of a design)");
   }
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
   // The design (a functional run uses only its numerics); the run's numerics
@@ -155,6 +159,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   GoldenConfig cfg;
   parse_method(o.method, cfg.method);
   cfg.numerics = hw.numerics;
+  cfg.formats = hw.blend.formats;
   cfg.seed = o.seed;
   cfg.slab_layers = o.slab_layers;
   cfg.slab_bits = o.slab_bits;
@@ -163,6 +168,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
       throw UserError("--slab-layers " + std::to_string(o.slab_layers) + ": must be in [1, 16]");
     throw UserError("--slab-bits " + std::to_string(o.slab_bits) + ": must be in [1, 64]");
   }
+  parse_enderton_selection(o.enderton_selection, cfg.enderton_selection);
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
   if (outs.empty() && report.empty()) {
@@ -222,6 +228,10 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
   run->add_option("--slab-layers", ro->slab_layers, "slab: k, layers per pixel (1..16, default 8)");
   run->add_option("--slab-bits", ro->slab_bits, "slab: b, bits of each layer's coverage mask (1..64, default 32)");
+  run->add_option("--enderton-selection", ro->enderton_selection,
+                  "enderton and its variants choose R among: depth-first (the depth survivors; default) or original "
+                  "(all covered samples, before the depth test)")
+      ->check(CLI::IsMember({"depth-first", "original"}));
   run->add_option("--hash-bits", ro->num.hash_bits,
                   "Alpha-reference hash datapath width, bits (8..32; default: the design's numerics.hash_bits, 32)")
       ->check(CLI::Range(8, 32));

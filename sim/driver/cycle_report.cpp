@@ -76,7 +76,7 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
     j.put("name", u.name, "-", "the unit instance (SystemC name)");
     j.put("kind", u.kind, "-",
           "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
-          "alpha_ref_gen or writeback");
+          "alpha_ref_gen, writeback or blend");
     j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
     j.put("fragments", u.stats.fragments, "fragments", "fragments it accepted");
     j.put("samples", u.stats.samples, "samples",
@@ -106,14 +106,8 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   CacheStats sum;
   for (const auto& c : s.caches) sum += c;
   Fields cache = t.obj("cache");
-  // The layers buffer is slab's only: reported when it has traffic, so the
-  // other methods' reports are as they were before it existed.
-  const size_t li = size_t(Buffer::kLayers);
-  const bool layers = sum.read_hits[li] + sum.read_misses[li] + sum.write_hits[li] + sum.write_misses[li] +
-                          s.dram.bytes_read[li] + s.dram.bytes_written[li] >
-                      0;
   for (int b = 0; b < kBuffers; ++b) {
-    if (Buffer(b) == Buffer::kLayers && !layers) continue;
+    if (!s.lists(b)) continue;
     const size_t i = size_t(b);
     const std::string buf = to_string(Buffer(b));
     Fields x = cache.obj(buf);
@@ -131,7 +125,7 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   cache.put("fast_clear_fills", sum.clear_fills, "accesses", "misses served as the clear value, without DRAM");
   Fields dram = t.obj("dram");
   for (int b = 0; b < kBuffers; ++b) {
-    if (Buffer(b) == Buffer::kLayers && !layers) continue;
+    if (!s.lists(b)) continue;
     const std::string buf = to_string(Buffer(b));
     Fields x = dram.obj(buf);
     x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes",
@@ -148,6 +142,30 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   dram.put("achieved_gbps", s.dram_achieved_gbps, "GB/s", "bytes moved / frame time");
   dram.put("busiest_channel_utilization", s.dram_utilization, "fraction",
            "data-bus busy cycles of the busiest channel / total_cycles");
+  // Multi-pass methods: each pass's cycles and traffic (single-pass methods have none).
+  if (!s.passes.empty()) {
+    t.empty_array("passes");
+    for (const auto& p : s.passes) {
+      Fields j = t.item("passes");
+      j.put("name", p.name, "-", "multi-pass methods: the pass (total_alpha, stochastic, accumulate)");
+      j.put("total_cycles", p.total_cycles, "cycles", "the pass, to the end of its cache flush");
+      j.put("pipeline_cycles", p.pipeline_cycles, "cycles", "the pass, to its last retirement");
+      j.put("cache_hits", p.cache.hits(), "accesses", "the pass's cache hits over every buffer and ROP");
+      j.put("cache_misses", p.cache.misses(), "accesses", "the pass's cache misses over every buffer and ROP");
+      Fields d = j.obj("dram");
+      for (int b = 0; b < kBuffers; ++b) {
+        if (!s.lists(b)) continue;
+        const std::string buf = to_string(Buffer(b));
+        Fields x = d.obj(buf);
+        x.put("bytes_read", p.dram.bytes_read[size_t(b)], "bytes",
+              "the pass's DRAM bytes read for the " + buf + " buffer");
+        x.put("bytes_written", p.dram.bytes_written[size_t(b)], "bytes",
+              "the pass's DRAM bytes written for the " + buf + " buffer");
+      }
+      d.put("bytes_read", p.dram.total_bytes_read(), "bytes", "the pass's DRAM bytes read, every buffer");
+      d.put("bytes_written", p.dram.total_bytes_written(), "bytes", "the pass's DRAM bytes written, every buffer");
+    }
+  }
   Fields host = t.obj("host");
   host.put("systemc_activations", s.activations, "-",
            "SystemC process activations: cycles in which some unit ran (rtl_models/core/scheduler.h)");
@@ -228,6 +246,16 @@ std::vector<FieldDoc> report_field_docs() {
   m.method = Method::kSlab;
   ctx.config = m;
   cycle_report(ctx, run_cycle(in, m, HwConfig{}), f.reference, &sink);
+  // A method with every kind of blend pass and render target: passes, targets,
+  // the blend counters and unit.
+  ctx.input.trace_path.clear();
+  for (Method bm : {Method::kLkDepthAc, Method::kWboit, Method::kEndertonAc}) {
+    ctx.config.method = m.method = bm;
+    const FunctionalRun fb = run_functional(in, m, false);
+    functional_report(ctx, fb, &sink);
+    const CycleRun cb = run_cycle(in, m, HwConfig{});
+    cycle_report(ctx, cb, std::nullopt, &sink);
+  }
   return sink.docs();
 }
 
@@ -240,6 +268,9 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
   out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
                      s.dram.total_bytes_read(), s.dram.total_bytes_written(), s.dram_achieved_gbps, s.dram_peak_gbps,
                      100 * s.dram_utilization);
+  for (const auto& p : s.passes)
+    out += fmt::format("  pass {}: {} cycles; DRAM {} B read, {} B written\n", p.name, p.total_cycles,
+                       p.dram.total_bytes_read(), p.dram.total_bytes_written());
   out += "  " + format_bottleneck(s) + "\n";
   out += fmt::format("  host: {:.3f} s simulated, {:.2f} M fragments/s\n", run.sim_seconds,
                      run.sim_seconds > 0 ? run.counters.fragments / run.sim_seconds / 1e6 : 0.0);

@@ -24,9 +24,13 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
     ref_cfg.method = Method::kReference;
     ref = make_functional_model(run.header, ref_cfg);
   }
-  for (Fragment f; src->next(f);) {
-    model->draw(f);
-    if (ref) ref->draw(f);
+  for (int pass = 0; pass < model->passes(); ++pass) {
+    if (pass > 0) src = open_fragments(in);  // every pass replays the input
+    model->begin_pass(pass);
+    for (Fragment f; src->next(f);) {
+      model->draw(f);
+      if (ref && pass == 0) ref->draw(f);
+    }
   }
   run.image = model->resolve();
   run.counters = model->counters();

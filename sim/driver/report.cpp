@@ -57,6 +57,10 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   r.put("method", to_string(ctx.config.method), "-", "the transparency method");
   r.put("seed", ctx.config.seed, "-",
         "the seed of the method's hash-based random numbers (enderton, naive, hashed, hashed-a2c, slab)");
+  if (selection_of(ctx.config.method) == Method::kEnderton)
+    r.put("enderton_selection", to_string(ctx.config.enderton_selection), "-",
+          "enderton and its variants: depth-first (R of the depth survivors) or original (R of the covered samples, "
+          "before the depth test)");
   if (ctx.config.method == Method::kSlab) {
     Fields slab = r.obj("slab");
     slab.put("layers", ctx.config.slab_layers, "layers", "slab: k, layers per pixel");
@@ -65,7 +69,22 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
              "slab: one pixel's layers in memory, k (4 + 6 + ceil(b / 8)) + 1");
   }
   put_numerics(r.obj("numerics"), ctx.config.numerics);
-  put_counters(r.obj("counters"), run.counters);
+  put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method));
+  if (has_blend_pass(ctx.config.method)) {
+    const PassList pl = passes_of(ctx.config.method);
+    std::vector<std::string> names;
+    for (int i = 0; i < pl.count; ++i) names.push_back(to_string(pl.pass[i]));
+    r.put(
+        "passes", names, "-",
+        "methods with blend passes: the passes over the input, in order (total_alpha, stochastic, accumulate, wboit)");
+    Fields t = r.obj("render_targets");
+    if (uses_transmittance(ctx.config.method))
+      t.put("transmittance", to_string(ctx.config.formats.transmittance), "-",
+            "the transmittance target's format (product of 1 - alpha per sample)");
+    if (uses_accum(ctx.config.method))
+      t.put("accum", to_string(ctx.config.formats.accum), "-",
+            "the accumulation target's format (alpha-weighted colour and alpha per sample)");
+  }
   Fields host = r.obj("host");
   host.put("wall_seconds", run.wall_seconds, "s", "the whole run: input, model(s), resolve");
   host.put("samples_per_second", run.wall_seconds > 0 ? double(run.counters.samples_tested) / run.wall_seconds : 0.0,

@@ -68,15 +68,20 @@ class Fields {
   std::string path_;
 };
 
-/// Every counter, from its declaration (counters.h), and the derived sums.
-inline void put_counters(Fields f, const Counters& c) {
+/// Every counter, from its declaration (counters.h), and the derived sums;
+/// the blend passes' counters (samples_blended, target_bytes_*) only
+/// with_blend (for the methods that have blend passes).
+inline void put_counters(Fields f, const Counters& c, bool with_blend = true) {
   size_t i = 0;
   c.for_each([&](const char* name, uint64_t v) {
     const StatDesc& d = counter_descs()[i++];
-    f.put(name, v, d.unit, d.meaning);
+    const bool blend_counter =
+        std::string(name) == "samples_blended" || std::string(name).rfind("target_bytes_", 0) == 0;
+    if (with_blend || !blend_counter) f.put(name, v, d.unit, d.meaning);
   });
-  f.put("state_bytes_read", c.state_bytes_read(), "bytes", "per-pixel state read: depth and tracker");
-  f.put("state_bytes_written", c.state_bytes_written(), "bytes", "per-pixel state written: depth, colour and tracker");
+  f.put("state_bytes_read", c.state_bytes_read(), "bytes", "per-pixel state read: depth, tracker and render targets");
+  f.put("state_bytes_written", c.state_bytes_written(), "bytes",
+        "per-pixel state written: depth, colour, tracker and render targets");
 }
 
 /// The fields as a Markdown table (field, unit, meaning).

@@ -27,7 +27,10 @@ namespace ropsim {
     "lk: ceil((spp + surface_id_bits) / 8) per fragment; slab: its layers, k (4 + 6 + ceil(b / 8)) + 1 per fragment") \
   X(tracker_bytes_written, "bytes",                                                                                   \
     "lk: the same, per fragment with a surviving sample; slab: the same, per fragment inserted")                      \
-  X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")
+  X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated")                                            \
+  X(samples_blended, "samples", "blend passes: samples blended into the render targets (methods with blend passes)")  \
+  X(target_bytes_read, "bytes", "blend passes: render-target bytes read by the blend (read-modify-write)")            \
+  X(target_bytes_written, "bytes", "blend passes: render-target bytes written by the blend")
 
 /// Event counts of one run.
 struct Counters {
@@ -41,9 +44,11 @@ struct Counters {
 #undef ROPSIM_X
     return *this;
   }
-  /// Per-pixel state bytes moved: depth, colour and tracker, read and written.
-  uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read; }
-  uint64_t state_bytes_written() const { return depth_bytes_written + color_bytes_written + tracker_bytes_written; }
+  /// Per-pixel state bytes moved: depth, colour, tracker and render targets, read and written.
+  uint64_t state_bytes_read() const { return depth_bytes_read + tracker_bytes_read + target_bytes_read; }
+  uint64_t state_bytes_written() const {
+    return depth_bytes_written + color_bytes_written + tracker_bytes_written + target_bytes_written;
+  }
   /// Calls f(name, value) for every counter, in declaration order.
   template <class F>
   void for_each(F&& f) const {

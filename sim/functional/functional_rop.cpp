@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "composite.h"
 #include "hilbert.h"
 #include "method_kernels.h"
 
@@ -11,6 +12,9 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
     : header(h),
       cfg(c),
       traits(ropsim::traits(c.method)),
+      selection(selection_of(c.method)),
+      passes(passes_of(c.method)),
+      pass(passes.pass[0]),
       spp(h.spp),
       hilbert_n(hilbert_side(h.width, h.height)),
       tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)),
@@ -31,8 +35,16 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
 
 template <Method M>
 void FunctionalRop::process_as(FragWork& w) {
-  constexpr MethodTraits kT = ropsim::traits(M);
+  constexpr MethodTraits kT = ropsim::traits(selection_of(M));
   fetch(w);
+  if constexpr (passes_of(M).count > 1 || ropsim::traits(M).wboit) {
+    if (is_blend_pass(setup_.pass)) {
+      depth_.run_as<M>(w);  // not writing: the blend passes leave depth as it is
+      if (w.killed()) return;
+      blend_.run(w);
+      return;
+    }
+  }
   depth_.run_as<M>(w);
   if (w.killed()) return;
   if constexpr (kT.tracker) track_.run(w);
@@ -43,12 +55,15 @@ void FunctionalRop::process_as(FragWork& w) {
 
 FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     : setup_(h, cfg),
-      store_(h, setup_.traits.tracker, cfg.method == Method::kSlab ? cfg.slab_bits : 0),
+      store_(h, setup_.traits.tracker,
+             StoreTargets{uses_transmittance(cfg.method), uses_accum(cfg.method), cfg.formats,
+                          cfg.method == Method::kSlab ? cfg.slab_bits : 0}),
       depth_(setup_),
       track_(setup_),
       sort_(setup_),
       reference_(setup_),
-      write_(setup_) {
+      write_(setup_),
+      blend_(setup_) {
   switch (cfg.method) {
     case Method::kLk:
       process_ = &FunctionalRop::process_as<Method::kLk>;
@@ -74,6 +89,18 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     case Method::kSlab:
       process_ = &FunctionalRop::process_as<Method::kSlab>;
       break;
+#define ROPSIM_CASE(M)                        \
+  case M:                                     \
+    process_ = &FunctionalRop::process_as<M>; \
+    break;
+      ROPSIM_CASE(Method::kWboit)
+      ROPSIM_CASE(Method::kLkAc)
+      ROPSIM_CASE(Method::kLkDepth)
+      ROPSIM_CASE(Method::kLkDepthAc)
+      ROPSIM_CASE(Method::kEndertonAc)
+      ROPSIM_CASE(Method::kEndertonDepth)
+      ROPSIM_CASE(Method::kEndertonDepthAc)
+#undef ROPSIM_CASE
     case Method::kReference:
       throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
   }
@@ -85,8 +112,25 @@ Counters FunctionalRop::counters() const {
   c += sort_.counters();
   c += reference_.counters();
   c += write_.counters();
+  c += blend_.counters();
   c.tiles_touched = store_.tiles();
   return c;
+}
+
+}  // namespace ropsim
+
+namespace ropsim {
+
+void FunctionalRop::begin_pass(int i) {
+  if (i < 0 || i >= setup_.passes.count)
+    throw std::invalid_argument("pass " + std::to_string(i) + " of a method with " +
+                                std::to_string(setup_.passes.count) + " passes");
+  setup_.pass = setup_.passes.pass[i];
+}
+
+Image FunctionalRop::resolve() const {
+  if (setup_.passes.count == 1 && !setup_.traits.wboit) return store_.resolve();
+  return composite(store_, setup_.cfg.method);
 }
 
 }  // namespace ropsim

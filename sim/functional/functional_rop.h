@@ -5,9 +5,11 @@
 // about time, so bit-exactness between the fidelities is structural.
 //
 //   fetch -> depth test -> [track] -> [sort] -> [reference] -> write
+//   fetch -> depth test (not writing) -> blend          (blend passes)
 //
 // The bracketed stages exist for the methods whose traits ask for them
-// (method.h).
+// (method.h). A method with several passes (passes_of) replays its input once
+// per pass; begin_pass selects what the stages do.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -30,6 +32,9 @@ struct RopSetup {
   TraceHeader header;
   MethodConfig cfg;
   MethodTraits traits;
+  Method selection;  ///< the method whose stochastic pass runs (selection_of)
+  PassList passes;   ///< the method's passes
+  PassKind pass;     ///< the pass being run (FunctionalRop::begin_pass)
   int spp;
   uint32_t hilbert_n;                            ///< side of the Hilbert curve covering the screen
   uint32_t tracker_bytes;                        ///< lk: ceil((spp + surface_id_bits) / 8), one pixel's tracker state
@@ -112,6 +117,16 @@ class ReferenceStage : public Stage {
   ConversionMemo memo_;
 };
 
+/// Blend (blend passes, method.h PassKind): the surviving samples of the
+/// fragment blended into the render targets (blend.h): multiplicative into
+/// transmittance, additive into accum; the depth buffer is not written.
+class BlendStage : public Stage {
+ public:
+  explicit BlendStage(const RopSetup& s) : Stage(s) {}
+  /// Blends the survivors; returns the samples blended.
+  uint32_t run(FragWork& w);
+};
+
 /// Opacity test and write: the samples the method keeps get the fragment's
 /// depth and colour (RGB binary16).
 class WriteStage : public Stage {
@@ -144,6 +159,19 @@ class FunctionalRop {
   SortStage& sort() { return sort_; }
   ReferenceStage& reference() { return reference_; }
   WriteStage& write() { return write_; }
+  BlendStage& blend() { return blend_; }
+
+  /// The method's passes over the input (1 for most methods).
+  int passes() const { return setup_.passes.count; }
+  /// Selects pass i (0-based) for the fragments that follow; every pass
+  /// replays the whole input. The state carries over from pass to pass.
+  void begin_pass(int i);
+  PassKind pass() const { return setup_.pass; }
+  /// Does the current pass read and write the lk tracker?
+  bool pass_uses_tracker() const { return setup_.traits.tracker && !is_blend_pass(setup_.pass); }
+  /// The method's image from the final state: the box-filter resolve, or its
+  /// composite (alpha correction, depth-based, wboit: composite.h).
+  Image resolve() const;
 
   /// One fragment through every stage of its method, in order: fetch, the
   /// depth test, and unless it killed the fragment, the stages its traits name.
@@ -162,6 +190,7 @@ class FunctionalRop {
   SortStage sort_;
   ReferenceStage reference_;
   WriteStage write_;
+  BlendStage blend_;
   template <Method M>
   void process_as(FragWork& w);
   void (FunctionalRop::*process_)(FragWork&);  ///< process_as<the run's method>

@@ -3,6 +3,7 @@
 // (included by functional_rop.h only).
 #pragma once
 #include "alpha_ref.h"
+#include "blend.h"
 #include "depth.h"
 #include "hilbert.h"
 #include "method_kernels.h"
@@ -23,38 +24,54 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
 // golden model runs the specialisation of its method (process_as<M>, every
 // stage inlined), the units run the same code through run()'s dispatch.
 
-#define ROPSIM_DISPATCH(call)             \
-  switch (s_.cfg.method) {                \
-    case Method::kLk:                     \
-      return call<Method::kLk>(w);        \
-    case Method::kEnderton:               \
-      return call<Method::kEnderton>(w);  \
-    case Method::kNaive:                  \
-      return call<Method::kNaive>(w);     \
-    case Method::kA2c:                    \
-      return call<Method::kA2c>(w);       \
-    case Method::kOpaque:                 \
-      return call<Method::kOpaque>(w);    \
-    case Method::kHashed:                 \
-      return call<Method::kHashed>(w);    \
-    case Method::kHashedA2c:              \
-      return call<Method::kHashedA2c>(w); \
-    case Method::kSlab:                   \
-      return call<Method::kSlab>(w);      \
-    case Method::kReference:              \
-      break;                              \
-  }                                       \
+#define ROPSIM_DISPATCH(call)                   \
+  switch (s_.cfg.method) {                      \
+    case Method::kLk:                           \
+      return call<Method::kLk>(w);              \
+    case Method::kEnderton:                     \
+      return call<Method::kEnderton>(w);        \
+    case Method::kNaive:                        \
+      return call<Method::kNaive>(w);           \
+    case Method::kA2c:                          \
+      return call<Method::kA2c>(w);             \
+    case Method::kOpaque:                       \
+      return call<Method::kOpaque>(w);          \
+    case Method::kHashed:                       \
+      return call<Method::kHashed>(w);          \
+    case Method::kHashedA2c:                    \
+      return call<Method::kHashedA2c>(w);       \
+    case Method::kSlab:                         \
+      return call<Method::kSlab>(w);            \
+    case Method::kWboit:                        \
+      return call<Method::kWboit>(w);           \
+    case Method::kLkAc:                         \
+      return call<Method::kLkAc>(w);            \
+    case Method::kLkDepth:                      \
+      return call<Method::kLkDepth>(w);         \
+    case Method::kLkDepthAc:                    \
+      return call<Method::kLkDepthAc>(w);       \
+    case Method::kEndertonAc:                   \
+      return call<Method::kEndertonAc>(w);      \
+    case Method::kEndertonDepth:                \
+      return call<Method::kEndertonDepth>(w);   \
+    case Method::kEndertonDepthAc:              \
+      return call<Method::kEndertonDepthAc>(w); \
+    case Method::kReference:                    \
+      break;                                    \
+  }                                             \
   return 0;
 
 template <Method M>
 inline uint32_t DepthStage::run_as(FragWork& w) {
-  constexpr MethodTraits kT = traits(M);
+  constexpr MethodTraits kT = traits(selection_of(M));
   const Fragment& f = *w.f;
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
   c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
+  // Blend passes: the plain test, no coverage selection, no tracker.
+  [[maybe_unused]] const bool stochastic = !(passes_of(M).count > 1 || traits(M).wboit) || !is_blend_pass(s_.pass);
   if constexpr (kT.coverage_select) {
     // The opacity decision as a sample mask, made before the depth test.
     const uint64_t a = memo_.fixed_alpha(f.alpha);
@@ -73,6 +90,8 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
   }
+  if constexpr (kT.tracker)
+    if (stochastic) c_.tracker_bytes_read += s_.tracker_bytes;
   if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
   if constexpr (M == Method::kSlab) {
     // SLAB has no per-sample depth: it reads the pixel's layers, draws the
@@ -141,18 +160,30 @@ inline uint32_t SortStage::run(FragWork& w) {
 template <Method M>
 inline uint32_t ReferenceStage::run_as(FragWork& w) {
   const Fragment& f = *w.f;
-  if constexpr (M == Method::kLk) {
+  if constexpr (selection_of(M) == Method::kLk) {
     const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
     calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
                     s_.cfg.numerics.hash_bits, w.lk.ref);
     return w.m;
-  } else if constexpr (M == Method::kEnderton) {
-    int n = 0;
-    for (uint64_t s = w.survivors; s; s &= s - 1) w.enderton.list[n++] = __builtin_ctzll(s);
+  } else if constexpr (selection_of(M) == Method::kEnderton) {
+    // Depth-first: R of the m depth survivors. Original: R of the c covered
+    // samples, then only the chosen that passed the depth test are written.
+    const bool original = s_.cfg.enderton_selection == EndertonSelection::kOriginal;
+    const uint64_t pool = original ? w.covered : w.survivors;
+    const uint32_t n = uint32_t(__builtin_popcountll(pool));
+    int k = 0;
+    for (uint64_t s = pool; s; s &= s - 1) w.enderton.list[k++] = __builtin_ctzll(s);
     const uint64_t key = s_.random_key(f);
-    w.enderton.count = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, w.m, key);
-    enderton_pick(w.enderton.list, w.m, w.enderton.count, key);
-    return w.enderton.count + 1;  // the count's hash and one per pick
+    const uint32_t r = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, n, key);
+    enderton_pick(w.enderton.list, n, r, key);
+    w.enderton.count = r;
+    if (original) {  // keep the chosen survivors, in choice order
+      uint32_t kept = 0;
+      for (uint32_t j = 0; j < r; ++j)
+        if (w.survivors >> w.enderton.list[j] & 1) w.enderton.list[kept++] = w.enderton.list[j];
+      w.enderton.count = kept;
+    }
+    return r + 1;  // the count's hash and one per pick
   } else if constexpr (M == Method::kNaive) {
     const uint64_t key = s_.random_key(f);
     for (uint64_t s = w.survivors; s; s &= s - 1) {
@@ -175,6 +206,14 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   uint32_t examined = w.m;
   PixelRef px = w.px;
   const float* z = w.z;
+  // Depth-based methods' stochastic pass stores depth only (Enderton et al. 3.4).
+  constexpr bool kColor = stochastic_writes_color(M);
+  [[maybe_unused]] auto write = [&px, rgb16](int i, float zi) {
+    if constexpr (kColor)
+      px.write_sample(i, zi, rgb16);
+    else
+      px.depth[i] = zi;
+  };
   if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
     const int at = slab_insert(*px.slab, s_.cfg.slab_layers, w.slab.z, w.slab.mask, rgb16);
     w.slab.kept = at < s_.cfg.slab_layers;
@@ -184,20 +223,20 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     }
     w.written = 0;
     return 1;
-  } else if constexpr (M == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
+  } else if constexpr (selection_of(M) == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];
       if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
-        px.write_sample(i, z[i], rgb16);
+        write(i, z[i]);
         wrote |= uint64_t{1} << i;
       }
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(wrote));
-  } else if constexpr (M == Method::kEnderton) {
+  } else if constexpr (selection_of(M) == Method::kEnderton) {
     for (uint32_t j = 0; j < w.enderton.count; ++j) {
       const int i = w.enderton.list[j];
-      px.write_sample(i, z[i], rgb16);
+      write(i, z[i]);
       wrote |= uint64_t{1} << i;
     }
     c_.samples_opacity_passed += w.enderton.count;
@@ -223,12 +262,59 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
   c_.samples_written += n;
   c_.depth_bytes_written += kDepthSampleBytes * n;
-  c_.color_bytes_written += kColorSampleBytes * n;
+  if constexpr (kColor) c_.color_bytes_written += kColorSampleBytes * n;
   w.written = wrote;
   return examined;
 }
 
 inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+
+namespace detail {
+/// The blend stage's loop for one pair of target formats.
+template <TargetFormat TF, TargetFormat AF>
+inline void blend_survivors(FragWork& w, PassKind pass) {
+  const Fragment& f = *w.f;
+  const float a = f.alpha;
+  constexpr uint32_t tb = sample_bytes(TF), ab = sample_bytes(AF);
+  const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
+  const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
+  const bool weighted = pass == PassKind::kWboit;
+  for (uint64_t s = w.survivors; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    if (trans) blend_multiply_as<TF>(w.px.trans + size_t(i) * tb, 1.0f - a);
+    if (accum) {
+      // accumulate: (alpha c, alpha); wboit: the same times its weight w(z, alpha).
+      const float k = weighted ? a * wboit_weight(w.z[i], a) : a;
+      const float src[4] = {k * f.rgb[0], k * f.rgb[1], k * f.rgb[2], k};
+      blend_add_as<AF>(w.px.accum + size_t(i) * ab, src);
+    }
+  }
+}
+}  // namespace detail
+
+inline uint32_t BlendStage::run(FragWork& w) {
+  const BlendFormats& fmt = s_.cfg.formats;
+  const PassKind pass = s_.pass;
+  const bool half_t = fmt.transmittance == TargetFormat::kR16F, half_a = fmt.accum == TargetFormat::kRGBA16F;
+  if (half_t && half_a)
+    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA16F>(w, pass);
+  else if (half_t)
+    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA32F>(w, pass);
+  else if (half_a)
+    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA16F>(w, pass);
+  else
+    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA32F>(w, pass);
+  const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
+  const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
+  const uint32_t n = w.m;
+  c_.samples_blended += n;
+  const uint64_t bytes =
+      uint64_t(n) * ((trans ? sample_bytes(fmt.transmittance) : 0) + (accum ? sample_bytes(fmt.accum) : 0));
+  c_.target_bytes_read += bytes;
+  c_.target_bytes_written += bytes;
+  w.written = w.survivors;
+  return n;
+}
 
 #undef ROPSIM_DISPATCH
 

@@ -14,6 +14,31 @@ static_assert(every_method_has_its_row(), "kMethodTable: one row per Method, in 
 
 const char* to_string(Method m) { return traits(m).name; }
 
+const char* to_string(EndertonSelection s) { return s == EndertonSelection::kOriginal ? "original" : "depth-first"; }
+
+bool parse_enderton_selection(const std::string& s, EndertonSelection& out) {
+  for (EndertonSelection e : {EndertonSelection::kDepthFirst, EndertonSelection::kOriginal})
+    if (s == to_string(e)) {
+      out = e;
+      return true;
+    }
+  return false;
+}
+
+const char* to_string(PassKind p) {
+  switch (p) {
+    case PassKind::kTotalAlpha:
+      return "total_alpha";
+    case PassKind::kStochastic:
+      return "stochastic";
+    case PassKind::kAccumulate:
+      return "accumulate";
+    case PassKind::kWboit:
+      return "wboit";
+  }
+  return "?";
+}
+
 bool parse_method(const std::string& s, Method& out) {
   for (const auto& t : kMethodTable)
     if (s == t.name) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "blend.h"
 #include "numerics.h"
 
 namespace ropsim {
@@ -21,9 +22,32 @@ enum class Method {
   kHashed,
   kHashedA2c,
   kSlab,
+  // Blending methods (issue #11): weighted blended OIT, and lk / enderton with
+  // Enderton et al.'s alpha correction (+ac) and depth-based accumulation (+depth).
+  kWboit,
+  kLkAc,
+  kLkDepth,
+  kLkDepthAc,
+  kEndertonAc,
+  kEndertonDepth,
+  kEndertonDepthAc,
 };
 /// The last enumerator (method.cpp checks that every one has its row).
-inline constexpr Method kLastMethod = Method::kSlab;
+inline constexpr Method kLastMethod = Method::kEndertonDepthAc;
+
+/// What one pass over the input does (docs/methods.md):
+/// - kTotalAlpha: non-writing depth test, transmittance *= 1 - alpha;
+/// - kStochastic: the method's stochastic z-buffer (writes depth, and colour
+///   unless the method is depth-based);
+/// - kAccumulate: non-writing depth test against the stochastic depth,
+///   accum += (alpha c, alpha);
+/// - kWboit: non-writing depth test, accum += (alpha c w, alpha w) and
+///   transmittance *= 1 - alpha.
+enum class PassKind : uint8_t { kTotalAlpha, kStochastic, kAccumulate, kWboit };
+const char* to_string(PassKind p);
+/// Does the pass blend into the render targets (the blend unit) rather than
+/// write through the stochastic path (tracker, sorter, references, writeback)?
+constexpr bool is_blend_pass(PassKind p) { return p != PassKind::kStochastic; }
 
 /// What a method needs of the ROP. Every method with a pipeline has the depth
 /// test and the writeback (opacity test and write); the rest is per method.
@@ -36,6 +60,11 @@ struct MethodTraits {
   bool tracker;          ///< lk: the coverage-bitmask surface tracker (per-pixel state)
   bool sorter;           ///< lk: survivors sorted by the depth already stored
   bool reference;        ///< lk, enderton, naive: the alpha-reference generator (hashes)
+  // Blending methods; the rows above leave these at their defaults.
+  int base = -1;             ///< the method whose stochastic pass this one runs (-1: itself)
+  bool total_alpha = false;  ///< +ac: a total-alpha pass first; the composite corrects to its alpha
+  bool depth_based = false;  ///< +depth: the stochastic pass writes depth only; then an accumulation pass
+  bool wboit = false;        ///< wboit: one blend pass into accum and transmittance
 };
 
 /// The traits of every method, in the order of method_names().
@@ -59,6 +88,24 @@ inline constexpr MethodTraits kMethodTable[] = {
     {Method::kSlab, "slab",
      "Wyman 2016: stochastic layered alpha blending, k layers of depth, colour and a b-bit mask per pixel", true, false,
      false, false, false},
+    // Append new rows here, in enumerator order.
+    {Method::kWboit, "wboit", "McGuire & Bavoil 2013: weighted blended OIT, one additive and multiplicative pass", true,
+     false, false, false, false, -1, false, false, true},
+    {Method::kLkAc, "lk+ac", "lk with alpha correction (Enderton et al. 3.3): total-alpha pass, then lk", true, false,
+     true, true, true, int(Method::kLk), true, false, false},
+    {Method::kLkDepth, "lk+depth",
+     "lk depth-based (Enderton et al. 3.4): lk depth-only pass, then an accumulation pass", true, false, true, true,
+     true, int(Method::kLk), false, true, false},
+    {Method::kLkDepthAc, "lk+depth+ac", "lk depth-based with alpha correction: total alpha, lk depth, accumulation",
+     true, false, true, true, true, int(Method::kLk), true, true, false},
+    {Method::kEndertonAc, "enderton+ac", "enderton with alpha correction: total-alpha pass, then enderton", true, false,
+     false, false, true, int(Method::kEnderton), true, false, false},
+    {Method::kEndertonDepth, "enderton+depth",
+     "enderton depth-based (Enderton et al. 3.4): depth-only pass, then an accumulation pass", true, false, false,
+     false, true, int(Method::kEnderton), false, true, false},
+    {Method::kEndertonDepthAc, "enderton+depth+ac",
+     "enderton depth-based with alpha correction: total alpha, depth, accumulation", true, false, false, false, true,
+     int(Method::kEnderton), true, true, false},
 };
 
 /// The traits of a method (usable at compile time).
@@ -67,18 +114,59 @@ constexpr const MethodTraits& traits(Method m) {
     if (t.method == m) return t;
   return kMethodTable[0];  // unreachable: every enumerator has a row (method.cpp checks)
 }
+/// The method whose stochastic pass (selection, references, write) M runs:
+/// lk for lk+ac, lk+depth and lk+depth+ac; enderton for its variants; M itself
+/// otherwise.
+constexpr Method selection_of(Method m) { return traits(m).base < 0 ? m : Method(traits(m).base); }
+
+/// The passes of a method over its input, in order (at most 3).
+struct PassList {
+  PassKind pass[3]{};
+  int count = 0;
+};
+constexpr PassList passes_of(Method m) {
+  const MethodTraits& t = traits(m);
+  PassList p;
+  if (t.wboit) {
+    p.pass[p.count++] = PassKind::kWboit;
+    return p;
+  }
+  if (t.total_alpha) p.pass[p.count++] = PassKind::kTotalAlpha;
+  p.pass[p.count++] = PassKind::kStochastic;
+  if (t.depth_based) p.pass[p.count++] = PassKind::kAccumulate;
+  return p;
+}
+/// Does the method use the transmittance (accumulation) render target?
+constexpr bool uses_transmittance(Method m) { return traits(m).total_alpha || traits(m).wboit; }
+constexpr bool uses_accum(Method m) { return traits(m).depth_based || traits(m).wboit; }
+/// Does the method have a blend pass (the blend unit, the render targets)?
+constexpr bool has_blend_pass(Method m) { return uses_transmittance(m) || uses_accum(m); }
+/// Does its stochastic pass write colour (not for depth-based methods)?
+constexpr bool stochastic_writes_color(Method m) { return !traits(m).depth_based; }
+
 const char* to_string(Method m);
 /// Parses a method name; returns false for an unknown name.
 bool parse_method(const std::string& s, Method& out);
 const std::vector<std::string>& method_names();
 
+/// Which samples enderton (and its +ac, +depth variants) chooses its R among:
+/// the samples that passed the depth test (depth-first, the variant Laine &
+/// Karras compare against; the default), or all covered samples before the
+/// depth test, as Enderton et al.'s original (R = floor(alpha c + xi) of the c
+/// covered samples, then the depth test; only those that pass are written).
+enum class EndertonSelection : uint8_t { kDepthFirst, kOriginal };
+const char* to_string(EndertonSelection s);
+bool parse_enderton_selection(const std::string& s, EndertonSelection& out);
+
 /// A method and what parameterises it.
 struct MethodConfig {
   Method method = Method::kLk;
   Numerics numerics;
-  uint64_t seed = 1;    ///< seeds the hash-based random numbers of enderton, naive, hashed, hashed-a2c and slab
-  int slab_layers = 8;  ///< slab: k, layers per pixel (1..16; Wyman 2016's k = 8)
-  int slab_bits = 32;   ///< slab: b, bits of each layer's coverage mask (1..64; Wyman 2016's b = 32)
+  uint64_t seed = 1;     ///< seeds the hash-based random numbers of enderton, naive, hashed, hashed-a2c and slab
+  int slab_layers = 8;   ///< slab: k, layers per pixel (1..16; Wyman 2016's k = 8)
+  int slab_bits = 32;    ///< slab: b, bits of each layer's coverage mask (1..64; Wyman 2016's b = 32)
+  BlendFormats formats;  ///< the blend targets' formats (the design's blend.*_format)
+  EndertonSelection enderton_selection = EndertonSelection::kDepthFirst;  ///< enderton and its variants
 };
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;

@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <sstream>
+#include <vector>
 
 #include "depth.h"
 #include "half.h"
@@ -9,10 +10,11 @@
 
 namespace ropsim {
 
-SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, int slab_bits)
+SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, const StoreTargets& targets)
     : header_(h),
       with_tracker_(with_tracker),
-      slab_bits_(slab_bits),
+      slab_bits_(targets.slab_bits),
+      targets_(targets),
       tiles_(h.width, h.height),
       clear_depth_(canonical_depth(h.clear_depth)) {
   for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
@@ -30,19 +32,39 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
       for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
     if (with_tracker_) tile->tracker.reset(new TrackerState[64]());
     if (slab_bits_ > 0) tile->slab.reset(new SlabPixel[64]());
+    // The clear value encoded once, then copied to every sample.
+    auto clear_target = [n](std::unique_ptr<uint8_t[]>& buf, TargetFormat f, float v) {
+      const uint32_t b = sample_bytes(f);
+      uint8_t one[16];
+      target_clear(f, one, v);
+      buf.reset(new uint8_t[n * b]);
+      for (size_t i = 0; i < n; ++i) std::memcpy(buf.get() + i * b, one, b);
+    };
+    if (targets_.transmittance) clear_target(tile->trans, targets_.formats.transmittance, 1.0f);
+    if (targets_.accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
     return tile;
   });
   const int p = pixel_in_tile(x, y);
-  return PixelRef{t.depth.get() + size_t(p) * spp, t.rgb.get() + size_t(p) * spp * 3,
-                  t.tracker ? t.tracker.get() + p : nullptr, t.slab ? t.slab.get() + p : nullptr};
+  const size_t ps = size_t(p) * spp;
+  return PixelRef{t.depth.get() + ps,
+                  t.rgb.get() + ps * 3,
+                  t.tracker ? t.tracker.get() + p : nullptr,
+                  t.slab ? t.slab.get() + p : nullptr,
+                  t.trans ? t.trans.get() + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
+                  t.accum ? t.accum.get() + ps * sample_bytes(targets_.formats.accum) : nullptr};
 }
 
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   const SampleTile* t = tiles_.find(x, y);
   if (!t) return {};
   const int p = pixel_in_tile(x, y), spp = header_.spp;
-  return PixelView{t->depth.get() + size_t(p) * spp, t->rgb.get() + size_t(p) * spp * 3,
-                   t->tracker ? t->tracker.get() + p : nullptr, t->slab ? t->slab.get() + p : nullptr};
+  const size_t ps = size_t(p) * spp;
+  return PixelView{t->depth.get() + ps,
+                   t->rgb.get() + ps * 3,
+                   t->tracker ? t->tracker.get() + p : nullptr,
+                   t->slab ? t->slab.get() + p : nullptr,
+                   t->trans ? t->trans.get() + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
+                   t->accum ? t->accum.get() + ps * sample_bytes(targets_.formats.accum) : nullptr};
 }
 
 Image SampleStore::resolve() const {
@@ -82,7 +104,10 @@ Image SampleStore::resolve() const {
 size_t SampleStore::state_bytes() const {
   const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) +
                           (with_tracker_ ? 64 * sizeof(TrackerState) : 0) +
-                          (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0);
+                          (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0) +
+                          size_t(64) * header_.spp *
+                              ((targets_.transmittance ? sample_bytes(targets_.formats.transmittance) : 0) +
+                               (targets_.accum ? sample_bytes(targets_.formats.accum) : 0));
   return tiles_.tiles() * per_tile + tiles_.directory_bytes();
 }
 
@@ -92,6 +117,9 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
     return "the stores have different screen sizes or spp";
   if (a.has_tracker() != b.has_tracker()) return "one store tracks surfaces, the other does not";
   if (a.has_slab() != b.has_slab()) return "one store holds SLAB layers, the other does not";
+  const StoreTargets &ta_ = a.targets(), &tb_ = b.targets();
+  if (ta_.transmittance != tb_.transmittance || ta_.accum != tb_.accum || !(ta_.formats == tb_.formats))
+    return "the stores have different render targets";
   const int spp = h.spp;
   const float clear_z = canonical_depth(h.clear_depth);
   uint16_t clear_c[3];
@@ -116,6 +144,28 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
           }
         }
       }
+      // Render targets: every byte (an untouched pixel has no bytes to compare
+      // unless the other one is touched; the clear values are then compared).
+      auto check_target = [&](const char* name, TargetFormat f, float clear, const uint8_t* pa,
+                              const uint8_t* pb) -> bool {
+        const uint32_t bytes = sample_bytes(f);
+        std::vector<uint8_t> ca(bytes), cb(bytes);
+        target_clear(f, ca.data(), clear);
+        cb = ca;
+        for (int s = 0; s < spp; ++s) {
+          const uint8_t* sa = pa ? pa + size_t(s) * bytes : ca.data();
+          const uint8_t* sb = pb ? pb + size_t(s) * bytes : cb.data();
+          if (std::memcmp(sa, sb, bytes) != 0) {
+            os << "pixel (" << x << ", " << y << ") sample " << s << ": " << name << " target bytes differ ("
+               << target_load(f, sa, 0) << " vs " << target_load(f, sb, 0) << " in channel 0)";
+            return false;
+          }
+        }
+        return true;
+      };
+      if (ta_.transmittance && !check_target("transmittance", ta_.formats.transmittance, 1.0f, va.trans, vb.trans))
+        return false;
+      if (ta_.accum && !check_target("accum", ta_.formats.accum, 0.0f, va.accum, vb.accum)) return false;
       if (a.has_tracker()) {
         const TrackerState ta = va.tracker ? *va.tracker : TrackerState{},
                            tb = vb.tracker ? *vb.tracker : TrackerState{};

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "blend.h"
 #include "image.h"
 #include "slab.h"
 #include "tile_map.h"
@@ -21,6 +22,18 @@ struct SampleTile {
   std::unique_ptr<uint16_t[]> rgb;          ///< [(pixel * spp + sample) * 3 + channel]
   std::unique_ptr<TrackerState[]> tracker;  ///< [pixel], nullptr unless tracking
   std::unique_ptr<SlabPixel[]> slab;        ///< [pixel], nullptr unless slab
+  std::unique_ptr<uint8_t[]> trans;         ///< transmittance target, [(pixel * spp + sample) * bytes]; or nullptr
+  std::unique_ptr<uint8_t[]> accum;         ///< accumulation target, the same; or nullptr
+};
+
+/// The per-pixel state beyond depth, colour and the tracker that a method
+/// needs: the render targets it blends into, SLAB's layers (each allocated
+/// only when used).
+struct StoreTargets {
+  bool transmittance = false;  ///< one channel, cleared to 1
+  bool accum = false;          ///< RGBA, cleared to 0
+  BlendFormats formats;
+  int slab_bits = 0;  ///< slab: b, the bits of each layer's mask (0: no SLAB layers)
 };
 
 /// Mutable pointers to one pixel's state.
@@ -29,6 +42,8 @@ struct PixelRef {
   uint16_t* rgb;          ///< [spp * 3], binary16
   TrackerState* tracker;  ///< nullptr unless tracking
   SlabPixel* slab;        ///< nullptr unless slab
+  uint8_t* trans;         ///< [spp * bytes] transmittance target, nullptr unless used
+  uint8_t* accum;         ///< [spp * bytes] accumulation target, nullptr unless used
   void write_sample(int i, float z, const uint16_t* rgb16) {
     depth[i] = z;
     rgb[3 * i] = rgb16[0];
@@ -43,15 +58,17 @@ struct PixelView {
   const uint16_t* rgb = nullptr;
   const TrackerState* tracker = nullptr;
   const SlabPixel* slab = nullptr;
+  const uint8_t* trans = nullptr;
+  const uint8_t* accum = nullptr;
 };
 
 inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
 
 class SampleStore {
  public:
-  /// with_tracker: allocate the LK tracker state (lk only); slab_bits > 0:
-  /// allocate SLAB layers with b-bit masks and resolve them (slab only).
-  SampleStore(const TraceHeader& h, bool with_tracker, int slab_bits = 0);
+  /// with_tracker: allocate the LK tracker state (lk only); targets: the
+  /// render targets a method blends into, and SLAB's layers (slab only).
+  SampleStore(const TraceHeader& h, bool with_tracker, const StoreTargets& targets = {});
   /// The pixel's state, its tile allocated and cleared on first touch.
   PixelRef pixel(uint32_t x, uint32_t y);
   PixelView view(uint32_t x, uint32_t y) const;
@@ -64,19 +81,21 @@ class SampleStore {
   const TraceHeader& header() const { return header_; }
   bool has_tracker() const { return with_tracker_; }
   bool has_slab() const { return slab_bits_ > 0; }
+  const StoreTargets& targets() const { return targets_; }
 
  private:
   TraceHeader header_;
   bool with_tracker_;
   int slab_bits_;
+  StoreTargets targets_;
   TileMap<SampleTile> tiles_;
   float clear_depth_;
   uint16_t clear_rgb16_[3];
 };
 
 /// The first difference between two stores' full state (every sample's depth
-/// and colour bits, every tracker, every SLAB layer), as "pixel (x, y) sample s: depth a vs b";
-/// empty if they are identical. Untouched tiles compare as the clear values.
+/// and colour bits, every tracker, every SLAB layer, every render target's bits), as "pixel (x, y) sample s: depth a vs
+/// b"; empty if they are identical. Untouched tiles compare as the clear values.
 std::string first_state_difference(const SampleStore& a, const SampleStore& b);
 
 }  // namespace ropsim

@@ -20,6 +20,10 @@ namespace ropsim {
 class FunctionalModel {
  public:
   virtual ~FunctionalModel() = default;
+  /// Passes over the input the method makes (method.h passes_of): the
+  /// driver replays every fragment once per pass, calling begin_pass first.
+  virtual int passes() const { return 1; }
+  virtual void begin_pass(int) {}
   /// Processes one fragment (in API order).
   virtual void draw(const Fragment& f) = 0;
   /// Box-filter resolve of every pixel; untouched pixels get the clear colour.
@@ -43,7 +47,9 @@ class StochasticModel : public FunctionalModel {
     work_.f = &f;
     rop_.process(work_);
   }
-  Image resolve() const override { return rop_.store().resolve(); }
+  int passes() const override { return rop_.passes(); }
+  void begin_pass(int i) override { rop_.begin_pass(i); }
+  Image resolve() const override { return rop_.resolve(); }
   size_t state_bytes() const override { return rop_.store().state_bytes(); }
   Counters counters() const override { return rop_.counters(); }
   /// The full per-sample state (depth, colour, tracker).

@@ -57,6 +57,7 @@ constexpr RunParam kRunParams[] = {
     {"design", "a hardware design file (cycle points; hardware keys override it)"},
     {"slab_layers", "slab: k, layers per pixel (1..16)"},
     {"slab_bits", "slab: b, bits of each layer's coverage mask (1..64)"},
+    {"enderton_selection", "enderton and its variants: depth-first (default) or original (docs/methods.md)"},
 };
 
 bool is_run_param(const std::string& k) {
@@ -111,9 +112,11 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
   if (key == "method") {
     Method m;
     if (!std::holds_alternative<std::string>(v) || !parse_method(std::get<std::string>(v), m))
-      fail(s, at,
-           to_string(v) + " is not a method (one of lk, enderton, naive, a2c, opaque, reference, hashed, " +
-               "hashed-a2c, slab)");
+      fail(s, at, to_string(v) + " is not a method (ropsim run --help lists them)");
+  } else if (key == "enderton_selection") {
+    EndertonSelection e;
+    if (!std::holds_alternative<std::string>(v) || !parse_enderton_selection(std::get<std::string>(v), e))
+      fail(s, at, to_string(v) + " is not depth-first or original");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
     if (!f || (*f != "functional" && *f != "cycle")) fail(s, at, to_string(v) + " is not functional or cycle");
@@ -329,10 +332,11 @@ Study parse_study(const std::string& text, const std::string& path) {
       const std::string at = "axes." + key;
       const bool run = is_run_param(key), hw = is_hw_key(key);
       if (!run && !hw)
-        fail(s, at,
-             "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
-             "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits; or a hardware key: "
-             "ropsim config --markdown)");
+        fail(
+            s, at,
+            "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
+            "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits, enderton_selection; or "
+            "a hardware key: ropsim config --markdown)");
       StudyAxis axis{key, {}};
       if (const toml::array* a = node.as_array()) {
         if (a->empty()) fail(s, at, "an axis needs at least one value");
@@ -491,6 +495,8 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   r.input.repeat = uint32_t(get_int("repeat", 1));
   if (const StudyValue* m = get("method")) parse_method(std::get<std::string>(*m), r.method.method);
   r.method.seed = uint64_t(get_int("seed", 1));
+  if (const StudyValue* e = get("enderton_selection"))
+    parse_enderton_selection(std::get<std::string>(*e), r.method.enderton_selection);
   r.method.numerics.hash_bits = int(get_int("hash_bits", 32));
   r.method.numerics.alpha_bits = int(get_int("alpha_bits", 32));
   r.method.numerics.surface_id_bits = int(get_int("surface_id_bits", 32));
@@ -505,6 +511,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     const StudyValue* design = get("design");
     r.hw = resolve_hw_config(design ? design_path(s, std::get<std::string>(*design)) : "", overrides);
     r.hw.name = "study " + s.name + (design ? ", design " + std::get<std::string>(*design) : "");
+    r.method.formats = r.hw.blend.formats;  // the blend targets' formats are functional too
   }
   if (s.reference) {
     r.reference_input = r.input;

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "line_set.h"
 #include "output_file.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
@@ -29,15 +30,17 @@ Bottleneck classify(const CycleStats& s) {
   const double total = double(std::max<uint64_t>(1, s.total_cycles));
   for (const auto& k : kinds) {
     double p[3] = {0, 0, 0};
-    int n = 0;
+    uint64_t span = 0;  // the instances' cycles: each one's activities add up to its pass's cycles
     for (const auto& u : s.units)
       if (u.kind == k) {
         p[0] += double(u.stats.cycles[size_t(Activity::kBusy)]);
         p[1] += double(u.stats.cycles[size_t(Activity::kMemory)]);
         p[2] += double(u.stats.cycles[size_t(Activity::kHazard)]);
-        ++n;
+        for (uint64_t c : u.stats.cycles) span += c;
       }
-    for (double& x : p) x /= double(n) * total;
+    // One pass: span = instances x total_cycles. Several: each instance
+    // counts over its own pass, so the fractions are of the cycles it existed.
+    for (double& x : p) x /= span ? double(span) : total;
     if (p[0] + p[1] + p[2] > best_own) {
       best_own = p[0] + p[1] + p[2];
       b.unit_kind = k;
@@ -60,6 +63,23 @@ Bottleneck classify(const CycleStats& s) {
 
 }  // namespace
 
+namespace {
+
+void add_dram(DramStats& a, const DramStats& b) {
+  for (size_t i = 0; i < size_t(kBuffers); ++i) {
+    a.bytes_read[i] += b.bytes_read[i];
+    a.bytes_written[i] += b.bytes_written[i];
+  }
+  a.reads += b.reads;
+  a.writes += b.writes;
+  a.row_hits += b.row_hits;
+  a.row_misses += b.row_misses;
+  a.busy_cycles += b.busy_cycles;
+  a.max_channel_busy += b.max_channel_busy;  // passes run one after another
+}
+
+}  // namespace
+
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
   if (method.method == Method::kReference)
     throw std::invalid_argument("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
@@ -67,69 +87,105 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   validate_hw_config(hw);
   const auto t0 = std::chrono::steady_clock::now();
   CycleRun run;
-  // Declared before top: top's destructor closes SystemC's file, which the
-  // writer waits for. SystemC ignores write errors, so the VCD goes through a
-  // FIFO whose bytes OutputFile writes with every write checked.
-  std::unique_ptr<OutputFile> vcd;
-  FreshSimContext sim;
+  // The functional ROP and the lines DRAM holds outlive the passes; each pass
+  // is one pipeline in its own SystemC context over a fresh read of the input.
   std::unique_ptr<FragmentSource> input = open_fragments(in);
   run.header = input->header();
-  auto top = std::make_unique<RopPipeline>("top", std::move(input), method, hw);
-  top->source().on_progress = opt.progress;
-  top->retirement().hook = opt.retire_hook;
+  auto rop = std::make_unique<FunctionalRop>(run.header, method);
+  LineSet in_dram(hw.cache.line_bytes);
+  const int n_passes = rop->passes();
+  if (n_passes > 1 && !opt.vcd_path.empty())
+    throw std::invalid_argument(std::string("--vcd traces single-pass methods; ") + to_string(method.method) +
+                                " makes " + std::to_string(n_passes) + " passes");
   const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
-  top->set_decoupled(decoupled);
-  if (!opt.vcd_path.empty()) {
-    OutputFile::Options vo;
-    vo.named = vo.via_pipe = true;
-    vo.suffix = ".vcd";  // SystemC appends it to the name it is given
-    vcd = std::make_unique<OutputFile>(opt.vcd_path, vo);
-    const std::string& name = vcd->write_name();
-    top->trace_to(name.substr(0, name.size() - vo.suffix.size()), opt.vcd_first, opt.vcd_last);
-  }
-  const auto t1 = std::chrono::steady_clock::now();
-  try {
-    top->run();
-  } catch (...) {
-    top.reset();  // then vcd's destructor discards the waveform
-    throw;
-  }
-  run.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-
   CycleStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
-  s.period_ps = top->clock().period_ps();
-  s.total_cycles = top->total_cycles();
-  s.pipeline_cycles = top->pipeline_cycles();
+  s.hw.blend.formats = method.formats;
+  s.decoupled = decoupled;
+  if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
+  if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
+  if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
+  uint64_t progress_base = 0;
+  for (int pass = 0; pass < n_passes; ++pass) {
+    rop->begin_pass(pass);
+    if (pass > 0) input = open_fragments(in);
+    // Declared before top: top's destructor closes SystemC's file, which the
+    // writer waits for. SystemC ignores write errors, so the VCD goes through a
+    // FIFO whose bytes OutputFile writes with every write checked.
+    std::unique_ptr<OutputFile> vcd;
+    FreshSimContext sim;
+    const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
+    auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
+    if (opt.progress)
+      top->source().on_progress = [&opt, progress_base](uint64_t n) { opt.progress(progress_base + n); };
+    top->retirement().hook = opt.retire_hook;
+    top->set_decoupled(decoupled);
+    if (!opt.vcd_path.empty()) {
+      OutputFile::Options vo;
+      vo.named = vo.via_pipe = true;
+      vo.suffix = ".vcd";  // SystemC appends it to the name it is given
+      vcd = std::make_unique<OutputFile>(opt.vcd_path, vo);
+      const std::string& name = vcd->write_name();
+      top->trace_to(name.substr(0, name.size() - vo.suffix.size()), opt.vcd_first, opt.vcd_last);
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    try {
+      top->run();
+    } catch (...) {
+      top.reset();  // then vcd's destructor discards the waveform
+      throw;
+    }
+    run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    progress_base += top->source().produced();
+
+    s.period_ps = top->clock().period_ps();
+    s.total_cycles += top->total_cycles();
+    s.pipeline_cycles += top->pipeline_cycles();
+    const std::string prefix = n_passes > 1 ? std::string(to_string(rop->pass())) + "." : "";
+    for (const auto& u : top->units()) {
+      s.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), u.unit->extras()});
+      s.unit_runs += u.unit->stats().activations;
+    }
+    s.activations += top->activations();
+    for (auto* f : top->fifos()) {
+      s.fifos.push_back(f->stats(top->total_cycles()));
+      s.fifos.back().name = prefix + s.fifos.back().name;
+    }
+    PassStats ps;
+    ps.name = to_string(rop->pass());
+    ps.total_cycles = top->total_cycles();
+    ps.pipeline_cycles = top->pipeline_cycles();
+    for (size_t r = 0; r < top->caches().size(); ++r) {
+      const CacheStats c = top->caches()[r]->stats();
+      if (s.caches.size() <= r) s.caches.emplace_back();
+      s.caches[r] += c;
+      ps.cache += c;
+    }
+    ps.dram = top->dram().stats();
+    add_dram(s.dram, ps.dram);
+    s.dram.last_completion = s.total_cycles;
+    if (n_passes > 1) s.passes.push_back(ps);
+    if (pass == 0 && n_passes == 1) s.dram = ps.dram;  // a single pass: its figures exactly
+    s.tokens_allocated = std::max(s.tokens_allocated, top->tokens().allocated());
+    top.reset();  // closes the VCD file
+    if (vcd) vcd->commit();
+  }
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
-  FunctionalRop& rop = top->functional();
-  run.counters = rop.counters();
+  run.counters = rop->counters();
   const double cyc = double(std::max<uint64_t>(1, s.total_cycles));
   s.fragments_per_clock = double(run.counters.fragments) / cyc;
   s.samples_per_clock = double(run.counters.samples_tested) / cyc;
-  for (const auto& u : top->units()) {
-    s.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), u.unit->extras()});
-    s.unit_runs += u.unit->stats().activations;
-  }
-  s.activations = top->activations();
-  for (auto* f : top->fifos()) s.fifos.push_back(f->stats(s.total_cycles));
-  for (const auto& c : top->caches()) s.caches.push_back(c->stats());
-  s.dram = top->dram().stats();
   s.dram_peak_gbps = double(hw.dram.channels) * hw.dram.bytes_per_clock * hw.clock.frequency_ghz;
   const uint64_t bytes = s.dram.total_bytes_read() + s.dram.total_bytes_written();
   s.dram_achieved_gbps = s.frame_time_us > 0 ? double(bytes) / (s.frame_time_us * 1e3) : 0.0;
   s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
   s.memory_bound = s.dram_utilization >= 0.8;
   s.bottleneck = classify(s);
-  s.tokens_allocated = top->tokens().allocated();
-  s.decoupled = decoupled;
 
-  run.image = rop.store().resolve();
-  run.state_bytes = rop.store().state_bytes();
-  run.state = std::make_unique<SampleStore>(std::move(rop.store()));
-  top.reset();  // closes the VCD file
-  if (vcd) vcd->commit();
+  run.image = rop->resolve();
+  run.state_bytes = rop->store().state_bytes();
+  run.state = std::make_unique<SampleStore>(std::move(rop->store()));
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;
 }

@@ -52,6 +52,17 @@ struct Bottleneck {
   double busy = 0, memory = 0, hazard = 0;  ///< fractions of total_cycles, averaged over the kind's instances
 };
 
+/// One pass of a multi-pass method: its cycles and its memory traffic. Each
+/// pass ends with the caches flushed (the render targets are complete before
+/// the next pass reads them); the next pass starts at the cycle after.
+struct PassStats {
+  std::string name;              ///< total_alpha, stochastic, accumulate (method.h PassKind)
+  uint64_t total_cycles = 0;     ///< to the end of the pass's cache flush
+  uint64_t pipeline_cycles = 0;  ///< to the pass's last retirement
+  CacheStats cache;              ///< summed over the ROP caches
+  DramStats dram;
+};
+
 struct CycleStats {
   HwConfig hw;
   uint64_t period_ps = 0;                                 ///< simulated clock period
@@ -72,6 +83,13 @@ struct CycleStats {
   uint64_t unit_runs = 0;         ///< unit activations summed over the units (decoupled units run inside others')
   bool decoupled = false;         ///< units without timed shared state ran ahead of SystemC time
   size_t tokens_allocated = 0;    ///< fragment tokens ever in flight at once (upper bound)
+  /// Multi-pass methods: each pass (the figures above are their sums); empty
+  /// for a single pass.
+  std::vector<PassStats> passes;
+  /// Bit b: the report lists Buffer(b) -- depth, colour and tracker always;
+  /// the render targets and slab's layers when the method has them.
+  uint32_t listed = (1u << kBaseBuffers) - 1;
+  bool lists(int b) const { return (listed >> b) & 1u; }
 };
 
 struct CycleRun {

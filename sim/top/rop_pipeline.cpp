@@ -1,6 +1,7 @@
 #include "rop_pipeline.h"
 
 #include "alpha_ref_gen.h"
+#include "blend_unit.h"
 #include "coverage_tracker.h"
 #include "depth_test.h"
 #include "errors.h"
@@ -10,19 +11,20 @@
 
 namespace ropsim {
 
-RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input,
-                         const MethodConfig& method, const HwConfig& hw)
+RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input, FunctionalRop& rop,
+                         LineSet& in_dram, const HwConfig& hw)
     : sc_module(name),
       hw_(hw),
       clk_(hw.clock.frequency_ghz),
       input_(std::move(input)),
-      rop_(input_->header(), method),
+      rop_(rop),
       retirement_(pool_),
       amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes,
-            rop_.setup().slab_bytes),
+            rop_.setup().cfg.formats, rop_.setup().slab_bytes),
       dram_(hw.dram),
-      in_dram_(hw.cache.line_bytes) {
+      in_dram_(in_dram) {
   const MethodTraits& mt = rop_.traits();
+  const bool blend_pass = is_blend_pass(rop_.pass());
   const TraceHeader& header = rop_.header();
   sched_ = std::make_unique<Scheduler>("scheduler", clk_);
   const int spp = header.spp;
@@ -60,6 +62,13 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
     ord_out.connect(&ord, prev);
     TokenFifo* link = &dt_out;
 
+    if (blend_pass) {  // depth test (not writing) -> blend
+      Unit* bl = &add(
+          "blend", ri,
+          std::make_unique<BlendUnit>((u + "blend").c_str(), clk_, rop_, retirement_, amap_, hw.blend, cache, *link));
+      link->connect(prev, bl);
+      continue;
+    }
     if (mt.tracker) {
       TokenFifo& tr_out = make_fifo(p + "tracker_to_sorter", hw.tracker.fifo_depth, hw.tracker.latency_cycles);
       Unit* tr = &add(

@@ -1,10 +1,14 @@
 // The top of the cycle-approximate model: elaborates the pipeline for one
-// input, method and hardware config. Only the units the method's traits ask
-// for exist (method.h): lk has all five per ROP; enderton and naive skip the
-// tracker and the sorter; a2c and opaque also skip the alpha-reference
-// generator. Every unit runs one stage of the one FunctionalRop.
+// pass of one input, method and hardware config. Only the units the method's
+// traits ask for exist (method.h): lk has all five per ROP; enderton and
+// naive skip the tracker and the sorter; a2c and opaque also skip the
+// alpha-reference generator; a blend pass (wboit, total alpha, accumulation)
+// has the depth test and the blend unit. Every unit runs one stage of the one
+// FunctionalRop, which (with the lines DRAM holds) outlives the pass: a
+// multi-pass method elaborates one pipeline per pass (cycle_run.cpp).
 //
 //   source -> distributor -+-> ordering -> depth test -> [tracker -> sorter] -> [alpha ref] -> writeback
+//                          |                          -> blend                                  (blend passes)
 //                          +-> ... one chain per ROP unit, each with its ROP cache, all sharing the DRAM
 #pragma once
 #include <memory>
@@ -31,9 +35,10 @@ class PixelOrdering;
 
 class RopPipeline : public sc_core::sc_module {
  public:
-  /// Throws std::invalid_argument for a method without a pipeline.
-  RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input, const MethodConfig& method,
-              const HwConfig& hw);
+  /// The pipeline of the rop's current pass (FunctionalRop::begin_pass);
+  /// in_dram: the lines DRAM holds, carried from pass to pass.
+  RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<FragmentSource> input, FunctionalRop& rop,
+              LineSet& in_dram, const HwConfig& hw);
   ~RopPipeline() override;
 
   /// Runs to the end of the trace, then flushes the caches; returns the
@@ -75,12 +80,12 @@ class RopPipeline : public sc_core::sc_module {
   HwConfig hw_;
   Clock clk_;
   std::unique_ptr<FragmentSource> input_;
-  FunctionalRop rop_;
+  FunctionalRop& rop_;
   TokenPool pool_;
   Retirement retirement_;
   AddressMap amap_;
   Dram dram_;
-  LineSet in_dram_;
+  LineSet& in_dram_;
   PostedWrites posted_;  // before caches_: they point to it
   std::vector<std::unique_ptr<RopCache>> caches_;
   std::vector<std::unique_ptr<TokenFifo>> fifos_;

@@ -1,0 +1,107 @@
+// Render-target formats and the blend operations of the ROP's blend unit:
+// the one definition of how a blended value is read from and written to a
+// per-sample render target, used by the golden model and the SystemC blend
+// unit alike (docs/numerics.md "Blending"). A blend decodes the stored
+// channels to binary32, combines them with the source in binary32 and
+// encodes the result back with round-to-nearest-even.
+#pragma once
+#include <cstdint>
+#include <cstring>
+
+#include "half.h"
+
+namespace ropsim {
+
+/// The storage format of a render target: 1 or 4 channels of binary16 or
+/// binary32.
+enum class TargetFormat : uint8_t { kR16F, kR32F, kRGBA16F, kRGBA32F };
+
+inline const char* to_string(TargetFormat f) {
+  switch (f) {
+    case TargetFormat::kR16F:
+      return "r16f";
+    case TargetFormat::kR32F:
+      return "r32f";
+    case TargetFormat::kRGBA16F:
+      return "rgba16f";
+    case TargetFormat::kRGBA32F:
+      return "rgba32f";
+  }
+  return "?";
+}
+inline constexpr int channels(TargetFormat f) { return f == TargetFormat::kR16F || f == TargetFormat::kR32F ? 1 : 4; }
+inline constexpr bool is_half(TargetFormat f) { return f == TargetFormat::kR16F || f == TargetFormat::kRGBA16F; }
+/// Bytes of one sample of a target in this format.
+inline constexpr uint32_t sample_bytes(TargetFormat f) { return uint32_t(channels(f)) * (is_half(f) ? 2u : 4u); }
+
+/// The formats of the two blend targets: the transmittance target (one
+/// channel, multiplicative: the product of (1 - alpha), total alpha's
+/// complement and wboit's revealage) and the accumulation target (RGBA,
+/// additive: depth-based accumulation and wboit's weighted sum).
+struct BlendFormats {
+  TargetFormat transmittance = TargetFormat::kR16F;
+  TargetFormat accum = TargetFormat::kRGBA16F;
+};
+inline bool operator==(const BlendFormats& a, const BlendFormats& b) {
+  return a.transmittance == b.transmittance && a.accum == b.accum;
+}
+
+/// Channel c of one stored sample, as binary32.
+inline float target_load(TargetFormat f, const uint8_t* p, int c) {
+  if (is_half(f)) {
+    uint16_t h;
+    std::memcpy(&h, p + 2 * c, 2);
+    return half_to_float(h);
+  }
+  float v;
+  std::memcpy(&v, p + 4 * c, 4);
+  return v;
+}
+/// Stores v into channel c of one sample (binary16: round to nearest even).
+inline void target_store(TargetFormat f, uint8_t* p, int c, float v) {
+  if (is_half(f)) {
+    const uint16_t h = float_to_half(v);
+    std::memcpy(p + 2 * c, &h, 2);
+  } else {
+    std::memcpy(p + 4 * c, &v, 4);
+  }
+}
+/// Fills one sample with v in every channel (the clear value).
+inline void target_clear(TargetFormat f, uint8_t* p, float v) {
+  for (int c = 0; c < channels(f); ++c) target_store(f, p, c, v);
+}
+
+/// Multiplicative blend: dst = dst * factor in every channel.
+inline void blend_multiply(TargetFormat f, uint8_t* dst, float factor) {
+  for (int c = 0; c < channels(f); ++c) target_store(f, dst, c, target_load(f, dst, c) * factor);
+}
+/// Additive blend: dst = dst + src, channel by channel (src has channels(f) values).
+inline void blend_add(TargetFormat f, uint8_t* dst, const float* src) {
+  for (int c = 0; c < channels(f); ++c) target_store(f, dst, c, target_load(f, dst, c) + src[c]);
+}
+
+/// The same two blends for a format known at compile time (the blend stage
+/// dispatches once per fragment, not per channel); identical results.
+template <TargetFormat F>
+inline void blend_multiply_as(uint8_t* dst, float factor) {
+  for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) * factor);
+}
+template <TargetFormat F>
+inline void blend_add_as(uint8_t* dst, const float* src) {
+  for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) + src[c]);
+}
+
+/// Weighted blended OIT's weight (McGuire & Bavoil 2013, Eq. 10): alpha
+/// times max(10^-2, 3 10^3 (1 - z)^3), z the fragment's depth-buffer depth
+/// in [0, 1]; nearer fragments weigh more, at most 3000 alpha.
+inline float wboit_weight(float z, float alpha) {
+  const float d = 1.0f - z;
+  const float w = 3.0e3f * d * d * d;
+  return alpha * (w > 1.0e-2f ? w : 1.0e-2f);
+}
+
+/// wboit's clamp of the accumulated weight in its composite (Eq. 6 with the
+/// paper's clamp [10^-4, 5 10^4]).
+inline float wboit_clamp_weight(float a) { return a < 1.0e-4f ? 1.0e-4f : a > 5.0e4f ? 5.0e4f : a; }
+
+}  // namespace ropsim

@@ -1,0 +1,65 @@
+#include "composite.h"
+
+#include "depth.h"
+#include "half.h"
+
+namespace ropsim {
+
+Image composite(const SampleStore& store, Method m) {
+  const TraceHeader& h = store.header();
+  const MethodTraits& t = traits(m);
+  const BlendFormats& fmt = store.targets().formats;
+  const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
+  Image img;
+  img.width = h.width;
+  img.height = h.height;
+  img.rgb.resize(size_t(img.width) * img.height * 3);
+  double bg[3];
+  for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(h.clear_color[c]));  // as the colour buffer holds it
+  for (size_t i = 0; i < img.rgb.size(); i += 3)
+    for (int c = 0; c < 3; ++c) img.rgb[i + size_t(c)] = float(bg[c]);
+  const int spp = h.spp;
+  const uint32_t clear_z = depth_bits(canonical_depth(h.clear_depth));
+  store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+      if (x >= img.width || y >= img.height) continue;
+      const PixelView v = store.view(x, y);
+      // Sums in sample order (deterministic).
+      double trans = 0, rgb[3] = {0, 0, 0}, acc[4] = {0, 0, 0, 0}, out[3] = {0, 0, 0};
+      int written = 0;
+      for (int s = 0; s < spp; ++s) {
+        const double T = v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
+        trans += T;
+        const bool w = depth_bits(v.depth[s]) != clear_z;
+        written += w;
+        if (w && stochastic_writes_color(m))
+          for (int c = 0; c < 3; ++c) rgb[c] += half_to_float(v.rgb[3 * s + c]);
+        if (v.accum) {
+          const uint8_t* a = v.accum + size_t(s) * ab;
+          if (t.wboit) {
+            const double wa = wboit_clamp_weight(target_load(fmt.accum, a, 3));
+            for (int c = 0; c < 3; ++c) out[c] += target_load(fmt.accum, a, c) / wa * (1.0 - T) + T * bg[c];
+          } else {
+            for (int c = 0; c < 4; ++c) acc[c] += target_load(fmt.accum, a, c);
+          }
+        }
+      }
+      const double S = spp, A = 1.0 - trans / S;
+      if (t.wboit) {
+        for (int c = 0; c < 3; ++c) out[c] /= S;
+      } else if (t.depth_based && t.total_alpha) {
+        for (int c = 0; c < 3; ++c) out[c] = (acc[3] > 0 ? A * acc[c] / acc[3] : 0.0) + trans / S * bg[c];
+      } else if (t.depth_based) {
+        for (int c = 0; c < 3; ++c) out[c] = acc[c] / S + double(spp - written) / S * bg[c];
+      } else {  // +ac
+        for (int c = 0; c < 3; ++c) out[c] = (written > 0 ? A * rgb[c] / written : 0.0) + trans / S * bg[c];
+      }
+      float* o = img.at(x, y);
+      for (int c = 0; c < 3; ++c) o[c] = float(out[c]);
+    }
+  });
+  return img;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,27 @@
+// The composite of the methods with blend passes (method.h): how their final
+// per-sample state becomes the image, per pixel, over the clear colour (the
+// opaque background of a trace). One definition for every fidelity: the
+// golden model and the cycle model resolve the same state with it.
+//
+//   +ac        A = 1 - mean_s T_s (total alpha),  R = samples the stochastic pass wrote,
+//              C = A * (sum of their colours) / R  +  mean_s(T_s) * background
+//   +depth     C = mean_s accum_s.rgb  +  (S - R) / S * background
+//   +depth+ac  C = A * sum_s accum_s.rgb / sum_s accum_s.a  +  mean_s(T_s) * background
+//   wboit      C = mean_s [ accum_s.rgb / clamp(accum_s.a) * (1 - T_s) + T_s * background ]
+//
+// T_s is the transmittance target (the product of 1 - alpha over the
+// fragments at sample s), accum_s the accumulation target; a written sample
+// is one whose depth is not the clear depth (docs/methods.md).
+#pragma once
+#include <cstddef>
+
+#include "image.h"
+#include "method.h"
+#include "sample_store.h"
+
+namespace ropsim {
+
+/// The image of a method with blend passes from its final state.
+Image composite(const SampleStore& store, Method m);
+
+}  // namespace ropsim
