@@ -92,7 +92,6 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   }
   if constexpr (kT.tracker)
     if (stochastic) c_.tracker_bytes_read += s_.tracker_bytes;
-  if constexpr (kT.tracker) c_.tracker_bytes_read += s_.tracker_bytes;
   if constexpr (M == Method::kSlab) {
     // SLAB has no per-sample depth: it reads the pixel's layers, draws the
     // fragment's stratified b-bit mask among the bits of its covered samples
