@@ -318,8 +318,23 @@ std::string describe_point(const StudyPoint& p) {
   return s + ")";
 }
 
+namespace {
+/// Folder -> the descriptor of its lock, kept until the process ends.
+std::map<std::string, int>& held_folder_locks() {
+  static std::map<std::string, int> held;
+  return held;
+}
+/// In a forked worker: close the inherited lock descriptors (close only: an
+/// unlock would release the parent's lock, which shares them), so that a
+/// worker outliving a killed parent does not keep the folder locked.
+void close_inherited_folder_locks() {
+  for (const auto& [dir, fd] : held_folder_locks()) ::close(fd);
+  held_folder_locks().clear();
+}
+}  // namespace
+
 void hold_study_folder(const std::string& dir) {
-  static std::map<std::string, int> held;  // folder -> its lock's descriptor, kept until the process ends
+  std::map<std::string, int>& held = held_folder_locks();
   const std::string key = fs::weakly_canonical(dir).string();
   if (held.count(key)) return;
   const std::string path = (fs::path(dir) / ".lock").string();
@@ -497,6 +512,7 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     w.pid = fork();
     if (w.pid < 0) throw UserError("study: cannot start a worker process");
     if (w.pid == 0) {
+      close_inherited_folder_locks();
       ::close(down[1]);
       ::close(up[0]);
       for (const auto& other : workers)
