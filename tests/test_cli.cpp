@@ -163,7 +163,14 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
 
   r = box.run("trace validate cloth4.trace");
   expect_ok(r, "trace validate");
-  EXPECT_EQ(r.out, "cloth4.trace: valid, " + n_frags + " fragments\n") << r.describe();
+  // The default trace is checksummed (docs/trace-format.md 2.3): validate names the blocks it verified.
+  EXPECT_EQ(r.out.rfind("cloth4.trace: valid, " + n_frags + " fragments, ", 0), 0u) << r.describe();
+  EXPECT_NE(r.out.find(" checksummed blocks verified\n"), std::string::npos) << r.describe();
+  expect_ok(box.run("scene cloth --spp 4 --no-checksum -o plain4.trace"), "scene --no-checksum");
+  r = box.run("trace validate plain4.trace");
+  expect_ok(r, "trace validate (no checksum)");
+  EXPECT_EQ(r.out, "plain4.trace: valid, " + n_frags + " fragments (no checksum)\n") << r.describe();
+  fs::remove(box.path("plain4.trace"));
 
   r = box.run("trace info cloth4.trace");
   expect_ok(r, "trace info");
@@ -218,11 +225,16 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
 TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   CliSandbox box;
   // A truncated uncompressed trace, and a compressed one missing its last byte.
-  expect_ok(box.run("scene cloth --spp 4 --compression none -o full.trace"), "scene --compression none");
+  // (Without checksums, so the reader names the cut record; a checksummed trace names the block.)
+  expect_ok(box.run("scene cloth --spp 4 --compression none --no-checksum -o full.trace"), "scene --compression none");
+  expect_ok(box.run("scene cloth --spp 4 --compression none -o fullck.trace"), "scene --compression none");
   expect_ok(box.run("scene enderton-1 --spp 4 -o z.trace"), "scene enderton-1");
   {
     const std::string full = slurp(box.path("full.trace"));
     std::ofstream(box.path("truncated.trace"), std::ios::binary) << full.substr(0, full.size() / 2 + 3);
+    const std::string fullck = slurp(box.path("fullck.trace"));
+    std::ofstream(box.path("truncatedck.trace"), std::ios::binary) << fullck.substr(0, fullck.size() / 2 + 3);
+    fs::remove(box.path("fullck.trace"));
     const std::string z = slurp(box.path("z.trace"));
     std::ofstream(box.path("zcut.trace"), std::ios::binary) << z.substr(0, z.size() - 1);
     fs::remove(box.path("full.trace"));
@@ -238,6 +250,8 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   expect_cli_error(box, "run --trace truncated.trace" + outs, {"truncated.trace", trunc_rec + ":"});
   expect_cli_error(box, "run --trace zcut.trace" + outs, {"zcut.trace", zcut_rec + ":"});
   expect_cli_error(box, "trace validate truncated.trace", {"truncated.trace", trunc_rec + ":"});
+  expect_cli_error(box, "trace validate truncatedck.trace", {"truncatedck.trace: block ", "runs past the end"});
+  expect_cli_error(box, "run --trace truncatedck.trace" + outs, {"truncatedck.trace: block ", "runs past the end"});
   expect_cli_error(box, "trace info zcut.trace", {"zcut.trace", zcut_rec + ":"});
   expect_cli_error(box, "run --trace nonexistent.trace" + outs, {"nonexistent.trace"});
   expect_cli_error(box, "trace info nonexistent.trace", {"nonexistent.trace"});
@@ -269,7 +283,9 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
 
 TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
   CliSandbox box;
-  expect_ok(box.run("scene enderton-1 --spp 4 --compression none -o e.trace"), "scene enderton-1");
+  // Unflagged traces are parsed record by record; a checksummed one block by block
+  // (a block is verified before any of its records is handed on).
+  expect_ok(box.run("scene enderton-1 --spp 4 --compression none --no-checksum -o e.trace"), "scene enderton-1");
   size_t header_bytes = 0, record_bytes = 0;
   {
     ropsim::TraceReader r(box.path("e.trace"));
