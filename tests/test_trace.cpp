@@ -1622,4 +1622,24 @@ TEST(ChecksumReaderRefuses, AValidBlockIsVerifiedBeforeItsRecordsAreParsed) {
   EXPECT_EQ(handed, b.block_first[1]) << "records of a block were handed out before its checksum was verified";
 }
 
+TEST(ChecksumFormat, KeptRegressionInputs) {
+  // fuzz/regressions/trace/ keeps a checksummed trace and the same trace with
+  // one bit flipped in its only block (the fuzz target replays both).
+  const fs::path dir = fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace";
+  {
+    TraceReader r((dir / "eight-layers-8x8-none-checksummed.rtrace").string());
+    EXPECT_TRUE(r.header().checksummed);
+    Fragment f;
+    uint64_t n = 0;
+    while (r.next(f)) ++n;
+    EXPECT_EQ(n, 576u);
+    EXPECT_EQ(r.blocks_read(), 1u);
+  }
+  const std::string flipped = (dir / "checksum-bit-flip-in-block.rtrace").string();
+  uint64_t handed = 0;
+  const std::string msg = read_until_error(flipped, handed);
+  EXPECT_EQ(msg.rfind(flipped + ": block 0 (records from 0, payload byte 0): checksum mismatch", 0), 0u) << msg;
+  EXPECT_EQ(handed, 0u);
+}
+
 }  // namespace
