@@ -54,9 +54,13 @@ if [ ! -d "$seeds" ]; then
           for d in plane per-sample; do
             i=$((i + 1))
             spp=$((1 << (i % 7)))
-            ASAN_OPTIONS=detect_leaks=0 "$b/ropsim" scene "$s" --width 12 --height 10 --spp "$spp" --compression "$c" \
-              --depth "$d" --color "$([ $((i % 2)) = 0 ] && echo rgb-f32 || echo rgb-unorm8)" \
-              -o "$seeds.tmp/$s-$c-$d.rtrace" >/dev/null
+            # Checksummed (the default) and not: mutations of a checksummed seed mostly stop at
+            # the block checksum, so the unflagged seeds keep the record parser fuzzed.
+            for k in checksum no-checksum; do
+              ASAN_OPTIONS=detect_leaks=0 "$b/ropsim" scene "$s" --width 12 --height 10 --spp "$spp" --compression "$c" \
+                --depth "$d" --color "$([ $((i % 2)) = 0 ] && echo rgb-f32 || echo rgb-unorm8)" \
+                $([ $k = no-checksum ] && echo --no-checksum) -o "$seeds.tmp/$s-$c-$d-$k.rtrace" >/dev/null
+            done
           done
         done
       done

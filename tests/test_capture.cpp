@@ -665,6 +665,21 @@ TEST(CaptureCli, WritesAValidTraceWithoutAProgressBarWhenNotATerminal) {
   sa << a.rdbuf();
   sb << b.rdbuf();
   EXPECT_TRUE(sa.str() == sb.str()) << "two captures of one scene differ";
+  EXPECT_TRUE(tr.header().checksummed) << "capture writes a checksummed payload by default";
+  // --no-checksum: the same fragments, in the layout without checksum records.
+  ASSERT_EQ(
+      run_cli(box, "capture '" + scene + "' --quiet --no-checksum -o '" + box.path("p.trace") + "' --spp 8 --width 50")
+          .code,
+      0);
+  TraceReader tp(box.path("p.trace"));
+  EXPECT_FALSE(tp.header().checksummed);
+  TraceReader tg(box.path("g.trace"));
+  uint64_t same = 0;
+  for (Fragment f, g; tp.next(f);) {
+    ASSERT_TRUE(tg.next(g)) << "the --no-checksum trace has more fragments";
+    same += f.prim_id == g.prim_id && f.x == g.x && f.y == g.y && f.coverage == g.coverage;
+  }
+  EXPECT_EQ(same, n) << "the --no-checksum trace holds other fragments";
 }
 
 // The committed scene files parse, and load their meshes where present.

@@ -163,13 +163,20 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
 
   r = box.run("trace validate cloth4.trace");
   expect_ok(r, "trace validate");
-  EXPECT_EQ(r.out, "cloth4.trace: valid, " + n_frags + " fragments\n") << r.describe();
+  // The default trace is checksummed (docs/trace-format.md 2.3): validate names the blocks it verified.
+  EXPECT_EQ(r.out.rfind("cloth4.trace: valid, " + n_frags + " fragments, ", 0), 0u) << r.describe();
+  EXPECT_NE(r.out.find(" checksummed blocks verified\n"), std::string::npos) << r.describe();
+  expect_ok(box.run("scene cloth --spp 4 --no-checksum -o plain4.trace"), "scene --no-checksum");
+  r = box.run("trace validate plain4.trace");
+  expect_ok(r, "trace validate (no checksum)");
+  EXPECT_EQ(r.out, "plain4.trace: valid, " + n_frags + " fragments (no checksum)\n") << r.describe();
+  fs::remove(box.path("plain4.trace"));
 
   r = box.run("trace info cloth4.trace");
   expect_ok(r, "trace info");
   for (const std::string& s :
        {std::string("scene cloth"), std::string("256x256"), std::string("4 spp"), std::string("depth plane"),
-        std::string("compression zstd"), "fragments " + n_frags + " "})
+        std::string("compression zstd"), std::string("checksum xxh3-64, "), "fragments " + n_frags + " "})
     EXPECT_NE(r.out.find(s), std::string::npos) << "trace info lacks \"" << s << "\"\n" << r.describe();
 
   r = box.run("trace dump cloth4.trace --limit 3");
@@ -189,6 +196,7 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
   EXPECT_EQ(js[0].value("spp", 0), 4) << lines[0];
   EXPECT_EQ(js[0].value("width", 0), 256) << lines[0];
   EXPECT_EQ(js[0].value("scene", ""), "cloth") << lines[0];
+  EXPECT_EQ(js[0].value("checksummed", false), true) << lines[0];
   ASSERT_TRUE(js[0].contains("sample_positions_256ths")) << lines[0];
   EXPECT_EQ(js[0]["sample_positions_256ths"].size(), 4u) << lines[0];
   // The fragments are the trace's first three, as the library reads them.
@@ -218,11 +226,16 @@ TEST(Cli, SceneThenTraceValidateInfoDumpAndRun) {
 TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   CliSandbox box;
   // A truncated uncompressed trace, and a compressed one missing its last byte.
-  expect_ok(box.run("scene cloth --spp 4 --compression none -o full.trace"), "scene --compression none");
+  // (Without checksums, so the reader names the cut record; a checksummed trace names the block.)
+  expect_ok(box.run("scene cloth --spp 4 --compression none --no-checksum -o full.trace"), "scene --compression none");
+  expect_ok(box.run("scene cloth --spp 4 --compression none -o fullck.trace"), "scene --compression none");
   expect_ok(box.run("scene enderton-1 --spp 4 -o z.trace"), "scene enderton-1");
   {
     const std::string full = slurp(box.path("full.trace"));
     std::ofstream(box.path("truncated.trace"), std::ios::binary) << full.substr(0, full.size() / 2 + 3);
+    const std::string fullck = slurp(box.path("fullck.trace"));
+    std::ofstream(box.path("truncatedck.trace"), std::ios::binary) << fullck.substr(0, fullck.size() / 2 + 3);
+    fs::remove(box.path("fullck.trace"));
     const std::string z = slurp(box.path("z.trace"));
     std::ofstream(box.path("zcut.trace"), std::ios::binary) << z.substr(0, z.size() - 1);
     fs::remove(box.path("full.trace"));
@@ -238,6 +251,8 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   expect_cli_error(box, "run --trace truncated.trace" + outs, {"truncated.trace", trunc_rec + ":"});
   expect_cli_error(box, "run --trace zcut.trace" + outs, {"zcut.trace", zcut_rec + ":"});
   expect_cli_error(box, "trace validate truncated.trace", {"truncated.trace", trunc_rec + ":"});
+  expect_cli_error(box, "trace validate truncatedck.trace", {"truncatedck.trace: block ", "runs past the end"});
+  expect_cli_error(box, "run --trace truncatedck.trace" + outs, {"truncatedck.trace: block ", "runs past the end"});
   expect_cli_error(box, "trace info zcut.trace", {"zcut.trace", zcut_rec + ":"});
   expect_cli_error(box, "run --trace nonexistent.trace" + outs, {"nonexistent.trace"});
   expect_cli_error(box, "trace info nonexistent.trace", {"nonexistent.trace"});
@@ -269,7 +284,9 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
 
 TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
   CliSandbox box;
-  expect_ok(box.run("scene enderton-1 --spp 4 --compression none -o e.trace"), "scene enderton-1");
+  // Unflagged traces are parsed record by record; a checksummed one block by block
+  // (a block is verified before any of its records is handed on).
+  expect_ok(box.run("scene enderton-1 --spp 4 --compression none --no-checksum -o e.trace"), "scene enderton-1");
   size_t header_bytes = 0, record_bytes = 0;
   {
     ropsim::TraceReader r(box.path("e.trace"));
@@ -283,6 +300,40 @@ TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
   expect_ok(r, "trace dump --limit 3 of a trace whose record 3 is cut");
   EXPECT_EQ(lines_of(r.out).size(), 4u) << r.describe();
   expect_cli_error(box, "trace dump cut.trace --limit 4", {"cut.trace", "record 3:"});
+}
+
+TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
+  // fuzz/regressions/trace/ keeps two traces written before the checksum
+  // existed (header flags 0): --no-checksum must reproduce them byte for byte,
+  // uncompressed and zstd. The default writes the checksummed layout instead.
+  CliSandbox box;
+  const fs::path kept = fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"scene eight-layers --width 8 --height 8 --spp 4 --compression none", "eight-layers-8x8-none.rtrace"},
+      {"scene testcard --width 8 --height 8 --spp 4 --depth per-sample --color rgb-unorm8",
+       "testcard-8x8-zstd-persample-unorm8.rtrace"}};
+  for (const auto& [args, file] : cases) {
+    const std::string before = slurp(kept / file);
+    ASSERT_GT(before.size(), 48u) << file;
+    ASSERT_EQ(before[10], 0) << file << " should be a trace without the checksum flag";
+    expect_ok(box.run(args + " --no-checksum -o plain.trace"), args + " --no-checksum");
+    EXPECT_TRUE(slurp(box.path("plain.trace")) == before) << args << " --no-checksum differs from " << file;
+    expect_ok(box.run(args + " -o ck.trace"), args);
+    const std::string ck = slurp(box.path("ck.trace"));
+    ASSERT_GT(ck.size(), 48u);
+    EXPECT_EQ(ck[10], 1) << args << ": the default trace must carry the checksum flag";
+    const CliResult r = box.run("trace info ck.trace --json");
+    expect_ok(r, "trace info --json");
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["checksum"].value("hash", ""), "xxh3-64") << r.out;
+    EXPECT_EQ(j["checksum"].value("blocks", 0), 1) << r.out;
+    EXPECT_EQ(j["header"].value("checksummed", false), true) << r.out;
+    const CliResult p = box.run("trace info plain.trace --json");
+    EXPECT_TRUE(nlohmann::json::parse(p.out)["checksum"].is_null()) << p.out;
+    EXPECT_TRUE(box.run("trace info plain.trace").out.find("checksum none") != std::string::npos);
+    fs::remove(box.path("plain.trace"));
+    fs::remove(box.path("ck.trace"));
+  }
 }
 
 TEST(Cli, SameInputsAndSeedGiveIdenticalOutputs) {

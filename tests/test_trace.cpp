@@ -7,6 +7,7 @@
 // produces exactly the bytes the specification describes.
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <xxhash.h>
 #include <zstd.h>
 
 #include <chrono>
@@ -17,6 +18,7 @@
 #include <functional>
 #include <limits>
 #include <random>
+#include <regex>
 #include <set>
 #include <string>
 #include <tuple>
@@ -122,7 +124,7 @@ std::vector<uint8_t> encode_header(const TraceHeader& h) {
   std::vector<uint8_t> o;
   for (char c : kTraceMagic) o.push_back(uint8_t(c));  // 0: magic
   put16(o, kTraceVersion);                             // 8: version
-  put16(o, 0);                                         // 10: reserved
+  put16(o, h.checksummed ? 1 : 0);                     // 10: flags (bit 0: checksummed)
   put32(o, h.width);                                   // 12
   put32(o, h.height);                                  // 16
   put8(o, uint8_t(h.spp));                             // 20
@@ -201,6 +203,7 @@ TraceHeader make_header(int spp, DepthMode d, ColorFormat c, Compression z, uint
   h.clear_depth = 0.75f;
   h.positions = standard_sample_positions(spp);
   h.scene_name = "round-trip \xc3\xbc scene";
+  h.checksummed = false;  // the record-by-record layout; checksummed traces: make_ck_header()
   return h;
 }
 
@@ -305,15 +308,16 @@ long long record_in(const std::string& msg) {
 
 // ------------------------------------------------------------------ round trips
 
-using Combo = std::tuple<DepthMode, ColorFormat, Compression, int>;
+using Combo = std::tuple<DepthMode, ColorFormat, Compression, int, bool>;  // bool: checksummed
 
 class RoundTrip : public ::testing::TestWithParam<Combo> {};
 
 TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
-  const auto [depth, colour, comp, spp] = GetParam();
+  const auto [depth, colour, comp, spp, checksummed] = GetParam();
   TempDir tmp;
   const std::string path = tmp.path("rt.trace");
   TraceHeader h = make_header(spp, depth, colour, comp);
+  h.checksummed = checksummed;
   // Positions other than the standard ones must survive too.
   for (int i = 0; i < spp; ++i) h.positions[i] = SamplePos{uint8_t(i * 37 + 5), uint8_t(255 - i * 3)};
   const std::vector<Fragment> frags = make_fragments(h, 300, 1000 + spp);
@@ -340,6 +344,7 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
   EXPECT_EQ(g.depth_mode, h.depth_mode);
   EXPECT_EQ(g.color_format, h.color_format);
   EXPECT_EQ(g.compression, h.compression);
+  EXPECT_EQ(g.checksummed, h.checksummed);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(bits(g.clear_color[i]), bits(h.clear_color[i])) << "clear colour channel " << i;
   EXPECT_EQ(bits(g.clear_depth), bits(h.clear_depth));
   EXPECT_EQ(g.scene_name, h.scene_name);
@@ -386,10 +391,10 @@ TEST_P(RoundTrip, HeaderAndEveryFragmentFieldSurvive) {
 }
 
 std::string combo_name(const ::testing::TestParamInfo<Combo>& info) {
-  const auto [d, c, z, spp] = info.param;
+  const auto [d, c, z, spp, ck] = info.param;
   std::string s = std::string(d == DepthMode::kPlane ? "Plane" : "PerSample") +
                   (c == ColorFormat::kRgbF32 ? "F32" : "Unorm8") + (z == Compression::kZstd ? "Zstd" : "Raw") +
-                  std::to_string(spp) + "spp";
+                  std::to_string(spp) + "spp" + (ck ? "Checksummed" : "");
   return s;
 }
 
@@ -397,7 +402,7 @@ INSTANTIATE_TEST_SUITE_P(AllCombinations, RoundTrip,
                          ::testing::Combine(::testing::Values(DepthMode::kPlane, DepthMode::kPerSample),
                                             ::testing::Values(ColorFormat::kRgbF32, ColorFormat::kRgbUnorm8),
                                             ::testing::Values(Compression::kZstd, Compression::kNone),
-                                            ::testing::ValuesIn(kSpps)),
+                                            ::testing::ValuesIn(kSpps), ::testing::Bool()),
                          combo_name);
 
 TEST(TraceFormat, WriterBytesMatchTheSpecification) {
@@ -596,10 +601,11 @@ TEST(TraceFormat, StandardSamplePositions) {
 
 // ------------------------------------------------------------------ streaming
 
-TEST(TraceStreaming, TwoMillionFragmentsInConstantMemory) {
+void read_two_million(bool checksummed) {
   TempDir tmp;
   const std::string path = tmp.path("big.trace");
-  const TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kZstd, 1024, 1024);
+  TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kZstd, 1024, 1024);
+  h.checksummed = checksummed;
   constexpr uint64_t kN = 2'000'000;
   {
     TraceWriter w(path, h, 1);
@@ -639,8 +645,16 @@ TEST(TraceStreaming, TwoMillionFragmentsInConstantMemory) {
   EXPECT_LT(grew_mib, 16.0) << "reading " << kN << " fragments grew VmRSS by " << grew_mib << " MiB (from "
                             << rss_before << " to " << rss_after << " bytes): the reader does not stream";
   EXPECT_LT(secs, 5.0) << "reading " << kN << " fragments took " << secs << " s";
-  std::printf("[ info     ] read %llu fragments (%.1f MB file) in %.2f s; VmRSS grew %.2f MiB\n",
-              static_cast<unsigned long long>(n), fs::file_size(path) / 1e6, secs, grew_mib);
+  std::printf("[ info     ] read %llu fragments (%.1f MB file%s) in %.2f s; VmRSS grew %.2f MiB\n",
+              static_cast<unsigned long long>(n), fs::file_size(path) / 1e6, checksummed ? ", checksummed" : "", secs,
+              grew_mib);
+}
+
+TEST(TraceStreaming, TwoMillionFragmentsInConstantMemory) {
+  for (bool checksummed : {false, true}) {
+    SCOPED_TRACE(checksummed ? "checksummed" : "without checksum");
+    read_two_million(checksummed);
+  }
 }
 
 // ------------------------------------------------------------------ the writer refuses
@@ -1100,7 +1114,10 @@ TEST(TraceReaderRefuses, BadRecordStructure) {
       auto p = std::vector<uint8_t>(b.payload.begin(), b.payload.begin() + long(b.record_offsets[4]));
       p.push_back(tag);
       p.insert(p.end(), b.payload.begin() + long(b.record_offsets[4]) + 1, b.payload.end());
-      check("unknown record tag", p, 4, ("unknown record tag " + std::to_string(tag)).c_str());
+      // Tag 2 is the checksum record: refused in a trace whose header does not flag checksums.
+      const std::string needle = tag == kTagChecksum ? "checksum record (tag 2) in a trace whose header does not flag"
+                                                     : "unknown record tag " + std::to_string(tag);
+      check("unknown record tag", p, 4, needle.c_str());
     }
     {
       std::vector<uint8_t> p;
@@ -1160,6 +1177,478 @@ TEST(TraceReaderRefuses, CorruptCompressedData) {
     EXPECT_GE(record_in(msg), 0) << "error does not name a record: " << msg;
   }
   EXPECT_EQ(corrupted, 8);
+}
+
+// ------------------------------------------------------------------ checksummed payloads (section 2.3)
+
+/// Header for a checksummed trace (make_header writes the unflagged layout).
+TraceHeader make_ck_header(int spp, DepthMode d, ColorFormat c, Compression z) {
+  TraceHeader h = make_header(spp, d, c, z);
+  h.checksummed = true;
+  return h;
+}
+
+/// A checksummed payload built from the specification: the fragment records in
+/// blocks of at most 65536 bytes (a block is closed when the next record would
+/// not fit), each block preceded by a checksum record (tag 2, u32 length, u64
+/// XXH3-64 of the block, seed 0), then the end record.
+struct CkBuilt {
+  TraceHeader h;
+  std::vector<uint8_t> header, payload;
+  std::vector<size_t> block_offsets;   ///< payload offset of each block's checksum record
+  std::vector<uint64_t> block_first;   ///< number of each block's first record
+  std::vector<size_t> record_offsets;  ///< payload offset of each fragment record; last: the end record
+};
+
+CkBuilt build_checksummed(const TraceHeader& h, const std::vector<Fragment>& frags) {
+  CkBuilt b;
+  b.h = h;
+  b.h.checksummed = true;
+  b.header = encode_header(b.h);
+  std::vector<std::vector<uint8_t>> recs;
+  for (const Fragment& f : frags) {
+    recs.emplace_back();
+    encode_fragment(recs.back(), b.h, f);
+  }
+  for (size_t i = 0; i < recs.size();) {
+    size_t j = i, len = 0;
+    while (j < recs.size() && len + recs[j].size() <= 65536) len += recs[j++].size();
+    std::vector<uint8_t> block;
+    for (size_t k = i; k < j; ++k) block.insert(block.end(), recs[k].begin(), recs[k].end());
+    b.block_offsets.push_back(b.payload.size());
+    b.block_first.push_back(i);
+    put8(b.payload, 0x02);
+    put32(b.payload, uint32_t(block.size()));
+    put64(b.payload, XXH3_64bits(block.data(), block.size()));
+    for (size_t k = i; k < j; ++k) {
+      b.record_offsets.push_back(b.payload.size());
+      b.payload.insert(b.payload.end(), recs[k].begin(), recs[k].end());
+    }
+    i = j;
+  }
+  b.record_offsets.push_back(b.payload.size());
+  encode_end(b.payload, recs.size());
+  return b;
+}
+
+std::vector<uint8_t> zstd_decompress(const uint8_t* data, size_t size) {
+  std::vector<uint8_t> out, buf(ZSTD_DStreamOutSize());
+  ZSTD_DCtx* d = ZSTD_createDCtx();
+  ZSTD_inBuffer in{data, size, 0};
+  size_t r = 1;
+  while (r != 0 && !ZSTD_isError(r)) {
+    ZSTD_outBuffer o{buf.data(), buf.size(), 0};
+    r = ZSTD_decompressStream(d, &o, &in);
+    out.insert(out.end(), buf.begin(), buf.begin() + long(o.pos));
+    if (in.pos == in.size && o.pos == 0 && r != 0) break;
+  }
+  EXPECT_FALSE(ZSTD_isError(r)) << ZSTD_getErrorName(r);
+  ZSTD_freeDCtx(d);
+  return out;
+}
+
+/// "block K (records from A, payload byte O)", as the reader names a block.
+std::string block_name(const CkBuilt& b, size_t k) {
+  return "block " + std::to_string(k) + " (records from " + std::to_string(b.block_first[k]) + ", payload byte " +
+         std::to_string(b.block_offsets[k]) + ")";
+}
+
+/// Reads a trace until it throws; returns the message ("" and a failure when it
+/// does not throw) and the number of fragments next() handed out before.
+std::string read_until_error(const std::string& path, uint64_t& handed_out) {
+  handed_out = 0;
+  try {
+    TraceReader r(path);
+    Fragment f;
+    while (r.next(f)) ++handed_out;
+    ADD_FAILURE() << path << ": expected a TraceError, but the whole trace was read";
+  } catch (const TraceError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void expect_one_line_from(const std::string& msg, const std::string& path) {
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << "error is not one line: " << msg;
+  EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << "error does not start with the file " << path << ": " << msg;
+}
+
+TEST(ChecksumFormat, WriterBytesMatchTheSpecification) {
+  // Uncompressed: the whole file byte for byte. zstd: the header byte for byte
+  // and the decompressed payload (the blocks live inside the decompressed stream).
+  TempDir tmp;
+  for (Compression z : {Compression::kNone, Compression::kZstd})
+    for (DepthMode d : {DepthMode::kPlane, DepthMode::kPerSample})
+      for (ColorFormat c : {ColorFormat::kRgbF32, ColorFormat::kRgbUnorm8})
+        for (int spp : kSpps) {
+          SCOPED_TRACE(std::string(to_string(z)) + "/" + to_string(d) + "/" + to_string(c) + "/" + std::to_string(spp) +
+                       " spp");
+          const TraceHeader h = make_ck_header(spp, d, c, z);
+          const auto frags = make_fragments(h, 4000, 700 + spp);
+          const std::string path = tmp.path("ck.trace");
+          uint64_t writer_blocks = 0;
+          {
+            TraceWriter w(path, h);
+            for (const auto& f : frags) w.write(f);
+            w.finish();
+            writer_blocks = w.blocks();
+          }
+          const CkBuilt b = build_checksummed(h, frags);
+          ASSERT_GE(b.block_offsets.size(), 2u) << "the test data should span several blocks";
+          EXPECT_EQ(writer_blocks, b.block_offsets.size());
+          const std::vector<uint8_t> got = read_file(path);
+          ASSERT_GE(got.size(), b.header.size());
+          EXPECT_EQ(got[10], 1) << "header flags (offset 10) must be 1: the payload is checksummed";
+          EXPECT_EQ(got[11], 0);
+          EXPECT_TRUE(std::equal(b.header.begin(), b.header.end(), got.begin())) << "header bytes differ";
+          const std::vector<uint8_t> payload =
+              z == Compression::kNone ? std::vector<uint8_t>(got.begin() + long(b.header.size()), got.end())
+                                      : zstd_decompress(got.data() + b.header.size(), got.size() - b.header.size());
+          ASSERT_EQ(payload.size(), b.payload.size()) << "payload size";
+          size_t first_diff = 0;
+          while (first_diff < payload.size() && payload[first_diff] == b.payload[first_diff]) ++first_diff;
+          EXPECT_EQ(first_diff, payload.size()) << "first differing payload byte at offset " << first_diff;
+          TraceReader r(path);
+          Fragment f;
+          uint64_t n = 0;
+          while (r.next(f)) ++n;
+          EXPECT_EQ(n, frags.size());
+          EXPECT_EQ(r.blocks_read(), b.block_offsets.size());
+          EXPECT_EQ(r.payload_bytes(), b.payload.size() - 13 * b.block_offsets.size())
+              << "payload_bytes counts fragment and end records, not checksum records";
+        }
+}
+
+TEST(ChecksumFormat, ABlockHoldsAtMost65536BytesOfWholeRecords) {
+  // Per-sample depth, rgb-unorm8, 32 spp, 2 covered samples: 32-byte records,
+  // so 2048 of them fill a block exactly and the 2049th opens a second block.
+  TempDir tmp;
+  const TraceHeader h = make_ck_header(32, DepthMode::kPerSample, ColorFormat::kRgbUnorm8, Compression::kNone);
+  ASSERT_EQ(fragment_record_bytes(h, 2), 32u);
+  for (size_t n : {size_t(2047), size_t(2048), size_t(2049)}) {
+    SCOPED_TRACE(std::to_string(n) + " fragments");
+    Fragment f = one_valid_fragment(h);
+    f.coverage = 0x3;
+    const std::string path = tmp.path("edge.trace");
+    {
+      TraceWriter w(path, h);
+      for (size_t i = 0; i < n; ++i) {
+        f.prim_id = uint32_t(i);
+        w.write(f);
+      }
+      w.finish();
+    }
+    const std::vector<uint8_t> file = read_file(path);
+    const size_t H = encode_header(h).size();
+    ASSERT_GT(file.size(), H + 13);
+    EXPECT_EQ(file[H], kTagChecksum);
+    const uint32_t len0 =
+        uint32_t(file[H + 1]) | uint32_t(file[H + 2]) << 8 | uint32_t(file[H + 3]) << 16 | uint32_t(file[H + 4]) << 24;
+    EXPECT_EQ(len0, 32 * std::min<size_t>(n, 2048)) << "first block length";
+    const size_t after = H + 13 + len0;
+    ASSERT_LT(after, file.size());
+    EXPECT_EQ(file[after], n > 2048 ? kTagChecksum : kTagEnd) << "what follows the first block";
+    if (n > 2048) {
+      EXPECT_EQ(file[after + 1], 32) << "the second block holds the one remaining record";
+    }
+    EXPECT_EQ(file.size(), H + 13 * (n > 2048 ? 2 : 1) + 32 * n + 9) << "file size";
+  }
+}
+
+TEST(ChecksumFormat, EmptyTraceHasNoBlock) {
+  TempDir tmp;
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    const TraceHeader h = make_ck_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, z);
+    const std::string path = tmp.path("empty.trace");
+    {
+      TraceWriter w(path, h);
+      w.finish();
+      EXPECT_EQ(w.blocks(), 0u);
+    }
+    const CkBuilt b = build_checksummed(h, {});
+    EXPECT_EQ(b.payload.size(), 9u) << "header + end record only";
+    const std::vector<uint8_t> got = read_file(path);
+    if (z == Compression::kNone) {
+      EXPECT_EQ(got, assemble(b.h, b.payload));
+    }
+    TraceReader r(path);
+    EXPECT_TRUE(r.header().checksummed);
+    Fragment f;
+    EXPECT_FALSE(r.next(f));
+    EXPECT_EQ(r.blocks_read(), 0u);
+  }
+}
+
+TEST(ChecksumFlips, EveryRegionNamesTheBlockBothEncodings) {
+  // A byte flipped in each region of a checksummed payload: a checksum record's
+  // tag, length and hash, records at the start, middle and end of blocks, the
+  // end record's tag and count. Uncompressed, and zstd (the flip is made in the
+  // decompressed stream, and the frame has no zstd checksum, so the trace's own
+  // checksum must catch it). No fragment of a damaged block is handed out.
+  TempDir tmp;
+  const TraceHeader h16 = make_ck_header(16, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  const auto frags = make_fragments(h16, 5000, 31);
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    TraceHeader h = h16;
+    h.compression = z;
+    const CkBuilt b = build_checksummed(h, frags);
+    const size_t nb = b.block_offsets.size();
+    ASSERT_GE(nb, 3u);
+    const size_t end = b.record_offsets.back();
+    const size_t mid1 = b.record_offsets[b.block_first[1] + (b.block_first[2] - b.block_first[1]) / 2];
+    struct Region {
+      const char* what;
+      size_t at;   ///< payload offset of the flipped byte
+      long block;  ///< the block named; -1: the end record
+      const char* needle;
+    };
+    const std::vector<Region> regions = {
+        {"block 0 checksum tag", b.block_offsets[0], 0, "expected a checksum record"},
+        {"block 0 length, low byte", b.block_offsets[0] + 1, 0, ""},
+        {"block 1 length, high byte", b.block_offsets[1] + 4, 1, "exceeds the limit"},
+        {"block 2 hash", b.block_offsets[2] + 8, 2, "checksum mismatch"},
+        {"block 0 first record tag", b.record_offsets[0], 0, "checksum mismatch"},
+        {"block 1 middle record, opacity", mid1 + 42, 1, "checksum mismatch"},
+        {"block 1 middle record, x", mid1 + 9, 1, "checksum mismatch"},
+        {"last byte of the last block", end - 1, long(nb - 1), "checksum mismatch"},
+        {"end record tag", end, long(nb), "expected a checksum record (tag 2) or the end record"},
+        {"end record count", end + 1, -1, "end record counts"},
+        {"end record count, top byte", end + 8, -1, "end record counts"},
+    };
+    for (const Region& g : regions)
+      for (uint8_t mask : {uint8_t(0x01), uint8_t(0x80)}) {
+        SCOPED_TRACE(std::string(to_string(z)) + ": " + g.what + ", xor " + std::to_string(mask));
+        std::vector<uint8_t> p = b.payload;
+        p[g.at] ^= mask;
+        const std::string path = tmp.path("flip.trace");
+        write_file(path, assemble(b.h, p));
+        uint64_t handed = 0;
+        const std::string msg = read_until_error(path, handed);
+        if (msg.empty()) continue;
+        expect_one_line_from(msg, path);
+        EXPECT_NE(msg.find(g.needle), std::string::npos) << "error lacks \"" << g.needle << "\": " << msg;
+        if (g.block >= 0) {
+          const std::string want = g.block < long(nb) ? block_name(b, size_t(g.block))
+                                                      : "block " + std::to_string(nb) + " (records from " +
+                                                            std::to_string(frags.size()) + ", payload byte " +
+                                                            std::to_string(end) + ")";
+          EXPECT_EQ(msg.rfind(path + ": " + want + ": ", 0), 0u) << "error does not name " << want << ": " << msg;
+          const uint64_t first = g.block < long(nb) ? b.block_first[size_t(g.block)] : frags.size();
+          EXPECT_EQ(handed, first) << "fragments of a damaged block were handed out before it was verified";
+        } else {
+          const std::string want =
+              "end record at payload byte " + std::to_string(end) + " (after " + std::to_string(nb) + " blocks)";
+          EXPECT_EQ(msg.rfind(path + ": " + want + ": ", 0), 0u) << "error does not name " << want << ": " << msg;
+        }
+      }
+  }
+}
+
+TEST(ChecksumFlips, SweepOfTheWritersFilesBothEncodings) {
+  // Every 499th byte after the header of a checksummed trace written by
+  // TraceWriter, flipped: each is refused in one line naming a block (or the end
+  // record). For zstd files the flip is in the compressed frame (zstd's own
+  // frame checksum or data checks may find it first; the block is still named).
+  TempDir tmp;
+  const std::regex names_block(
+      ": (block [0-9]+ \\(records from [0-9]+, payload byte [0-9]+\\)|end record at payload byte [0-9]+ "
+      "\\(after [0-9]+ blocks\\)): ");
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    const TraceHeader h = make_ck_header(8, DepthMode::kPerSample, ColorFormat::kRgbF32, z);
+    const std::string good = tmp.path("good.trace");
+    {
+      TraceWriter w(good, h);
+      for (const auto& f : make_fragments(h, 4000, 5)) w.write(f);
+      w.finish();
+    }
+    const std::vector<uint8_t> file = read_file(good);
+    const size_t H = encode_header(h).size();
+    int tried = 0;
+    for (size_t at = H; at < file.size(); at += (z == Compression::kNone ? 499 : 97)) {
+      std::vector<uint8_t> bad = file;
+      bad[at] ^= 0x10;
+      const std::string path = tmp.path("sweep.trace");
+      write_file(path, bad);
+      SCOPED_TRACE(std::string(to_string(z)) + ": byte " + std::to_string(at) + " of " + std::to_string(file.size()));
+      uint64_t handed = 0;
+      const std::string msg = read_until_error(path, handed);
+      if (msg.empty()) continue;
+      ++tried;
+      expect_one_line_from(msg, path);
+      EXPECT_TRUE(std::regex_search(msg, names_block)) << "error does not name a block: " << msg;
+    }
+    EXPECT_GE(tried, 20) << "too few positions tried";
+  }
+}
+
+TEST(ChecksumReaderRefuses, TruncatedBlocksAndBadLengths) {
+  TempDir tmp;
+  const TraceHeader h0 = make_ck_header(4, DepthMode::kPerSample, ColorFormat::kRgbUnorm8, Compression::kNone);
+  const auto frags = make_fragments(h0, 9000, 77);
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    TraceHeader hz = h0;
+    hz.compression = z;
+    const CkBuilt b = build_checksummed(hz, frags);
+    ASSERT_GE(b.block_offsets.size(), 4u);
+    const size_t nb = b.block_offsets.size(), end = b.record_offsets.back();
+    auto set_len = [](std::vector<uint8_t>& p, size_t block_at, uint32_t len) {
+      for (int i = 0; i < 4; ++i) p[block_at + 1 + size_t(i)] = uint8_t(len >> (8 * i));
+    };
+    auto get_len = [&](size_t k) {
+      const size_t a = b.block_offsets[k] + 1;
+      return uint32_t(b.payload[a]) | uint32_t(b.payload[a + 1]) << 8 | uint32_t(b.payload[a + 2]) << 16 |
+             uint32_t(b.payload[a + 3]) << 24;
+    };
+    auto rehash = [](std::vector<uint8_t>& p, size_t block_at, uint32_t len) {
+      const uint64_t x = XXH3_64bits(p.data() + block_at + 13, len);
+      for (int i = 0; i < 8; ++i) p[block_at + 5 + size_t(i)] = uint8_t(x >> (8 * i));
+    };
+    struct Case {
+      const char* what;
+      std::vector<uint8_t> payload;
+      std::string names;  ///< the start of the message after "PATH: "
+      std::string needle;
+      TraceHeader h;
+    };
+    std::vector<Case> cases;
+    auto add = [&](const char* what, std::vector<uint8_t> p, std::string names, std::string needle,
+                   const TraceHeader* h = nullptr) {
+      cases.push_back({what, std::move(p), std::move(names), std::move(needle), h ? *h : b.h});
+    };
+    add("cut in the middle of block 1",
+        std::vector<uint8_t>(b.payload.begin(), b.payload.begin() + long(b.block_offsets[1] + 13 + 100)),
+        block_name(b, 1), "runs past the end of the payload (100 bytes follow the checksum record)");
+    add("cut inside the checksum record of block 2",
+        std::vector<uint8_t>(b.payload.begin(), b.payload.begin() + long(b.block_offsets[2] + 5)), block_name(b, 2),
+        "truncated in the checksum record (5 of 13 bytes)");
+    add("cut just before the end record", std::vector<uint8_t>(b.payload.begin(), b.payload.begin() + long(end)),
+        "block " + std::to_string(nb), "ends without an end record");
+    {
+      auto p = b.payload;
+      set_len(p, b.block_offsets[1], 0);
+      add("block length 0", p, block_name(b, 1), "block length 0");
+    }
+    {
+      auto p = b.payload;
+      set_len(p, b.block_offsets[1], (1u << 20) + 1);
+      add("block length above 1 MiB", p, block_name(b, 1), "block length 1048577 exceeds the limit of 1048576");
+    }
+    {
+      auto p = b.payload;
+      set_len(p, b.block_offsets[nb - 1], get_len(nb - 1) + 9 + 1);
+      add("last block length runs past the end", p, block_name(b, nb - 1), "runs past the end of the payload");
+    }
+    {
+      auto p = b.payload;
+      set_len(p, b.block_offsets[nb - 1], get_len(nb - 1) + 9);
+      add("last block length swallows the end record", p, block_name(b, nb - 1), "checksum mismatch");
+    }
+    {
+      // A shorter length with a matching hash: the block is intact, but its last record crosses its end.
+      auto p = b.payload;
+      set_len(p, b.block_offsets[1], get_len(1) - 3);
+      rehash(p, b.block_offsets[1], get_len(1) - 3);
+      const uint64_t last = b.block_first[2] - 1;
+      add("a record crossing the end of its block", p, block_name(b, 1),
+          "record " + std::to_string(last) + ": the record runs past the end of its block");
+    }
+    {
+      // The end record inside the last block (its length and hash cover it).
+      auto p = b.payload;
+      set_len(p, b.block_offsets[nb - 1], get_len(nb - 1) + 9);
+      rehash(p, b.block_offsets[nb - 1], get_len(nb - 1) + 9);
+      add("the end record inside a block", p, block_name(b, nb - 1), "record tag 255 inside a block");
+    }
+    {
+      auto p = b.payload;
+      p.erase(p.begin() + long(b.block_offsets[1]), p.begin() + long(b.block_offsets[1] + 13));
+      add("block 1's checksum record missing", p,
+          "block 1 (records from " + std::to_string(b.block_first[1]) + ", payload byte " +
+              std::to_string(b.block_offsets[1]) + ")",
+          "expected a checksum record (tag 2) or the end record (tag 255), found tag 1");
+    }
+    {
+      TraceHeader unflagged = b.h;
+      unflagged.checksummed = false;
+      add("a checksum record in a trace without the flag", b.payload, "record 0",
+          "checksum record (tag 2) in a trace whose header does not flag checksums", &unflagged);
+    }
+    for (const Case& c : cases) {
+      SCOPED_TRACE(std::string(to_string(z)) + ": " + c.what);
+      const std::string path = tmp.path("bad.trace");
+      write_file(path, assemble(c.h, c.payload));
+      uint64_t handed = 0;
+      const std::string msg = read_until_error(path, handed);
+      if (msg.empty()) continue;
+      expect_one_line_from(msg, path);
+      EXPECT_EQ(msg.rfind(path + ": " + c.names, 0), 0u) << "error does not name " << c.names << ": " << msg;
+      EXPECT_NE(msg.find(c.needle), std::string::npos) << "error lacks \"" << c.needle << "\": " << msg;
+    }
+  }
+}
+
+TEST(ChecksumReaderRefuses, UnknownHeaderFlags) {
+  TempDir tmp;
+  const TraceHeader h = make_ck_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  const CkBuilt b = build_checksummed(h, make_fragments(h, 3, 1));
+  for (uint16_t flags : {uint16_t(0x0002), uint16_t(0x0003), uint16_t(0x8000), uint16_t(0xFFFF)}) {
+    std::vector<uint8_t> file = assemble(b.h, b.payload);
+    file[10] = uint8_t(flags);
+    file[11] = uint8_t(flags >> 8);
+    const std::string path = tmp.path("flags.trace");
+    write_file(path, file);
+    char want[64];
+    std::snprintf(want, sizeof want, "header: unknown flags 0x%04x", unsigned(flags & ~1u));
+    expect_trace_error(path, -1, want, "flags " + std::to_string(flags));
+  }
+}
+
+TEST(ChecksumReaderRefuses, AValidBlockIsVerifiedBeforeItsRecordsAreParsed) {
+  // Block 1 holds a record with opacity 2 (invalid). With the hash recomputed
+  // the block is intact and the record's own rule names it; with the stored hash
+  // kept, the block fails its checksum first and none of its records is handed out.
+  TempDir tmp;
+  const TraceHeader h = make_ck_header(16, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  auto frags = make_fragments(h, 4000, 3);
+  CkBuilt ref = build_checksummed(h, frags);
+  const uint64_t bad = ref.block_first[1] + 5;
+  frags[bad].alpha = 2.0f;
+  const CkBuilt b = build_checksummed(h, frags);  // hash over the bad record
+  const std::string path = tmp.path("opacity.trace");
+  write_file(path, assemble(b.h, b.payload));
+  uint64_t handed = 0;
+  std::string msg = read_until_error(path, handed);
+  expect_one_line_from(msg, path);
+  EXPECT_EQ(msg.rfind(path + ": " + block_name(b, 1) + ": record " + std::to_string(bad) + ": opacity", 0), 0u) << msg;
+  EXPECT_EQ(handed, bad);
+  // The same bytes under the original (now wrong) hash.
+  std::vector<uint8_t> p = b.payload;
+  std::copy(ref.payload.begin() + long(ref.block_offsets[1]) + 5, ref.payload.begin() + long(ref.block_offsets[1]) + 13,
+            p.begin() + long(b.block_offsets[1]) + 5);
+  write_file(path, assemble(b.h, p));
+  msg = read_until_error(path, handed);
+  EXPECT_EQ(msg.rfind(path + ": " + block_name(b, 1) + ": checksum mismatch", 0), 0u) << msg;
+  EXPECT_EQ(handed, b.block_first[1]) << "records of a block were handed out before its checksum was verified";
+}
+
+TEST(ChecksumFormat, KeptRegressionInputs) {
+  // fuzz/regressions/trace/ keeps a checksummed trace and the same trace with
+  // one bit flipped in its only block (the fuzz target replays both).
+  const fs::path dir = fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace";
+  {
+    TraceReader r((dir / "eight-layers-8x8-none-checksummed.rtrace").string());
+    EXPECT_TRUE(r.header().checksummed);
+    Fragment f;
+    uint64_t n = 0;
+    while (r.next(f)) ++n;
+    EXPECT_EQ(n, 576u);
+    EXPECT_EQ(r.blocks_read(), 1u);
+  }
+  const std::string flipped = (dir / "checksum-bit-flip-in-block.rtrace").string();
+  uint64_t handed = 0;
+  const std::string msg = read_until_error(flipped, handed);
+  EXPECT_EQ(msg.rfind(flipped + ": block 0 (records from 0, payload byte 0): checksum mismatch", 0), 0u) << msg;
+  EXPECT_EQ(handed, 0u);
 }
 
 }  // namespace

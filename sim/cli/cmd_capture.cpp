@@ -24,7 +24,7 @@ struct CaptureOpts {
   int spp = 0;
   uint32_t width = 0, height = 0;
   uint64_t seed = 0;
-  bool allow_empty = false, quiet = false, cross_check = false;
+  bool allow_empty = false, quiet = false, cross_check = false, no_checksum = false;
 };
 
 /// A one-line progress bar on stderr, only when stderr is a terminal.
@@ -67,7 +67,8 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
     parse_draw_order(o.order, d);
     ov.order = d;
   }
-  const SceneSpec spec = load_scene_file(o.scene, ov);
+  SceneSpec spec = load_scene_file(o.scene, ov);
+  spec.checksum = !o.no_checksum;
   if (o.cross_check) {
 #ifdef ROPSIM_HAVE_OSMESA
     const CrossCheckResult r = cross_check_with_mesa(spec);
@@ -111,6 +112,8 @@ std::function<int()> add_capture_command(CLI::App& app) {
   sub->add_option("--seed", o->seed, "Override the scene's shuffle seed");
   sub->add_option("--order", o->order, "Override every object's draw order")
       ->check(CLI::IsMember({"authored", "shuffled", "far-to-near", "near-to-far"}));
+  sub->add_flag("--no-checksum", o->no_checksum,
+                "Write the payload without checksum records (header flag 0; docs/trace-format.md 2.3)");
   sub->add_flag("--allow-empty", o->allow_empty, "Write a trace even when nothing is visible (else an error)");
   sub->add_flag("--cross-check", o->cross_check,
                 "Instead of writing a trace, capture the scene at 4 spp through Mesa (llvmpipe) and through ropsim "

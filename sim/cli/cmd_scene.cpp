@@ -13,7 +13,7 @@ namespace {
 struct SceneOpts {
   SceneParams sp;
   std::string out, depth_mode = "plane", color_fmt = "rgb-f32", compression = "zstd";
-  bool list = false;
+  bool list = false, no_checksum = false;
 };
 
 int cmd_scene(SceneOpts& o, const CLI::App& sub) {
@@ -28,6 +28,7 @@ int cmd_scene(SceneOpts& o, const CLI::App& sub) {
   sp.depth_mode = o.depth_mode == "plane" ? DepthMode::kPlane : DepthMode::kPerSample;
   sp.color_format = o.color_fmt == "rgb-f32" ? ColorFormat::kRgbF32 : ColorFormat::kRgbUnorm8;
   sp.compression = o.compression == "zstd" ? Compression::kZstd : Compression::kNone;
+  sp.checksum = !o.no_checksum;
   ensure_parent_dir(o.out);
   RasterStats st = write_scene_trace(sp, o.out);
   fmt::print("wrote {}: {} triangles, {} fragments, {} covered samples\n", o.out, st.triangles, st.fragments,
@@ -55,6 +56,8 @@ VerbRunner add_scene_command(CLI::App& app) {
       ->check(CLI::IsMember({"rgb-f32", "rgb-unorm8"}));
   scn->add_option("--compression", o->compression, "zstd or none (default zstd)")
       ->check(CLI::IsMember({"zstd", "none"}));
+  scn->add_flag("--no-checksum", o->no_checksum,
+                "Write the payload without checksum records (header flag 0; docs/trace-format.md 2.3)");
   scn->add_flag("--list", o->list, "List the built-in scenes");
   return [o, scn]() { return scn->parsed() ? cmd_scene(*o, *scn) : -1; };
 }

@@ -45,7 +45,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   }
   const uint64_t n = r.records_read();
   if (validate_only) {
-    fmt::print("{}: valid, {} fragments\n", path, n);
+    if (r.header().checksummed)
+      fmt::print("{}: valid, {} fragments, {} checksummed blocks verified\n", path, n, r.blocks_read());
+    else
+      fmt::print("{}: valid, {} fragments (no checksum)\n", path, n);
     return 0;
   }
   const auto& h = r.header();
@@ -76,6 +79,8 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
                   {"records", r.payload_bytes()},
                   {"per_fragment_uncompressed", rec_per_frag},
                   {"per_fragment_on_disk", disk_per_frag}};
+    j["checksum"] = h.checksummed ? nlohmann::ordered_json{{"hash", "xxh3-64"}, {"blocks", r.blocks_read()}}
+                                  : nlohmann::ordered_json(nullptr);
     j["pixels_touched"] = touched;
     j["pixels_touched_percent"] = touched_pct;
     j["fragments_per_touched_pixel"] = {{"mean", mean_n}, {"max", max_n}};
@@ -89,6 +94,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   }
   fmt::print("{}\n  scene {}  {}x{}  {} spp\n  depth {}  colour {}  compression {}\n", path, h.scene_name, h.width,
              h.height, h.spp, to_string(h.depth_mode), to_string(h.color_format), to_string(h.compression));
+  if (h.checksummed)
+    fmt::print("  checksum xxh3-64, {} blocks verified\n", r.blocks_read());
+  else
+    fmt::print("  checksum none\n");
   fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered, per_frag,
              n ? max_draw + 1 : 0);
   fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,

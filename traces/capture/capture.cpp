@@ -320,6 +320,7 @@ TraceHeader capture_header(const SceneSpec& spec) {
   h.depth_mode = spec.depth_mode;
   h.color_format = spec.color_format;
   h.compression = spec.compression;
+  h.checksummed = spec.checksum;
   h.clear_color = spec.background;
   h.clear_depth = 1.0f;
   h.positions = standard_sample_positions(spec.spp);

@@ -76,6 +76,7 @@ struct SceneSpec {
   DepthMode depth_mode = DepthMode::kPlane;
   ColorFormat color_format = ColorFormat::kRgbF32;
   Compression compression = Compression::kZstd;
+  bool checksum = true;  ///< checksummed payload blocks (`capture --no-checksum`: false)
   std::array<float, 3> background{0.0f, 0.0f, 0.0f};
   CameraSpec camera;
   LightSpec light;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace ropsim {
 
@@ -15,7 +16,17 @@ inline constexpr char kTraceMagic[8] = {'R', 'O', 'P', 'T', 'R', 'A', 'C', 'E'};
 inline constexpr uint16_t kTraceVersion = 1;
 inline constexpr uint32_t kMaxScreenSide = 32768;
 inline constexpr uint8_t kTagFragment = 0x01;
+inline constexpr uint8_t kTagChecksum = 0x02;
 inline constexpr uint8_t kTagEnd = 0xFF;
+/// Header flags (u16 at offset 10). Bit 0: the payload is checksummed (section 2.3).
+inline constexpr uint16_t kTraceFlagChecksum = 0x0001;
+inline constexpr uint16_t kTraceKnownFlags = kTraceFlagChecksum;
+/// Checksummed payloads: the writer closes a block before it would exceed this
+/// many record bytes; a reader accepts blocks of 1 .. kMaxChecksumBlockBytes.
+inline constexpr uint32_t kChecksumBlockBytes = 65536;
+inline constexpr uint32_t kMaxChecksumBlockBytes = 1u << 20;
+/// A checksum record: tag, u32 block length, u64 XXH3-64 of the block.
+inline constexpr size_t kChecksumRecordBytes = 13;
 
 enum class DepthMode : uint8_t { kPerSample = 0, kPlane = 1 };
 enum class ColorFormat : uint8_t { kRgbF32 = 0, kRgbUnorm8 = 1 };
@@ -40,6 +51,9 @@ struct TraceHeader {
   float clear_depth = 1.0f;
   std::array<SamplePos, 64> positions{};  ///< first spp entries are used
   std::string scene_name;
+  /// Header flag bit 0: the fragment records are grouped into blocks, each
+  /// preceded by a checksum record (XXH3-64). The writer's default.
+  bool checksummed = true;
 };
 
 /// One fragment: a pixel's worth of samples from one primitive.
@@ -91,12 +105,23 @@ class TraceReader {
   bool next(Fragment& f);
   /// Records read so far (the index of the next record).
   uint64_t records_read() const { return records_; }
-  /// Bytes of record data read so far (after decompression).
+  /// Bytes of fragment and end records read so far (after decompression;
+  /// checksum records not included).
   uint64_t payload_bytes() const;
+  /// Checksummed blocks read and verified so far.
+  uint64_t blocks_read() const { return blocks_; }
 
  private:
   [[noreturn]] void fail(const std::string& what) const;
+  [[noreturn]] void fail_block(const std::string& what) const;
   void read_exact(void* dst, size_t n, const char* what);
+  /// Record bytes: from the verified block (checksummed) or the payload stream.
+  size_t take(void* dst, size_t n);
+  /// Reads the checksum record after its tag, then the block, and verifies it.
+  void load_block();
+  /// Reads the end record after its tag and checks what follows it.
+  void read_end();
+  std::string where() const;
 
   std::string path_;
   TraceHeader header_;
@@ -104,6 +129,13 @@ class TraceReader {
   FILE* file_ = nullptr;
   uint64_t records_ = 0;
   bool ended_ = false;
+  // Checksummed payloads: the current verified block and where it started.
+  std::vector<uint8_t> block_;
+  size_t block_pos_ = 0, block_len_ = 0;
+  uint64_t blocks_ = 0;              ///< blocks loaded (the current one included)
+  uint64_t block_first_record_ = 0;  ///< record number of the block's first record
+  uint64_t block_offset_ = 0;        ///< payload byte offset of the block's checksum record
+  bool at_end_record_ = false;       ///< reading the end record (errors name its position)
 };
 
 /// Writes a trace through an OutputFile (util/output_file.h): a unique
@@ -122,15 +154,22 @@ class TraceWriter {
   void write(const Fragment& f);
   void finish();
   uint64_t fragments() const { return count_; }
+  /// Bytes of fragment and end records written (checksum records not included).
   uint64_t raw_bytes() const { return raw_bytes_; }
+  /// Checksummed blocks written so far.
+  uint64_t blocks() const { return blocks_; }
 
  private:
+  void flush_block();
+
   std::string path_;
   TraceHeader header_;
   std::unique_ptr<OutputFile> out_;
   std::unique_ptr<ByteSink> sink_;
   uint64_t count_ = 0;
   uint64_t raw_bytes_ = 0;
+  uint64_t blocks_ = 0;
+  std::vector<uint8_t> block_;  ///< the block being gathered (checksummed traces)
   bool finished_ = false;
 };
 

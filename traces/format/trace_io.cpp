@@ -1,7 +1,9 @@
 // Trace v1 reader and writer (docs/trace-format.md).
+#include <xxhash.h>
 #include <zstd.h>
 
 #include <cerrno>
+#include <cinttypes>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -273,7 +275,14 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   uint16_t version = get_u16(fixed + 8);
   if (version != kTraceVersion)
     throw TraceError(path + ": header: unsupported version " + std::to_string(version) + " (this reader reads 1)");
+  const uint16_t flags = get_u16(fixed + 10);
+  if (flags & ~kTraceKnownFlags) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%04x", unsigned(flags & ~kTraceKnownFlags));
+    throw TraceError(path + ": header: unknown flags " + hex + " (this reader knows bit 0, checksummed payload)");
+  }
   TraceHeader& h = header_;
+  h.checksummed = (flags & kTraceFlagChecksum) != 0;
   h.width = get_u32(fixed + 12);
   h.height = get_u32(fixed + 16);
   h.spp = fixed[20];
@@ -307,34 +316,112 @@ TraceReader::~TraceReader() {
   if (file_) std::fclose(file_);
 }
 
-uint64_t TraceReader::payload_bytes() const { return src_ ? src_->consumed : 0; }
+uint64_t TraceReader::payload_bytes() const {
+  if (!src_) return 0;
+  if (!header_.checksummed) return src_->consumed;
+  // Everything decoded, less the checksum records and the unread rest of the block.
+  return src_->consumed - kChecksumRecordBytes * blocks_ - (block_len_ - block_pos_);
+}
+
+std::string TraceReader::where() const {
+  if (at_end_record_)
+    return "end record at payload byte " + std::to_string(block_offset_) + " (after " + std::to_string(blocks_) +
+           " blocks)";
+  return "block " + std::to_string(blocks_ ? blocks_ - 1 : 0) + " (records from " +
+         std::to_string(block_first_record_) + ", payload byte " + std::to_string(block_offset_) + ")";
+}
 
 void TraceReader::fail(const std::string& what) const {
+  if (header_.checksummed)
+    throw TraceError(path_ + ": " + where() + ": record " + std::to_string(records_) + ": " + what);
   throw TraceError(path_ + ": record " + std::to_string(records_) + ": " + what);
 }
 
+void TraceReader::fail_block(const std::string& what) const { throw TraceError(path_ + ": " + where() + ": " + what); }
+
+size_t TraceReader::take(void* dst, size_t n) {
+  if (!header_.checksummed) return src_->read(dst, n);
+  const size_t k = std::min(n, block_len_ - block_pos_);
+  std::memcpy(dst, block_.data() + block_pos_, k);
+  block_pos_ += k;
+  return k;
+}
+
 void TraceReader::read_exact(void* dst, size_t n, const char* what) {
-  if (src_->read(dst, n) != n) fail(std::string("truncated in the ") + what + " (no end record)");
+  if (take(dst, n) != n) {
+    if (header_.checksummed) fail(std::string("the record runs past the end of its block (in the ") + what + ")");
+    fail(std::string("truncated in the ") + what + " (no end record)");
+  }
+}
+
+void TraceReader::load_block() {
+  uint8_t b[kChecksumRecordBytes - 1];
+  const size_t got_rec = src_->read(b, sizeof b);
+  if (got_rec != sizeof b)
+    fail_block("truncated in the checksum record (" + std::to_string(got_rec + 1) + " of " +
+               std::to_string(kChecksumRecordBytes) + " bytes)");
+  const uint32_t len = get_u32(b);
+  const uint64_t stored = get_u64(b + 4);
+  if (len == 0) fail_block("block length 0 (a block holds at least one record)");
+  if (len > kMaxChecksumBlockBytes)
+    fail_block("block length " + std::to_string(len) + " exceeds the limit of " +
+               std::to_string(kMaxChecksumBlockBytes) + " bytes");
+  if (block_.size() < len) block_.resize(len);
+  const size_t got = src_->read(block_.data(), len);
+  if (got != len)
+    fail_block("block length " + std::to_string(len) + " runs past the end of the payload (" + std::to_string(got) +
+               " bytes follow the checksum record)");
+  const uint64_t computed = XXH3_64bits(block_.data(), len);
+  if (computed != stored) {
+    char s[96];
+    std::snprintf(s, sizeof s, "checksum mismatch (stored 0x%016" PRIx64 ", computed 0x%016" PRIx64 ")", stored,
+                  computed);
+    fail_block(s);
+  }
+  block_len_ = len;
+  block_pos_ = 0;
+}
+
+void TraceReader::read_end() {
+  uint8_t b[8];
+  if (src_->read(b, 8) != 8) fail("truncated in the end record (no end record)");
+  uint64_t count = get_u64(b);
+  if (count != records_)
+    fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
+  uint8_t extra;
+  if (src_->read(&extra, 1) != 0) fail("data after the end record");
+  if (!src_->complete()) fail("truncated: the compressed frame is incomplete");
+  ended_ = true;
 }
 
 bool TraceReader::next(Fragment& f) {
   if (ended_) return false;
   try {
     uint8_t tag;
-    if (src_->read(&tag, 1) != 1) fail("truncated: the trace ends without an end record");
+    if (header_.checksummed && block_pos_ == block_len_) {
+      // A block boundary: a checksum record opens the next block, or the end record follows the last.
+      block_first_record_ = records_;
+      block_offset_ = src_->consumed;
+      ++blocks_;
+      if (src_->read(&tag, 1) != 1) fail_block("truncated: the trace ends without an end record");
+      if (tag == kTagEnd) {
+        --blocks_;
+        at_end_record_ = true;
+        read_end();
+        return false;
+      }
+      if (tag != kTagChecksum)
+        fail_block("expected a checksum record (tag 2) or the end record (tag 255), found tag " + std::to_string(tag));
+      load_block();
+    }
+    if (take(&tag, 1) != 1) fail("truncated: the trace ends without an end record");
+    if (header_.checksummed && tag != kTagFragment)
+      fail("record tag " + std::to_string(tag) + " inside a block (a block holds only fragment records)");
     if (tag == kTagEnd) {
-      uint8_t b[8];
-      read_exact(b, 8, "end record");
-      uint64_t count = get_u64(b);
-      if (count != records_)
-        fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) +
-             " were read");
-      uint8_t extra;
-      if (src_->read(&extra, 1) != 0) fail("data after the end record");
-      if (!src_->complete()) fail("truncated: the compressed frame is incomplete");
-      ended_ = true;
+      read_end();
       return false;
     }
+    if (tag == kTagChecksum) fail("checksum record (tag 2) in a trace whose header does not flag checksums");
     if (tag != kTagFragment) fail("unknown record tag " + std::to_string(tag));
     const TraceHeader& h = header_;
     uint8_t b[16 + 8 + 256 + 12 + 4];
@@ -346,13 +433,12 @@ bool TraceReader::next(Fragment& f) {
     const size_t colour_bytes = h.color_format == ColorFormat::kRgbF32 ? 16 : 7;
     if (fixed) {
       const size_t total = head + 12 + colour_bytes;
-      const size_t got = src_->read(b, total);
-      if (got != total)
-        fail(std::string("truncated in the ") +
-             (got < head        ? "fragment"
-              : got < head + 12 ? "depth plane"
-                                : "colour") +
-             " (no end record)");
+      const size_t got = take(b, total);
+      if (got != total) {
+        const char* part = got < head ? "fragment" : got < head + 12 ? "depth plane" : "colour";
+        if (h.checksummed) fail(std::string("the record runs past the end of its block (in the ") + part + ")");
+        fail(std::string("truncated in the ") + part + " (no end record)");
+      }
     } else {
       read_exact(b, head, "fragment");
     }
@@ -402,6 +488,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   uint8_t fixed[kFixedHeaderBytes] = {};
   std::memcpy(fixed, kTraceMagic, 8);
   put_u16(fixed + 8, kTraceVersion);
+  put_u16(fixed + 10, header_.checksummed ? kTraceFlagChecksum : 0);
   put_u32(fixed + 12, header_.width);
   put_u32(fixed + 16, header_.height);
   fixed[20] = uint8_t(header_.spp);
@@ -423,6 +510,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
     sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
   else
     sink_ = std::make_unique<FileSink>(f, path);
+  if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
 }
 
 TraceWriter::~TraceWriter() {
@@ -470,13 +558,32 @@ void TraceWriter::write(const Fragment& f) {
   }
   put_f32(b + n, f.alpha);
   n += 4;
-  sink_->write(b, n);
+  if (header_.checksummed) {
+    // A record never spans blocks: close the block before it would exceed kChecksumBlockBytes.
+    if (block_.size() + n > kChecksumBlockBytes) flush_block();
+    block_.insert(block_.end(), b, b + n);
+  } else {
+    sink_->write(b, n);
+  }
   raw_bytes_ += n;
   ++count_;
 }
 
+void TraceWriter::flush_block() {
+  if (block_.empty()) return;
+  uint8_t c[kChecksumRecordBytes];
+  c[0] = kTagChecksum;
+  put_u32(c + 1, uint32_t(block_.size()));
+  put_u64(c + 5, XXH3_64bits(block_.data(), block_.size()));
+  sink_->write(c, sizeof c);
+  sink_->write(block_.data(), block_.size());
+  block_.clear();
+  ++blocks_;
+}
+
 void TraceWriter::finish() {
   if (finished_) return;
+  flush_block();
   uint8_t b[9];
   b[0] = kTagEnd;
   put_u64(b + 1, count_);

@@ -16,6 +16,7 @@ std::string header_to_json(const TraceHeader& h) {
   j["depth_mode"] = to_string(h.depth_mode);
   j["color_format"] = to_string(h.color_format);
   j["compression"] = to_string(h.compression);
+  j["checksummed"] = h.checksummed;
   j["clear_color"] = h.clear_color;
   j["clear_depth"] = h.clear_depth;
   auto pos = nlohmann::json::array();

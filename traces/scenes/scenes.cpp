@@ -303,6 +303,7 @@ Scene build_scene(const SceneParams& p) {
   h.depth_mode = p.depth_mode;
   h.color_format = p.color_format;
   h.compression = p.compression;
+  h.checksummed = p.checksum;
   h.positions = standard_sample_positions(p.spp);
   h.scene_name = p.name;
   std::string err = validate_header(h);

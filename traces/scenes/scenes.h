@@ -34,6 +34,7 @@ struct SceneParams {
   DepthMode depth_mode = DepthMode::kPlane;
   ColorFormat color_format = ColorFormat::kRgbF32;
   Compression compression = Compression::kZstd;
+  bool checksum = true;  ///< checksummed payload blocks (docs/trace-format.md section 2.3)
 };
 
 struct Scene {
