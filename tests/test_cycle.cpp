@@ -80,6 +80,7 @@ void expect_bit_exact(const InputSpec& in, const GoldenConfig& cfg, const HwConf
   EXPECT_EQ(a.surface_id_changes, b.surface_id_changes) << what;
   EXPECT_EQ(a.sorts, b.sorts) << what;
   EXPECT_EQ(a.tracker_bytes_written, b.tracker_bytes_written) << what;
+  EXPECT_EQ(a.layer_bytes_written, b.layer_bytes_written) << what;
   EXPECT_EQ(a.samples_blended, b.samples_blended) << what;
   EXPECT_EQ(a.target_bytes_written, b.target_bytes_written) << what;
   EXPECT_GT(cyc.stats.total_cycles, 0u) << what;

@@ -69,7 +69,7 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
              "slab: one pixel's layers in memory, k (4 + 6 + ceil(b / 8)) + 1");
   }
   put_numerics(r.obj("numerics"), ctx.config.numerics);
-  put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method));
+  put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
   if (has_blend_pass(ctx.config.method)) {
     const PassList pl = passes_of(ctx.config.method);
     std::vector<std::string> names;

@@ -68,20 +68,21 @@ class Fields {
   std::string path_;
 };
 
-/// Every counter, from its declaration (counters.h), and the derived sums;
-/// the blend passes' counters (samples_blended, target_bytes_*) only
-/// with_blend (for the methods that have blend passes).
-inline void put_counters(Fields f, const Counters& c, bool with_blend = true) {
+/// Every counter whose scope the run's method has (counters.h: every
+/// method's, the blend passes' for methods with blend passes, slab's for
+/// slab), and the derived sums. With no method, every counter.
+inline void put_counters(Fields f, const Counters& c, bool with_blend = true, bool with_slab = true) {
   size_t i = 0;
   c.for_each([&](const char* name, uint64_t v) {
     const StatDesc& d = counter_descs()[i++];
-    const bool blend_counter =
-        std::string(name) == "samples_blended" || std::string(name).rfind("target_bytes_", 0) == 0;
-    if (with_blend || !blend_counter) f.put(name, v, d.unit, d.meaning);
+    const bool shown = d.scope == CounterScope::kAll || (d.scope == CounterScope::kBlend && with_blend) ||
+                       (d.scope == CounterScope::kSlab && with_slab);
+    if (shown) f.put(name, v, d.unit, d.meaning);
   });
-  f.put("state_bytes_read", c.state_bytes_read(), "bytes", "per-pixel state read: depth, tracker and render targets");
+  f.put("state_bytes_read", c.state_bytes_read(), "bytes",
+        "per-pixel state read: depth, tracker, render targets and slab's layers");
   f.put("state_bytes_written", c.state_bytes_written(), "bytes",
-        "per-pixel state written: depth, colour, tracker and render targets");
+        "per-pixel state written: depth, colour, tracker, render targets and slab's layers");
 }
 
 /// The fields as a Markdown table (field, unit, meaning).

@@ -97,7 +97,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     // fragment's stratified b-bit mask among the bits of its covered samples
     // and lets it on only where nearer layers leave some of its bits open.
     c_.depth_bytes_read -= kDepthSampleBytes * covered;  // no per-sample depth read
-    c_.tracker_bytes_read += s_.slab_bytes;
+    c_.layer_bytes_read += s_.slab_bytes;
     float z[64];
     s_.sample_depths(f, f.coverage, z);
     float zf = 0;
@@ -218,7 +218,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     w.slab.kept = at < s_.cfg.slab_layers;
     if (w.slab.kept) {
       c_.samples_written += uint64_t(__builtin_popcountll(w.slab.mask));
-      c_.tracker_bytes_written += s_.slab_bytes;  // the pixel's layers, rewritten
+      c_.layer_bytes_written += s_.slab_bytes;  // the pixel's layers, rewritten
     }
     w.written = 0;
     return 1;
