@@ -35,3 +35,20 @@ PY
     done
   done
 done
+# The methods added since (issue #11): the default design, two traces.
+for m in hashed hashed-a2c slab wboit lk+ac lk+depth lk+depth+ac enderton+ac enderton+depth enderton+depth+ac; do
+  for tr in cloth4 layers16; do
+    "$b" run --fidelity cycle --hw "$root/configs/default.toml" --trace "$tmp/$tr.rtr" --method "$m" --quiet \
+      --out "$tmp/o.png" --report "$tmp/r.json" "$@"
+    /usr/bin/python3 - "$tmp/r.json" "default $m $tr" <<'PY'
+import hashlib, json, sys
+t = json.load(open(sys.argv[1]))["timing"]
+t.pop("host", None)
+for u in t["units"]:
+    u.pop("activations", None)
+for p in t.get("passes", []):
+    p.pop("host", None)
+print(sys.argv[2], t["total_cycles"], hashlib.sha256(json.dumps(t, sort_keys=True).encode()).hexdigest()[:16])
+PY
+  done
+done
