@@ -454,7 +454,8 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
 // every odd increment occurs (they come from the hash, not a fixed pattern).
 TEST(HashedA2c, ThresholdsFallOneInEachStratum) {
   for (uint32_t n = 1; n <= 64; n *= 2) {
-    std::vector<int> offsets(n, 0), increments(n, 0);
+    // increments[i] for i <= max(n - 1, 1): n = 1 has the increment 1.
+    std::vector<int> offsets(n, 0), increments(std::max<uint32_t>(n, 2), 0);
     for (uint32_t k = 0; k < 4000; ++k) {
       const uint64_t key = fragment_key(1, k % 7, k, k % 13, k % 17);
       const HashedA2cPattern p = hashed_a2c_pattern(key, n);
