@@ -208,10 +208,12 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   // Depth-based methods' stochastic pass stores depth only (Enderton et al. 3.4).
   constexpr bool kColor = stochastic_writes_color(M);
   [[maybe_unused]] auto write = [&px, rgb16](int i, float zi) {
-    if constexpr (kColor)
+    if constexpr (kColor) {
       px.write_sample(i, zi, rgb16);
-    else
+    } else {
+      (void)rgb16;  // depth only
       px.depth[i] = zi;
+    }
   };
   if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
     const int at = slab_insert(*px.slab, s_.cfg.slab_layers, w.slab.z, w.slab.mask, rgb16);
