@@ -11,19 +11,6 @@
 
 namespace ropsim {
 
-namespace {
-
-std::string extension_of(const std::string& path) {
-  auto dot = path.find_last_of('.');
-  auto slash = path.find_last_of('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string e = path.substr(dot + 1);
-  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-
-}  // namespace
-
 float linear_to_srgb(float v) {
   if (!(v > 0.0f)) return 0.0f;
   if (v >= 1.0f) return 1.0f;
@@ -31,7 +18,7 @@ float linear_to_srgb(float v) {
 }
 
 std::vector<unsigned char> encode_image(const Image& img, const std::string& path) {
-  const std::string ext = extension_of(path);
+  const std::string ext = image_extension(path);
   if (ext != "exr" && ext != "png")
     throw ImageError(path + ": unsupported image extension '." + ext + "' (use .exr or .png)");
   try {

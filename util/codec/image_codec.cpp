@@ -18,15 +18,6 @@ namespace ropsim {
 
 namespace {
 
-std::string extension_of(const std::string& path) {
-  const auto dot = path.find_last_of('.');
-  const auto slash = path.find_last_of('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string e = path.substr(dot + 1);
-  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-
 constexpr const char* kModuleName = "libropsim_oiio.so";
 
 struct Module {
@@ -140,12 +131,12 @@ DecodedImage decode_image_memory(const void* data, size_t bytes, const std::stri
 }
 
 std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path) {
-  if (extension_of(path) != "exr") throw ImageCodecError(path + ": an EXR image needs the extension .exr");
+  if (image_extension(path) != "exr") throw ImageCodecError(path + ": an EXR image needs the extension .exr");
   return encode(rgb, width, height, path);
 }
 
 std::vector<unsigned char> encode_png_rgb8(const unsigned char* rgb8, int width, int height, const std::string& path) {
-  if (extension_of(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
+  if (image_extension(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
   return encode(rgb8, width, height, path);
 }
 

@@ -10,6 +10,7 @@
 // executable, in ../lib/ropsim next to it (an install), then in the build tree
 // it was built in.
 #pragma once
+#include <cctype>
 #include <cstddef>
 #include <stdexcept>
 #include <string>
@@ -45,6 +46,17 @@ DecodedImage decode_image_memory(const void* data, size_t bytes, const std::stri
 /// Throws ImageCodecError.
 std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path);
 std::vector<unsigned char> encode_png_rgb8(const unsigned char* rgb8, int width, int height, const std::string& path);
+
+/// The lower-case extension of path's file name, without the dot ("" if none):
+/// the format of an image to write.
+inline std::string image_extension(const std::string& path) {
+  const auto dot = path.find_last_of('.');
+  const auto slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string e = path.substr(dot + 1);
+  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
 
 /// The module's path once loaded, else empty (for diagnostics and tests).
 std::string image_codec_module_path();

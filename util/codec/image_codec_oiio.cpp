@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "image_codec.h"
 #include "image_codec_abi.h"
 
 namespace {
@@ -21,15 +22,6 @@ int fail(char* err, size_t err_size, const std::string& msg) {
     err[n] = '\0';
   }
   return 1;
-}
-
-std::string extension_of(const std::string& path) {
-  const auto dot = path.find_last_of('.');
-  const auto slash = path.find_last_of('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string e = path.substr(dot + 1);
-  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
 }
 
 /// Straight (not premultiplied) alpha: OpenImageIO premultiplies PNG / TGA
@@ -92,7 +84,7 @@ __attribute__((visibility("default"))) int ropsim_oiio_encode(const char* path, 
                                                               size_t err_size) try {
   *out = nullptr;
   *out_bytes = 0;
-  const std::string ext = extension_of(path);
+  const std::string ext = ropsim::image_extension(path);
   if (ext != "exr" && ext != "png") return fail(err, err_size, "unsupported image extension '." + ext + "'");
   auto o = OIIO::ImageOutput::create(path);
   if (!o) return fail(err, err_size, "cannot create an image writer: " + OIIO::geterror());
