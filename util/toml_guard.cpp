@@ -16,13 +16,13 @@ class Scanner {
   TomlGuardProblem run() {
     // The last byte outside strings and comments that is not a blank: a quote
     // opens a string only where TOML lets one start (at the start of a line,
-    // after '=', '[', '{', ',' or '.'); elsewhere the parser does not read a
+    // after '=', '[', '{' or ','; not after '.', which ends a float as well as a
+    // dotted key's part: a quoted dotted key with UTF-8 is refused); elsewhere the parser does not read a
     // string there but scans on, testing what follows as a value would be.
     unsigned char last = '\n';
     while (i_ < t_.size() && !problem_) {
       const unsigned char c = byte(i_);
-      const bool string_may_start =
-          last == '\n' || last == '=' || last == '[' || last == '{' || last == ',' || last == '.';
+      const bool string_may_start = last == '\n' || last == '=' || last == '[' || last == '{' || last == ',';
       if (c != ' ' && c != '\t' && c != '\r') last = c;
       if (c == '#') {
         skip_comment();
