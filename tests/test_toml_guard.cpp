@@ -1,11 +1,14 @@
 // The TOML guard (util/toml_guard.h): toml++ 3.3.0's undefined behaviour
-// (marzer/tomlplusplus#190) is never reached. Inputs that would reach it are
-// refused with their line and column; UTF-8 in strings and comments, where
-// TOML allows it, still parses. Under the sanitizer build (UBSan's
-// -fsanitize=unreachable) the accepted inputs also show toml++ stays defined.
+// (marzer/tomlplusplus#190) is never reached because the parser is given only
+// ASCII. Non-ASCII where TOML forbids it and malformed UTF-8 are refused with
+// their line and column; UTF-8 in strings and comments, where TOML allows it,
+// parses to the same values. Under the sanitizer build (UBSan's
+// -fsanitize=unreachable) every parse here also shows toml++ stays defined.
 #include <gtest/gtest.h>
 #include <toml++/toml.h>
 
+#include <algorithm>
+#include <random>
 #include <string>
 
 #include "study_test_util.h"
@@ -20,19 +23,19 @@ struct Refused {
   size_t line, column;
 };
 
-TEST(TomlGuard, RefusesEveryPlaceToml330TestsANonAsciiCharacterForWhitespace) {
+TEST(TomlGuard, RefusesNonAsciiWhereTomlForbidsItAndMalformedUtf8) {
   const Refused cases[] = {
-      {"s = \"\"\"\\\n\xc2\xa7\"\"\"\n", 2, 1},            // the upstream report: line-ending backslash, then U+00A7
-      {"s = \"\"\"\\   \n   \n  \xc3\xa9\"\"\"\n", 3, 3},  // blanks and empty lines between
-      {"s = \"\"\"a\\  \xc3\xa9\"\"\"\n", 1, 12},          // backslash, blanks, then non-ASCII on the same line
-      {"\xc2\xa7 = 1\n", 1, 1},                            // a line starting with it
-      {"a = 1\n\xd0\xba\xd0\xbb = 2\n", 2, 1},             // a non-ASCII bare key
-      {"a = 1\xc2\xa7\n", 1, 6},                           // after a value
-      {"a =\xc2\xa0 1\n", 1, 4},                           // as whitespace (U+00A0)
-      {"s = \"x\\\xc3\xa9\"\n", 1, 8},                     // after a backslash in a basic string
-      {"[t\xc3\xa9]\n", 1, 3},                             // in a table header
-      {"s =5\"\xc2\xa7\"\n", 1, 6},                        // a quote where no string starts (found by fuzzing)
-      {"a = 1 'x\xc3\xa9'\n", 1, 9},
+      {"\xc2\xa7 = 1\n", 1, 1},                 // a line starting with it
+      {"a = 1\n\xd0\xba\xd0\xbb = 2\n", 2, 1},  // a non-ASCII bare key
+      {"a = 1\xc2\xa7\n", 1, 6},                // after a value
+      {"a =\xc2\xa0 1\n", 1, 4},                // as whitespace (U+00A0)
+      {"s = \"x\\\xc3\xa9\"\n", 1, 8},          // after a backslash in a basic string
+      {"[t\xc3\xa9]\n", 1, 3},                  // in a table header
+      {"s = \"\xc3\"\n", 1, 6},                 // a truncated sequence in a string
+      {"s = \"\xc0\xaf\"\n", 1, 6},             // overlong
+      {"s = '\xed\xa0\x80'\n", 1, 6},           // a surrogate, in a literal string
+      {"# \xf4\x90\x80\x80\n", 1, 3},           // beyond U+10FFFF, in a comment
+      {"s = \"\"\"\n\n\x80\"\"\"\n", 3, 1},     // a stray continuation byte
   };
   for (const auto& c : cases) {
     const ropsim::TomlGuardProblem p = ropsim::toml_guard(c.text);
@@ -40,31 +43,104 @@ TEST(TomlGuard, RefusesEveryPlaceToml330TestsANonAsciiCharacterForWhitespace) {
     EXPECT_EQ(p.line, c.line) << c.text;
     EXPECT_EQ(p.column, c.column) << c.text;
   }
-  EXPECT_EQ(ropsim::toml_guard_message("a = 1\n\xc2\xa7 = 2\n", "cfg.toml").rfind("cfg.toml:2:1: non-ASCII", 0), 0u)
-      << ropsim::toml_guard_message("a = 1\n\xc2\xa7 = 2\n", "cfg.toml");
+  const ropsim::TomlInput in = ropsim::toml_input("a = 1\n\xc2\xa7 = 2\n", "cfg.toml");
+  EXPECT_EQ(in.error.rfind("cfg.toml:2:1: non-ASCII", 0), 0u) << in.error;
+  EXPECT_TRUE(in.ascii.empty());
 }
 
-TEST(TomlGuard, KeepsUtf8InStringsAndCommentsWorking) {
-  const char* ok[] = {
-      "name = \"K\xc3\xbche\"\n",
-      "# Gr\xc3\xbc\xc3\x9f\x65\nname = 'x'\n",  // \x65: 'e', not part of the escape before
-      "a = 1 # \xc2\xa7 trailing\n",
-      "\"\xd0\xba\xd0\xbb\xd1\x8e\xd1\x87\" = 1\n",  // a quoted key
-      "s = '''\n\xc2\xa7'''\n",
-      "s = \"\"\"\n\xc2\xa7 starts a line inside the string\"\"\"\n",
-      "s = \"\"\"\\\n  x\xc2\xa7\"\"\"\n",
-      "s = \"\"\"a\"\"\"\"\n",  // a string ending in a quote
-      "s = \"\\\\\"\nt = \"\xc3\xa9\"\n",
-      "a = [\"\xc3\xa9\", '\xc3\xa9'] # \xc3\xa9\n",
+struct Kept {
+  const char* text;
+  const char* key;
+  const char* value;  ///< the string value the parser must read for key
+};
+
+TEST(TomlGuard, UnicodeInStringsAndCommentsReadsAsTheSameValues) {
+  const Kept cases[] = {
+      {"name = \"K\xc3\xbche\"\n", "name", "K\xc3\xbche"},
+      {"# Gr\xc3\xbc\xc3\x9f\x65\nname = 'x'\n", "name", "x"},
+      {"a = 'y' # \xc2\xa7 trailing\n", "a", "y"},
+      {"\"\xd0\xba\xd0\xbb\xd1\x8e\xd1\x87\" = 'k'\n", "\xd0\xba\xd0\xbb\xd1\x8e\xd1\x87", "k"},  // a quoted key
+      {"s = '''\n\xc2\xa7'''\n", "s", "\xc2\xa7"},  // first newline trimmed
+      {"s = \"\"\"\n\xc2\xa7 starts a line\"\"\"\n", "s", "\xc2\xa7 starts a line"},
+      {"s = \"\"\"\\\n\xc2\xa7\"\"\"\n", "s", "\xc2\xa7"},  // the upstream report: line-ending backslash, then U+00A7
+      {"s = \"\"\"a\\  \n   \n  \xc3\xa9\"\"\"\n", "s", "a\xc3\xa9"},            // blanks and empty lines between
+      {"s = \"\"\"a\"\"\"\"\n", "s", "a\""},                                     // a string ending in a quote
+      {"s = \"\xf0\x9f\x98\x80 \\u00e9\"\n", "s", "\xf0\x9f\x98\x80 \xc3\xa9"},  // beyond the BMP, beside an escape
+      {"p = 'C:\\dir\\\xc3\xa9\"x'\n", "p", "C:\\dir\\\xc3\xa9\"x"},        // a literal: backslashes and quotes kept
+      {"p = '''a\\\n\"b\" \xc3\xa9'''''\n", "p", "a\\\n\"b\" \xc3\xa9''"},  // a multi-line literal ending in quotes
+      {"\xef\xbb\xbfs = \"\xc3\xa9\"\n", "s", "\xc3\xa9"},                  // a byte order mark
   };
-  for (const char* t : ok) {
-    EXPECT_FALSE(ropsim::toml_guard(t)) << "refused: " << t << " (" << ropsim::toml_guard(t).what << ")";
+  for (const auto& c : cases) {
+    const ropsim::TomlInput in = ropsim::toml_input(c.text, "ok.toml");
+    ASSERT_EQ(in.error, "") << c.text;
+    EXPECT_TRUE(std::all_of(in.ascii.begin(), in.ascii.end(), [](char ch) { return (ch & 0x80) == 0; })) << in.ascii;
+    EXPECT_EQ(std::count(in.ascii.begin(), in.ascii.end(), '\n'), std::count(c.text, c.text + strlen(c.text), '\n'))
+        << "lines moved: " << in.ascii;
     try {
-      (void)toml::parse(std::string_view(t), std::string_view("ok.toml"));
+      const toml::table t = toml::parse(std::string_view(in.ascii), std::string_view("ok.toml"));
+      EXPECT_EQ(t[c.key].value_or(std::string("<missing>")), std::string(c.value)) << c.text << "\nas " << in.ascii;
     } catch (const toml::parse_error& e) {
-      ADD_FAILURE() << "the test input is not TOML: " << t << ": " << e.description();
+      ADD_FAILURE() << c.text << "\nas " << in.ascii << ": " << e.description();
     }
   }
+}
+
+// The property the parser's safety rests on: whatever the bytes, the guard
+// either refuses them or hands on pure ASCII with the same line count. Random
+// texts (fixed seed) from an alphabet of TOML's structural characters and
+// multi-byte sequences, valid and not, in every mix.
+TEST(TomlGuard, AnyInputBecomesPureAsciiOrIsRefused) {
+  const std::string pieces[] = {"\"",
+                                "\"\"\"",
+                                "'",
+                                "'''",
+                                "\\",
+                                "#",
+                                "\n",
+                                "\r\n",
+                                " ",
+                                "=",
+                                "[",
+                                "]",
+                                "{",
+                                "}",
+                                ",",
+                                ".",
+                                "a",
+                                "1",
+                                "+",
+                                "\xc2\xa7",
+                                "\xc2\xa0",
+                                "\xe3\x80\x80",
+                                "\xf0\x9f\x98\x80",
+                                "\xc3",
+                                "\x80",
+                                "\xef\xbb\xbf",
+                                "\\u00e9",
+                                "\t"};
+  std::mt19937 rng(20261201);
+  std::uniform_int_distribution<size_t> pick(0, std::size(pieces) - 1), len(0, 40);
+  int refused = 0, accepted = 0;
+  for (int n = 0; n < 20000; ++n) {
+    std::string text;
+    for (size_t k = len(rng); k > 0; --k) text += pieces[pick(rng)];
+    std::string ascii;
+    if (ropsim::toml_guard(text, &ascii)) {
+      ++refused;
+      continue;
+    }
+    ++accepted;
+    ASSERT_TRUE(std::all_of(ascii.begin(), ascii.end(), [](char ch) { return (ch & 0x80) == 0; }))
+        << "non-ASCII handed on for: " << text;
+    ASSERT_EQ(std::count(ascii.begin(), ascii.end(), '\n'), std::count(text.begin(), text.end(), '\n')) << text;
+    try {
+      (void)toml::parse(std::string_view(ascii), std::string_view("random.toml"));
+    } catch (const toml::parse_error&) {
+    }
+  }
+  // Both sides were exercised (the alphabet makes either common).
+  EXPECT_GT(refused, 1000);
+  EXPECT_GT(accepted, 1000);
 }
 
 TEST(TomlGuard, EveryTomlInputRefusesTheTriggerWithOneLineNamingFileAndLine) {
@@ -88,6 +164,17 @@ TEST(TomlGuard, EveryTomlInputRefusesTheTriggerWithOneLineNamingFileAndLine) {
   EXPECT_FALSE(fs::exists(s.dir / "o.png"));
   EXPECT_FALSE(fs::exists(s.dir / "t.rtrace"));
   EXPECT_FALSE(fs::exists(s.dir / "st"));
+}
+
+// A design whose strings hold UTF-8 where the file allows it loads; a comment
+// in any language is fine.
+TEST(TomlGuard, ADesignWithUnicodeCommentsLoads) {
+  Scratch s("toml-guard-ok");
+  s.put("design.toml",
+        "# Entwurf f\xc3\xbcr 8 ROPs \xe2\x80\x94 gro\xc3\x9f\n[distributor]\nrop_units = 8 # \xc2\xa7\n");
+  const Ran r = ropsim_test::ropsim(s.dir, "config design.toml --json", 60);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("\"rop_units\": 8"), std::string::npos) << r.out;
 }
 
 }  // namespace

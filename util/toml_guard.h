@@ -1,16 +1,22 @@
-// A check every TOML input passes before toml++ sees it.
+// What every TOML input goes through before toml++ sees it.
 //
 // Debian's toml++ 3.3.0 reaches __builtin_unreachable (undefined behaviour)
 // when it tests a non-ASCII character for whitespace (marzer/tomlplusplus#190,
 // fixed upstream after 3.3.0): is_non_ascii_horizontal_whitespace() falls
-// through its switch for most code points in U+00A1..U+FEFF. The parser asks
-// that question only where TOML allows nothing but ASCII: outside strings and
-// comments (between tokens, after a value, at the start of a line), after a
-// backslash in a basic string, and where a line-ending backslash in a
-// multi-line basic string skips the whitespace that follows it. (A quote
-// opens a string only where TOML lets one start; after a bare value the parser
-// scans on through a quote.) This check refuses exactly those places, so the parser's undefined path is never
-// reached; UTF-8 inside strings and comments is untouched.
+// through its switch for most code points in U+00A1..U+FEFF. Where the parser
+// asks that question depends on how it recovers from malformed input, so no
+// list of places is complete (a fuzzer kept finding new ones). Instead the
+// parser is given text that holds no non-ASCII byte at all:
+//  - in a basic string ("..." and """..."""), each non-ASCII character becomes
+//    its escape \uXXXX or \UXXXXXXXX, which means the same string;
+//  - a literal string ('...' and '''...''') that holds one becomes the basic
+//    string with the same value (backslashes and quotes escaped as well);
+//  - in a comment, each non-ASCII character becomes '?';
+//  - a UTF-8 byte order mark at the start is dropped (TOML allows it).
+// A non-ASCII character anywhere else (outside strings and comments, where
+// TOML forbids it, or right after a backslash, which is no escape) and
+// malformed UTF-8 anywhere are refused with their line and column. The text
+// keeps its lines, so the parser's line numbers stay the file's.
 #pragma once
 #include <cstddef>
 #include <string>
@@ -25,15 +31,20 @@ struct TomlGuardProblem {
   explicit operator bool() const { return line != 0; }
 };
 
-/// The first place in text where toml++ 3.3.0 would test a non-ASCII
-/// character for whitespace, or an empty problem. Never throws.
-TomlGuardProblem toml_guard(std::string_view text);
+/// Writes `text` as pure ASCII TOML of the same meaning into *ascii (when not
+/// null) and returns an empty problem, or returns the first place it cannot
+/// (then *ascii is unspecified). Never throws but std::bad_alloc.
+TomlGuardProblem toml_guard(std::string_view text, std::string* ascii = nullptr);
+
+/// A TOML file's text as the parser is to see it, or why it cannot be.
+struct TomlInput {
+  std::string ascii;  ///< the text to give toml++ (only ASCII bytes)
+  std::string error;  ///< "" or the one-line "PATH:LINE:COLUMN: WHAT"
+};
+TomlInput toml_input(std::string_view text, const std::string& path);
 
 /// Reads a whole regular file (a TOML input) into out; false if it is not a
 /// regular file or cannot be read.
 bool read_text_file(const std::string& path, std::string& out);
-
-/// toml_guard as a one-line message "PATH:LINE:COLUMN: WHAT", or "" if fine.
-std::string toml_guard_message(std::string_view text, const std::string& path);
 
 }  // namespace ropsim

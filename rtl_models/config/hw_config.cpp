@@ -285,10 +285,11 @@ namespace {
 HwConfig read_hw_text(const std::string& text, const std::string& path) {
   HwConfig c;
   c.name = path;
-  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw ConfigError(bad);
+  const TomlInput in = toml_input(text, path);
+  if (!in.error.empty()) throw ConfigError(in.error);
   toml::table doc;
   try {
-    doc = toml::parse(text, path);
+    doc = toml::parse(in.ascii, path);
   } catch (const toml::parse_error& e) {
     std::ostringstream os;
     os << path << ":" << e.source().begin.line << ": " << e.description();

@@ -188,10 +188,11 @@ Study load_study(const std::string& path) {
 Study parse_study(const std::string& text, const std::string& path) {
   Study s;
   s.path = path;
-  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw UserError(bad);
+  const TomlInput in = toml_input(text, path);
+  if (!in.error.empty()) throw UserError(in.error);
   toml::table t;
   try {
-    t = toml::parse(text, path);
+    t = toml::parse(in.ascii, path);
   } catch (const toml::parse_error& e) {
     throw UserError(fmt::format("{}: line {}: {}", path, e.source().begin.line, e.description()));
   }

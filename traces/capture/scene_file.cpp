@@ -123,10 +123,11 @@ Vec3d cross(const Vec3d& a, const Vec3d& b) {
 }  // namespace
 
 SceneSpec parse_scene_text(const std::string& text, const std::string& path, const SceneOverrides& o) {
-  if (const std::string bad = toml_guard_message(text, path); !bad.empty()) throw CaptureError(bad);
+  const TomlInput in = toml_input(text, path);
+  if (!in.error.empty()) throw CaptureError(in.error);
   toml::table root;
   try {
-    root = toml::parse(text, path);
+    root = toml::parse(in.ascii, path);
   } catch (const toml::parse_error& e) {
     throw CaptureError(path + ":" + std::to_string(e.source().begin.line) + ": " + std::string(e.description()));
   }
