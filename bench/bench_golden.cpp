@@ -79,7 +79,7 @@ void BM_Memory4k64(benchmark::State& state) {
         m->draw(f);
       }
     Image img = m->resolve();
-    benchmark::DoNotOptimize(img.rgb.data());
+    benchmark::DoNotOptimize(img.at(0, 0));
     state.counters["state_MiB"] = double(m->state_bytes()) / (1 << 20);
   }
   state.counters["peak_rss_MiB"] = double(peak_rss_bytes()) / (1 << 20);

@@ -69,7 +69,7 @@ void expect_bit_exact(const InputSpec& in, const GoldenConfig& cfg, const HwConf
   const CycleRun cyc = run_cycle(in, cfg, hw, opt);
   const std::string diff = first_state_difference(golden.store(), *cyc.state);
   EXPECT_EQ(diff, "") << what << ": the cycle model's final state differs from the golden model's";
-  EXPECT_TRUE(golden.resolve().rgb == cyc.image.rgb) << what << ": resolved images differ";
+  EXPECT_TRUE(golden.resolve() == cyc.image) << what << ": resolved images differ";
   const Counters& a = golden.counters();
   const Counters& b = cyc.counters;
   EXPECT_EQ(a.fragments, b.fragments) << what;
@@ -965,7 +965,7 @@ TEST(Decoupling, EqualsLockstepExactlyWhenMemoryOrderCannotMatter) {
         ASSERT_FALSE(lock.stats.decoupled) << what;
         ASSERT_TRUE(dec.stats.decoupled) << what;
         expect_same_timing(dec.stats, lock.stats, what);
-        EXPECT_TRUE(dec.image.rgb == lock.image.rgb) << what;
+        EXPECT_TRUE(dec.image == lock.image) << what;
         EXPECT_LT(double(dec.stats.unit_runs), (m == Method::kLk ? 0.6 : 0.9) * double(lock.stats.unit_runs))
             << what << ": decoupling must save unit activations";
       }

@@ -225,10 +225,10 @@ TEST(Unbiased, HundredsOfLayersWithSurfaceIdWrap) {
         uint32_t d = 0;
         for (const Layer& l : layers) m.draw(frag(x, y, 0xFFFF, l.z, l.alpha, {1, 1, 1}, d++));
       }
-    Image img = m.resolve();
+    const std::vector<float> px = m.resolve().dense();
     double sum = 0;
-    for (float v : img.rgb) sum += v;
-    const double mean = sum / img.rgb.size(), expect = 1.0 - std::pow(0.99, 300);
+    for (float v : px) sum += v;
+    const double mean = sum / px.size(), expect = 1.0 - std::pow(0.99, 300);
     EXPECT_NEAR(mean, expect, bound(expect, 48.0 * 48 * 16)) << "surface id bits " << sid_bits;
     EXPECT_GE(m.counters().surface_id_changes, 48u * 48 * 250) << "each layer should start a new surface";
   }
@@ -246,9 +246,9 @@ TEST(Unbiased, DepthTiesMatchTheReference) {
         m->draw(frag(x, y, 0xFFFF, 0.5f, 0.5f, {1, 0, 0}, 0));
         m->draw(frag(x, y, 0xFFFF, 0.5f, 0.5f, {0, 1, 0}, 1));
       }
-    Image img = m->resolve();
+    const std::vector<float> px = m->resolve().dense();
     std::array<double, 3> mean{};
-    for (size_t i = 0; i < img.rgb.size(); ++i) mean[i % 3] += img.rgb[i] / (128.0 * 128);
+    for (size_t i = 0; i < px.size(); ++i) mean[i % 3] += px[i] / (128.0 * 128);
     return mean;
   };
   const auto ref = run(Method::kReference);
@@ -264,7 +264,8 @@ TEST(Unbiased, DepthTiesMatchTheReference) {
 namespace {
 std::array<double, 3> mean_pixel(const Image& img) {
   std::array<double, 3> m{};
-  for (size_t i = 0; i < img.rgb.size(); ++i) m[i % 3] += img.rgb[i];
+  const std::vector<float> px = img.dense();
+  for (size_t i = 0; i < px.size(); ++i) m[i % 3] += px[i];
   for (auto& v : m) v /= double(img.width) * img.height;
   return m;
 }
@@ -286,11 +287,12 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
       GoldenConfig cfg;
       cfg.method = Method::kReference;
       FunctionalRun ref = run_functional(in, cfg);
-      for (size_t i = 0; i < ref.image.rgb.size(); ++i) {
+      const std::vector<float> ref_px = ref.image.dense();
+      for (size_t i = 0; i < ref_px.size(); ++i) {
         if (ex.scene == std::string("enderton-2"))
-          ASSERT_EQ(ref.image.rgb[i], float(ex.exact[i % 3])) << ex.scene << ": the reference must be exact";
+          ASSERT_EQ(ref_px[i], float(ex.exact[i % 3])) << ex.scene << ": the reference must be exact";
         else
-          ASSERT_NEAR(ref.image.rgb[i], ex.exact[i % 3], 2e-8 + 1e-7) << ex.scene << ": reference (alpha = 0.45f)";
+          ASSERT_NEAR(ref_px[i], ex.exact[i % 3], 2e-8 + 1e-7) << ex.scene << ": reference (alpha = 0.45f)";
       }
       // The depth-based methods without alpha correction are unbiased too
       // (Enderton et al. 3.4: each fragment weighted by an unbiased estimate
@@ -356,7 +358,7 @@ TEST(Slab, KOneOnOpaqueInputIsTheZBufferImage) {
   cfg.slab_layers = 1;
   for (int bits : {1, 32}) {
     cfg.slab_bits = bits;
-    EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << "b " << bits;
+    EXPECT_TRUE(run_functional(in, cfg).image == zbuf) << "b " << bits;
   }
 }
 
@@ -393,7 +395,7 @@ TEST(Methods, AlphaOneIsAPlainZBuffer) {
   for (Method meth :
        {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
     cfg.method = meth;
-    EXPECT_EQ(run_functional(in, cfg).image.rgb, zbuf.rgb) << to_string(meth);
+    EXPECT_TRUE(run_functional(in, cfg).image == zbuf) << to_string(meth);
   }
   cfg.method = Method::kReference;
   const Image ref = run_functional(in, cfg).image;
@@ -462,12 +464,12 @@ TEST(Determinism, SameSeedSameBitsOtherSeedOtherBits) {
   GoldenConfig cfg;
   cfg.method = Method::kEnderton;
   const Image a = run_functional(in, cfg).image, b = run_functional(in, cfg).image;
-  EXPECT_EQ(a.rgb, b.rgb);
+  EXPECT_TRUE(a == b);
   cfg.seed = 2;
-  EXPECT_NE(run_functional(in, cfg).image.rgb, a.rgb) << "--seed must change the random numbers";
+  EXPECT_TRUE(run_functional(in, cfg).image != a) << "--seed must change the random numbers";
   in.scene.seed = 7;
   cfg.seed = 1;
-  EXPECT_NE(run_functional(in, cfg).image.rgb, a.rgb) << "the scene seed must change the scene";
+  EXPECT_TRUE(run_functional(in, cfg).image != a) << "the scene seed must change the scene";
 }
 
 // State exists only for touched tiles: a huge screen costs what it touches.
@@ -510,19 +512,17 @@ TEST(DepthModes, PerSampleTraceGivesThePlaneTracesImage) {
     GoldenConfig c;
     img[k] = run_functional(in, c).image;
   }
-  ASSERT_EQ(img[0].rgb.size(), img[1].rgb.size());
-  EXPECT_TRUE(img[0].rgb == img[1].rgb) << "plane and per-sample depth traces of one scene resolve differently";
+  ASSERT_EQ(img[0].width, img[1].width);
+  EXPECT_TRUE(img[0] == img[1]) << "plane and per-sample depth traces of one scene resolve differently";
 }
 
 // Bias: the mean signed error, zero for equal images, its sign the direction.
 TEST(CompareImages, BiasIsTheMeanSignedErrorIn8BitUnits) {
-  Image a;
-  a.width = 4;
-  a.height = 2;
-  a.rgb.assign(4 * 2 * 3, 0.5f);
+  const Image a(4, 2, {0.5f, 0.5f, 0.5f});
   Image b = a;
   EXPECT_EQ(compare_images(a, b).bias_8bit, 0.0);
-  for (size_t i = 0; i < b.rgb.size(); i += 2) b.rgb[i] += 0.1f;  // half the channels brighter by 0.1
+  for (size_t i = 0; i < 4 * 2 * 3; i += 2)
+    b.at(uint32_t(i / 3 % 4), uint32_t(i / 12))[i % 3] += 0.1f;  // half the channels brighter by 0.1
   EXPECT_NEAR(compare_images(b, a).bias_8bit, 0.05 * 255, 1e-3);
   EXPECT_NEAR(compare_images(a, b).bias_8bit, -0.05 * 255, 1e-3);
   EXPECT_GT(compare_images(a, b).rmse_8bit, 0.0);
@@ -566,12 +566,9 @@ TEST(PixelKinds, EachKindOnACraftedTraceAndTheErrorWithinIt) {
   for (int i = 0; i < 8; ++i)
     EXPECT_EQ(k.kind[size_t(i)], want[i]) << "pixel " << i << ": " << to_string(k.kind[size_t(i)]);
   EXPECT_EQ(k.count[size_t(PixelKind::kEmpty)], 2u);
-  Image ref;
-  ref.width = 8;
-  ref.height = 1;
-  ref.rgb.assign(24, 0.25f);
+  const Image ref(8, 1, {0.25f, 0.25f, 0.25f});
   Image img = ref;
-  img.rgb[3 * 3 + 1] += 0.3f;  // one channel of the far-to-near pixel
+  img.at(3, 0)[1] += 0.3f;  // one channel of the far-to-near pixel
   const auto r = rmse_by_kind(k, img, ref);
   for (int j = 0; j < kPixelKinds; ++j)
     if (PixelKind(j) == PixelKind::kTwoFarToNear)
@@ -638,13 +635,13 @@ TEST(Wboit, MatchesItsClosedFormOnTwoAndThreeLayers) {
       for (bool wide : {false, true}) {
         BlendFormats f;
         if (wide) f = {TargetFormat::kR32F, TargetFormat::kRGBA32F};
-        const Image img = run_passes(h, Method::kWboit, frags, f);
+        const std::vector<float> px = run_passes(h, Method::kWboit, frags, f).dense();
         const double tol = wide ? 1e-5 : 6e-3;
-        for (size_t i = 0; i < img.rgb.size(); ++i) {
+        for (size_t i = 0; i < px.size(); ++i) {
           const int c = int(i % 3);
           const double exact = num[c] / den * (1.0 - T) + T * bg[size_t(c)];
-          ASSERT_NEAR(img.rgb[i], exact, tol)
-              << layers.size() << " layers, spp " << spp << (wide ? " r32f" : " r16f") << " channel " << c;
+          ASSERT_NEAR(px[i], exact, tol) << layers.size() << " layers, spp " << spp << (wide ? " r32f" : " r16f")
+                                         << " channel " << c;
         }
       }
     }
@@ -669,11 +666,11 @@ TEST(AlphaCorrection, ASingleTransparentLayerIsExact) {
         for (uint32_t y = 0; y < 16; ++y)
           for (uint32_t x = 0; x < 16; ++x)
             frags.push_back(frag(x, y, full_mask(spp), 0.5f, alpha, rgb, 0, y * 16 + x));
-        const Image img = run_passes(h, m, frags);
-        for (size_t i = 0; i < img.rgb.size(); ++i) {
+        const std::vector<float> px = run_passes(h, m, frags).dense();
+        for (size_t i = 0; i < px.size(); ++i) {
           const int c = int(i % 3);
           const double exact = double(alpha) * rgb[size_t(c)] + (1.0 - alpha) * bg[size_t(c)];
-          ASSERT_NEAR(img.rgb[i], exact, 2e-3)
+          ASSERT_NEAR(px[i], exact, 2e-3)
               << to_string(m) << " spp " << spp << " alpha " << alpha << " channel " << c << " pixel " << i / 3;
         }
       }
@@ -683,9 +680,9 @@ TEST(AlphaCorrection, ASingleTransparentLayerIsExact) {
   std::vector<Fragment> frags;
   for (uint32_t y = 0; y < 16; ++y)
     for (uint32_t x = 0; x < 16; ++x) frags.push_back(frag(x, y, 0xF, 0.5f, 0.3f, rgb, 0, y * 16 + x));
-  const Image img = run_passes(h, Method::kLk, frags);
+  const std::vector<float> px = run_passes(h, Method::kLk, frags).dense();
   double worst = 0;
-  for (size_t i = 0; i < img.rgb.size(); i += 3) worst = std::max(worst, std::fabs(img.rgb[i] - 0.3));
+  for (size_t i = 0; i < px.size(); i += 3) worst = std::max(worst, std::fabs(px[i] - 0.3));
   EXPECT_GE(worst, 0.05) << "lk without alpha correction should not be exact on a single layer";
 }
 

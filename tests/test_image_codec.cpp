@@ -81,11 +81,8 @@ TEST(ImageCodec, AMissingModuleIsAOneLineErrorAndNoOutput) {
 }
 
 TEST(ImageCompare, ClosedFormFigures) {
-  ropsim::Image a, b;
-  a.width = b.width = 2;
-  a.height = b.height = 1;
-  a.rgb = {0, 0, 0, 0, 0, 0};
-  b.rgb = {0.1f, 0, 0, 0, 0, -0.2f};
+  const ropsim::Image a = ropsim::Image::from_dense(2, 1, {0, 0, 0, 0, 0, 0});
+  const ropsim::Image b = ropsim::Image::from_dense(2, 1, {0.1f, 0, 0, 0, 0, -0.2f});
   const ropsim::CompareResult c = ropsim::compare_images(b, a);
   const double d1 = double(0.1f), d2 = double(-0.2f);
   const double rms = std::sqrt((d1 * d1 + d2 * d2) / 6);
@@ -95,8 +92,7 @@ TEST(ImageCompare, ClosedFormFigures) {
   EXPECT_DOUBLE_EQ(c.mean_error_8bit, (d1 - d2) / 6 * 255);
   EXPECT_DOUBLE_EQ(c.bias_8bit, (d1 + d2) / 6 * 255);
   EXPECT_TRUE(std::isinf(ropsim::compare_images(a, a).psnr_db)) << "identical images have infinite PSNR";
-  b.width = 1;
-  EXPECT_THROW(ropsim::compare_images(a, b), ropsim::ImageError);
+  EXPECT_THROW(ropsim::compare_images(a, ropsim::Image(1, 1)), ropsim::ImageError);
 }
 
 }  // namespace

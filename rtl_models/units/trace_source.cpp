@@ -22,6 +22,11 @@ void TraceSource::advance(uint64_t limit) {
       bool got = false;
       try {
         got = input_.next(tok->fragment);
+        // The pixel's state, found (its tile allocated, and charged to the
+        // memory budget, which may refuse it) here and fetched into the
+        // host's caches while the fragment waits in the FIFOs: the depth
+        // test reads it many fragments later. Host speed only; no model effect.
+        if (got) rop_.fetch(*tok);
       } catch (...) {
         error_ = std::current_exception();
         got = false;
@@ -35,10 +40,6 @@ void TraceSource::advance(uint64_t limit) {
       }
       tok->seq = seq_++;
       tok->pixel_key = uint64_t(tok->fragment.y) * rop_.header().width + tok->fragment.x;
-      // The pixel's state, found (its tile allocated) here and fetched into
-      // the host's caches while the fragment waits in the FIFOs: the depth
-      // test reads it many fragments later. Host speed only; no model effect.
-      rop_.fetch(*tok);
       const int spp = rop_.header().spp;
       __builtin_prefetch(tok->px.depth);
       __builtin_prefetch(tok->px.depth + spp - 1);

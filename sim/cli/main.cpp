@@ -17,6 +17,7 @@
 #include "cli_common.h"
 #include "cmd_capture.h"
 #include "errors.h"
+#include "memory_budget.h"
 #include "output_file.h"
 #include "version.h"
 
@@ -50,6 +51,14 @@ int main(int argc, char** argv) {
   app.failure_message([](const CLI::App*, const CLI::Error& e) {
     return "ropsim: error: " + std::string(e.what()) + " (see --help)\n";
   });
+  // Global: before or after the verb (fallthrough), for every verb that simulates.
+  std::string memory_limit;
+  app.add_option("--memory-limit", memory_limit,
+                 "Most memory the run's growing state may take (the touched tiles' buffers, the image, the "
+                 "A-buffer reference): bytes with K, M, G or T (binary), a percentage of physical memory, or none; "
+                 "default 80%. Going over is a one-line error")
+      ->type_name("SIZE");
+  app.fallthrough();
   std::string cmdline;
   for (int i = 0; i < argc; ++i) cmdline += (i ? " " : "") + std::string(argv[i]);
 
@@ -68,6 +77,7 @@ int main(int argc, char** argv) {
     // Test hook (tests/test_output.cpp): exercises the exit status 2 path.
     if (const char* t = std::getenv("ROPSIM_TEST_INTERNAL_ERROR"); t && *t && std::string(t) != "0")
       throw InternalError("test hook ROPSIM_TEST_INTERNAL_ERROR is set");
+    if (!memory_limit.empty()) memory_budget().set_limit(parse_memory_size(memory_limit, "--memory-limit"));
     for (const auto& verb : verbs)
       if (const int rc = verb(); rc >= 0) {
         forget_created_outputs();

@@ -3,6 +3,8 @@
 #include <chrono>
 #include <fstream>
 
+#include "memory_budget.h"
+
 namespace ropsim {
 
 FragmentList load_fragments(const InputSpec& in) {
@@ -13,11 +15,18 @@ FragmentList load_fragments(const InputSpec& in) {
   return out;
 }
 
+void check_reference_estimate(const FragmentSource& src) {
+  if (const uint64_t n = src.fragments_at_least(); n > 0)
+    memory_budget().check_estimate(n * ReferenceModel::kBytesPerFragmentAtLeast,
+                                   "the A-buffer reference of at least " + std::to_string(n) + " fragments");
+}
+
 FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference) {
   const auto t0 = std::chrono::steady_clock::now();
   FunctionalRun run;
   auto src = open_fragments(in);
   run.header = src->header();
+  if (with_reference || cfg.method == Method::kReference) check_reference_estimate(*src);
   std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg), ref;
   if (with_reference && cfg.method != Method::kReference) {
     GoldenConfig ref_cfg = cfg;

@@ -35,4 +35,8 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
 /// Peak resident set size of this process in bytes (VmHWM), 0 if unknown.
 size_t peak_rss_bytes();
 
+/// Refuses up front (UserError) an input whose A-buffer reference is already
+/// known to need more than --memory-limit (memory_budget.h).
+void check_reference_estimate(const FragmentSource& src);
+
 }  // namespace ropsim

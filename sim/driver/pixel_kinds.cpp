@@ -3,6 +3,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "memory_budget.h"
+
 namespace ropsim {
 
 const char* to_string(PixelKind k) {
@@ -36,6 +38,11 @@ PixelKinds classify_pixels(const InputSpec& in) {
     uint8_t max_count = 0;
     float first_z = 0, last_z = 0;  // depth at the centre of the first and the latest fragment
   };
+  // Per pixel of the whole screen (the kinds are a dense map): checked
+  // against --memory-limit before it is allocated.
+  memory_budget().check_estimate(
+      n * (sizeof(Pixel) + spp + sizeof(PixelKind)),
+      "the pixel-kind tables of a " + std::to_string(h.width) + " x " + std::to_string(h.height) + " screen");
   std::vector<Pixel> px(n);
   std::vector<uint8_t> count(n * spp, 0);  // fragments per sample (saturating)
   for (Fragment f; src->next(f);) {
@@ -86,11 +93,14 @@ std::array<double, kPixelKinds> rmse_by_kind(const PixelKinds& k, const Image& i
   if (image.width != k.width || image.height != k.height || reference.width != k.width || reference.height != k.height)
     throw std::invalid_argument("pixel kinds: the images and the input differ in size");
   std::array<double, kPixelKinds> sum{}, rmse{};
-  for (size_t i = 0; i < k.kind.size(); ++i)
+  for (size_t i = 0; i < k.kind.size(); ++i) {
+    const uint32_t x = uint32_t(i % k.width), y = uint32_t(i / k.width);
+    const float *a = image.at(x, y), *r = reference.at(x, y);
     for (int c = 0; c < 3; ++c) {
-      const double d = double(image.rgb[i * 3 + size_t(c)]) - double(reference.rgb[i * 3 + size_t(c)]);
+      const double d = double(a[c]) - double(r[c]);
       sum[size_t(k.kind[i])] += d * d;
     }
+  }
   for (int j = 0; j < kPixelKinds; ++j)
     rmse[size_t(j)] = k.count[size_t(j)] ? std::sqrt(sum[size_t(j)] / (3.0 * double(k.count[size_t(j)]))) * 255.0 : 0.0;
   return rmse;

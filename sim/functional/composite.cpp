@@ -10,14 +10,9 @@ Image composite(const SampleStore& store, Method m) {
   const MethodTraits& t = traits(m);
   const BlendFormats& fmt = store.targets().formats;
   const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
-  Image img;
-  img.width = h.width;
-  img.height = h.height;
-  img.rgb.resize(size_t(img.width) * img.height * 3);
   double bg[3];
   for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(h.clear_color[c]));  // as the colour buffer holds it
-  for (size_t i = 0; i < img.rgb.size(); i += 3)
-    for (int c = 0; c < 3; ++c) img.rgb[i + size_t(c)] = float(bg[c]);
+  Image img(h.width, h.height, {float(bg[0]), float(bg[1]), float(bg[2])});            // untouched tiles: no memory
   const int spp = h.spp;
   const uint32_t clear_z = depth_bits(canonical_depth(h.clear_depth));
   store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {

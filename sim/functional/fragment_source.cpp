@@ -1,5 +1,7 @@
 #include "fragment_source.h"
 
+#include <filesystem>
+#include <system_error>
 #include <vector>
 
 #include "rasterizer.h"
@@ -28,6 +30,16 @@ class TraceFragments : public FragmentSource {
     }
     ++delivered_;
     return true;
+  }
+  uint64_t fragments_at_least() const override {
+    if (header_.compression != Compression::kNone) return 0;
+    std::error_code ec;
+    const uint64_t bytes = std::filesystem::file_size(path_, ec);
+    if (ec) return 0;
+    // Every record is at most the largest one (all samples covered); the
+    // header and checksum records (16 bytes per 64 KiB block) are a few bytes
+    // more than the fragments, so take 1/1000 off.
+    return bytes / fragment_record_bytes(header_, header_.spp) / 1000 * 999 * repeat_;
   }
 
  private:

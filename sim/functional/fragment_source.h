@@ -31,6 +31,11 @@ class FragmentSource {
   virtual bool next(Fragment& f) = 0;
   /// Fragments delivered so far.
   uint64_t delivered() const { return delivered_; }
+  /// A lower bound on the fragments the input holds (repeats included), known
+  /// before reading it where its size tells (an uncompressed trace file: its
+  /// bytes over the largest record's); 0 where nothing is known. For the
+  /// up-front memory estimate (--memory-limit).
+  virtual uint64_t fragments_at_least() const { return 0; }
 
  protected:
   TraceHeader header_;

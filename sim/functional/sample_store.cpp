@@ -18,11 +18,13 @@ SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, const StoreTar
       tiles_(h.width, h.height),
       clear_depth_(canonical_depth(h.clear_depth)) {
   for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+  mem_.add(tiles_.directory_bytes(), "the tile directory of the screen");
 }
 
 PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
   const int spp = header_.spp;
   SampleTile& t = tiles_.get(x, y, [&](uint32_t, uint32_t) {
+    mem_.add(tile_bytes() + sizeof(SampleTile), "the per-sample buffers of the touched tiles");
     auto tile = std::make_unique<SampleTile>();
     const size_t n = size_t(64) * spp;
     tile->depth.reset(new float[n]);
@@ -68,14 +70,10 @@ PixelView SampleStore::view(uint32_t x, uint32_t y) const {
 }
 
 Image SampleStore::resolve() const {
-  Image img;
-  img.width = header_.width;
-  img.height = header_.height;
-  img.rgb.resize(size_t(img.width) * img.height * 3);
   const float clear[3] = {half_to_float(clear_rgb16_[0]), half_to_float(clear_rgb16_[1]),
                           half_to_float(clear_rgb16_[2])};
-  for (size_t i = 0; i < img.rgb.size(); i += 3)
-    for (int ch = 0; ch < 3; ++ch) img.rgb[i + size_t(ch)] = clear[ch];
+  // Untouched tiles stay the clear colour and take no memory.
+  Image img(header_.width, header_.height, {clear[0], clear[1], clear[2]});
   const int spp = header_.spp;
   const float inv = 1.0f / float(spp);  // exact: spp is a power of two
   tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
@@ -101,15 +99,15 @@ Image SampleStore::resolve() const {
   return img;
 }
 
-size_t SampleStore::state_bytes() const {
-  const size_t per_tile = size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) +
-                          (with_tracker_ ? 64 * sizeof(TrackerState) : 0) +
-                          (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0) +
-                          size_t(64) * header_.spp *
-                              ((targets_.transmittance ? sample_bytes(targets_.formats.transmittance) : 0) +
-                               (targets_.accum ? sample_bytes(targets_.formats.accum) : 0));
-  return tiles_.tiles() * per_tile + tiles_.directory_bytes();
+size_t SampleStore::tile_bytes() const {
+  return size_t(64) * header_.spp * (kDepthSampleBytes + kColorSampleBytes) +
+         (with_tracker_ ? 64 * sizeof(TrackerState) : 0) + (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0) +
+         size_t(64) * header_.spp *
+             ((targets_.transmittance ? sample_bytes(targets_.formats.transmittance) : 0) +
+              (targets_.accum ? sample_bytes(targets_.formats.accum) : 0));
 }
+
+size_t SampleStore::state_bytes() const { return tiles_.tiles() * tile_bytes() + tiles_.directory_bytes(); }
 
 std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
   const TraceHeader& h = a.header();

@@ -9,6 +9,7 @@
 
 #include "blend.h"
 #include "image.h"
+#include "memory_budget.h"
 #include "slab.h"
 #include "tile_map.h"
 #include "trace.h"
@@ -76,6 +77,8 @@ class SampleStore {
   /// untouched pixels get the clear colour.
   Image resolve() const;
   size_t state_bytes() const;
+  /// The bytes of one touched tile's buffers.
+  size_t tile_bytes() const;
   size_t tiles() const { return tiles_.tiles(); }
   const TileMap<SampleTile>& tile_map() const { return tiles_; }
   const TraceHeader& header() const { return header_; }
@@ -89,6 +92,7 @@ class SampleStore {
   int slab_bits_;
   StoreTargets targets_;
   TileMap<SampleTile> tiles_;
+  BudgetShare mem_;  // the tiles' bytes in the run's memory budget (--memory-limit)
   float clear_depth_;
   uint16_t clear_rgb16_[3];
 };

@@ -10,6 +10,17 @@ StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg) 
 // ------------------------------------------------------------ ReferenceModel
 
 namespace {
+/// Room for `more` elements in v, its new capacity charged to the memory
+/// budget before it is allocated: the lists grow with every fragment, so a
+/// trace too large is refused in one line, not by std::bad_alloc.
+template <class V>
+void grow_for(V& v, size_t more, BudgetShare& mem) {
+  if (v.size() + more <= v.capacity()) return;
+  const size_t cap = std::max({v.capacity() * 2, v.size() + more, size_t{1024}});
+  mem.add((cap - v.capacity()) * sizeof(typename V::value_type), "the A-buffer reference's fragment lists");
+  v.reserve(cap);
+}
+
 MethodConfig reference_config() {
   MethodConfig c;
   c.method = Method::kReference;
@@ -18,13 +29,16 @@ MethodConfig reference_config() {
 }  // namespace
 
 ReferenceModel::ReferenceModel(const TraceHeader& h)
-    : FunctionalModel(h), setup_(h, reference_config()), heads_(h.width, h.height) {}
+    : FunctionalModel(h), setup_(h, reference_config()), heads_(h.width, h.height) {
+  mem_.add(heads_.directory_bytes(), "the A-buffer reference's tile directory");
+}
 
 void ReferenceModel::draw(const Fragment& f) {
   ++counters_.fragments;
   const int covered = __builtin_popcountll(f.coverage);
   counters_.samples_tested += covered;
-  HeadTile& t = heads_.get(f.x, f.y, [](uint32_t, uint32_t) {
+  HeadTile& t = heads_.get(f.x, f.y, [this](uint32_t, uint32_t) {
+    mem_.add(sizeof(HeadTile), "the A-buffer reference's fragment lists");
     auto ht = std::make_unique<HeadTile>();
     ht->head.fill(-1);
     return ht;
@@ -39,6 +53,8 @@ void ReferenceModel::draw(const Fragment& f) {
   e.next = head;
   float z[64];
   setup_.sample_depths(f, f.coverage, z);
+  grow_for(z_, size_t(covered), mem_);
+  grow_for(entries_, 1, mem_);
   for (uint64_t m = f.coverage; m; m &= m - 1) z_.push_back(z[__builtin_ctzll(m)]);
   head = int64_t(entries_.size());
   entries_.push_back(e);
@@ -46,11 +62,7 @@ void ReferenceModel::draw(const Fragment& f) {
 }
 
 Image ReferenceModel::resolve() const {
-  Image img;
-  img.width = header_.width;
-  img.height = header_.height;
-  img.rgb.resize(size_t(img.width) * img.height * 3);
-  for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = header_.clear_color[i % 3];
+  Image img(header_.width, header_.height, {header_.clear_color[0], header_.clear_color[1], header_.clear_color[2]});
   const int spp = header_.spp;
   struct Layer {
     float z;

@@ -73,6 +73,8 @@ class ReferenceModel : public FunctionalModel {
   Image resolve() const override;
   size_t state_bytes() const override;
   Counters counters() const override { return counters_; }
+  /// The least state one fragment adds (its list entry and one depth).
+  static constexpr size_t kBytesPerFragmentAtLeast = 48 + sizeof(float);
 
  private:
   Counters counters_;
@@ -91,6 +93,8 @@ class ReferenceModel : public FunctionalModel {
   TileMap<HeadTile> heads_;
   std::vector<Entry> entries_;
   std::vector<float> z_;
+  static_assert(sizeof(Entry) >= 48, "kBytesPerFragmentAtLeast: an entry's bytes");
+  BudgetShare mem_;  // state_bytes() as charged to the run's memory budget (--memory-limit)
 };
 
 std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg);

@@ -22,10 +22,21 @@ std::vector<unsigned char> encode_image(const Image& img, const std::string& pat
   if (ext != "exr" && ext != "png")
     throw ImageError(path + ": unsupported image extension '." + ext + "' (use .exr or .png)");
   try {
-    if (ext == "exr") return encode_exr_rgb(img.rgb.data(), int(img.width), int(img.height), path);
-    std::vector<unsigned char> px(img.rgb.size());
-    for (size_t i = 0; i < px.size(); ++i) px[i] = uint8_t(std::lround(linear_to_srgb(img.rgb[i]) * 255.0f));
-    return encode_png_rgb8(px.data(), int(img.width), int(img.height), path);
+    // Row by row: the image is sparse (untouched tiles are its background),
+    // so only one dense row exists at a time.
+    if (ext == "exr")
+      return encode_exr_rows(
+          int(img.width), int(img.height), [&](int y, void* row) { img.row(uint32_t(y), static_cast<float*>(row)); },
+          path);
+    std::vector<float> linear(size_t(img.width) * 3);
+    return encode_png_rows(
+        int(img.width), int(img.height),
+        [&](int y, void* row) {
+          img.row(uint32_t(y), linear.data());
+          auto* px = static_cast<unsigned char*>(row);
+          for (size_t i = 0; i < linear.size(); ++i) px[i] = uint8_t(std::lround(linear_to_srgb(linear[i]) * 255.0f));
+        },
+        path);
   } catch (const ImageCodecError& e) {
     throw ImageError(e.what());
   }
@@ -47,12 +58,13 @@ Image read_image(const std::string& path) {
     throw ImageError(e.what());
   }
   if (d.channels < 3) throw ImageError(path + ": image has " + std::to_string(d.channels) + " channels, need RGB");
-  Image img;
-  img.width = uint32_t(d.width);
-  img.height = uint32_t(d.height);
-  img.rgb.resize(size_t(img.width) * img.height * 3);
-  for (size_t i = 0; i < size_t(img.width) * img.height; ++i)
-    for (size_t c = 0; c < 3; ++c) img.rgb[i * 3 + c] = d.px[i * size_t(d.channels) + c];
+  Image img(uint32_t(d.width), uint32_t(d.height));
+  for (uint32_t y = 0; y < img.height; ++y)
+    for (uint32_t x = 0; x < img.width; ++x) {
+      const float* p = &d.px[(size_t(y) * img.width + x) * size_t(d.channels)];
+      float* o = img.at(x, y);
+      for (size_t c = 0; c < 3; ++c) o[c] = p[c];
+    }
   return img;
 }
 
@@ -61,15 +73,21 @@ CompareResult compare_images(const Image& a, const Image& b) {
     throw ImageError("images differ in size: " + std::to_string(a.width) + "x" + std::to_string(a.height) + " vs " +
                      std::to_string(b.width) + "x" + std::to_string(b.height));
   // Every sum in sample order, in double: deterministic.
+  // Row by row in raster order (the images are sparse; one row each is dense).
   double sum = 0, sum_abs = 0, sum_sq = 0, max_abs = 0;
-  for (size_t i = 0; i < a.rgb.size(); ++i) {
-    const double d = double(a.rgb[i]) - double(b.rgb[i]);
-    sum += d;
-    sum_abs += std::fabs(d);
-    sum_sq += d * d;
-    max_abs = std::max(max_abs, std::fabs(d));
+  std::vector<float> ra(size_t(a.width) * 3), rb(ra.size());
+  for (uint32_t y = 0; y < a.height; ++y) {
+    a.row(y, ra.data());
+    b.row(y, rb.data());
+    for (size_t i = 0; i < ra.size(); ++i) {
+      const double d = double(ra[i]) - double(rb[i]);
+      sum += d;
+      sum_abs += std::fabs(d);
+      sum_sq += d * d;
+      max_abs = std::max(max_abs, std::fabs(d));
+    }
   }
-  const double n = double(a.rgb.size());
+  const double n = double(a.width) * double(a.height) * 3.0;
   CompareResult c;
   const double rms = n > 0 ? std::sqrt(sum_sq / n) : 0.0;
   c.rmse_8bit = rms * 255.0;

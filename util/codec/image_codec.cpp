@@ -5,6 +5,7 @@
 
 #include <cctype>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <mutex>
 
@@ -108,12 +109,14 @@ DecodedImage decode(const char* path, const void* data, size_t bytes, const std:
   return img;
 }
 
-std::vector<unsigned char> encode(const void* rgb, int width, int height, const std::string& path) {
+void call_rows(void* ctx, int y, void* row) { (*static_cast<const RowSource*>(ctx))(y, row); }
+
+std::vector<unsigned char> encode(int width, int height, const RowSource& rows, const std::string& path) {
   const Module& m = module_for(path);
   unsigned char* out = nullptr;
   size_t n = 0;
   char err[512];
-  if (m.encode(path.c_str(), rgb, width, height, &out, &n, err, sizeof err) != 0)
+  if (m.encode(path.c_str(), width, height, &call_rows, const_cast<RowSource*>(&rows), &out, &n, err, sizeof err) != 0)
     throw ImageCodecError(path + ": cannot encode the image: " + err);
   std::unique_ptr<unsigned char, decltype(m.release)> owned(out, m.release);
   return std::vector<unsigned char>(out, out + n);
@@ -130,14 +133,29 @@ DecodedImage decode_image_memory(const void* data, size_t bytes, const std::stri
   return decode(fake.c_str(), data, bytes, name);
 }
 
-std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path) {
+std::vector<unsigned char> encode_exr_rows(int width, int height, const RowSource& rows, const std::string& path) {
   if (image_extension(path) != "exr") throw ImageCodecError(path + ": an EXR image needs the extension .exr");
-  return encode(rgb, width, height, path);
+  return encode(width, height, rows, path);
+}
+
+std::vector<unsigned char> encode_png_rows(int width, int height, const RowSource& rows, const std::string& path) {
+  if (image_extension(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
+  return encode(width, height, rows, path);
+}
+
+std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path) {
+  return encode_exr_rows(
+      width, height,
+      [&](int y, void* row) {
+        std::memcpy(row, rgb + size_t(y) * size_t(width) * 3, size_t(width) * 3 * sizeof(float));
+      },
+      path);
 }
 
 std::vector<unsigned char> encode_png_rgb8(const unsigned char* rgb8, int width, int height, const std::string& path) {
-  if (image_extension(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
-  return encode(rgb8, width, height, path);
+  return encode_png_rows(
+      width, height,
+      [&](int y, void* row) { std::memcpy(row, rgb8 + size_t(y) * size_t(width) * 3, size_t(width) * 3); }, path);
 }
 
 std::string image_codec_module_path() {

@@ -12,6 +12,7 @@
 #pragma once
 #include <cctype>
 #include <cstddef>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -46,6 +47,14 @@ DecodedImage decode_image_memory(const void* data, size_t bytes, const std::stri
 /// Throws ImageCodecError.
 std::vector<unsigned char> encode_exr_rgb(const float* rgb, int width, int height, const std::string& path);
 std::vector<unsigned char> encode_png_rgb8(const unsigned char* rgb8, int width, int height, const std::string& path);
+
+/// Fills row y (from the top) of an image being encoded: width * 3 values,
+/// float for EXR, unsigned char for PNG. Must not throw.
+using RowSource = std::function<void(int y, void* row)>;
+/// The same encodings with the pixels asked for row by row, so an image is
+/// never held whole: only one row uncompressed, and the encoded bytes.
+std::vector<unsigned char> encode_exr_rows(int width, int height, const RowSource& rows, const std::string& path);
+std::vector<unsigned char> encode_png_rows(int width, int height, const RowSource& rows, const std::string& path);
 
 /// The lower-case extension of path's file name, without the dot ("" if none):
 /// the format of an image to write.

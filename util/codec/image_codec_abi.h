@@ -9,7 +9,7 @@
 extern "C" {
 
 /// Bumped on any change below; the loader refuses a module of another version.
-#define ROPSIM_OIIO_ABI_VERSION 1
+#define ROPSIM_OIIO_ABI_VERSION 2
 
 int ropsim_oiio_abi_version(void);
 
@@ -19,10 +19,15 @@ int ropsim_oiio_abi_version(void);
 int ropsim_oiio_decode(const char* path, const void* data, size_t bytes, int* width, int* height, int* channels,
                        float** px, char* err, size_t err_size);
 
-/// Encodes width x height RGB pixels (exr: float; png: unsigned char) in the
-/// format of path's extension into *out (*out_bytes bytes).
-int ropsim_oiio_encode(const char* path, const void* rgb, int width, int height, unsigned char** out, size_t* out_bytes,
-                       char* err, size_t err_size);
+/// Fills row y of an image being encoded: width * 3 values (exr: float; png:
+/// unsigned char). Must not throw.
+typedef void (*ropsim_oiio_row_fn)(void* ctx, int y, void* row);
+
+/// Encodes width x height RGB pixels, asked for row by row from the top (so
+/// only one row is held uncompressed), in the format of path's extension into
+/// *out (*out_bytes bytes).
+int ropsim_oiio_encode(const char* path, int width, int height, ropsim_oiio_row_fn rows, void* ctx, unsigned char** out,
+                       size_t* out_bytes, char* err, size_t err_size);
 
 void ropsim_oiio_free(void* p);
 }

@@ -9,6 +9,7 @@
 #include <exception>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "image_codec.h"
 #include "image_codec_abi.h"
@@ -79,9 +80,9 @@ __attribute__((visibility("default"))) int ropsim_oiio_decode(const char* path, 
   return fail(err, err_size, e.what());
 }
 
-__attribute__((visibility("default"))) int ropsim_oiio_encode(const char* path, const void* rgb, int width, int height,
-                                                              unsigned char** out, size_t* out_bytes, char* err,
-                                                              size_t err_size) try {
+__attribute__((visibility("default"))) int ropsim_oiio_encode(const char* path, int width, int height,
+                                                              ropsim_oiio_row_fn rows, void* ctx, unsigned char** out,
+                                                              size_t* out_bytes, char* err, size_t err_size) try {
   *out = nullptr;
   *out_bytes = 0;
   const std::string ext = ropsim::image_extension(path);
@@ -103,7 +104,12 @@ __attribute__((visibility("default"))) int ropsim_oiio_encode(const char* path, 
   spec.attribute("DateTime", "");
   OIIO::Filesystem::IOVecOutput mem;
   if (!o->set_ioproxy(&mem)) return fail(err, err_size, "cannot encode into memory: " + o->geterror());
-  bool ok = o->open(path, spec) && o->write_image(type, rgb);
+  bool ok = o->open(path, spec);
+  std::vector<unsigned char> row(size_t(width) * 3 * type.size());
+  for (int y = 0; ok && y < height; ++y) {
+    rows(ctx, y, row.data());
+    ok = o->write_scanline(y, 0, type, row.data());
+  }
   ok = o->close() && ok;
   if (!ok || mem.buffer().empty()) return fail(err, err_size, ok ? std::string("no bytes") : o->geterror());
   const auto& b = mem.buffer();
