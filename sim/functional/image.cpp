@@ -6,8 +6,10 @@
 namespace ropsim {
 
 Image::Tile& Image::tile(uint32_t x, uint32_t y) {
-  return tiles_.get(x, y, [this](uint32_t, uint32_t) {
+  return tiles_.get(x, y, [this, y](uint32_t, uint32_t) {
     mem_.add(sizeof(Tile), "the resolved image's touched tiles");
+    if (tile_rows_.empty()) tile_rows_.assign((height + kTileSide - 1) / kTileSide, 0);
+    ++tile_rows_[y >> 3];
     auto t = std::make_unique<Tile>();
     for (size_t i = 0; i < kTileSide * kTileSide; ++i)
       std::memcpy(t->rgb + 3 * i, background_.data(), 3 * sizeof(float));

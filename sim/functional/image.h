@@ -43,6 +43,8 @@ class Image {
 
   /// Row y, width * 3 floats, into out.
   void row(uint32_t y, float* out) const;
+  /// True if no pixel of row y was written (it is all background).
+  bool row_untouched(uint32_t y) const { return tile_rows_.empty() || tile_rows_[y >> 3] == 0; }
   /// Every pixel, row-major (for small images and tests).
   std::vector<float> dense() const;
 
@@ -59,7 +61,8 @@ class Image {
 
   std::array<float, 3> background_{0, 0, 0};
   TileMap<Tile> tiles_;
-  BudgetShare mem_;  // the tiles' bytes in the run's memory budget (--memory-limit)
+  std::vector<uint32_t> tile_rows_;  ///< touched tiles per row of tiles (empty until the first)
+  BudgetShare mem_;                  // the tiles' bytes in the run's memory budget (--memory-limit)
 };
 
 bool operator==(const Image& a, const Image& b);
