@@ -12,6 +12,7 @@
 
 #include "alpha_ref.h"
 #include "bits.h"
+#include "blend.h"
 #include "depth.h"
 #include "half.h"
 #include "hilbert.h"
@@ -403,6 +404,141 @@ TEST(Half, EqualsTheDefinitionAcrossTheRange) {
     for (uint32_t d : {mb - 1, mb, mb + 1}) check(d);
   }
 }
+
+#if defined(__SSE2__)
+// The four-lane conversions of the blend unit's SSE path equal the scalar
+// ones bit for bit: every binary16 value, and binary32 values across the
+// whole range (every 61st bit pattern, NaNs and infinities included, plus
+// the binary16 rounding boundaries and the subnormal range's edges).
+TEST(Half, FourLaneConversionsEqualTheScalarOnes) {
+  for (uint32_t h = 0; h < 0x10000; h += 4) {
+    alignas(16) float got[4];
+    _mm_store_ps(got, half4_to_float4(_mm_setr_epi32(int(h), int(h + 1), int(h + 2), int(h + 3))));
+    for (uint32_t k = 0; k < 4; ++k) {
+      const float want = half_to_float(uint16_t(h + k));
+      ASSERT_EQ(std::memcmp(&got[k], &want, 4), 0) << std::hex << h + k;
+    }
+  }
+  auto check4 = [](uint32_t b0, uint32_t b1, uint32_t b2, uint32_t b3) {
+    const uint32_t in[4] = {b0, b1, b2, b3};
+    alignas(16) uint32_t got[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(got),
+                    float4_to_half4(_mm_castsi128_ps(_mm_setr_epi32(int(b0), int(b1), int(b2), int(b3)))));
+    for (int k = 0; k < 4; ++k) {
+      float f;
+      std::memcpy(&f, &in[k], 4);
+      ASSERT_EQ(got[k], float_to_half(f)) << std::hex << in[k];
+    }
+  };
+  for (uint64_t b = 0; b + 3 * 61 <= 0xFFFFFFFFull; b += 4 * 61)
+    check4(uint32_t(b), uint32_t(b + 61), uint32_t(b + 122), uint32_t(b + 183));
+  for (uint32_t sign : {0u, 0x80000000u}) {
+    for (uint32_t h = 0; h < 0x7C00; ++h) {  // around each binary16 and each midpoint
+      const float lo = half_to_float(uint16_t(h)), m = float((double(lo) + double(half_to_float(uint16_t(h + 1)))) / 2);
+      uint32_t lb, mb;
+      std::memcpy(&lb, &lo, 4);
+      std::memcpy(&mb, &m, 4);
+      check4(sign | (lb - 1), sign | lb, sign | (mb - 1), sign | mb);
+      check4(sign | (mb + 1), sign | (lb + 1), sign | lb, sign | lb);
+    }
+    for (uint32_t b : {0x33000000u, 0x38800000u, 0x477FF000u, 0x47800000u, 0x7F800000u, 0x7FC00000u})
+      check4(sign | (b - 1), sign | b, sign | (b + 1), sign | 0x7F800001u);
+  }
+}
+
+// The blend unit's specialised blends (four channels as SSE lanes; a
+// binary16 transmittance four samples at a time) equal the one definition,
+// blend_multiply / blend_add of blend.h, on every target byte: random
+// stored values (finite, subnormal, zero, infinite) and random factors.
+TEST(Blend, SpecialisedBlendsEqualTheDefinition) {
+  std::mt19937 rng(11);
+  auto value = [&rng]() {
+    const uint32_t r = rng();
+    switch (r % 8) {
+      case 0:
+        return 0.0f;
+      case 1:
+        return float(r >> 8) * 0x1p-40f;  // binary16 subnormals and below
+      case 2:
+        return std::numeric_limits<float>::infinity();
+      default:
+        return std::ldexp(float(r >> 8) / float(1 << 24), int(r % 24) - 12);
+    }
+  };
+  auto fill = [&](TargetFormat f, std::vector<uint8_t>& buf, int n) {
+    buf.resize(size_t(n) * sample_bytes(f));
+    for (int i = 0; i < n; ++i)
+      for (int c = 0; c < channels(f); ++c) target_store(f, buf.data() + size_t(i) * sample_bytes(f), c, value());
+  };
+  for (int trial = 0; trial < 4000; ++trial) {
+    const int spp = 1 << (trial % 7);
+    const uint64_t mask = (uint64_t(rng()) << 32 | rng()) & (spp == 64 ? ~0ull : (uint64_t{1} << spp) - 1);
+    const float factor = trial % 5 ? float(rng() % 4096) / 4096.0f : value();
+    float src[4] = {value(), value(), value(), value()};
+    if (trial % 3 == 0) src[1] = -src[1];
+    std::vector<uint8_t> a, b;
+    // Multiply: R16F and R32F per pixel (the sample loop), RGBA per sample.
+    for (TargetFormat f : {TargetFormat::kR16F, TargetFormat::kR32F}) {
+      fill(f, a, spp);
+      b = a;
+      if (f == TargetFormat::kR16F)
+        blend_multiply_samples<TargetFormat::kR16F>(a.data(), mask, spp, factor);
+      else
+        blend_multiply_samples<TargetFormat::kR32F>(a.data(), mask, spp, factor);
+      for (uint64_t m = mask; m; m &= m - 1)
+        blend_multiply(f, b.data() + size_t(__builtin_ctzll(m)) * sample_bytes(f), factor);
+      ASSERT_EQ(a, b) << to_string(f) << " spp " << spp << " trial " << trial;
+    }
+    for (TargetFormat f : {TargetFormat::kRGBA16F, TargetFormat::kRGBA32F}) {
+      fill(f, a, 1);
+      b = a;
+      if (f == TargetFormat::kRGBA16F) {
+        blend_multiply_as<TargetFormat::kRGBA16F>(a.data(), factor);
+        blend_add_as<TargetFormat::kRGBA16F>(a.data(), src);
+      } else {
+        blend_multiply_as<TargetFormat::kRGBA32F>(a.data(), factor);
+        blend_add_as<TargetFormat::kRGBA32F>(a.data(), src);
+      }
+      blend_multiply(f, b.data(), factor);
+      blend_add(f, b.data(), src);
+      ASSERT_EQ(a, b) << to_string(f) << " trial " << trial;
+    }
+  }
+}
+
+// The depth stage's four-at-a-time depths and test equal for_each_sample_depth
+// and depth_passes, plane and per-sample, on every sample: random planes
+// (depths below 0, above 1 and exactly representable ties included) and
+// stored depths equal to the fragment's at some samples.
+TEST(Depth, FourAtATimeEqualsTheSampleLoop) {
+  std::mt19937 rng(7);
+  auto uni = [&rng](float lo, float hi) { return lo + (hi - lo) * float(rng() >> 8) / float(1 << 24); };
+  for (int trial = 0; trial < 20000; ++trial) {
+    const int spp = 4 << (trial % 5);
+    float ox[64], oy[64], per[64], stored[64];
+    for (int i = 0; i < spp; ++i) {
+      ox[i] = sample_offset(uint8_t(rng()));
+      oy[i] = sample_offset(uint8_t(rng()));
+      per[i] = trial % 7 == 0 ? -0.0f : uni(-0.25f, 1.25f);
+    }
+    const bool plane = trial % 2 == 0;
+    const float z0 = uni(-0.1f, 1.1f), dzdx = uni(-0.5f, 0.5f), dzdy = trial % 11 ? uni(-0.5f, 0.5f) : 0.0f;
+    float want[64];
+    for_each_sample_depth((spp == 64 ? ~0ull : (uint64_t{1} << spp) - 1), plane, z0, dzdx, dzdy, ox, oy, per,
+                          [&](int i, float zi) { want[i] = zi; });
+    for (int i = 0; i < spp; ++i) stored[i] = rng() % 3 == 0 ? want[i] : canonical_depth(uni(-0.1f, 1.1f));
+    float got[64];
+    const uint64_t pass = sample_depths_and_test(spp, plane, z0, dzdx, dzdy, ox, oy, per, stored, got);
+    for (int i = 0; i < spp; ++i) {
+      ASSERT_EQ(depth_bits(got[i]), depth_bits(want[i])) << "trial " << trial << " sample " << i;
+      ASSERT_EQ(bool(pass >> i & 1), depth_passes(want[i], stored[i])) << "trial " << trial << " sample " << i;
+    }
+    if (spp < 64) {
+      ASSERT_EQ(pass >> spp, 0u);
+    }
+  }
+}
+#endif
 
 TEST(SortOrder, GroupedSortEqualsKeySort) {
   uint32_t s = 777;

@@ -81,14 +81,64 @@ inline void blend_add(TargetFormat f, uint8_t* dst, const float* src) {
 }
 
 /// The same two blends for a format known at compile time (the blend stage
-/// dispatches once per fragment, not per channel); identical results.
+/// dispatches once per fragment, not per channel); identical results. The
+/// four-channel formats run their channels as the four lanes of one SSE
+/// register where there is SSE2: the same binary32 product or sum per
+/// channel, and the same binary16 conversions (half4_to_float4,
+/// float4_to_half4), so the same bits.
 template <TargetFormat F>
 inline void blend_multiply_as(uint8_t* dst, float factor) {
+#if defined(__SSE2__)
+  if constexpr (F == TargetFormat::kRGBA16F) {
+    store_half4(dst, float4_to_half4(_mm_mul_ps(half4_to_float4(load_half4(dst)), _mm_set1_ps(factor))));
+    return;
+  } else if constexpr (F == TargetFormat::kRGBA32F) {
+    _mm_storeu_ps(reinterpret_cast<float*>(dst),
+                  _mm_mul_ps(_mm_loadu_ps(reinterpret_cast<const float*>(dst)), _mm_set1_ps(factor)));
+    return;
+  }
+#endif
   for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) * factor);
 }
 template <TargetFormat F>
 inline void blend_add_as(uint8_t* dst, const float* src) {
+#if defined(__SSE2__)
+  if constexpr (F == TargetFormat::kRGBA16F) {
+    store_half4(dst, float4_to_half4(_mm_add_ps(half4_to_float4(load_half4(dst)), _mm_loadu_ps(src))));
+    return;
+  } else if constexpr (F == TargetFormat::kRGBA32F) {
+    _mm_storeu_ps(reinterpret_cast<float*>(dst),
+                  _mm_add_ps(_mm_loadu_ps(reinterpret_cast<const float*>(dst)), _mm_loadu_ps(src)));
+    return;
+  }
+#endif
   for (int c = 0; c < channels(F); ++c) target_store(F, dst, c, target_load(F, dst, c) + src[c]);
+}
+
+/// blend_multiply_as<F>(dst + i * sample_bytes(F), factor) for each sample i
+/// of mask, dst the first of a pixel's spp samples. A binary16 target of
+/// four samples or more (where there is SSE2) runs four samples at a time,
+/// each group's unchosen samples stored back unchanged; identical results.
+template <TargetFormat F>
+inline void blend_multiply_samples(uint8_t* dst, uint64_t mask, int spp, float factor) {
+#if defined(__SSE2__)
+  if constexpr (F == TargetFormat::kR16F) {
+    if (spp >= 4) {  // a power of two: whole groups of four, none past the pixel
+      const __m128i bit = _mm_setr_epi32(1, 2, 4, 8);
+      const __m128 k = _mm_set1_ps(factor);
+      for (; mask; mask &= ~(uint64_t{0xF} << (__builtin_ctzll(mask) & ~3))) {
+        const int g = __builtin_ctzll(mask) & ~3;  // the group of the lowest chosen sample
+        uint8_t* p = dst + 2 * g;
+        const __m128i old = load_half4(p);
+        const __m128i now = float4_to_half4(_mm_mul_ps(half4_to_float4(old), k));
+        const __m128i pick = _mm_cmpeq_epi32(_mm_and_si128(_mm_set1_epi32(int(mask >> g & 0xF)), bit), bit);
+        store_half4(p, _mm_or_si128(_mm_and_si128(pick, now), _mm_andnot_si128(pick, old)));
+      }
+      return;
+    }
+  }
+#endif
+  for (; mask; mask &= mask - 1) blend_multiply_as<F>(dst + size_t(__builtin_ctzll(mask)) * sample_bytes(F), factor);
 }
 
 /// Weighted blended OIT's weight (McGuire & Bavoil 2013, Eq. 10): alpha

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace ropsim {
 
@@ -60,5 +63,38 @@ inline void for_each_sample_depth(uint64_t mask, bool plane, float z0, float dzd
 /// LK Figure 7 line 2: a sample is removed when s.z > stored; ties pass
 /// (LESS_EQUAL), so a later fragment at equal depth wins.
 inline bool depth_passes(float z, float stored) { return z <= stored; }  // no NaN reaches here
+
+#if defined(__SSE2__)
+/// for_each_sample_depth over every sample 0 .. spp - 1 (spp a multiple of
+/// 4), four at a time, with the depth test folded in: writes each sample's
+/// depth to z[i] and returns the mask of the samples that pass depth_passes
+/// against stored[i]. The same binary64 products and sums in the same order,
+/// the same rounding to binary32 and canonical_depth as max(z, 0) then
+/// min(., 1) (MAXPS returns its second operand, 0, for a NaN, -0 or negative
+/// z): bit for bit the scalar loop's depths.
+inline uint64_t sample_depths_and_test(int spp, bool plane, float z0, float dzdx, float dzdy, const float* ox,
+                                       const float* oy, const float* per_sample, const float* stored, float* z) {
+  const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+  const __m128d z0d = _mm_set1_pd(double(z0)), dxd = _mm_set1_pd(double(dzdx)), dyd = _mm_set1_pd(double(dzdy));
+  uint64_t pass = 0;
+  for (int i = 0; i < spp; i += 4) {
+    __m128 zi;
+    if (plane) {
+      const __m128 x4 = _mm_loadu_ps(ox + i), y4 = _mm_loadu_ps(oy + i);
+      const __m128d xl = _mm_cvtps_pd(x4), xh = _mm_cvtps_pd(_mm_movehl_ps(x4, x4));
+      const __m128d yl = _mm_cvtps_pd(y4), yh = _mm_cvtps_pd(_mm_movehl_ps(y4, y4));
+      const __m128d dl = _mm_add_pd(_mm_add_pd(z0d, _mm_mul_pd(dxd, xl)), _mm_mul_pd(dyd, yl));
+      const __m128d dh = _mm_add_pd(_mm_add_pd(z0d, _mm_mul_pd(dxd, xh)), _mm_mul_pd(dyd, yh));
+      zi = _mm_movelh_ps(_mm_cvtpd_ps(dl), _mm_cvtpd_ps(dh));
+    } else {
+      zi = _mm_loadu_ps(per_sample + i);
+    }
+    zi = _mm_min_ps(_mm_max_ps(zi, zero), one);
+    _mm_storeu_ps(z + i, zi);
+    pass |= uint64_t(_mm_movemask_ps(_mm_cmple_ps(zi, _mm_loadu_ps(stored + i)))) << i;
+  }
+  return pass;
+}
+#endif
 
 }  // namespace ropsim

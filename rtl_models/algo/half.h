@@ -2,6 +2,9 @@
 #pragma once
 #include <cstdint>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace ropsim {
 
@@ -47,5 +50,54 @@ inline float half_to_float(uint16_t h) {
   std::memcpy(&f, &x, 4);
   return f;
 }
+
+#if defined(__SSE2__)
+/// half_to_float of four lanes, each binary16 in the low 16 bits of a 32-bit
+/// lane (the high bits zero): the same operations lane by lane, bit for bit.
+inline __m128 half4_to_float4(__m128i h) {
+  const __m128i x = _mm_slli_epi32(_mm_and_si128(h, _mm_set1_epi32(0x7FFF)), 13);
+  __m128i r = _mm_castps_si128(_mm_mul_ps(_mm_castsi128_ps(x), _mm_set1_ps(0x1p112f)));
+  const __m128i inf_nan = _mm_cmpeq_epi32(_mm_and_si128(h, _mm_set1_epi32(0x7C00)), _mm_set1_epi32(0x7C00));
+  r = _mm_or_si128(r, _mm_and_si128(inf_nan, _mm_set1_epi32(0x7F800000)));
+  return _mm_castsi128_ps(_mm_or_si128(r, _mm_slli_epi32(_mm_and_si128(h, _mm_set1_epi32(0x8000)), 16)));
+}
+
+/// float_to_half of four lanes, each result in the low 16 bits of its 32-bit
+/// lane (the high bits zero). Equal to float_to_half on every binary32 value
+/// (checked exhaustively when written; tests/test_algo.cpp checks a stride of
+/// them): the normal case is float_to_half's; a subnormal or zero result is
+/// the binary32 sum |f| + 0.5, whose unit in the last place is 2^-24, the
+/// binary16 subnormal's unit, so the addition's round to nearest even is the
+/// rounding float_to_half does by shifts; |f| >= 65536 gives inf or the quiet
+/// NaN (|f| in [65520, 65536) reaches inf through the normal case's carry).
+inline __m128i float4_to_half4(__m128 f) {
+  const __m128i x = _mm_castps_si128(f);
+  const __m128i sign = _mm_and_si128(x, _mm_set1_epi32(int(0x80000000u)));
+  const __m128i absx = _mm_xor_si128(x, sign);
+  const __m128i lsb = _mm_and_si128(_mm_srli_epi32(absx, 13), _mm_set1_epi32(1));
+  const __m128i normal =
+      _mm_srli_epi32(_mm_add_epi32(_mm_add_epi32(absx, _mm_set1_epi32(int(0xFFFu - 0x38000000u))), lsb), 13);
+  const __m128i sub = _mm_sub_epi32(_mm_castps_si128(_mm_add_ps(_mm_castsi128_ps(absx), _mm_set1_ps(0.5f))),
+                                    _mm_set1_epi32(0x3F000000));
+  const __m128i inf_nan = _mm_or_si128(
+      _mm_set1_epi32(0x7C00), _mm_and_si128(_mm_cmpgt_epi32(absx, _mm_set1_epi32(0x7F800000)), _mm_set1_epi32(0x200)));
+  const __m128i big = _mm_cmpgt_epi32(absx, _mm_set1_epi32(0x477FFFFF));  // |f| >= 65536 (signed compare: absx < 2^31)
+  const __m128i small = _mm_cmplt_epi32(absx, _mm_set1_epi32(0x38800000));  // |f| < 2^-14
+  __m128i h = _mm_or_si128(_mm_and_si128(small, sub), _mm_andnot_si128(small, normal));
+  h = _mm_or_si128(_mm_and_si128(big, inf_nan), _mm_andnot_si128(big, h));
+  return _mm_or_si128(h, _mm_srli_epi32(sign, 16));
+}
+
+/// Four binary16 values (8 bytes at p, unaligned) into 32-bit lanes, and back.
+inline __m128i load_half4(const void* p) {
+  return _mm_unpacklo_epi16(_mm_loadl_epi64(static_cast<const __m128i*>(p)), _mm_setzero_si128());
+}
+inline void store_half4(void* p, __m128i h) {
+  // Each lane is below 2^16: shifted up and back (sign-extending), the signed
+  // saturating pack keeps it exactly.
+  const __m128i s = _mm_srai_epi32(_mm_slli_epi32(h, 16), 16);
+  _mm_storel_epi64(static_cast<__m128i*>(p), _mm_packs_epi32(s, s));
+}
+#endif
 
 }  // namespace ropsim

@@ -39,6 +39,9 @@ void FunctionalRop::process_as(FragWork& w) {
   fetch(w);
   if constexpr (passes_of(M).count > 1 || ropsim::traits(M).wboit) {
     if (is_blend_pass(setup_.pass)) {
+      // The targets' samples are read-modify-written once the depth test has
+      // run: ask for their cache lines now, so the loads overlap the test.
+      blend_.prefetch(w);
       depth_.run_as<M>(w);  // not writing: the blend passes leave depth as it is
       if (w.killed()) return;
       blend_.run(w);

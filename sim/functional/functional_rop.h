@@ -125,6 +125,17 @@ class BlendStage : public Stage {
   explicit BlendStage(const RopSetup& s) : Stage(s) {}
   /// Blends the survivors; returns the samples blended.
   uint32_t run(FragWork& w);
+  /// Hints the cache to fetch the pixel's blend targets (no effect on state).
+  void prefetch(const FragWork& w) const {
+    const uint32_t n = uint32_t(s_.spp);
+    if (w.px.trans) prefetch_bytes(w.px.trans, n * sample_bytes(s_.cfg.formats.transmittance));
+    if (w.px.accum) prefetch_bytes(w.px.accum, n * sample_bytes(s_.cfg.formats.accum));
+  }
+
+ private:
+  static void prefetch_bytes(const uint8_t* p, uint32_t bytes) {
+    for (uint32_t i = 0; i < bytes; i += 64) __builtin_prefetch(p + i, 1);
+  }
 };
 
 /// Opacity test and write: the samples the method keeps get the fragment's

@@ -129,11 +129,22 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   uint64_t S = 0;
   float* z = w.z;
   const float* stored = w.px.depth;
-  for_each_sample_depth(tested, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, s_.offset_x.data(),
-                        s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
-                          z[i] = zi;
-                          S |= uint64_t{depth_passes(zi, stored[i])} << i;
-                        });
+  const bool plane = s_.header.depth_mode == DepthMode::kPlane;
+#if defined(__SSE2__)
+  // Four or more samples: every sample's depth and test four at a time
+  // (identical values; the untested samples' results are masked off).
+  if (s_.spp >= 4) {
+    S = tested & sample_depths_and_test(s_.spp, plane, f.z0, f.dzdx, f.dzdy, s_.offset_x.data(), s_.offset_y.data(),
+                                        f.z.data(), stored, z);
+  } else
+#endif
+  {
+    for_each_sample_depth(tested, plane, f.z0, f.dzdx, f.dzdy, s_.offset_x.data(), s_.offset_y.data(), f.z.data(),
+                          [&](int i, float zi) {
+                            z[i] = zi;
+                            S |= uint64_t{depth_passes(zi, stored[i])} << i;
+                          });
+  }
   w.covered = tested;
   w.survivors = S;
   w.m = uint32_t(__builtin_popcountll(S));
@@ -271,24 +282,34 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
 inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 
 namespace detail {
-/// The blend stage's loop for one pair of target formats.
-template <TargetFormat TF, TargetFormat AF>
-inline void blend_survivors(FragWork& w, PassKind pass) {
+/// The blend stage's multiplicative blend for one transmittance format: each
+/// survivor's transmittance times (1 - alpha).
+template <TargetFormat TF>
+inline void multiply_survivors(const FragWork& w, int spp) {
+  blend_multiply_samples<TF>(w.px.trans, w.survivors, spp, 1.0f - w.f->alpha);
+}
+
+/// The blend stage's additive blend for one accumulation format: accumulate
+/// adds (alpha c, alpha) to each survivor; wboit (weighted) the same times
+/// its weight w(z, alpha). Everything per fragment is read once, before the
+/// loop (the targets are bytes, which the compiler must assume alias it).
+template <TargetFormat AF, bool kWeighted>
+inline void add_survivors(const FragWork& w) {
+  constexpr uint32_t ab = sample_bytes(AF);
   const Fragment& f = *w.f;
-  const float a = f.alpha;
-  constexpr uint32_t tb = sample_bytes(TF), ab = sample_bytes(AF);
-  const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
-  const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
-  const bool weighted = pass == PassKind::kWboit;
-  for (uint64_t s = w.survivors; s; s &= s - 1) {
-    const int i = __builtin_ctzll(s);
-    if (trans) blend_multiply_as<TF>(w.px.trans + size_t(i) * tb, 1.0f - a);
-    if (accum) {
-      // accumulate: (alpha c, alpha); wboit: the same times its weight w(z, alpha).
-      const float k = weighted ? a * wboit_weight(w.z[i], a) : a;
-      const float src[4] = {k * f.rgb[0], k * f.rgb[1], k * f.rgb[2], k};
-      blend_add_as<AF>(w.px.accum + size_t(i) * ab, src);
+  const float a = f.alpha, r = f.rgb[0], g = f.rgb[1], b = f.rgb[2];
+  uint8_t* const accum = w.px.accum;
+  const float* const z = w.z;
+  if constexpr (kWeighted) {
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      const float k = a * wboit_weight(z[i], a);
+      const float src[4] = {k * r, k * g, k * b, k};
+      blend_add_as<AF>(accum + size_t(i) * ab, src);
     }
+  } else {
+    const float src[4] = {a * r, a * g, a * b, a};
+    for (uint64_t s = w.survivors; s; s &= s - 1) blend_add_as<AF>(accum + size_t(__builtin_ctzll(s)) * ab, src);
   }
 }
 }  // namespace detail
@@ -296,17 +317,27 @@ inline void blend_survivors(FragWork& w, PassKind pass) {
 inline uint32_t BlendStage::run(FragWork& w) {
   const BlendFormats& fmt = s_.cfg.formats;
   const PassKind pass = s_.pass;
-  const bool half_t = fmt.transmittance == TargetFormat::kR16F, half_a = fmt.accum == TargetFormat::kRGBA16F;
-  if (half_t && half_a)
-    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA16F>(w, pass);
-  else if (half_t)
-    detail::blend_survivors<TargetFormat::kR16F, TargetFormat::kRGBA32F>(w, pass);
-  else if (half_a)
-    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA16F>(w, pass);
-  else
-    detail::blend_survivors<TargetFormat::kR32F, TargetFormat::kRGBA32F>(w, pass);
   const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
   const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
+  // The two targets are separate buffers: blending one, then the other, is
+  // blending both sample by sample.
+  if (trans) {
+    if (fmt.transmittance == TargetFormat::kR16F)
+      detail::multiply_survivors<TargetFormat::kR16F>(w, s_.spp);
+    else
+      detail::multiply_survivors<TargetFormat::kR32F>(w, s_.spp);
+  }
+  if (accum) {
+    const bool half_a = fmt.accum == TargetFormat::kRGBA16F, weighted = pass == PassKind::kWboit;
+    if (half_a && weighted)
+      detail::add_survivors<TargetFormat::kRGBA16F, true>(w);
+    else if (half_a)
+      detail::add_survivors<TargetFormat::kRGBA16F, false>(w);
+    else if (weighted)
+      detail::add_survivors<TargetFormat::kRGBA32F, true>(w);
+    else
+      detail::add_survivors<TargetFormat::kRGBA32F, false>(w);
+  }
   const uint32_t n = w.m;
   c_.samples_blended += n;
   const uint64_t bytes =
