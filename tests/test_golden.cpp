@@ -317,8 +317,8 @@ TEST(EndertonExamples, MeanPixelMatchesClosedForm) {
           // (enderton+ac's on Ex. 1, docs/results.md) exceeds bound plus noise
           // and fails: enderton+ac at 4 spp misses R by 0.0164, bound 0.0041.
           double s2 = 0;
-          for (size_t i = size_t(c); i < r.image.rgb.size(); i += 3)
-            s2 += (r.image.rgb[i] - m[size_t(c)]) * (r.image.rgb[i] - m[size_t(c)]);
+          const std::vector<float> px = r.image.dense();
+          for (size_t i = size_t(c); i < px.size(); i += 3) s2 += (px[i] - m[size_t(c)]) * (px[i] - m[size_t(c)]);
           s2 /= n - 1;
           const double b = 6 * std::sqrt(s2 / n) + 1e-3;
           EXPECT_LT(b, 0.0085) << ex.scene << " " << to_string(meth) << " spp " << spp << " channel " << c;
