@@ -38,7 +38,7 @@ void BM_CycleVsFunctional(benchmark::State& state, SorterKind sorter) {
   for (auto _ : state) {
     const CycleRun c = run_cycle(in, g, hw);
     const auto t0 = std::chrono::steady_clock::now();
-    const FunctionalRun f = run_functional(in, g);
+    const FunctionalRun f = run_functional(in, g, false, 1);  // one thread, as the cycle model
     fun_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     cyc_s += c.wall_seconds;
     frags += c.counters.fragments;

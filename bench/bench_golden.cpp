@@ -44,6 +44,33 @@ void BM_Golden(benchmark::State& state, Method method) {
       benchmark::Counter(double(fl.fragments.size()) * double(state.iterations()), benchmark::Counter::kIsRate);
 }
 
+// The golden model on state.range(1) host threads (--threads), cloth
+// fragments in memory, drawn in the driver's batches of 4096: the speed-up
+// over one thread is the ratio of the /1 and /2 rows of one run. The work is
+// the same on every thread count (the lanes' bits are identical).
+void BM_GoldenThreads(benchmark::State& state, Method method) {
+  const int spp = int(state.range(0)), threads = int(state.range(1));
+  const FragmentList& fl = cloth(spp);
+  GoldenConfig cfg;
+  cfg.method = method;
+  uint64_t samples = 0;
+  constexpr size_t kBatch = 4096;
+  for (auto _ : state) {
+    auto m = make_functional_model(fl.header, cfg, threads);
+    for (int pass = 0; pass < m->passes(); ++pass) {
+      m->begin_pass(pass);
+      for (size_t i = 0; i < fl.fragments.size(); i += kBatch)
+        m->draw_batch(fl.fragments.data() + i, std::min(kBatch, fl.fragments.size() - i));
+    }
+    const Counters c = m->counters();
+    samples += c.samples_tested / uint64_t(m->passes());
+    benchmark::DoNotOptimize(c.samples_written);
+  }
+  state.counters["samples_per_s"] = benchmark::Counter(double(samples), benchmark::Counter::kIsRate);
+  state.counters["fragments_per_s"] =
+      benchmark::Counter(double(fl.fragments.size()) * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 // The whole `ropsim run --scene cloth` path: scene rasterized on the fly,
 // model, resolve.
 void BM_RunScene(benchmark::State& state) {
@@ -52,7 +79,7 @@ void BM_RunScene(benchmark::State& state) {
   in.scene.spp = int(state.range(0));
   GoldenConfig cfg;
   uint64_t samples = 0;
-  for (auto _ : state) samples += run_functional(in, cfg).counters.samples_tested;
+  for (auto _ : state) samples += run_functional(in, cfg, false, 1).counters.samples_tested;  // one thread
   state.counters["samples_per_s"] = benchmark::Counter(double(samples), benchmark::Counter::kIsRate);
 }
 
@@ -103,6 +130,19 @@ BENCHMARK_CAPTURE(BM_Golden, lk_depth_ac, Method::kLkDepthAc)->Arg(16)->Unit(ben
 BENCHMARK_CAPTURE(BM_Golden, enderton_ac, Method::kEndertonAc)->Arg(16)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Golden, enderton_depth, Method::kEndertonDepth)->Arg(16)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Golden, enderton_depth_ac, Method::kEndertonDepthAc)->Arg(16)->Unit(benchmark::kMillisecond);
+// Wall time (the threads' CPU time is not the point): --benchmark_filter=GoldenThreads
+BENCHMARK_CAPTURE(BM_GoldenThreads, lk, Method::kLk)
+    ->Args({16, 1})
+    ->Args({16, 2})
+    ->Args({64, 1})
+    ->Args({64, 2})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_GoldenThreads, enderton, Method::kEnderton)
+    ->Args({16, 1})
+    ->Args({16, 2})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RunScene)->Arg(16)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Memory4k64)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -6,33 +6,52 @@
 # second on cloth at 16 spp (ropsim_bench_cycle, default config) and the
 # golden model alone on in-memory fragments (ropsim_bench, BM_Golden).
 # Prints min / median / max of each figure per side and the median ratio.
+# With HEAD_REV, the head side is that revision, built the same way, instead
+# of this checkout (to measure one past change alone).
 #   scripts/bench_ab.sh edd19d5 7
+#   scripts/bench_ab.sh 19667d5 7 1d1f08d
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 base_rev="${1:-HEAD~1}"
 rounds="${2:-5}"
+head_rev="${3:-}"
+# Builds revision $1's benchmarks in build-ab/<sha>/build; prints that folder.
+build_rev() {
+  local sha ab
+  sha="$(git -C "$root" rev-parse --short=12 "$1")"
+  ab="$root/build-ab/$sha"
+  if [ ! -x "$ab/build/ropsim_bench_cycle" ]; then
+    rm -rf "$ab/src"
+    mkdir -p "$ab"
+    git -C "$root" archive "$sha" | (mkdir -p "$ab/src" && tar -x -C "$ab/src")
+    cmake -S "$ab/src" -B "$ab/build" -DCMAKE_BUILD_TYPE=Release -DROPSIM_BUILD_TESTS=OFF >/dev/null
+    cmake --build "$ab/build" -j "$(nproc)" --target ropsim_bench ropsim_bench_cycle >/dev/null
+  fi
+  echo "$ab/build"
+}
 base_sha="$(git -C "$root" rev-parse --short=12 "$base_rev")"
-bash "$root/scripts/build.sh" >/dev/null
-ab="$root/build-ab/$base_sha"
-if [ ! -x "$ab/build/ropsim_bench_cycle" ]; then
-  rm -rf "$ab/src"
-  mkdir -p "$ab"
-  git -C "$root" archive "$base_sha" | (mkdir -p "$ab/src" && tar -x -C "$ab/src")
-  cmake -S "$ab/src" -B "$ab/build" -DCMAKE_BUILD_TYPE=Release -DROPSIM_BUILD_TESTS=OFF >/dev/null
-  cmake --build "$ab/build" -j "$(nproc)" --target ropsim_bench ropsim_bench_cycle >/dev/null
+bash "$root/scripts/deps.sh" >/dev/null
+base_dir="$(build_rev "$base_rev")"
+if [ -n "$head_rev" ]; then
+  head_dir="$(build_rev "$head_rev")"
+  head_sha="$(git -C "$root" rev-parse --short=12 "$head_rev")"
+else
+  bash "$root/scripts/build.sh" >/dev/null
+  head_dir="$root/build"
+  head_sha="$(git -C "$root" rev-parse --short=12 HEAD)"
 fi
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 for ((i = 0; i < rounds; ++i)); do
   for side in base head; do
-    dir="$root/build"
-    [ "$side" = base ] && dir="$ab/build"
+    dir="$head_dir"
+    [ "$side" = base ] && dir="$base_dir"
     "$dir/ropsim_bench_cycle" --benchmark_filter=bitonic --benchmark_format=json >"$out/$side-cycle-$i.json" 2>/dev/null
     "$dir/ropsim_bench" --benchmark_filter='Golden/(lk|opaque)/(16|64)' --benchmark_format=json \
       >"$out/$side-golden-$i.json" 2>/dev/null
   done
 done
-/usr/bin/python3 - "$out" "$rounds" "$base_sha" "$(git -C "$root" rev-parse --short=12 HEAD)" <<'PY'
+/usr/bin/python3 - "$out" "$rounds" "$base_sha" "$head_sha" <<'PY'
 import json, statistics, sys, glob, os
 out, rounds, base, head = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 def figures(side):

@@ -453,6 +453,52 @@ TEST(CliCycle, LockstepFlagGivesTheSameRun) {
   expect_cli_error(box, "run --lockstep --scene testcard --spp 1", {"--lockstep", "cycle"});
 }
 
+TEST(CliCycle, StatsIntervalWritesACsvWhoseRowsAddUpToTheReport) {
+  CliSandbox box;
+  expect_ok(box.run("run --fidelity cycle --scene cloth --spp 4 --quiet --stats-interval 1000 --stats-csv s/i.csv "
+                    "--report r.json --out r.exr"),
+            "cycle run with --stats-interval");
+  const auto rep = nlohmann::json::parse(slurp(box.work() / "r.json"));
+  std::istringstream csv(slurp(box.work() / "s/i.csv"));
+  std::string header;
+  ASSERT_TRUE(std::getline(csv, header));
+  std::vector<std::string> cols;
+  for (size_t a = 0, b; a <= header.size(); a = b + 1) {
+    b = header.find(',', a);
+    if (b == std::string::npos) b = header.size();
+    cols.push_back(header.substr(a, b - a));
+  }
+  auto col = [&](const std::string& name) {
+    auto it = std::find(cols.begin(), cols.end(), name);
+    EXPECT_NE(it, cols.end()) << name << " is a column of " << header;
+    return size_t(it - cols.begin());
+  };
+  const size_t end_c = col("cycle_end"), frag_c = col("fragments_retired"), dr = col("dram_bytes_read.depth"),
+               busy = col("depth_test.busy");
+  uint64_t frags = 0, depth_read = 0, rows = 0, last_end = 0, busy_cycles = 0;
+  for (std::string line; std::getline(csv, line); ++rows) {
+    std::vector<std::string> v;
+    std::stringstream ls(line);
+    for (std::string x; std::getline(ls, x, ',');) v.push_back(x);
+    ASSERT_GT(v.size(), busy) << line;
+    frags += std::stoull(v[frag_c]);
+    depth_read += std::stoull(v[dr]);
+    busy_cycles += std::stoull(v[busy]);
+    last_end = std::stoull(v[end_c]);
+  }
+  EXPECT_EQ(frags, rep["counters"]["fragments"].get<uint64_t>());
+  EXPECT_EQ(depth_read, rep["timing"]["dram"]["depth"]["bytes_read"].get<uint64_t>());
+  EXPECT_EQ(last_end, rep["timing"]["total_cycles"].get<uint64_t>()) << "the last row ends with the run";
+  EXPECT_EQ(rows, (last_end + 999) / 1000);
+  EXPECT_GT(busy_cycles, 0u);
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --stats-interval 100", {"--stats-csv"});
+  expect_cli_error(box, "run --scene testcard --spp 1 --stats-interval 100 --stats-csv x.csv",
+                   {"--stats-interval", "cycle"});
+  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --stats-interval 0 --stats-csv x.csv",
+                   {"--stats-interval"});
+  EXPECT_FALSE(std::filesystem::exists(box.work() / "x.csv"));
+}
+
 TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   CliSandbox box;
   expect_cli_error(box, "run --hw nope.toml --scene testcard --spp 1", {"--hw"});

@@ -1143,3 +1143,110 @@ TEST(ReportFields, DocsAreGeneratedFromTheDeclarationsAndCoverEveryReport) {
     EXPECT_TRUE(leaves.count("timing.units[].cycles.busy")) << "the scan of the report is broken";
   }
 }
+
+// ------------------------------------------------------------ --stats-interval
+
+namespace {
+
+CycleRun run_with_intervals(const InputSpec& in, Method m, const HwConfig& hw, uint64_t interval, bool lockstep) {
+  CycleOptions opt;
+  opt.stats_interval = interval;
+  opt.lockstep = lockstep;
+  return run_cycle(in, method_config(m), hw, opt);
+}
+
+}  // namespace
+
+// Every column of the per-interval statistics adds up to the run's total, and
+// the rows are the run's cycles cut every N: for single- and multi-pass
+// methods, on every design.
+TEST(StatsInterval, RowsAddUpToTheRunsTotals) {
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    for (Method m : {Method::kLk, Method::kOpaque, Method::kLkDepthAc}) {
+      const std::string what = std::string("cloth 16 spp ") + to_string(m) + " on " + config;
+      const uint64_t n = 997;  // prime: intervals cut busy spans and passes anywhere
+      const CycleRun r = run_with_intervals(scene_input("cloth", 16), m, hw, n, false);
+      ASSERT_TRUE(r.intervals) << what;
+      const IntervalLog& log = *r.intervals;
+      EXPECT_EQ(log.rows(), (r.stats.total_cycles + n - 1) / n) << what << ": one row per interval of the run";
+      IntervalRow sum;
+      for (size_t i = 0; i < log.rows(); ++i) {
+        const IntervalRow& x = log.at(i);
+        sum.fragments_retired += x.fragments_retired;
+        sum.samples_written += x.samples_written;
+        sum.samples_blended += x.samples_blended;
+        for (size_t b = 0; b < size_t(kBuffers); ++b) {
+          sum.dram_bytes_read[b] += x.dram_bytes_read[b];
+          sum.dram_bytes_written[b] += x.dram_bytes_written[b];
+        }
+        sum.cache_hits += x.cache_hits;
+        sum.cache_misses += x.cache_misses;
+      }
+      EXPECT_EQ(sum.fragments_retired, r.counters.fragments)
+          << what << ": every fragment retires once per pass (the counters count each pass's)";
+      EXPECT_EQ(sum.samples_written, r.counters.samples_written) << what;
+      EXPECT_EQ(sum.samples_blended, r.counters.samples_blended) << what;
+      for (size_t b = 0; b < size_t(kBuffers); ++b) {
+        EXPECT_EQ(sum.dram_bytes_read[b], r.stats.dram.bytes_read[b]) << what << " buffer " << b;
+        EXPECT_EQ(sum.dram_bytes_written[b], r.stats.dram.bytes_written[b]) << what << " buffer " << b;
+      }
+      CacheStats cache;
+      for (const auto& c : r.stats.caches) cache += c;
+      uint64_t hits = 0, misses = 0;
+      for (size_t b = 0; b < size_t(kBuffers); ++b) {
+        hits += cache.read_hits[b] + cache.write_hits[b];
+        misses += cache.read_misses[b] + cache.write_misses[b];
+      }
+      EXPECT_EQ(sum.cache_hits, hits) << what;
+      EXPECT_EQ(sum.cache_misses, misses) << what;
+      ASSERT_GT(hits + misses, 0u) << what << ": the test needs cache traffic";
+      // Each unit kind's activity, per activity, over the rows and over the units.
+      for (size_t k = 0; k < log.kinds().size(); ++k) {
+        std::array<uint64_t, kActivities> rows{}, units{};
+        for (size_t i = 0; i < log.rows(); ++i)
+          for (int a = 0; a < kActivities; ++a) rows[size_t(a)] += log.activity(int(k), i)[size_t(a)];
+        uint64_t instances_cycles = 0;
+        for (const auto& u : r.stats.units)
+          if (u.kind == log.kinds()[k])
+            for (int a = 0; a < kActivities; ++a) {
+              units[size_t(a)] += u.stats.cycles[size_t(a)];
+              instances_cycles += u.stats.cycles[size_t(a)];
+            }
+        EXPECT_EQ(rows, units) << what << ": " << log.kinds()[k];
+        EXPECT_GT(instances_cycles, 0u) << what << ": " << log.kinds()[k];
+      }
+      // No row holds more unit cycles than its interval has, per instance.
+      for (size_t k = 0; k < log.kinds().size(); ++k) {
+        uint64_t instances = 0;
+        for (const auto& u : r.stats.units) instances += u.kind == log.kinds()[k];
+        for (size_t i = 0; i < log.rows(); ++i) {
+          uint64_t c = 0;
+          for (uint64_t x : log.activity(int(k), i)) c += x;
+          EXPECT_LE(c, instances * n) << what << ": " << log.kinds()[k] << " row " << i;
+        }
+      }
+      // The CSV: a header and one line per row, every line with every column.
+      const std::string csv = interval_csv(r);
+      const size_t cols = interval_columns(r).size();
+      std::istringstream lines(csv);
+      size_t count = 0;
+      for (std::string line; std::getline(lines, line); ++count)
+        EXPECT_EQ(size_t(std::count(line.begin(), line.end(), ',')) + 1, cols) << what << " line " << count;
+      EXPECT_EQ(count, log.rows() + 1) << what;
+    }
+  }
+}
+
+// The rows are recorded by the cycle events happen at, so a decoupled run
+// gives the lockstep run's rows exactly, and recording them changes nothing.
+TEST(StatsInterval, DecoupledRowsEqualLockstepRowsAndTheRunIsUnchanged) {
+  const HwConfig hw;
+  const InputSpec in = scene_input("cloth", 16);
+  const CycleRun dec = run_with_intervals(in, Method::kLk, hw, 500, false);
+  const CycleRun lock = run_with_intervals(in, Method::kLk, hw, 500, true);
+  EXPECT_EQ(interval_csv(dec), interval_csv(lock));
+  const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
+  expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --stats-interval");
+  EXPECT_EQ(dec.stats.total_cycles, plain.stats.total_cycles);
+}

@@ -79,6 +79,11 @@ class BudgetShare {
     bytes_ = 0;
   }
   uint64_t bytes() const { return bytes_; }
+  /// Takes over what o holds (no charge: the bytes change owner).
+  void take(BudgetShare& o) {
+    bytes_ += o.bytes_;
+    o.bytes_ = 0;
+  }
 
  private:
   uint64_t bytes_ = 0;

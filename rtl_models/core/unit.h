@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "clock.h"
+#include "interval_log.h"
 #include "scheduler.h"
 
 namespace ropsim {
@@ -37,6 +38,7 @@ enum class Activity : int {
   kMemory,   ///< waiting for the ROP cache / DRAM
 };
 constexpr int kActivities = 6;
+static_assert(kActivities == kIntervalActivities, "interval_log.h counts the same activities");
 const char* to_string(Activity a);
 
 struct UnitStats {
@@ -76,6 +78,12 @@ class Unit : public sc_core::sc_module {
   void set_decoupled(bool on) { decoupled_ = on; }
   /// Charges the cycles up to end to the current activity (end of the run).
   void close_accounting(uint64_t end) { set_activity(Activity::kIdle, end); }
+  /// Also charges every span of cycles to log's rows, as unit kind `kind`
+  /// (--stats-interval); before the run.
+  void log_to(IntervalLog* log, int kind) {
+    log_ = log;
+    log_kind_ = kind;
+  }
   const UnitStats& stats() const { return stats_; }
   /// Unit-specific figures for the report: name, value, unit.
   /// A unit-specific statistic: its name, value, unit and one-line meaning.
@@ -120,14 +128,18 @@ class Unit : public sc_core::sc_module {
     if (busy_end_ > since_) {
       const uint64_t e = std::min(busy_end_, t);
       stats_.cycles[size_t(Activity::kBusy)] += e - since_;
+      if (log_) log_->add_activity(log_kind_, int(Activity::kBusy), since_, e);
       since_ = e;
       if (since_ == busy_end_) act_ = after_;
     }
     if (t > since_) {
       stats_.cycles[size_t(act_)] += t - since_;
+      if (log_) log_->add_activity(log_kind_, int(act_), since_, t);
       since_ = t;
     }
   }
+  IntervalLog* log_ = nullptr;
+  int log_kind_ = -1;
   Scheduler& sched_;
   uint32_t index_;
   uint64_t last_request_ = ~uint64_t{0};

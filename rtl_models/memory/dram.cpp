@@ -44,9 +44,11 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
   if (write) {
     ++s_.writes;
     s_.bytes_written[size_t(b)] += bytes;
+    if (log_) log_->row(now).dram_bytes_written[size_t(b)] += bytes;
   } else {
     ++s_.reads;
     s_.bytes_read[size_t(b)] += bytes;
+    if (log_) log_->row(now).dram_bytes_read[size_t(b)] += bytes;
   }
   s_.last_completion = std::max(s_.last_completion, done);
   return done;

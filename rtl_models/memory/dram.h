@@ -15,6 +15,7 @@
 #include "address_map.h"
 #include "bits.h"
 #include "hw_config.h"
+#include "interval_log.h"
 
 namespace ropsim {
 
@@ -59,8 +60,11 @@ class Dram {
   /// data is back (reads) or written (writes).
   uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t now);
   DramStats stats() const;
+  /// Also records every access's bytes in log's row of its cycle (--stats-interval).
+  void log_to(IntervalLog* log) { log_ = log; }
 
  private:
+  IntervalLog* log_ = nullptr;
   HwConfig::Dram cfg_;
   Divisor interleave_, channels_, row_, banks_, bus_;
   struct Channel {

@@ -74,6 +74,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   if (posted_) posted_->apply_before(now);  // earlier cycles' writes first, in a fixed order
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
+  if (log_) ++(hit ? log_->row(now).cache_hits : log_->row(now).cache_misses);
   if (hit) {
     ++s_.read_hits[size_t(b)];
     if (w.ready > now + cfg_.hit_latency_cycles) {
@@ -97,6 +98,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
 void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
+  if (log_) ++(hit ? log_->row(now).cache_hits : log_->row(now).cache_misses);
   if (hit) {
     ++s_.write_hits[size_t(b)];
   } else {

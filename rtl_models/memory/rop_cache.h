@@ -112,8 +112,11 @@ class RopCache {
   /// Writes every dirty line back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);
   const CacheStats& stats() const { return s_; }
+  /// Also counts every lookup's hit or miss in log's row of its cycle (--stats-interval).
+  void log_to(IntervalLog* log) { log_ = log; }
 
  private:
+  IntervalLog* log_ = nullptr;
   // A way's tag apart from the rest, so a set's tags share one host cache line.
   static constexpr uint64_t kInvalid = ~uint64_t{0};  // no line address is all ones
   struct Way {

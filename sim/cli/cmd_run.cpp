@@ -35,6 +35,13 @@ struct RunOpts {
   std::string enderton_selection = "depth-first";
   Numerics num;
   bool vs_reference = false, quiet = false, lockstep = false;
+  uint64_t stats_interval = 0;
+  std::string stats_csv;
+};
+
+/// A text output staged beside the images (the --stats-interval CSV).
+struct TextOutput {
+  std::string path, text;
 };
 
 /// Writes the images and the report, all or none: every output is staged in
@@ -44,7 +51,7 @@ struct RunOpts {
 /// staged, so it can list them. A report to "-" (stdout) is written last.
 template <class ReportText>
 void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std::string>& outs,
-                   const std::string& report, ReportText report_text) {
+                   const std::string& report, ReportText report_text, const std::vector<TextOutput>& texts = {}) {
   std::vector<std::unique_ptr<OutputFile>> staged;
   for (const auto& p : outs) {
     const std::vector<unsigned char> bytes = encode_image(image, p);
@@ -52,6 +59,12 @@ void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std
     staged.push_back(std::make_unique<OutputFile>(p));
     staged.back()->write(bytes.data(), bytes.size());
     ctx.outputs.push_back(p);
+  }
+  for (const auto& t : texts) {
+    ensure_parent_dir(t.path);
+    staged.push_back(std::make_unique<OutputFile>(t.path));
+    staged.back()->write(t.text);
+    ctx.outputs.push_back(t.path);
   }
   std::unique_ptr<OutputFile> rep;
   if (!report.empty()) {
@@ -77,6 +90,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   opt.vcd_first = vcd_first;
   opt.vcd_last = vcd_last;
   opt.lockstep = o.lockstep;
+  opt.stats_interval = o.stats_interval;
   const bool tty = !o.quiet && isatty(fileno(stderr));
   const auto t0 = std::chrono::steady_clock::now();
   if (tty)
@@ -99,7 +113,10 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   if (tty) std::fputs("\n", stderr);
   ReportContext ctx{cmdline, in, cfg, {}};
   if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
-  write_outputs(ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); });
+  std::vector<TextOutput> texts;
+  if (run.intervals) texts.push_back(TextOutput{o.stats_csv, interval_csv(run)});
+  write_outputs(
+      ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); }, texts);
   if (!o.quiet && report != "-") std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
   return 0;
 }
@@ -107,7 +124,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const bool cycle = o.fidelity == "cycle";
   if (!cycle) {
-    for (const char* f : {"--vcd", "--vcd-window", "--lockstep"})
+    for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
     // A functional run takes only the design's numerics and blend-target
     // formats (the rest is timing).
@@ -119,6 +136,9 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
                         "blend.*_format keys of a design)");
   }
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
+  if (sub.count("--stats-interval") != sub.count("--stats-csv"))
+    throw UserError("--stats-interval N and --stats-csv FILE go together");
+  if (o.stats_csv == "-") throw UserError("--stats-csv -: give a file name");
   // The design (a functional run uses only its numerics); the run's numerics
   // flags, when given, override the design's.
   HwConfig hw = resolve_hw_config(o.hw, o.hw_sets);
@@ -257,6 +277,11 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_flag("--lockstep", ro->lockstep,
                 "cycle: run every unit in lockstep with SystemC time, none decoupled (same results, slower; "
                 "for checking the decoupling)");
+  run->add_option("--stats-interval", ro->stats_interval,
+                  "cycle: also write the run's statistics every N cycles (--stats-csv; docs/reports.md)")
+      ->check(CLI::Range(uint64_t{1}, ~uint64_t{0}))
+      ->type_name("N");
+  run->add_option("--stats-csv", ro->stats_csv, "cycle: the CSV file of --stats-interval")->type_name("FILE");
   run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
       ->check(CLI::Range(1u, 1000u));
   run->add_flag("--vs-reference", ro->vs_reference,

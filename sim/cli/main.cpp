@@ -17,6 +17,7 @@
 #include "cli_common.h"
 #include "cmd_capture.h"
 #include "errors.h"
+#include "host_threads.h"
 #include "memory_budget.h"
 #include "output_file.h"
 #include "version.h"
@@ -58,6 +59,12 @@ int main(int argc, char** argv) {
                  "A-buffer reference): bytes with K, M, G or T (binary), a percentage of physical memory, or none; "
                  "default 80%. Going over is a one-line error")
       ->type_name("SIZE");
+  int threads = 0;
+  app.add_option("--threads", threads,
+                 "Host threads of the golden model (the functional fidelity, the reference pre-pass of a cycle "
+                 "run); the result is bit-identical for every count. Default: every core this process may use")
+      ->check(CLI::Range(1, 1024))
+      ->type_name("N");
   app.fallthrough();
   std::string cmdline;
   for (int i = 0; i < argc; ++i) cmdline += (i ? " " : "") + std::string(argv[i]);
@@ -78,6 +85,7 @@ int main(int argc, char** argv) {
     if (const char* t = std::getenv("ROPSIM_TEST_INTERNAL_ERROR"); t && *t && std::string(t) != "0")
       throw InternalError("test hook ROPSIM_TEST_INTERNAL_ERROR is set");
     if (!memory_limit.empty()) memory_budget().set_limit(parse_memory_size(memory_limit, "--memory-limit"));
+    if (threads > 0) set_host_threads(threads);
     for (const auto& verb : verbs)
       if (const int rc = verb(); rc >= 0) {
         forget_created_outputs();

@@ -29,4 +29,15 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 std::vector<FieldDoc> report_field_docs();
 std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference);
 
+/// One column of the --stats-interval CSV: its name, unit and meaning.
+struct IntervalColumn {
+  std::string name, unit, meaning;
+};
+/// The CSV's columns for this run (its method's buffers, its unit kinds), in
+/// order; docs/reports.md "Statistics per interval" describes their patterns.
+std::vector<IntervalColumn> interval_columns(const CycleRun& run);
+/// The --stats-interval CSV: a header row of interval_columns(), then one
+/// row per interval of run.intervals (which must be set).
+std::string interval_csv(const CycleRun& run);
+
 }  // namespace ropsim

@@ -21,29 +21,44 @@ void check_reference_estimate(const FragmentSource& src) {
                                    "the A-buffer reference of at least " + std::to_string(n) + " fragments");
 }
 
-FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference) {
+FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference, int threads) {
   const auto t0 = std::chrono::steady_clock::now();
   FunctionalRun run;
   auto src = open_fragments(in);
   run.header = src->header();
   if (with_reference || cfg.method == Method::kReference) check_reference_estimate(*src);
-  std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg), ref;
+  std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg, threads), ref;
   if (with_reference && cfg.method != Method::kReference) {
     GoldenConfig ref_cfg = cfg;
     ref_cfg.method = Method::kReference;
     ref = make_functional_model(run.header, ref_cfg);
   }
+  // In batches: while the model draws one (on its threads), this thread
+  // reads the next and runs the reference over the current one.
+  constexpr size_t kBatch = 4096;
+  std::vector<Fragment> cur(kBatch), next(kBatch);
+  auto fill = [&src](std::vector<Fragment>& b) {
+    size_t n = 0;
+    while (n < b.size() && src->next(b[n])) ++n;
+    return n;
+  };
   for (int pass = 0; pass < model->passes(); ++pass) {
     if (pass > 0) src = open_fragments(in);  // every pass replays the input
     model->begin_pass(pass);
-    for (Fragment f; src->next(f);) {
-      model->draw(f);
-      if (ref && pass == 0) ref->draw(f);
+    FunctionalModel* r = pass == 0 ? ref.get() : nullptr;
+    for (size_t n = fill(cur), n_next = 0; n > 0; n = n_next) {
+      model->draw_batch(cur.data(), n, [&] {
+        if (r)
+          for (size_t i = 0; i < n; ++i) r->draw(cur[i]);
+        n_next = fill(next);
+      });
+      cur.swap(next);
     }
   }
   run.image = model->resolve();
   run.counters = model->counters();
   run.state_bytes = model->state_bytes();
+  if (auto* sm = dynamic_cast<const StochasticModel*>(model.get())) run.threads = sm->threads();
   if (ref) run.reference = ref->resolve();
   if (with_reference && cfg.method == Method::kReference) run.reference = run.image;
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

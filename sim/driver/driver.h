@@ -24,13 +24,17 @@ struct FunctionalRun {
   Counters counters;
   Image image;
   size_t state_bytes = 0;
+  int threads = 1;                 ///< host threads of the model
   double wall_seconds = 0;         ///< whole run: input, model and resolve
   std::optional<Image> reference;  ///< the reference method's image, when asked for
 };
 
 /// Runs the functional model of cfg.method over the input; with
-/// with_reference also the A-buffer reference on the same stream.
-FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference = false);
+/// with_reference also the A-buffer reference on the same stream. threads:
+/// the model's host threads, 0 for host_threads() (--threads); the result is
+/// the same for every count.
+FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference = false,
+                             int threads = 0);
 
 /// Peak resident set size of this process in bytes (VmHWM), 0 if unknown.
 size_t peak_rss_bytes();

@@ -93,6 +93,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   host.put("fragments_per_second", run.wall_seconds > 0 ? double(run.counters.fragments) / run.wall_seconds : 0.0,
            "1/s", "fragments over wall time");
   host.put("state_bytes", run.state_bytes, "bytes", "host memory of the per-pixel state");
+  host.put("threads", run.threads, "threads",
+           "host threads of the golden model (--threads; the result is the same for every count)");
   host.put("peak_rss_bytes", peak_rss_bytes(), "bytes", "peak resident set of the process (VmHWM)");
   host.put("memory_limit_bytes", memory_budget().limit(), "bytes",
            "--memory-limit: the most the growing state may take (default 80 % of physical memory; 0: none)");

@@ -109,6 +109,18 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
   }
 }
 
+void FunctionalRop::absorb(FunctionalRop& o) {
+  if (o.setup_.cfg.method != setup_.cfg.method || o.setup_.pass != setup_.pass)
+    throw std::logic_error("FunctionalRop::absorb: the ROPs run different methods or passes");
+  store_.absorb(o.store_);
+  depth_.absorb(o.depth_);
+  track_.absorb(o.track_);
+  sort_.absorb(o.sort_);
+  reference_.absorb(o.reference_);
+  write_.absorb(o.write_);
+  blend_.absorb(o.blend_);
+}
+
 Counters FunctionalRop::counters() const {
   Counters c = depth_.counters();
   c += track_.counters();

@@ -60,6 +60,8 @@ inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) 
 class Stage {
  public:
   const Counters& counters() const { return c_; }
+  /// Adds o's counts to this stage's (FunctionalRop::absorb).
+  void absorb(const Stage& o) { c_ += o.c_; }
 
  protected:
   explicit Stage(const RopSetup& s) : s_(s) {}
@@ -81,6 +83,10 @@ class DepthStage : public Stage {
   /// hashed, hashed-a2c, slab: the hashes the coverage selection computed (1
   /// and 3 per fragment: chi; xi1, xi2, chi; slab: R + 1 for its R mask bits).
   uint64_t selection_hashes() const { return selection_hashes_; }
+  void absorb(const DepthStage& o) {
+    Stage::absorb(o);
+    selection_hashes_ += o.selection_hashes_;
+  }
 
  private:
   ConversionMemo memo_;
@@ -187,6 +193,14 @@ class FunctionalRop {
   /// One fragment through every stage of its method, in order: fetch, the
   /// depth test, and unless it killed the fragment, the stages its traits name.
   void process(FragWork& w) { (this->*process_)(w); }
+
+  /// Takes over o's state and counts: o, a ROP of the same trace, method and
+  /// pass, has processed the fragments of tiles this one never touched (the
+  /// golden model's threads, one ROP each over its own tiles). Every rule is
+  /// per pixel, so the union is the state one ROP would hold after all the
+  /// fragments, and the counts add. o is left without tiles. Throws
+  /// std::logic_error if the two ROPs differ or share a tile.
+  void absorb(FunctionalRop& o);
 
   /// The stages' counters summed, with the tiles allocated so far.
   Counters counters() const;

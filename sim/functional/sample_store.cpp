@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "depth.h"
@@ -54,6 +55,15 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
                   t.slab ? t.slab.get() + p : nullptr,
                   t.trans ? t.trans.get() + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
                   t.accum ? t.accum.get() + ps * sample_bytes(targets_.formats.accum) : nullptr};
+}
+
+void SampleStore::absorb(SampleStore& o) {
+  if (o.header_.width != header_.width || o.header_.height != header_.height || o.header_.spp != header_.spp ||
+      o.with_tracker_ != with_tracker_ || o.slab_bits_ != slab_bits_ ||
+      o.targets_.transmittance != targets_.transmittance || o.targets_.accum != targets_.accum)
+    throw std::logic_error("SampleStore::absorb: the stores hold different buffers");
+  if (!tiles_.absorb(o.tiles_)) throw std::logic_error("SampleStore::absorb: a tile held by both stores");
+  mem_.take(o.mem_);  // its tiles' bytes (and its directory's, until it is freed)
 }
 
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {

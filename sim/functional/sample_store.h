@@ -77,6 +77,11 @@ class SampleStore {
   /// untouched pixels get the clear colour.
   Image resolve() const;
   size_t state_bytes() const;
+  /// Moves every tile of o, a store of the same screen and buffers holding
+  /// none of this store's tiles, into this one (the golden model's threads
+  /// each fill a store over their own tiles). Throws std::logic_error on a
+  /// tile both hold.
+  void absorb(SampleStore& o);
   /// The bytes of one touched tile's buffers.
   size_t tile_bytes() const;
   size_t tiles() const { return tiles_.tiles(); }

@@ -1,11 +1,126 @@
 #include "golden_model.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
+
 #include <algorithm>
 #include <cmath>
 
+#include "host_threads.h"
+
 namespace ropsim {
 
-StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg) : FunctionalModel(h), rop_(h, cfg) {}
+// ------------------------------------------------------------ StochasticModel
+
+struct StochasticModel::Lane {
+  Lane(const TraceHeader& h, const GoldenConfig& cfg) : rop(h, cfg) {}
+  FunctionalRop rop;
+  FragWork work;
+  std::vector<uint32_t> batch;  // indices into the batch being drawn, in API order
+};
+
+struct StochasticModel::Pool {
+  explicit Pool(int threads) : arena(threads) {}
+  tbb::task_arena arena;
+};
+
+StochasticModel::StochasticModel(const TraceHeader& h, const GoldenConfig& cfg, int threads)
+    : FunctionalModel(h), threads_(std::max(1, threads)) {
+  const int lanes = threads_ == 1 ? 1 : kLanesPerThread * threads_;
+  for (int i = 0; i < lanes; ++i) lanes_.push_back(std::make_unique<Lane>(h, cfg));
+  if (threads_ > 1) pool_ = std::make_unique<Pool>(threads_);
+}
+
+StochasticModel::~StochasticModel() = default;
+
+const FunctionalRop& StochasticModel::lane0() const { return lanes_[0]->rop; }
+
+size_t StochasticModel::lane_of(uint32_t x, uint32_t y) const {
+  if (lanes_.size() == 1) return 0;
+  // Tiles dealt by a hash of their position: neighbouring tiles land in
+  // different lanes, so a dense region spreads over all of them.
+  uint32_t k = (x >> 3) * 0x9E3779B1u ^ (y >> 3) * 0x85EBCA77u;
+  k ^= k >> 15;
+  k *= 0x2C1B3C6Du;
+  k ^= k >> 12;
+  return size_t(k % uint32_t(lanes_.size()));
+}
+
+void StochasticModel::draw(const Fragment& f) {
+  Lane& l = *lanes_[lane_of(f.x, f.y)];
+  l.work.f = &f;
+  l.rop.process(l.work);
+}
+
+void StochasticModel::draw_lane(size_t li, const Fragment* f, size_t n) {
+  Lane& l = *lanes_[li];
+  for (size_t i = 0; i < n; ++i) {
+    l.work.f = &f[i];
+    l.rop.process(l.work);
+  }
+}
+
+void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::function<void()>& beside) {
+  if (lanes_.size() == 1) {
+    if (beside) beside();
+    draw_lane(0, f, n);
+    return;
+  }
+  for (auto& l : lanes_) l->batch.clear();
+  for (size_t i = 0; i < n; ++i) lanes_[lane_of(f[i].x, f[i].y)]->batch.push_back(uint32_t(i));
+  auto run_lanes = [&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, lanes_.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t li = r.begin(); li != r.end(); ++li) {
+        Lane& l = *lanes_[li];
+        const size_t m = l.batch.size();
+        for (size_t j = 0; j < m; ++j) {
+          // The lane's fragments are scattered over the batch: fetch the
+          // next one's header line and its plane while this one runs.
+          if (j + 1 < m) __builtin_prefetch(&f[l.batch[j + 1]]);
+          l.work.f = &f[l.batch[j]];
+          l.rop.process(l.work);
+        }
+      }
+    });
+  };
+  pool_->arena.execute([&] {
+    if (!beside) return run_lanes();
+    // The lanes run as a task the arena's other threads take up, while this
+    // thread does beside() and then joins them.
+    tbb::task_group tg;
+    tg.run(run_lanes);
+    try {
+      beside();
+    } catch (...) {
+      try {
+        tg.wait();
+      } catch (...) {
+      }
+      throw;
+    }
+    tg.wait();
+  });
+}
+
+void StochasticModel::begin_pass(int i) {
+  for (auto& l : lanes_) l->rop.begin_pass(i);
+}
+
+Counters StochasticModel::counters() const {
+  Counters c = lanes_[0]->rop.counters();
+  for (size_t i = 1; i < lanes_.size(); ++i) c += lanes_[i]->rop.counters();
+  return c;
+}
+
+const FunctionalRop& StochasticModel::merged() const {
+  if (lanes_.size() > 1) {
+    for (size_t i = 1; i < lanes_.size(); ++i) lanes_[0]->rop.absorb(lanes_[i]->rop);
+    lanes_.resize(1);
+  }
+  return lanes_[0]->rop;
+}
 
 // ------------------------------------------------------------ ReferenceModel
 
@@ -107,10 +222,10 @@ size_t ReferenceModel::state_bytes() const {
          heads_.directory_bytes();
 }
 
-std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg) {
+std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg, int threads) {
   if (const char* err = validate(cfg.numerics)) throw std::invalid_argument(err);
   if (cfg.method == Method::kReference) return std::make_unique<ReferenceModel>(h);
-  return std::make_unique<StochasticModel>(h, cfg);
+  return std::make_unique<StochasticModel>(h, cfg, threads > 0 ? threads : host_threads());
 }
 
 }  // namespace ropsim

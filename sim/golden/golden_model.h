@@ -4,6 +4,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -26,6 +27,14 @@ class FunctionalModel {
   virtual void begin_pass(int) {}
   /// Processes one fragment (in API order).
   virtual void draw(const Fragment& f) = 0;
+  /// Processes n fragments in API order, as n calls of draw() would (a
+  /// model on several threads runs them in parallel), and meanwhile calls
+  /// beside(), if given, in the calling thread: work that must not touch this
+  /// model (reading the next batch, say) overlaps the batch.
+  virtual void draw_batch(const Fragment* f, size_t n, const std::function<void()>& beside = {}) {
+    if (beside) beside();
+    for (size_t i = 0; i < n; ++i) draw(f[i]);
+  }
   /// Box-filter resolve of every pixel; untouched pixels get the clear colour.
   virtual Image resolve() const = 0;
   /// Host bytes of per-pixel state currently allocated.
@@ -40,28 +49,50 @@ class FunctionalModel {
 };
 
 /// The per-sample z-buffer methods (every method with a ROP pipeline).
+///
+/// On several threads the screen's 8 x 8 tiles are dealt to lanes, each a
+/// FunctionalRop of its own over only its tiles; a batch of fragments is
+/// split by lane, keeping trace order within each, and the lanes run in
+/// parallel (TBB). Every rule of the ROP reads and writes one pixel's state
+/// only, so each pixel sees exactly the fragments, in exactly the order, of
+/// one thread, and the counters are sums: the state, the image and the
+/// counters are bit-identical for every thread count. The lanes' stores are
+/// merged into one before the state is read (store(), pixel_view(), resolve()).
 class StochasticModel : public FunctionalModel {
  public:
-  StochasticModel(const TraceHeader& h, const GoldenConfig& cfg);
-  void draw(const Fragment& f) override {
-    work_.f = &f;
-    rop_.process(work_);
-  }
-  int passes() const override { return rop_.passes(); }
-  void begin_pass(int i) override { rop_.begin_pass(i); }
-  Image resolve() const override { return rop_.resolve(); }
-  size_t state_bytes() const override { return rop_.store().state_bytes(); }
-  Counters counters() const override { return rop_.counters(); }
+  /// threads: 1 runs in the calling thread, one lane; n > 1 runs 8 n lanes
+  /// (so the work balances) on n threads.
+  StochasticModel(const TraceHeader& h, const GoldenConfig& cfg, int threads = 1);
+  ~StochasticModel() override;
+  void draw(const Fragment& f) override;
+  void draw_batch(const Fragment* f, size_t n, const std::function<void()>& beside = {}) override;
+  int passes() const override { return lane0().passes(); }
+  void begin_pass(int i) override;
+  Image resolve() const override { return merged().resolve(); }
+  size_t state_bytes() const override { return merged().store().state_bytes(); }
+  Counters counters() const override;
   /// The full per-sample state (depth, colour, tracker).
-  const SampleStore& store() const { return rop_.store(); }
+  const SampleStore& store() const { return merged().store(); }
   /// Read-only view of one pixel's state; all pointers null if the pixel's
   /// tile was never touched (it then holds the clear values).
-  PixelView pixel_view(uint32_t x, uint32_t y) const { return rop_.store().view(x, y); }
-  const GoldenConfig& config() const { return rop_.setup().cfg; }
+  PixelView pixel_view(uint32_t x, uint32_t y) const { return merged().store().view(x, y); }
+  const GoldenConfig& config() const { return lane0().setup().cfg; }
+  int threads() const { return threads_; }
 
  private:
-  FunctionalRop rop_;
-  FragWork work_;
+  struct Lane;
+  static constexpr int kLanesPerThread = 8;
+  void draw_lane(size_t lane, const Fragment* f, size_t n);
+  const FunctionalRop& lane0() const;
+  /// The lane owning pixel (x, y)'s tile.
+  size_t lane_of(uint32_t x, uint32_t y) const;
+  /// Lane 0 after the other lanes' state was moved into it (once; later
+  /// draws then run on lane 0 alone).
+  const FunctionalRop& merged() const;
+  int threads_;
+  mutable std::vector<std::unique_ptr<Lane>> lanes_;
+  struct Pool;
+  std::unique_ptr<Pool> pool_;  // the threads (n > 1)
 };
 
 /// Ground truth: an A-buffer keeping every fragment of every sample, sorted by
@@ -97,6 +128,9 @@ class ReferenceModel : public FunctionalModel {
   BudgetShare mem_;  // state_bytes() as charged to the run's memory budget (--memory-limit)
 };
 
-std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg);
+/// The method's functional model; threads: the stochastic methods' threads
+/// (StochasticModel), 0 for host_threads() (--threads). The reference runs
+/// on one thread.
+std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg, int threads = 1);
 
 }  // namespace ropsim

@@ -25,6 +25,7 @@
 #include "cycle_report.h"
 #include "cycle_run.h"
 #include "errors.h"
+#include "host_threads.h"
 #include "image_io.h"
 #include "output_file.h"
 #include "report.h"
@@ -513,6 +514,8 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     if (w.pid < 0) throw UserError("study: cannot start a worker process");
     if (w.pid == 0) {
       close_inherited_folder_locks();
+      // The cores are the workers' to share: each point's golden model gets its share.
+      set_host_threads(std::max(1, host_threads() / int(n_workers)));
       ::close(down[1]);
       ::close(up[0]);
       for (const auto& other : workers)

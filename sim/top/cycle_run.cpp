@@ -107,6 +107,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   uint64_t progress_base = 0;
+  if (opt.stats_interval > 0) run.intervals = std::make_unique<IntervalLog>(opt.stats_interval);
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) input = open_fragments(in);
@@ -120,6 +121,25 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     if (opt.progress)
       top->source().on_progress = [&opt, progress_base](uint64_t n) { opt.progress(progress_base + n); };
     top->retirement().hook = opt.retire_hook;
+    if (IntervalLog* log = run.intervals.get()) {
+      log->set_base(s.total_cycles);  // this pass follows the previous ones
+      top->log_to(log);
+      // The samples written (blended) since the last retirement are charged
+      // to this one: every fragment's write comes before its retirement, so
+      // the rows add up to the counters.
+      top->retirement().hook =
+          [log, r = rop.get(), user = opt.retire_hook, written = rop->write().counters().samples_written,
+           blended = rop->blend().counters().samples_blended](const FragToken& t, uint64_t cycle) mutable {
+            IntervalRow& row = log->row(cycle);
+            ++row.fragments_retired;
+            const uint64_t w = r->write().counters().samples_written, b = r->blend().counters().samples_blended;
+            row.samples_written += w - written;
+            row.samples_blended += b - blended;
+            written = w;
+            blended = b;
+            if (user) user(t, cycle);
+          };
+    }
     top->set_decoupled(decoupled);
     if (!opt.vcd_path.empty()) {
       OutputFile::Options vo;
@@ -171,6 +191,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     top.reset();  // closes the VCD file
     if (vcd) vcd->commit();
   }
+  if (run.intervals) run.intervals->finish(s.total_cycles);
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
   run.counters = rop->counters();
   const double cyc = double(std::max<uint64_t>(1, s.total_cycles));

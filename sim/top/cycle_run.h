@@ -12,6 +12,7 @@
 #include "fragment_source.h"
 #include "hw_config.h"
 #include "image.h"
+#include "interval_log.h"
 #include "method.h"
 #include "rop_cache.h"
 #include "sample_store.h"
@@ -30,6 +31,9 @@ struct CycleOptions {
   /// The results are identical; it is slower. A --vcd run is always lockstep,
   /// so traced values change at their own cycles.
   bool lockstep = false;
+  /// > 0: also record the run's statistics per interval of this many cycles
+  /// (CycleRun::intervals, --stats-interval).
+  uint64_t stats_interval = 0;
 };
 
 struct UnitReport {
@@ -101,6 +105,9 @@ struct CycleRun {
   size_t state_bytes = 0;
   double wall_seconds = 0;  ///< whole run: input, elaboration, simulation, resolve
   double sim_seconds = 0;   ///< sc_start alone
+  /// With CycleOptions::stats_interval: the statistics per interval; each
+  /// column adds up to the run's total.
+  std::unique_ptr<IntervalLog> intervals;
 };
 
 /// Throws std::invalid_argument for the reference method (it has no pipeline)

@@ -105,6 +105,12 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
   }
 }
 
+void RopPipeline::log_to(IntervalLog* log) {
+  dram_.log_to(log);
+  for (auto& c : caches_) c->log_to(log);
+  for (auto& u : units_) u.unit->log_to(log, log ? log->kind(u.kind) : -1);
+}
+
 void RopPipeline::set_decoupled(bool on) {
   for (const auto& u : units_)
     if (auto* d = dynamic_cast<DecoupledUnit*>(u.unit)) d->set_decoupled(on);

@@ -23,6 +23,7 @@
 #include "fragment_source.h"
 #include "functional_rop.h"
 #include "hw_config.h"
+#include "interval_log.h"
 #include "line_set.h"
 #include "rop_cache.h"
 #include "scheduler.h"
@@ -52,6 +53,9 @@ class RopPipeline : public sc_core::sc_module {
   uint64_t activations() const { return sched_->activations(); }
   /// Lets the units that can run decoupled (unit.h) do so; call before run().
   void set_decoupled(bool on);
+  /// Records the units' activity, the DRAM's bytes and the caches' lookups
+  /// in log's rows (--stats-interval); call before run().
+  void log_to(IntervalLog* log);
 
   FunctionalRop& functional() { return rop_; }
   Retirement& retirement() { return retirement_; }

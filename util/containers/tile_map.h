@@ -62,6 +62,31 @@ class TileMap {
     }
   }
 
+  /// Moves every tile of o into this map, which must not hold any of them
+  /// (maps over disjoint sets of tiles, e.g. one per thread); o is left empty.
+  /// Returns false, moving nothing more, at the first tile both hold.
+  bool absorb(TileMap& o) {
+    if (o.dirs_.size() != dirs_.size()) return false;
+    for (size_t di = 0; di < o.dirs_.size(); ++di) {
+      if (!o.dirs_[di]) continue;
+      auto& d = dirs_[di];
+      if (!d) d = std::make_unique<Dir>(size_t{1} << (2 * kDirShift));
+      for (size_t s = 0; s < d->size(); ++s) {
+        auto& from = (*o.dirs_[di])[s];
+        if (!from) continue;
+        auto& to = (*d)[s];
+        if (to) return false;
+        to = std::move(from);
+        ++count_;
+        --o.count_;
+      }
+      o.dirs_[di].reset();
+    }
+    o.last_tx_ = o.last_ty_ = ~0u;
+    o.last_ = nullptr;
+    return true;
+  }
+
   size_t tiles() const { return count_; }
   size_t directory_bytes() const {
     size_t n = dirs_.size() * sizeof(std::unique_ptr<Dir>);
