@@ -499,6 +499,32 @@ TEST(CliCycle, StatsIntervalWritesACsvWhoseRowsAddUpToTheReport) {
   EXPECT_FALSE(std::filesystem::exists(box.work() / "x.csv"));
 }
 
+// --threads changes how fast the golden model runs, never a bit of what it
+// writes: the images are byte-identical and the reports differ only in the
+// host figures and the command line.
+TEST(Cli, ThreadCountsWriteTheSameFiles) {
+  CliSandbox box;
+  for (const char* t : {"1", "2", "5"})
+    expect_ok(box.run(std::string("--threads ") + t + " run --scene smoke --spp 16 --vs-reference --quiet --out t" + t +
+                      ".exr --out t" + t + ".png --report t" + t + ".json"),
+              std::string("--threads ") + t);
+  for (const char* t : {"2", "5"}) {
+    for (const char* ext : {".exr", ".png"})
+      EXPECT_EQ(slurp(box.work() / (std::string("t1") + ext)), slurp(box.work() / (std::string("t") + t + ext)))
+          << "--threads " << t << " " << ext;
+    auto a = nlohmann::json::parse(slurp(box.work() / "t1.json")),
+         b = nlohmann::json::parse(slurp(box.work() / (std::string("t") + t + ".json")));
+    EXPECT_EQ(b["host"]["threads"], std::stoi(t));
+    for (auto* j : {&a, &b}) {
+      j->erase("host");
+      j->erase("command");
+      j->erase("outputs");
+    }
+    EXPECT_EQ(a.dump(1), b.dump(1)) << "--threads " << t;
+  }
+  expect_cli_error(box, "run --threads 0 --scene testcard --spp 1", {"--threads"});
+}
+
 TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   CliSandbox box;
   expect_cli_error(box, "run --hw nope.toml --scene testcard --spp 1", {"--hw"});

@@ -1,6 +1,7 @@
 #include "golden_model.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 #include <tbb/task_group.h>
@@ -22,7 +23,10 @@ struct StochasticModel::Lane {
 };
 
 struct StochasticModel::Pool {
-  explicit Pool(int threads) : arena(threads) {}
+  // TBB's own limit is the machine's cores; --threads may ask for more.
+  explicit Pool(int threads)
+      : limit(tbb::global_control::max_allowed_parallelism, size_t(threads)), arena(threads) {}
+  tbb::global_control limit;
   tbb::task_arena arena;
 };
 
