@@ -24,8 +24,7 @@ struct StochasticModel::Lane {
 
 struct StochasticModel::Pool {
   // TBB's own limit is the machine's cores; --threads may ask for more.
-  explicit Pool(int threads)
-      : limit(tbb::global_control::max_allowed_parallelism, size_t(threads)), arena(threads) {}
+  explicit Pool(int threads) : limit(tbb::global_control::max_allowed_parallelism, size_t(threads)), arena(threads) {}
   tbb::global_control limit;
   tbb::task_arena arena;
 };
