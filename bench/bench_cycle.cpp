@@ -5,11 +5,13 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <string>
 
 #include "cycle_run.h"
 #include "driver.h"
 #include "hw_config.h"
+#include "livepoints.h"
 
 using namespace ropsim;
 
@@ -49,8 +51,54 @@ void BM_CycleVsFunctional(benchmark::State& state, SorterKind sorter) {
   state.counters["functional_over_cycle"] = cyc_s / fun_s;
 }
 
+// Sampled simulation from live-points (livepoints.h) against the full cycle
+// model, on ROPSIM_BENCH_TRACE (default: the cloth trace above) and the design
+// configs/<name>.toml: the estimate's error in total cycles and DRAM bytes,
+// whether the 95 % interval covers the truth, and the host time of the sampled
+// run per design (the library reused) against the full run's, both measured
+// here. The library is built once per process (its time: library_s).
+//   ROPSIM_BENCH_TRACE=motor.rtr build/ropsim_bench_cycle --benchmark_filter=Sampled
+void BM_SampledVsCycle(benchmark::State& state, const char* design) {
+  InputSpec in;
+  const char* env = std::getenv("ROPSIM_BENCH_TRACE");
+  in.trace_path = env && *env ? env : trace_path();
+  static double library_s = 0;
+  static const LivePoints lib = [&] {
+    const auto t0 = std::chrono::steady_clock::now();
+    LivePoints l = record_livepoints(in, GoldenConfig{}, SamplingParams{});
+    library_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return l;
+  }();
+  const HwConfig hw = load_hw_config(std::string(ROPSIM_SOURCE_DIR) + "/configs/" + design + ".toml");
+  SampledRun s;
+  CycleRun full;
+  double full_s = 0;
+  for (auto _ : state) {
+    s = run_sampled(lib, hw);
+    const auto t0 = std::chrono::steady_clock::now();
+    full = run_cycle(in, GoldenConfig{}, hw);
+    full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  auto err = [](const Estimate& e, double truth) { return 100.0 * (e.value - truth) / truth; };
+  auto covered = [](const Estimate& e, double truth) { return e.low <= truth && truth <= e.high ? 1.0 : 0.0; };
+  const double cyc = double(full.stats.total_cycles), rd = double(full.stats.dram.total_bytes_read()),
+               wr = double(full.stats.dram.total_bytes_written());
+  state.counters["cycles_err_pct"] = err(s.total_cycles, cyc);
+  state.counters["cycles_covered"] = covered(s.total_cycles, cyc);
+  state.counters["read_err_pct"] = err(s.dram_bytes_read, rd);
+  state.counters["read_covered"] = covered(s.dram_bytes_read, rd);
+  state.counters["written_err_pct"] = err(s.dram_bytes_written, wr);
+  state.counters["written_covered"] = covered(s.dram_bytes_written, wr);
+  state.counters["detailed_share"] = double(s.fragments_detailed) / double(lib.fragments);
+  state.counters["speedup_per_design"] = full_s / s.sim_seconds;
+  state.counters["speedup_with_library"] = full_s / (s.sim_seconds + library_s);
+}
+
 }  // namespace
 
+BENCHMARK_CAPTURE(BM_SampledVsCycle, default, "default")->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_SampledVsCycle, narrow, "narrow")->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_SampledVsCycle, wide, "wide")->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_CycleVsFunctional, bitonic, SorterKind::kBitonic)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_CycleVsFunctional, serial, SorterKind::kSerial)->Unit(benchmark::kMillisecond);
 

@@ -5,6 +5,7 @@
 // hardware (ROP scaling, memory-bound runs, linear cost in the work).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +25,7 @@
 #include "driver.h"
 #include "golden_model.h"
 #include "hw_config.h"
+#include "livepoints.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
 #include "sim_context.h"
@@ -1249,4 +1251,103 @@ TEST(StatsInterval, DecoupledRowsEqualLockstepRowsAndTheRunIsUnchanged) {
   const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
   expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --stats-interval");
   EXPECT_EQ(dec.stats.total_cycles, plain.stats.total_cycles);
+}
+
+// ------------------------------------------------------------ sampled simulation (livepoints.h)
+
+namespace {
+
+/// Every pixel of every tile of `unit` holds what `golden` holds (depth and
+/// colour bits of every sample, the tracker).
+std::string tiles_differ(const SampleStore& unit, const SampleStore& golden) {
+  std::string out;
+  const int spp = unit.header().spp;
+  unit.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+    for (int p = 0; p < 64 && out.empty(); ++p) {
+      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+      if (x >= unit.header().width || y >= unit.header().height) continue;
+      const PixelView a = unit.view(x, y), b = golden.view(x, y);
+      if (!b.depth) {
+        out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + "): the golden model never touched it";
+        return;
+      }
+      for (int s = 0; s < spp; ++s)
+        if (std::memcmp(&a.depth[s], &b.depth[s], 4) != 0 || std::memcmp(&a.rgb[3 * s], &b.rgb[3 * s], 6) != 0)
+          out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") sample " + std::to_string(s);
+      if (a.tracker && !(*a.tracker == *b.tracker))
+        out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") tracker";
+    }
+  });
+  return out;
+}
+
+}  // namespace
+
+// A single unit covering the whole input with no warm-up is the full cycle
+// run: the same cycles, DRAM bytes and final state.
+TEST(Sampled, OneUnitOverTheWholeInputIsTheFullRun) {
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    for (Method m : {Method::kLk, Method::kOpaque}) {
+      const InputSpec in = scene_input("cloth", 16);
+      SamplingParams p;
+      p.units = 1;
+      p.unit_fragments = ~uint64_t{0} >> 1;
+      p.warmup_fragments = 0;
+      const LivePoints lib = record_livepoints(in, method_config(m), p);
+      ASSERT_EQ(lib.points.size(), 1u);
+      ASSERT_EQ(lib.points[0].fragments.size(), lib.fragments);
+      const UnitRun u = simulate_livepoint(lib, 0, hw);
+      const CycleRun full = run_cycle(in, method_config(m), hw);
+      const std::string what = std::string(to_string(m)) + " on " + config;
+      EXPECT_EQ(u.total_cycles, full.stats.total_cycles) << what;
+      EXPECT_EQ(u.window_bytes_read + u.tail_bytes_read, full.stats.dram.total_bytes_read()) << what;
+      EXPECT_EQ(u.window_bytes_written + u.tail_bytes_written, full.stats.dram.total_bytes_written()) << what;
+      EXPECT_EQ((u.window_lines_dirtied + u.tail_lines_dirtied) * hw.cache.line_bytes,
+                full.stats.dram.total_bytes_written())
+          << what << ": every line made dirty is written to DRAM once";
+      EXPECT_EQ(first_state_difference(*u.state, *full.state), "") << what;
+      EXPECT_TRUE(lib.image == full.image) << what << ": the library holds the golden image";
+    }
+  }
+}
+
+// Each unit, simulated from its live-point, leaves its tiles exactly as the
+// golden model has them after the unit's last fragment.
+TEST(Sampled, EveryUnitEndsInTheGoldenState) {
+  const InputSpec in = scene_input("cloth", 16);
+  SamplingParams p;
+  p.units = 6;
+  p.unit_fragments = 3000;
+  p.warmup_fragments = 5000;
+  for (Method m : {Method::kLk, Method::kEnderton}) {
+    const LivePoints lib = record_livepoints(in, method_config(m), p);
+    ASSERT_EQ(lib.points.size(), 6u);
+    const FragmentList fl = load_fragments(in);
+    for (size_t k = 0; k < lib.points.size(); ++k) {
+      const LivePoint& lp = lib.points[k];
+      EXPECT_EQ(lp.fragments.size(), lp.warmup + 3000);
+      FunctionalRop golden(fl.header, method_config(m));
+      FragWork w;
+      for (uint64_t i = 0; i < lp.first + lp.fragments.size(); ++i) {
+        w.f = &fl.fragments[i];
+        golden.process(w);
+      }
+      const UnitRun u = simulate_livepoint(lib, k, HwConfig{});
+      EXPECT_EQ(tiles_differ(*u.state, golden.store()), "") << to_string(m) << " unit " << k;
+      EXPECT_GT(u.window_cycles, 0u);
+    }
+    EXPECT_EQ(lib.points.back().first + lib.points.back().fragments.size(), lib.fragments)
+        << "the last unit ends the input";
+  }
+}
+
+TEST(Sampled, StudentT) {
+  EXPECT_NEAR(student_t975(1), 12.706, 1e-9);
+  EXPECT_NEAR(student_t975(30), 2.042, 1e-9);
+  EXPECT_NEAR(student_t975(40), 2.021, 1e-9);
+  EXPECT_NEAR(student_t975(120), 1.980, 1e-9);
+  EXPECT_GT(student_t975(50), 2.000);
+  EXPECT_LT(student_t975(50), 2.021);
+  EXPECT_NEAR(student_t975(1000000), 1.960, 1e-4);
 }

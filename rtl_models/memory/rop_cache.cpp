@@ -59,12 +59,16 @@ size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
 
 void RopCache::evict(size_t way, uint64_t now) {
   if (tags_[way] == kInvalid) return;
-  ++s_.evictions;
   Way& w = ways_[way];
-  if (w.dirty) {
-    ++s_.dirty_evictions;
-    dram_.access(tags_[way], cfg_.line_bytes, true, w.buf, now);
-    in_dram_.insert(tags_[way]);
+  if (warming_) {
+    if (w.dirty) in_dram_.insert(tags_[way]);
+  } else {
+    ++s_.evictions;
+    if (w.dirty) {
+      ++s_.dirty_evictions;
+      dram_.access(tags_[way], cfg_.line_bytes, true, w.buf, now);
+      in_dram_.insert(tags_[way]);
+    }
   }
   tags_[way] = kInvalid;
   w.dirty = false;
@@ -106,7 +110,21 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
     w.buf = b;
     w.ready = now;
   }
+  if (!w.dirty) ++s_.dirtied;
   w.dirty = true;
+}
+
+void RopCache::warm(uint64_t line, bool write, Buffer b) {
+  warming_ = true;
+  bool hit = false;
+  Way& w = ways_[lookup(line, hit, 0)];
+  warming_ = false;
+  if (!hit) {
+    w.buf = b;
+    w.ready = 0;
+    w.dirty = false;
+  }
+  if (write) w.dirty = true;
 }
 
 uint64_t RopCache::flush(uint64_t now) {

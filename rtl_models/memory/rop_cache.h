@@ -25,6 +25,9 @@ struct CacheStats {
   uint64_t merged = 0;  ///< reads of a line whose fill was still in flight
   uint64_t evictions = 0, dirty_evictions = 0;
   uint64_t clear_fills = 0;  ///< misses served by fast clear, no DRAM read
+  /// Writes that made a clean line dirty: each is one line written to DRAM
+  /// later, at its eviction or the final flush.
+  uint64_t dirtied = 0;
 
   /// Sums another cache's counts into this one (the ROP caches' total).
   CacheStats& operator+=(const CacheStats& o) {
@@ -38,6 +41,7 @@ struct CacheStats {
     evictions += o.evictions;
     dirty_evictions += o.dirty_evictions;
     clear_fills += o.clear_fills;
+    dirtied += o.dirtied;
     return *this;
   }
   /// Read and write hits (misses) over every buffer.
@@ -109,6 +113,10 @@ class RopCache {
     else
       write(line_addr, b, cycle);
   }
+  /// Tag-only warming before a run (sampled simulation): the access's effect
+  /// on the tags, the LRU order and the dirty bits, without time, DRAM
+  /// traffic or statistics; a dirty line it evicts is recorded as in DRAM.
+  void warm(uint64_t line_addr, bool write, Buffer b);
   /// Writes every dirty line back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);
   const CacheStats& stats() const { return s_; }
@@ -127,6 +135,7 @@ class RopCache {
   /// The way (index) holding line, allocated (after an eviction) on a miss.
   size_t lookup(uint64_t line, bool& hit, uint64_t now);
   void evict(size_t way, uint64_t now);
+  bool warming_ = false;  // warm(): evictions move no data and count nothing
   HwConfig::Cache cfg_;
   Dram& dram_;
   LineSet& in_dram_;  // lines DRAM holds (shared by all caches)

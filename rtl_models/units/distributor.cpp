@@ -4,10 +4,7 @@ namespace ropsim {
 
 Distributor::Distributor(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Distributor& cfg,
                          uint32_t screen_width, TokenFifo& in, std::vector<TokenFifo*> outs)
-    : DecoupledUnit(name, clk), cfg_(cfg), in_(in), outs_(std::move(outs)) {
-  tile_shift_ = uint32_t(log2_ceil(cfg.tile_pixels));
-  tiles_x_ = ceil_div(screen_width, cfg.tile_pixels);
-}
+    : DecoupledUnit(name, clk), cfg_(cfg), owner_(cfg, screen_width), in_(in), outs_(std::move(outs)) {}
 
 void Distributor::advance(uint64_t limit) {
   while (!closed_) {

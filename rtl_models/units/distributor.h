@@ -5,28 +5,45 @@
 #pragma once
 #include <vector>
 
+#include "bits.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
 
 namespace ropsim {
+
+/// Which ROP unit owns pixel (x, y) on a screen `screen_width` wide: the
+/// distributor's rule (also the sampled simulation's tag-only warming).
+class RopOwnership {
+ public:
+  RopOwnership(const HwConfig::Distributor& cfg, uint32_t screen_width)
+      : interleave_(cfg.interleave),
+        units_(cfg.rop_units),
+        tile_shift_(uint32_t(log2_ceil(cfg.tile_pixels))),
+        tiles_x_(ceil_div(screen_width, cfg.tile_pixels)) {}
+  uint32_t rop_of(uint32_t x, uint32_t y) const {
+    const uint32_t tx = x >> tile_shift_, ty = y >> tile_shift_;
+    return interleave_ == Interleave::kDiagonal ? (tx + ty) % units_
+                                                : uint32_t((uint64_t(ty) * tiles_x_ + tx) % units_);
+  }
+
+ private:
+  Interleave interleave_;
+  uint32_t units_, tile_shift_, tiles_x_;
+};
 
 class Distributor : public DecoupledUnit {
  public:
   Distributor(const sc_core::sc_module_name& name, const Clock& clk, const HwConfig::Distributor& cfg,
               uint32_t screen_width, TokenFifo& in, std::vector<TokenFifo*> outs);
   /// The ROP unit owning pixel (x, y).
-  uint32_t rop_of(uint32_t x, uint32_t y) const {
-    const uint32_t tx = x >> tile_shift_, ty = y >> tile_shift_;
-    return cfg_.interleave == Interleave::kDiagonal ? (tx + ty) % cfg_.rop_units
-                                                    : uint32_t((uint64_t(ty) * tiles_x_ + tx) % cfg_.rop_units);
-  }
+  uint32_t rop_of(uint32_t x, uint32_t y) const { return owner_.rop_of(x, y); }
 
  protected:
   void advance(uint64_t limit) override;
 
  private:
   HwConfig::Distributor cfg_;
-  uint32_t tile_shift_ = 0, tiles_x_;
+  RopOwnership owner_;
   TokenFifo& in_;
   std::vector<TokenFifo*> outs_;
   uint64_t t_ = 0;  // the clock being decided

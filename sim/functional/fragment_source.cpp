@@ -79,7 +79,27 @@ class SceneFragments : public FragmentSource {
   std::vector<Fragment> buf_;
 };
 
+class VectorFragments : public FragmentSource {
+ public:
+  VectorFragments(const TraceHeader& h, const std::vector<Fragment>& v) : v_(v) { header_ = h; }
+  bool next(Fragment& f) override {
+    if (at_ == v_.size()) return false;
+    f = v_[at_++];
+    ++delivered_;
+    return true;
+  }
+  uint64_t fragments_at_least() const override { return v_.size(); }
+
+ private:
+  const std::vector<Fragment>& v_;
+  size_t at_ = 0;
+};
+
 }  // namespace
+
+std::unique_ptr<FragmentSource> fragments_from(const TraceHeader& h, const std::vector<Fragment>& fragments) {
+  return std::make_unique<VectorFragments>(h, fragments);
+}
 
 std::unique_ptr<FragmentSource> open_fragments(const InputSpec& in) {
   if (in.from_trace()) return std::make_unique<TraceFragments>(in.trace_path, in.repeat);

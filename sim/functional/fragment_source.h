@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "scenes.h"
 #include "trace.h"
@@ -45,5 +46,8 @@ class FragmentSource {
 /// Opens the input: reads the trace's header, or builds the scene. Throws
 /// TraceError or SceneError for bad input.
 std::unique_ptr<FragmentSource> open_fragments(const InputSpec& in);
+
+/// Fragments held in memory (a live-point's, sampled simulation), in order.
+std::unique_ptr<FragmentSource> fragments_from(const TraceHeader& h, const std::vector<Fragment>& fragments);
 
 }  // namespace ropsim

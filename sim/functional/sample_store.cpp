@@ -66,6 +66,25 @@ void SampleStore::absorb(SampleStore& o) {
   mem_.take(o.mem_);  // its tiles' bytes (and its directory's, until it is freed)
 }
 
+void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y) {
+  if (src.header_.width != header_.width || src.header_.height != header_.height || src.header_.spp != header_.spp ||
+      src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
+      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum)
+    throw std::logic_error("SampleStore::copy_tile_from: the stores hold different buffers");
+  const SampleTile* from = src.tiles_.find(x, y);
+  if (!from) return;
+  const uint32_t x0 = x & ~7u, y0 = y & ~7u;
+  pixel(x0, y0);  // allocates the tile
+  SampleTile& to = *tiles_.find(x0, y0);
+  const size_t n = size_t(64) * header_.spp;
+  std::memcpy(to.depth.get(), from->depth.get(), n * sizeof(float));
+  std::memcpy(to.rgb.get(), from->rgb.get(), 3 * n * sizeof(uint16_t));
+  if (to.tracker) std::copy_n(from->tracker.get(), 64, to.tracker.get());
+  if (to.slab) std::copy_n(from->slab.get(), 64, to.slab.get());
+  if (to.trans) std::memcpy(to.trans.get(), from->trans.get(), n * sample_bytes(targets_.formats.transmittance));
+  if (to.accum) std::memcpy(to.accum.get(), from->accum.get(), n * sample_bytes(targets_.formats.accum));
+}
+
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   const SampleTile* t = tiles_.find(x, y);
   if (!t) return {};

@@ -82,6 +82,10 @@ class SampleStore {
   /// each fill a store over their own tiles). Throws std::logic_error on a
   /// tile both hold.
   void absorb(SampleStore& o);
+  /// Copies the tile holding pixel (x, y) from src, a store of the same
+  /// screen and buffers, into this one (allocating it here); nothing if src
+  /// never touched it. A live-point's pre-state (sampled simulation).
+  void copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y);
   /// The bytes of one touched tile's buffers.
   size_t tile_bytes() const;
   size_t tiles() const { return tiles_.tiles(); }

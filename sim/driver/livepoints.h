@@ -1,0 +1,118 @@
+// Sampled cycle simulation from live-points (SMARTS: Wunderlich et al.,
+// ISCA 2003), the building blocks: recording live-points in one functional
+// pass, simulating one in detail, and the estimate with its confidence
+// interval.
+//
+// ropsim's functional state does not depend on the hardware design (the
+// image is bit-exact in every design), so one functional pass serves every
+// design of a sweep. A *sampling unit* is a window of U consecutive fragments
+// of the input; K units are placed systematically, the last ending with the
+// input. Its *live-point* holds the W fragments before it (the warm-up) and
+// its own, and the pre-state of only the 8 x 8 tiles those fragments touch,
+// as the golden model held them before the warm-up. A unit is simulated by
+// the cycle model from its live-point: the warm-up fragments warm the ROP
+// caches, the DRAM row buffers and the pipeline in detail, then the window
+// is measured from the retirement of the W-th fragment to that of the
+// (W + U)-th. The run's figures are N times the mean per-fragment figure over
+// the units, plus the last unit's tail (the pipeline's drain and the final
+// cache flush after the input's last fragment), with a Student-t 95 %
+// interval from the variance across units.
+//
+// What a live-point cannot know, being design-independent: which lines DRAM
+// holds (fast clear consults it). A line of a tile the golden model had
+// touched before the warm-up is taken to be in DRAM; one never touched, not.
+// A line that a design still held dirty in a cache at that point is a cache
+// hit either way once the warm-up has run, so the difference is confined to
+// lines evicted before and never written back, which a warm-up longer than
+// the caches' reach makes rare.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cycle_run.h"
+#include "fragment_source.h"
+#include "hw_config.h"
+#include "image.h"
+#include "method.h"
+#include "sample_store.h"
+
+namespace ropsim {
+
+/// How the input is sampled.
+struct SamplingParams {
+  uint64_t unit_fragments = 2000;    ///< U: fragments per measured window
+  uint64_t warmup_fragments = 4000;  ///< W: fragments simulated in detail before each window
+  uint64_t units = 40;               ///< K: windows, placed every N / K fragments, the last ending the input
+  /// T: fragments before each warm-up whose cache accesses warm the design's
+  /// caches tag-only (no time, no DRAM traffic) before the detailed run.
+  uint64_t warming_fragments = 100000;
+};
+
+/// What one fragment did to the per-pixel buffers, as the cache sees it
+/// (design-independent): the samples whose depth it read, those it wrote.
+struct Touch {
+  uint64_t covered = 0;  ///< samples tested (their depth lines read)
+  uint64_t written = 0;  ///< samples written (depth and colour lines)
+  uint16_t x = 0, y = 0;
+  bool reached_write = false;  ///< not killed by the depth test: the writeback saw it (the tracker line)
+  bool slab_kept = false;      ///< slab: its layers were rewritten
+};
+
+struct LivePoint {
+  uint64_t first = 0;                ///< the input's index of its first fragment (the warm-up's)
+  uint64_t warmup = 0;               ///< fragments before the window (W, fewer at the input's start)
+  std::vector<Fragment> fragments;   ///< the warm-up's, then the window's
+  std::unique_ptr<SampleStore> pre;  ///< the tiles they touch, as before `first` (untouched tiles absent)
+  std::vector<Touch> warming;        ///< the T fragments before `first` (fewer at the input's start)
+};
+
+struct LivePoints {
+  TraceHeader header;
+  MethodConfig method;
+  SamplingParams params;
+  uint64_t fragments = 0;  ///< N, the input's fragments
+  std::vector<LivePoint> points;
+  Counters counters;  ///< the functional pass's (exact)
+  Image image;        ///< the golden image (exact)
+};
+
+/// One functional pass over the input, recording K live-points. Throws
+/// UserError for a method with several passes or bad parameters.
+LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p);
+
+/// One unit simulated in detail.
+struct UnitRun {
+  uint64_t window_cycles = 0;                                ///< from the W-th retirement to the (W + U)-th
+  uint64_t window_bytes_read = 0, window_bytes_written = 0;  ///< DRAM, over the window
+  /// Writes that made a clean line dirty, over the window: each is one line
+  /// written to DRAM sooner or later, so this (not the window's write-backs,
+  /// which lag) measures the window's share of the bytes written.
+  uint64_t window_lines_dirtied = 0;
+  uint64_t tail_lines_dirtied = 0;  ///< after the last retirement (the posted writes still pending)
+  uint64_t tail_cycles = 0;         ///< after the last retirement: drain and cache flush
+  uint64_t tail_bytes_read = 0, tail_bytes_written = 0;
+  uint64_t total_cycles = 0;           ///< of the whole unit run
+  CycleStats stats;                    ///< the whole unit run's units (warm-up included), for the bottleneck
+  std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
+};
+UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw);
+
+/// An estimate and its 95 % confidence interval.
+struct Estimate {
+  double value = 0, low = 0, high = 0;
+};
+
+struct SampledRun {
+  Estimate total_cycles, dram_bytes_read, dram_bytes_written;
+  size_t units = 0;
+  uint64_t fragments_detailed = 0;  ///< fragments the cycle model simulated (warm-ups and windows)
+  double sim_seconds = 0;           ///< the units' host time
+};
+SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw);
+
+/// The 0.975 quantile of Student's t with dof degrees of freedom (>= 1).
+double student_t975(uint64_t dof);
+
+}  // namespace ropsim
