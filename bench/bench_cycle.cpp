@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 
@@ -65,7 +66,13 @@ void BM_SampledVsCycle(benchmark::State& state, const char* design) {
   static double library_s = 0;
   static const LivePoints lib = [&] {
     const auto t0 = std::chrono::steady_clock::now();
-    LivePoints l = record_livepoints(in, GoldenConfig{}, SamplingParams{});
+    SamplingParams sp;
+    // ROPSIM_BENCH_SAMPLING=U,W,C,K,T overrides the defaults (unit, warm-up,
+    // cool-down, units, tag-only warming).
+    if (const char* v = std::getenv("ROPSIM_BENCH_SAMPLING"))
+      std::sscanf(v, "%lu,%lu,%lu,%lu,%lu", &sp.unit_fragments, &sp.warmup_fragments, &sp.cooldown_fragments, &sp.units,
+                  &sp.warming_fragments);
+    LivePoints l = record_livepoints(in, GoldenConfig{}, sp);
     library_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return l;
   }();

@@ -1326,7 +1326,9 @@ TEST(Sampled, EveryUnitEndsInTheGoldenState) {
     const FragmentList fl = load_fragments(in);
     for (size_t k = 0; k < lib.points.size(); ++k) {
       const LivePoint& lp = lib.points[k];
-      EXPECT_EQ(lp.fragments.size(), lp.warmup + 3000);
+      EXPECT_EQ(lp.window, 3000u);
+      EXPECT_EQ(lp.fragments.size(),
+                lp.warmup + 3000 + (k + 1 < lib.points.size() ? lib.params.cooldown_fragments : 0));
       FunctionalRop golden(fl.header, method_config(m));
       FragWork w;
       for (uint64_t i = 0; i < lp.first + lp.fragments.size(); ++i) {

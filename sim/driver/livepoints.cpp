@@ -39,13 +39,18 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.params.unit_fragments = u;
   lib.params.units = k_units;
   // Window k starts at n - u - (K - 1 - k) period: the last one ends the input.
-  std::vector<uint64_t> starts(k_units), firsts(k_units);
+  // Each but the last has C fragments of cool-down after it, within the
+  // period (the recording reads a live-point's fragments once).
+  const uint64_t cool = std::min<uint64_t>(p.cooldown_fragments, period - u);
+  std::vector<uint64_t> starts(k_units), firsts(k_units), ends(k_units);
   uint64_t prev_end = 0;
   for (uint64_t k = 0; k < k_units; ++k) {
     starts[k] = n - u - (k_units - 1 - k) * period;
     firsts[k] = starts[k] - std::min<uint64_t>(p.warmup_fragments, starts[k] - prev_end);
-    prev_end = starts[k] + u;
+    ends[k] = starts[k] + u + (k + 1 < k_units ? cool : 0);
+    prev_end = ends[k];
   }
+  lib.params.cooldown_fragments = cool;
 
   FunctionalRop rop(lib.header, method);
   FragWork w;
@@ -73,7 +78,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       LivePoint lp;
       lp.first = firsts[k];
       lp.warmup = starts[k] - firsts[k];
-      const uint64_t count = starts[k] + u - firsts[k];
+      lp.window = u;
+      const uint64_t count = ends[k] - firsts[k];
       lp.fragments.reserve(count);
       while (lp.fragments.size() < count && src->next(f)) lp.fragments.push_back(f);
       invariant(lp.fragments.size() == count, "the input delivers the fragments it was counted with");
@@ -142,7 +148,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
   });
 
   UnitRun r;
-  const uint64_t warm = lp.warmup, end = lp.fragments.size();
+  const uint64_t warm = lp.warmup, end = lp.warmup + lp.window, all = lp.fragments.size();
   uint64_t retired = 0, c0 = 0, c1 = 0, w0 = 0, w1 = 0;
   DramStats d0, d1;
   {
@@ -192,7 +198,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     };
     top->run();
     const DramStats fin = top->dram().stats();
-    invariant(retired == end, "a unit's run retires every fragment of its live-point");
+    invariant(retired == all, "a unit's run retires every fragment of its live-point");
     r.total_cycles = top->total_cycles();
     r.window_cycles = c1 - c0;
     r.window_bytes_read = d1.total_bytes_read() - d0.total_bytes_read();

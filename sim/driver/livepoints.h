@@ -13,7 +13,8 @@
 // the cycle model from its live-point: the warm-up fragments warm the ROP
 // caches, the DRAM row buffers and the pipeline in detail, then the window
 // is measured from the retirement of the W-th fragment to that of the
-// (W + U)-th. The run's figures are N times the mean per-fragment figure over
+// (W + U)-th, with C more fragments behind it (the cool-down) so the window's
+// last fragments pass a full pipeline. The run's figures are N times the mean per-fragment figure over
 // the units, plus the last unit's tail (the pipeline's drain and the final
 // cache flush after the input's last fragment), with a Student-t 95 %
 // interval from the variance across units.
@@ -44,10 +45,15 @@ namespace ropsim {
 struct SamplingParams {
   uint64_t unit_fragments = 2000;    ///< U: fragments per measured window
   uint64_t warmup_fragments = 4000;  ///< W: fragments simulated in detail before each window
-  uint64_t units = 40;               ///< K: windows, placed every N / K fragments, the last ending the input
+  /// C: fragments simulated after each window but the last, so the window's
+  /// last fragments pass a full pipeline, as in the full run (without them,
+  /// the memory requests of the fragments in flight at the window's end
+  /// would be missing from it).
+  uint64_t cooldown_fragments = 2000;
+  uint64_t units = 40;  ///< K: windows, placed every N / K fragments, the last ending the input
   /// T: fragments before each warm-up whose cache accesses warm the design's
   /// caches tag-only (no time, no DRAM traffic) before the detailed run.
-  uint64_t warming_fragments = 100000;
+  uint64_t warming_fragments = 50000;
 };
 
 /// What one fragment did to the per-pixel buffers, as the cache sees it
@@ -63,6 +69,7 @@ struct Touch {
 struct LivePoint {
   uint64_t first = 0;                ///< the input's index of its first fragment (the warm-up's)
   uint64_t warmup = 0;               ///< fragments before the window (W, fewer at the input's start)
+  uint64_t window = 0;               ///< U; then the cool-down, to the end of `fragments`
   std::vector<Fragment> fragments;   ///< the warm-up's, then the window's
   std::unique_ptr<SampleStore> pre;  ///< the tiles they touch, as before `first` (untouched tiles absent)
   std::vector<Touch> warming;        ///< the T fragments before `first` (fewer at the input's start)
@@ -91,7 +98,7 @@ struct UnitRun {
   /// which lag) measures the window's share of the bytes written.
   uint64_t window_lines_dirtied = 0;
   uint64_t tail_lines_dirtied = 0;  ///< after the last retirement (the posted writes still pending)
-  uint64_t tail_cycles = 0;         ///< after the last retirement: drain and cache flush
+  uint64_t tail_cycles = 0;         ///< after the window's last retirement: the cool-down, drain and cache flush
   uint64_t tail_bytes_read = 0, tail_bytes_written = 0;
   uint64_t total_cycles = 0;           ///< of the whole unit run
   CycleStats stats;                    ///< the whole unit run's units (warm-up included), for the bottleneck
