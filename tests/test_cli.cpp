@@ -525,6 +525,39 @@ TEST(Cli, ThreadCountsWriteTheSameFiles) {
   expect_cli_error(box, "run --threads 0 --scene testcard --spp 1", {"--threads"});
 }
 
+// --fidelity sampled writes the golden image bit for bit and estimates under
+// the cycle report's keys with their intervals.
+TEST(CliCycle, SampledRunWritesTheGoldenImageAndEstimatesWithIntervals) {
+  CliSandbox box;
+  expect_ok(box.run("run --scene cloth --spp 16 --quiet --out f.exr --out f.png --report f.json"), "functional");
+  expect_ok(box.run("run --fidelity sampled --scene cloth --spp 16 --quiet --sample-units 8 --sample-size 1000 "
+                    "--out s.exr --out s.png --report s.json"),
+            "sampled");
+  EXPECT_EQ(slurp(box.work() / "f.exr"), slurp(box.work() / "s.exr")) << "the sampled run writes the golden image";
+  EXPECT_EQ(slurp(box.work() / "f.png"), slurp(box.work() / "s.png"));
+  const auto f = nlohmann::json::parse(slurp(box.work() / "f.json"));
+  const auto s = nlohmann::json::parse(slurp(box.work() / "s.json"));
+  EXPECT_EQ(s["fidelity"], "sampled");
+  EXPECT_EQ(s["counters"], f["counters"]) << "the golden model's counters, exactly";
+  const auto& t = s["timing"];
+  for (const auto& [v, ci] : {std::pair{t["total_cycles"], t["total_cycles_ci95"]},
+                              {t["dram"]["bytes_read"], t["dram"]["bytes_read_ci95"]},
+                              {t["dram"]["bytes_written"], t["dram"]["bytes_written_ci95"]}}) {
+    ASSERT_TRUE(ci.is_array() && ci.size() == 2) << ci;
+    EXPECT_LE(ci[0].get<double>(), v.get<double>());
+    EXPECT_LE(v.get<double>(), ci[1].get<double>());
+    EXPECT_GT(v.get<double>(), 0.0);
+  }
+  EXPECT_EQ(t["sampling"]["units"], 8);
+  EXPECT_EQ(t["sampling"]["unit_fragments"], 1000);
+  EXPECT_EQ(t["sampling"]["fragments"], f["counters"]["fragments"]);
+  EXPECT_LE(t["sampling"]["fragments_detailed"].get<uint64_t>(), f["counters"]["fragments"].get<uint64_t>());
+  expect_cli_error(box, "run --scene testcard --spp 1 --sample-units 3", {"--sample-units", "sampled"});
+  expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 1 --vcd w.vcd", {"--vcd", "sampled"});
+  expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --method lk+ac", {"lk+ac"});
+  expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --sample-size 0", {"--sample-size"});
+}
+
 TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   CliSandbox box;
   expect_cli_error(box, "run --hw nope.toml --scene testcard --spp 1", {"--hw"});

@@ -37,6 +37,7 @@ struct RunOpts {
   bool vs_reference = false, quiet = false, lockstep = false;
   uint64_t stats_interval = 0;
   std::string stats_csv;
+  SamplingParams sampling;
 };
 
 /// A text output staged beside the images (the --stats-interval CSV).
@@ -121,9 +122,30 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   return 0;
 }
 
+int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
+                    const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const LivePoints lib = record_livepoints(in, cfg, o.sampling);
+  const SampledRun s = run_sampled(lib, hw);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ReportContext ctx{cmdline, in, cfg, {}};
+  write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall).c_str(), stdout);
+  return 0;
+}
+
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
-  const bool cycle = o.fidelity == "cycle";
-  if (!cycle) {
+  const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
+  if (!sampled)
+    for (const char* f :
+         {"--sample-units", "--sample-size", "--sample-warmup", "--sample-cooldown", "--sample-warming"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
+  if (sampled) {
+    for (const char* f :
+         {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference", "--repeat"})
+      if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity sampled");
+  }
+  if (!cycle && !sampled) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
     // A functional run takes only the design's numerics and blend-target
@@ -201,8 +223,8 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     // when they are not the defaults.
     const Numerics& n = cfg.numerics;
     if (cfg.method == Method::kSlab) base += fmt::format("-k{}b{}", cfg.slab_layers, cfg.slab_bits);
-    if (cycle)
-      base += "-cycle-hw" + hw_digest_hex(hw);
+    if (cycle || sampled)
+      base += std::string(cycle ? "-cycle" : "-sampled") + "-hw" + hw_digest_hex(hw);
     else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
              n.surface_id_bits != Numerics{}.surface_id_bits)
       base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
@@ -218,6 +240,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
       throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
     return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
   }
+  if (sampled) return cmd_run_sampled(o, in, cfg, hw, outs, report, cmdline);
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
   write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
@@ -264,8 +287,25 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
   run->add_option("--fidelity", ro->fidelity,
-                  "functional (the golden model, default) or cycle (the cycle-approximate SystemC pipeline)")
-      ->check(CLI::IsMember({"functional", "cycle"}));
+                  "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline) or sampled "
+                  "(the pipeline on sampling units of the input, with 95 % intervals)")
+      ->check(CLI::IsMember({"functional", "cycle", "sampled"}));
+  const SamplingParams dp;
+  run->add_option("--sample-units", ro->sampling.units,
+                  "sampled: units K, placed every N / K fragments (default " + std::to_string(dp.units) + ")")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 40));
+  run->add_option("--sample-size", ro->sampling.unit_fragments,
+                  "sampled: fragments U per measured window (default " + std::to_string(dp.unit_fragments) + ")")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 40));
+  run->add_option("--sample-warmup", ro->sampling.warmup_fragments,
+                  "sampled: fragments W simulated in detail before each window (default " +
+                      std::to_string(dp.warmup_fragments) + ")");
+  run->add_option(
+      "--sample-cooldown", ro->sampling.cooldown_fragments,
+      "sampled: fragments C simulated after each window (default " + std::to_string(dp.cooldown_fragments) + ")");
+  run->add_option("--sample-warming", ro->sampling.warming_fragments,
+                  "sampled: fragments T before each warm-up that warm the caches tag-only (default " +
+                      std::to_string(dp.warming_fragments) + ")");
   run->add_option(
          "--hw", ro->hw,
          "Hardware design file (TOML, docs/config.md; default: built-in defaults); functional: only its [numerics]")

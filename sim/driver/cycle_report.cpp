@@ -197,22 +197,25 @@ nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s) {
   return t;
 }
 
+namespace {
+void put_hardware(Fields hw, const HwConfig& c) {
+  hw.put("config", c.name, "-", "cycle: the design file (or \"built-in defaults\"), \"with --hw-set\" when overridden");
+  hw.put("resolved_toml", hw_config_to_toml(c), "-", "cycle: every hardware parameter as simulated, as TOML");
+  hw.put("overrides", c.overrides, "-",
+         "cycle: the --hw-set assignments applied over the design file, in order, as given");
+  hw.put("digest", hw_digest_hex(c), "-",
+         "cycle: 8 hex digits of FNV-1a 64 over the resolved design (in default output names: -hwDIGEST)");
+  // Each parameter's unit and meaning come from the parameter table (hw_params()).
+  put_hw_resolved(hw.obj("resolved"), c, "cycle: ");
+}
+}  // namespace
+
 nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run,
                                     const std::optional<Image>& reference, FieldSink* sink) {
   nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
   Fields r(j, sink);
-  r.put("fidelity", "cycle", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
-  Fields hw = r.obj("hardware");
-  hw.put("config", run.stats.hw.name, "-",
-         "cycle: the design file (or \"built-in defaults\"), \"with --hw-set\" when overridden");
-  hw.put("resolved_toml", hw_config_to_toml(run.stats.hw), "-",
-         "cycle: every hardware parameter as simulated, as TOML");
-  hw.put("overrides", run.stats.hw.overrides, "-",
-         "cycle: the --hw-set assignments applied over the design file, in order, as given");
-  hw.put("digest", hw_digest_hex(run.stats.hw), "-",
-         "cycle: 8 hex digits of FNV-1a 64 over the resolved design (in default output names: -hwDIGEST)");
-  // Each parameter's unit and meaning come from the parameter table (hw_params()).
-  put_hw_resolved(hw.obj("resolved"), run.stats.hw, "cycle: ");
+  r.put("fidelity", "cycle", "-", kFidelityMeaning);
+  put_hardware(r.obj("hardware"), run.stats.hw);
   put_cycle_stats(r.obj("timing"), run.stats);
   Fields host = r.obj("host");
   host.put("sim_seconds", run.sim_seconds, "s", "cycle: sc_start alone");
@@ -220,6 +223,69 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
            run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0, "1/s",
            "cycle: fragments over sim_seconds");
   return j;
+}
+
+nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
+                                      const HwConfig& hw, double wall_seconds, FieldSink* sink) {
+  FunctionalRun f;
+  f.header = lib.header;
+  f.counters = lib.counters;
+  f.image = lib.image;
+  f.wall_seconds = wall_seconds;
+  nlohmann::ordered_json j = functional_report(ctx, f, sink);
+  Fields r(j, sink);
+  r.put("fidelity", "sampled", "-", kFidelityMeaning);
+  put_hardware(r.obj("hardware"), hw);
+  Fields t = r.obj("timing");
+  auto ci = [](const Estimate& e) { return std::vector<double>{e.low, e.high}; };
+  t.put("total_cycles", s.total_cycles.value, "cycles",
+        "sampled: estimate of the cycles to the end of the final cache flush (N x the units' mean per fragment, plus "
+        "the last unit's drain and flush)");
+  t.put("total_cycles_ci95", ci(s.total_cycles), "cycles",
+        "sampled: 95 % confidence interval [low, high] of total_cycles (Student t over the units)");
+  t.put("frame_time_us", s.total_cycles.value / (hw.clock.frequency_ghz * 1e3), "us",
+        "sampled: total_cycles at the configured clock");
+  Fields d = t.obj("dram");
+  d.put("bytes_read", s.dram_bytes_read.value, "bytes", "sampled: estimate of the DRAM bytes read, every buffer");
+  d.put("bytes_read_ci95", ci(s.dram_bytes_read), "bytes", "sampled: its 95 % confidence interval [low, high]");
+  d.put("bytes_written", s.dram_bytes_written.value, "bytes",
+        "sampled: estimate of the DRAM bytes written, every buffer (the units' lines made dirty, each written once)");
+  d.put("bytes_written_ci95", ci(s.dram_bytes_written), "bytes", "sampled: its 95 % confidence interval [low, high]");
+  Fields sp = t.obj("sampling");
+  sp.put("units", s.units, "units", "sampled: sampling units simulated in detail (K)");
+  sp.put("unit_fragments", lib.params.unit_fragments, "fragments", "sampled: fragments per measured window (U)");
+  sp.put("warmup_fragments", lib.params.warmup_fragments, "fragments",
+         "sampled: fragments simulated in detail before each window (W, at most)");
+  sp.put("cooldown_fragments", lib.params.cooldown_fragments, "fragments",
+         "sampled: fragments simulated after each window but the last (C)");
+  sp.put("warming_fragments", lib.params.warming_fragments, "fragments",
+         "sampled: fragments before each warm-up warming the caches tag-only (T, at most)");
+  sp.put("fragments", lib.fragments, "fragments", "sampled: the input's fragments (N)");
+  sp.put("fragments_detailed", s.fragments_detailed, "fragments",
+         "sampled: fragments the cycle model simulated (warm-ups, windows, cool-downs)");
+  Fields host = r.obj("host");
+  host.put("sampled_seconds", s.sim_seconds, "s", "sampled: the units' simulation, tag-only warming included");
+  return j;
+}
+
+std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
+                            double wall_seconds) {
+  std::string out =
+      fmt::format("ropsim: {} | method {} | {}x{} @ {} spp | sampled on {}\n", ctx.input.describe(),
+                  to_string(ctx.config.method), lib.header.width, lib.header.height, lib.header.spp, hw.name);
+  auto line = [](const char* what, const Estimate& e, const char* unit) {
+    return fmt::format("  {:<14} {:.0f} {} (95 % interval {:.0f} .. {:.0f}, +-{:.2f} %)\n", what, e.value, unit, e.low,
+                       e.high, e.value > 0 ? 50.0 * (e.high - e.low) / e.value : 0.0);
+  };
+  out += line("total cycles", s.total_cycles, "cycles");
+  out += line("DRAM read", s.dram_bytes_read, "bytes");
+  out += line("DRAM written", s.dram_bytes_written, "bytes");
+  out += fmt::format("  {} units of {} fragments; {} of {} fragments simulated in detail ({:.1f} %)\n", s.units,
+                     lib.params.unit_fragments, s.fragments_detailed, lib.fragments,
+                     lib.fragments ? 100.0 * double(s.fragments_detailed) / double(lib.fragments) : 0.0);
+  out += fmt::format("  wall {:.3f} s (units {:.3f} s)\n", wall_seconds, s.sim_seconds);
+  for (const auto& o : ctx.outputs) out += "  wrote " + o + "\n";
+  return out;
 }
 
 std::vector<FieldDoc> report_field_docs() {
@@ -256,6 +322,18 @@ std::vector<FieldDoc> report_field_docs() {
     functional_report(ctx, fb, &sink);
     const CycleRun cb = run_cycle(in, m, HwConfig{});
     cycle_report(ctx, cb, std::nullopt, &sink);
+  }
+  // A sampled run's fields.
+  {
+    SamplingParams sp;
+    sp.units = 2;
+    sp.unit_fragments = 16;
+    sp.warmup_fragments = 8;
+    sp.cooldown_fragments = 8;
+    sp.warming_fragments = 8;
+    ctx.config = MethodConfig{};
+    const LivePoints lib = record_livepoints(in, ctx.config, sp);
+    sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, &sink);
   }
   return sink.docs();
 }

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cycle_run.h"
+#include "livepoints.h"
 #include "report.h"
 
 namespace ropsim {
@@ -28,6 +29,14 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 /// report order (docs/reports.md).
 std::vector<FieldDoc> report_field_docs();
 std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const std::optional<Image>& reference);
+
+/// The report of a sampled run (--fidelity sampled): the golden model's
+/// counters and image, the design, and the estimates under the cycle report's
+/// keys, each with its 95 % interval (timing.total_cycles_ci95, ...).
+nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
+                                      const HwConfig& hw, double wall_seconds, FieldSink* sink = nullptr);
+std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
+                            double wall_seconds);
 
 /// One column of the --stats-interval CSV: its name, unit and meaning.
 struct IntervalColumn {

@@ -43,7 +43,7 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   v.put("commit", ropsim_commit(), "-", "the source commit it was built from (git describe; \"unknown\" outside git)");
   r.put("report_version", 1, "-", "the report format's version");
   r.put("command", ctx.command_line, "-", "the command line");
-  r.put("fidelity", "functional", "-", "`functional` (the golden model) or `cycle` (the SystemC pipeline)");
+  r.put("fidelity", "functional", "-", kFidelityMeaning);
   Fields in = r.obj("input");
   if (ctx.input.from_trace()) {
     in.put("trace", ctx.input.trace_path, "-", "the trace file read (a trace input)");

@@ -13,6 +13,11 @@ namespace ropsim {
 nlohmann::ordered_json counters_to_json(const Counters& c);
 nlohmann::ordered_json numerics_to_json(const Numerics& n);
 
+/// The report's "fidelity" field's meaning (every report writes it).
+inline constexpr const char* kFidelityMeaning =
+    "`functional` (the golden model), `cycle` (the SystemC pipeline) or `sampled` (the pipeline on samples of the "
+    "input, livepoints.h)";
+
 struct ReportContext {
   std::string command_line;
   InputSpec input;
