@@ -386,6 +386,7 @@ Study parse_study(const std::string& text, const std::string& path) {
     points = std::max<size_t>(1, s.inputs.size()) * uint64_t(s.axes.front().values.size());
   if (points > kMaxStudyPoints)
     fail(s, "axes", fmt::format("the inputs and axes give more than {} points", kMaxStudyPoints));
+  s.points_at_most = points;
   return s;
 }
 

@@ -60,6 +60,9 @@ struct Study {
   int reference_spp = 0;
   bool save_images = false;  ///< each point's image as image.png in its folder
   StudySlurm slurm;
+  /// Inputs x axes (before functional points are deduplicated), as counted
+  /// by parse_study (at most kMaxStudyPoints).
+  uint64_t points_at_most = 0;
 };
 
 /// The most points a study may have (inputs x axes, before functional points
