@@ -101,7 +101,6 @@ struct UnitRun {
   uint64_t tail_cycles = 0;         ///< after the window's last retirement: the cool-down, drain and cache flush
   uint64_t tail_bytes_read = 0, tail_bytes_written = 0;
   uint64_t total_cycles = 0;           ///< of the whole unit run
-  CycleStats stats;                    ///< the whole unit run's units (warm-up included), for the bottleneck
   std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
 };
 UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw);
