@@ -23,6 +23,7 @@ namespace ropsim {
 using VerbRunner = std::function<int()>;
 
 VerbRunner add_run_command(CLI::App& app, const std::string& command_line);
+VerbRunner add_livepoints_command(CLI::App& app);
 VerbRunner add_compare_command(CLI::App& app);
 VerbRunner add_scene_command(CLI::App& app);
 VerbRunner add_trace_command(CLI::App& app);

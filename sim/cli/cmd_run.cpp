@@ -13,8 +13,10 @@
 #include "cycle_report.h"
 #include "cycle_run.h"
 #include "driver.h"
+#include "host_threads.h"
 #include "hw_config.h"
 #include "image_io.h"
+#include "livepoint_file.h"
 #include "report.h"
 #include "slab.h"
 
@@ -38,7 +40,16 @@ struct RunOpts {
   uint64_t stats_interval = 0;
   std::string stats_csv;
   SamplingParams sampling;
+  std::string livepoints;   ///< sampled: read the live-points from this library
+  int jobs = 0;             ///< sampled: worker processes (0: every core)
+  std::string library_out;  ///< the livepoints verb: the library to write
 };
+
+/// The sampling flags (a library fixes them when it is built).
+constexpr const char* kSamplingFlags[] = {"--sample-units", "--sample-size", "--sample-warmup", "--sample-cooldown",
+                                          "--sample-warming"};
+/// The flags that choose a scene input.
+constexpr const char* kSceneFlags[] = {"--scene", "--spp", "--width", "--height", "--scene-seed"};
 
 /// A text output staged beside the images (the --stats-interval CSV).
 struct TextOutput {
@@ -84,6 +95,51 @@ void write_outputs(ReportContext& ctx, const Image& image, const std::vector<std
   for (auto& f : staged) f->commit();
 }
 
+/// The design, with the numerics flags over its [numerics].
+HwConfig resolve_design(const RunOpts& o, CLI::App& sub) {
+  HwConfig hw = resolve_hw_config(o.hw, o.hw_sets);
+  if (sub.count("--hash-bits")) hw.numerics.hash_bits = o.num.hash_bits;
+  if (sub.count("--alpha-bits")) hw.numerics.alpha_bits = o.num.alpha_bits;
+  if (sub.count("--surface-id-bits")) hw.numerics.surface_id_bits = o.num.surface_id_bits;
+  return hw;
+}
+
+/// The input: --trace, or the scene flags.
+InputSpec resolve_input(const RunOpts& o, CLI::App& sub) {
+  InputSpec in;
+  in.repeat = o.repeat;
+  if (!o.trace.empty()) {
+    in.trace_path = o.trace;
+    for (const char* f : kSceneFlags)
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --scene, not --trace");
+  } else {
+    in.scene.name = o.scene;
+    in.scene.spp = o.spp;
+    in.scene.width = o.width;
+    in.scene.height = o.height;
+    in.scene.seed = o.scene_seed;
+  }
+  return in;
+}
+
+/// The method and its numerics (the design's).
+GoldenConfig resolve_method(const RunOpts& o, const HwConfig& hw) {
+  GoldenConfig cfg;
+  parse_method(o.method, cfg.method);
+  cfg.numerics = hw.numerics;
+  cfg.formats = hw.blend.formats;
+  cfg.seed = o.seed;
+  cfg.slab_layers = o.slab_layers;
+  cfg.slab_bits = o.slab_bits;
+  if (validate_slab(o.slab_layers, o.slab_bits)) {
+    if (o.slab_layers < 1 || o.slab_layers > kMaxSlabLayers)
+      throw UserError("--slab-layers " + std::to_string(o.slab_layers) + ": must be in [1, 16]");
+    throw UserError("--slab-bits " + std::to_string(o.slab_bits) + ": must be in [1, 64]");
+  }
+  parse_enderton_selection(o.enderton_selection, cfg.enderton_selection);
+  return cfg;
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                   uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
                   const std::string& report, const std::string& cmdline) {
@@ -122,24 +178,57 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   return 0;
 }
 
-int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
+int cmd_run_sampled(const RunOpts& o, CLI::App& sub, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                     const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
   const auto t0 = std::chrono::steady_clock::now();
-  const LivePoints lib = record_livepoints(in, cfg, o.sampling);
-  const SampledRun s = run_sampled(lib, hw);
+  LibrarySource from;
+  LivePoints lib;
+  GoldenConfig run_cfg = cfg;
+  if (!o.livepoints.empty()) {
+    for (const char* f : kSamplingFlags)
+      if (sub.count(f))
+        throw UserError(std::string(f) +
+                        " does not apply with --livepoints: the library fixes the sampling (give it to "
+                        "`ropsim livepoints`)");
+    from.path = o.livepoints;
+    lib = read_livepoints(o.livepoints);
+    // The input, when named, must be the library's; unnamed, it is.
+    bool scene_named = false;
+    for (const char* f : kSceneFlags) scene_named = scene_named || sub.count(f) > 0;
+    if (in.from_trace() || scene_named) {
+      InputSpec named = in;
+      named.repeat = lib.input.spec.repeat;
+      check_library_input(lib, o.livepoints, named);
+    }
+    // The method: the library's, unless a flag names it (then they must agree).
+    run_cfg = lib.method;
+    if (sub.count("--method")) run_cfg.method = cfg.method;
+    if (sub.count("--seed")) run_cfg.seed = cfg.seed;
+    if (sub.count("--slab-layers")) run_cfg.slab_layers = cfg.slab_layers;
+    if (sub.count("--slab-bits")) run_cfg.slab_bits = cfg.slab_bits;
+    if (sub.count("--enderton-selection")) run_cfg.enderton_selection = cfg.enderton_selection;
+    run_cfg.numerics = hw.numerics;  // the design's: a library serves designs of its numerics
+    check_library_method(lib, o.livepoints, run_cfg);
+  } else {
+    lib = record_livepoints(in, cfg, o.sampling);
+  }
+  from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const SampledRun s = run_sampled(lib, hw, o.jobs > 0 ? o.jobs : available_cores());
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ReportContext ctx{cmdline, in, cfg, {}};
-  write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall).dump(2); });
-  if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall).c_str(), stdout);
+  ReportContext ctx{cmdline, o.livepoints.empty() ? in : lib.input.spec, run_cfg, {}};
+  write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall, from).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall, from).c_str(), stdout);
   return 0;
 }
 
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
-  if (!sampled)
-    for (const char* f :
-         {"--sample-units", "--sample-size", "--sample-warmup", "--sample-cooldown", "--sample-warming"})
+  if (!sampled) {
+    for (const char* f : kSamplingFlags)
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
+    for (const char* f : {"--livepoints", "--jobs"})
+      if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
+  }
   if (sampled) {
     for (const char* f :
          {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference", "--repeat"})
@@ -163,10 +252,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (o.stats_csv == "-") throw UserError("--stats-csv -: give a file name");
   // The design (a functional run uses only its numerics); the run's numerics
   // flags, when given, override the design's.
-  HwConfig hw = resolve_hw_config(o.hw, o.hw_sets);
-  if (sub.count("--hash-bits")) hw.numerics.hash_bits = o.num.hash_bits;
-  if (sub.count("--alpha-bits")) hw.numerics.alpha_bits = o.num.alpha_bits;
-  if (sub.count("--surface-id-bits")) hw.numerics.surface_id_bits = o.num.surface_id_bits;
+  HwConfig hw = resolve_design(o, sub);
   uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};
   if (cycle) {
     if (!o.vcd_window.empty()) {
@@ -185,32 +271,8 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     }
   }
   if (o.vcd == "-") throw UserError("--vcd -: the waveform cannot go to standard output; give a file name");
-  InputSpec in;
-  in.repeat = o.repeat;
-  if (!o.trace.empty()) {
-    in.trace_path = o.trace;
-    for (const char* f : {"--scene", "--spp", "--width", "--height", "--scene-seed"})
-      if (sub.count(f)) throw UserError(std::string(f) + " applies to --scene, not --trace");
-  } else {
-    in.scene.name = o.scene;
-    in.scene.spp = o.spp;
-    in.scene.width = o.width;
-    in.scene.height = o.height;
-    in.scene.seed = o.scene_seed;
-  }
-  GoldenConfig cfg;
-  parse_method(o.method, cfg.method);
-  cfg.numerics = hw.numerics;
-  cfg.formats = hw.blend.formats;
-  cfg.seed = o.seed;
-  cfg.slab_layers = o.slab_layers;
-  cfg.slab_bits = o.slab_bits;
-  if (validate_slab(o.slab_layers, o.slab_bits)) {
-    if (o.slab_layers < 1 || o.slab_layers > kMaxSlabLayers)
-      throw UserError("--slab-layers " + std::to_string(o.slab_layers) + ": must be in [1, 16]");
-    throw UserError("--slab-bits " + std::to_string(o.slab_bits) + ": must be in [1, 64]");
-  }
-  parse_enderton_selection(o.enderton_selection, cfg.enderton_selection);
+  const InputSpec in = resolve_input(o, sub);
+  const GoldenConfig cfg = resolve_method(o, hw);
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
   if (outs.empty() && report.empty()) {
@@ -240,7 +302,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
       throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
     return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
   }
-  if (sampled) return cmd_run_sampled(o, in, cfg, hw, outs, report, cmdline);
+  if (sampled) return cmd_run_sampled(o, sub, in, cfg, hw, outs, report, cmdline);
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
   write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
@@ -250,12 +312,50 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
 
 }  // namespace
 
-VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
-  auto ro = std::make_shared<RunOpts>();
-  CLI::App* run = app.add_subcommand(
-      "run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
-  auto* opt_trace =
-      run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
+namespace {
+
+/// `ropsim livepoints`: one functional pass recording the live-points of a
+/// sampled simulation, written to a library every design of a sweep reuses.
+int cmd_livepoints(const RunOpts& o, CLI::App& sub) {
+  for (const auto& a : o.hw_sets)
+    if (a.rfind("numerics.", 0) != 0)
+      throw UserError("--hw-set " + a +
+                      ": a live-point library takes only the numerics.* keys of a design (the rest "
+                      "is timing, chosen per run)");
+  const HwConfig hw = resolve_design(o, sub);
+  const InputSpec in = resolve_input(o, sub);
+  const GoldenConfig cfg = resolve_method(o, hw);
+  const auto t0 = std::chrono::steady_clock::now();
+  const LivePoints lib = record_livepoints(in, cfg, o.sampling);
+  const double rec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  write_livepoints(o.library_out, lib);
+  const double all = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!o.quiet) {
+    uint64_t detailed = 0;
+    for (const LivePoint& p : lib.points) detailed += p.fragments.size();
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(o.library_out, ec);
+    std::fputs(
+        fmt::format("ropsim: {} | method {} | {}x{} @ {} spp\n"
+                    "  {} units of {} fragments ({} in detail of {}); recorded in {:.2f} s, written in {:.2f} s\n"
+                    "  wrote {} ({})\n",
+                    in.describe(), to_string(cfg.method), lib.header.width, lib.header.height, lib.header.spp,
+                    lib.points.size(), lib.params.unit_fragments, detailed, lib.fragments, rec, all - rec,
+                    o.library_out, ec ? std::string("?") : format_bytes(uint64_t(bytes)))
+            .c_str(),
+        stdout);
+  }
+  return 0;
+}
+
+}  // namespace
+
+namespace {
+
+/// The options a run and a live-point library share: the scene input, the
+/// method and its numerics.
+void add_input_and_method_options(CLI::App* run, RunOpts* ro_, CLI::Option* opt_trace) {
+  RunOpts* ro = ro_;
   run->add_option("--scene", ro->scene, "Built-in scene (default cloth): " + join(scene_names()))
       ->check(CLI::IsMember(scene_names()))
       ->excludes(opt_trace);
@@ -284,12 +384,9 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--surface-id-bits", ro->num.surface_id_bits,
                   "Surface id register width, bits (1..32; default: the design's numerics.surface_id_bits, 32)")
       ->check(CLI::Range(1, 32));
-  run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
-  run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
-  run->add_option("--fidelity", ro->fidelity,
-                  "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline) or sampled "
-                  "(the pipeline on sampling units of the input, with 95 % intervals)")
-      ->check(CLI::IsMember({"functional", "cycle", "sampled"}));
+}
+
+void add_sampling_options(CLI::App* run, RunOpts* ro) {
   const SamplingParams dp;
   run->add_option("--sample-units", ro->sampling.units,
                   "sampled: units K, placed every N / K fragments (default " + std::to_string(dp.units) + ")")
@@ -306,12 +403,41 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--sample-warming", ro->sampling.warming_fragments,
                   "sampled: fragments T before each warm-up that warm the caches tag-only (default " +
                       std::to_string(dp.warming_fragments) + ")");
+}
+
+void add_design_options(CLI::App* run, RunOpts* ro) {
   run->add_option(
          "--hw", ro->hw,
          "Hardware design file (TOML, docs/config.md; default: built-in defaults); functional: only its [numerics]")
       ->check(CLI::ExistingFile);
   run->add_option("--hw-set", ro->hw_sets,
                   "Override one design parameter, section.key=value; repeatable (functional: numerics.* only)");
+}
+
+}  // namespace
+
+VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
+  auto ro = std::make_shared<RunOpts>();
+  CLI::App* run = app.add_subcommand(
+      "run", "Replay a trace or a built-in scene through the ROP model; write images and a JSON report");
+  auto* opt_trace =
+      run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
+  add_input_and_method_options(run, ro.get(), opt_trace);
+  run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
+  run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
+  run->add_option("--fidelity", ro->fidelity,
+                  "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline) or sampled "
+                  "(the pipeline on sampling units of the input, with 95 % intervals)")
+      ->check(CLI::IsMember({"functional", "cycle", "sampled"}));
+  add_sampling_options(run, ro.get());
+  run->add_option("--livepoints", ro->livepoints,
+                  "sampled: read the live-points from this library (ropsim livepoints) instead of recording them: no "
+                  "functional pass; refused for another input, method or numerics")
+      ->check(CLI::ExistingFile)
+      ->type_name("LIB");
+  run->add_option("-j,--jobs", ro->jobs, "sampled: worker processes simulating the units (default: every core)")
+      ->check(CLI::Range(1, 1024));
+  add_design_options(run, ro.get());
   run->add_option("--vcd", ro->vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
   run->add_option("--vcd-window", ro->vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
   run->add_flag("--lockstep", ro->lockstep,
@@ -328,6 +454,25 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
   return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
+}
+
+VerbRunner add_livepoints_command(CLI::App& app) {
+  auto ro = std::make_shared<RunOpts>();
+  CLI::App* lp = app.add_subcommand(
+      "livepoints",
+      "Record the live-points of a sampled simulation in one functional pass and write them to a library, which "
+      "`run --fidelity sampled --livepoints LIB` reuses for every design (docs/livepoints.md)");
+  auto* opt_trace = lp->add_option("trace", ro->trace, "Fragment trace file (or --scene NAME)")
+                        ->check(CLI::ExistingFile)
+                        ->type_name("TRACE");
+  add_input_and_method_options(lp, ro.get(), opt_trace);
+  add_sampling_options(lp, ro.get());
+  lp->add_option("--hw", ro->hw, "Hardware design file: only its [numerics] (a library serves designs of its numerics)")
+      ->check(CLI::ExistingFile);
+  lp->add_option("--hw-set", ro->hw_sets, "Override one numerics.* key of the design, section.key=value; repeatable");
+  lp->add_option("-o,--out", ro->library_out, "The library file to write")->required()->type_name("LIB");
+  lp->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  return [ro, lp]() { return lp->parsed() ? cmd_livepoints(*ro, *lp) : -1; };
 }
 
 }  // namespace ropsim

@@ -69,10 +69,11 @@ int main(int argc, char** argv) {
   std::string cmdline;
   for (int i = 0; i < argc; ++i) cmdline += (i ? " " : "") + std::string(argv[i]);
 
-  const std::vector<VerbRunner> verbs = {
-      add_run_command(app, cmdline), add_compare_command(app),       add_scene_command(app),
-      add_trace_command(app),        add_vectors_command(app),       add_config_command(app),
-      add_capture_command(app),      add_report_fields_command(app), add_study_command(app)};
+  const std::vector<VerbRunner> verbs = {add_run_command(app, cmdline), add_compare_command(app),
+                                         add_scene_command(app),        add_trace_command(app),
+                                         add_vectors_command(app),      add_config_command(app),
+                                         add_capture_command(app),      add_report_fields_command(app),
+                                         add_study_command(app),        add_livepoints_command(app)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

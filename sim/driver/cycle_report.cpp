@@ -226,7 +226,8 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 }
 
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
-                                      const HwConfig& hw, double wall_seconds, FieldSink* sink) {
+                                      const HwConfig& hw, double wall_seconds, const LibrarySource& from,
+                                      FieldSink* sink) {
   FunctionalRun f;
   f.header = lib.header;
   f.counters = lib.counters;
@@ -251,7 +252,32 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   d.put("bytes_written", s.dram_bytes_written.value, "bytes",
         "sampled: estimate of the DRAM bytes written, every buffer (the units' lines made dirty, each written once)");
   d.put("bytes_written_ci95", ci(s.dram_bytes_written), "bytes", "sampled: its 95 % confidence interval [low, high]");
+  t.put("bottleneck", format_bottleneck(s.stats), "-",
+        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
+        "waits on its own resources most, and why");
+  t.put("memory_bound", s.stats.memory_bound, "bool", "the busiest DRAM channel's utilization >= 0.8");
+  t.empty_array("units");
+  for (const auto& u : s.stats.units) {
+    Fields j = t.item("units");
+    j.put("name", u.name, "-", "the unit instance (SystemC name)");
+    j.put("kind", u.kind, "-",
+          "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
+          "alpha_ref_gen, writeback or blend");
+    j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
+    Fields c = j.obj("cycles");
+    for (int a = 0; a < kActivities; ++a)
+      c.put(to_string(Activity(a)), u.stats.cycles[size_t(a)], "cycles",
+            std::string(activity_meaning(Activity(a))) + " (the activities sum to total_cycles)");
+    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
+    j.put("busy_fraction", s.stats.total_cycles ? double(busy) / double(s.stats.total_cycles) : 0.0, "fraction",
+          "busy cycles / total_cycles");
+  }
   Fields sp = t.obj("sampling");
+  sp.put("library", from.path.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(from.path), "-",
+         "sampled: the live-point library file read (ropsim livepoints), or null when this run recorded its own");
+  sp.put(
+      "input_digest", fmt::format("{:016x}", lib.input.digest), "-",
+      "sampled: XXH3-64 of the input the live-points were recorded from (a trace file's bytes, a scene's fragments)");
   sp.put("units", s.units, "units", "sampled: sampling units simulated in detail (K)");
   sp.put("unit_fragments", lib.params.unit_fragments, "fragments", "sampled: fragments per measured window (U)");
   sp.put("warmup_fragments", lib.params.warmup_fragments, "fragments",
@@ -264,12 +290,18 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   sp.put("fragments_detailed", s.fragments_detailed, "fragments",
          "sampled: fragments the cycle model simulated (warm-ups, windows, cool-downs)");
   Fields host = r.obj("host");
-  host.put("sampled_seconds", s.sim_seconds, "s", "sampled: the units' simulation, tag-only warming included");
+  host.put("sampled_seconds", s.sim_seconds, "s",
+           "sampled: the units' simulation, tag-only warming included (wall clock, with the workers)");
+  host.put("sampled_cpu_seconds", s.cpu_seconds, "s",
+           "sampled: the units' simulation, CPU time summed over this process and its workers");
+  host.put("sampled_jobs", s.jobs, "processes", "sampled: worker processes that simulated the units (-j)");
+  host.put("library_seconds", from.seconds, "s",
+           "sampled: recording the live-points (one functional pass), or reading the library file");
   return j;
 }
 
 std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
-                            double wall_seconds) {
+                            double wall_seconds, const LibrarySource& from) {
   std::string out =
       fmt::format("ropsim: {} | method {} | {}x{} @ {} spp | sampled on {}\n", ctx.input.describe(),
                   to_string(ctx.config.method), lib.header.width, lib.header.height, lib.header.spp, hw.name);
@@ -283,7 +315,10 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
   out += fmt::format("  {} units of {} fragments; {} of {} fragments simulated in detail ({:.1f} %)\n", s.units,
                      lib.params.unit_fragments, s.fragments_detailed, lib.fragments,
                      lib.fragments ? 100.0 * double(s.fragments_detailed) / double(lib.fragments) : 0.0);
-  out += fmt::format("  wall {:.3f} s (units {:.3f} s)\n", wall_seconds, s.sim_seconds);
+  out += "  " + format_bottleneck(s.stats) + " (estimated)\n";
+  out += fmt::format("  wall {:.3f} s ({} {:.3f} s, units {:.3f} s on {} process{})\n", wall_seconds,
+                     from.path.empty() ? "live-points recorded in" : "library " + from.path + " read in", from.seconds,
+                     s.sim_seconds, s.jobs, s.jobs == 1 ? "" : "es");
   for (const auto& o : ctx.outputs) out += "  wrote " + o + "\n";
   return out;
 }
@@ -333,7 +368,7 @@ std::vector<FieldDoc> report_field_docs() {
     sp.warming_fragments = 8;
     ctx.config = MethodConfig{};
     const LivePoints lib = record_livepoints(in, ctx.config, sp);
-    sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, &sink);
+    sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, LibrarySource{"lib.rlp", 0.0}, &sink);
   }
   return sink.docs();
 }

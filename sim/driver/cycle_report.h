@@ -33,10 +33,16 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
 /// The report of a sampled run (--fidelity sampled): the golden model's
 /// counters and image, the design, and the estimates under the cycle report's
 /// keys, each with its 95 % interval (timing.total_cycles_ci95, ...).
+/// Where a sampled run's live-points came from.
+struct LibrarySource {
+  std::string path;    ///< the library file read, or "" (recorded by this run)
+  double seconds = 0;  ///< host time to record or read it
+};
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
-                                      const HwConfig& hw, double wall_seconds, FieldSink* sink = nullptr);
+                                      const HwConfig& hw, double wall_seconds, const LibrarySource& from,
+                                      FieldSink* sink = nullptr);
 std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
-                            double wall_seconds);
+                            double wall_seconds, const LibrarySource& from);
 
 /// One column of the --stats-interval CSV: its name, unit and meaning.
 struct IntervalColumn {

@@ -1,5 +1,11 @@
 #include "livepoints.h"
 
+#include <poll.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -12,10 +18,42 @@
 #include "errors.h"
 #include "functional_rop.h"
 #include "line_set.h"
+#include "livepoint_file.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
 
 namespace ropsim {
+
+namespace {
+
+/// The pixels of tile (x0, y0) of st that hold written values, appended to out.
+void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uint32_t y0, std::vector<Resident>& out) {
+  const TraceHeader& h = st.header();
+  for (int p = 0; p < 64; ++p) {
+    const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+    if (x >= h.width || y >= h.height) continue;
+    const PixelView v = st.view(x, y);
+    if (!v.depth) return;  // the golden model never touched the tile
+    Resident r;
+    r.x = uint16_t(x);
+    r.y = uint16_t(y);
+    for (int i = 0; i < h.spp; ++i)
+      if (std::memcmp(&v.depth[i], &clear.depth[0], sizeof(float)) != 0 ||
+          std::memcmp(&v.rgb[3 * i], &clear.rgb[0], 3 * sizeof(uint16_t)) != 0)
+        r.written |= uint64_t{1} << i;
+    r.tracker = v.tracker && !(*v.tracker == TrackerState{});
+    r.layers = v.slab && v.slab->count > 0;
+    if (r.written || r.tracker || r.layers) out.push_back(r);
+  }
+}
+
+}  // namespace
+
+void LivePoints::charge(const LivePoint& p) {
+  mem.add(p.fragments.capacity() * sizeof(Fragment) + p.warming.capacity() * sizeof(Touch) +
+              p.resident.capacity() * sizeof(Resident),
+          "the live-points' fragments and touches");
+}
 
 LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p) {
   if (method.method == Method::kReference) throw UserError("sampled: the reference method has no ROP pipeline");
@@ -32,6 +70,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   }
   auto src = open_fragments(in);
   lib.header = src->header();
+  lib.input = input_identity(in);
   const uint64_t n = lib.fragments;
   const uint64_t u = std::min<uint64_t>(p.unit_fragments, std::max<uint64_t>(n, 1));
   const uint64_t k_units = std::max<uint64_t>(1, std::min<uint64_t>(p.units, n / u));
@@ -53,6 +92,9 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.params.cooldown_fragments = cool;
 
   FunctionalRop rop(lib.header, method);
+  // The clear values, from a tile allocated cleared.
+  SampleStore cleared(lib.header, rop.store().has_tracker(), rop.store().targets());
+  const PixelRef clear = cleared.pixel(0, 0);
   FragWork w;
   uint64_t i = 0;
   size_t k = 0;
@@ -85,9 +127,13 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       invariant(lp.fragments.size() == count, "the input delivers the fragments it was counted with");
       const SampleStore& st = rop.store();
       lp.pre = std::make_unique<SampleStore>(lib.header, st.has_tracker(), st.targets());
-      std::set<std::pair<uint32_t, uint32_t>> tiles;
-      for (const Fragment& x : lp.fragments)
-        if (tiles.emplace(x.x >> 3, x.y >> 3).second) lp.pre->copy_tile_from(st, x.x, x.y);
+      std::set<std::pair<uint32_t, uint32_t>> pixels, tiles;
+      for (Fragment& x : lp.fragments) {
+        canonicalise(lib.header, x);
+        if (pixels.emplace(x.x, x.y).second) lp.pre->copy_pixel_from(st, x.x, x.y);
+        tiles.emplace(x.x & ~7u, x.y & ~7u);
+      }
+      for (const auto& [x0, y0] : tiles) add_resident(st, clear, x0, y0, lp.resident);
       lp.warming.reserve(ring_fill);
       for (size_t j = 0; j < ring_fill; ++j)
         lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
@@ -98,6 +144,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       }
       i += count;
       ++k;
+      lib.charge(lp);
       lib.points.push_back(std::move(lp));
       continue;
     }
@@ -123,29 +170,17 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
                         rop->setup().slab_bytes);
   const bool tracker = rop->store().has_tracker(), slab = rop->store().has_slab();
   auto insert = [&in_dram](uint64_t line) { in_dram.insert(line); };
-  // The clear values, from a tile allocated cleared.
-  SampleStore cleared(h, tracker, rop->store().targets());
-  const PixelRef clear = cleared.pixel(0, 0);
-  lp.pre->tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
-    rop->store().copy_tile_from(*lp.pre, x0, y0);
-    // A line that holds a written value is taken to be in DRAM (see livepoints.h).
-    for (int p = 0; p < 64; ++p) {
-      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
-      if (x >= h.width || y >= h.height) continue;
-      const PixelView v = lp.pre->view(x, y);
-      uint64_t written = 0;
-      for (int i = 0; i < h.spp; ++i)
-        if (std::memcmp(&v.depth[i], &clear.depth[0], sizeof(float)) != 0 ||
-            std::memcmp(&v.rgb[3 * i], &clear.rgb[0], 3 * sizeof(uint16_t)) != 0)
-          written |= uint64_t{1} << i;
-      if (written) {
-        amap.for_each_sample_line(Buffer::kDepth, x, y, written, insert);
-        amap.for_each_sample_line(Buffer::kColor, x, y, written, insert);
-      }
-      if (tracker && !(*v.tracker == TrackerState{})) amap.for_each_tracker_line(x, y, insert);
-      if (slab && v.slab->count > 0) amap.for_each_layer_line(x, y, insert);
+  lp.pre->tile_map().for_each(
+      [&](uint32_t x0, uint32_t y0, const SampleTile&) { rop->store().copy_tile_from(*lp.pre, x0, y0); });
+  // A line that holds a written value is taken to be in DRAM (see livepoints.h).
+  for (const Resident& p : lp.resident) {
+    if (p.written) {
+      amap.for_each_sample_line(Buffer::kDepth, p.x, p.y, p.written, insert);
+      amap.for_each_sample_line(Buffer::kColor, p.x, p.y, p.written, insert);
     }
-  });
+    if (p.tracker) amap.for_each_tracker_line(p.x, p.y, insert);
+    if (p.layers) amap.for_each_layer_line(p.x, p.y, insert);
+  }
 
   UnitRun r;
   const uint64_t warm = lp.warmup, end = lp.warmup + lp.window, all = lp.fragments.size();
@@ -208,6 +243,9 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     r.tail_bytes_written = fin.total_bytes_written() - d1.total_bytes_written();
     r.window_lines_dirtied = w1 - w0;
     r.tail_lines_dirtied = dirtied() - w1;
+    r.dram_max_channel_busy = fin.max_channel_busy;
+    for (const auto& u : top->units())
+      r.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), {}});
   }
   r.state = std::make_unique<SampleStore>(std::move(rop->store()));
   return r;
@@ -230,21 +268,280 @@ double student_t975(uint64_t dof) {
   return 1.960;
 }
 
-SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw) {
+namespace {
+
+/// What the estimate takes of one unit's run: what a worker sends back.
+struct UnitFigures {
+  uint64_t window_cycles = 0, window_bytes_read = 0, window_lines_dirtied = 0;
+  uint64_t tail_cycles = 0, tail_bytes_read = 0, total_cycles = 0, dram_max_channel_busy = 0;
+  uint64_t fragments = 0;  ///< of its live-point
+  std::vector<UnitReport> units;
+};
+
+UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
+  UnitFigures f;
+  f.window_cycles = r.window_cycles;
+  f.window_bytes_read = r.window_bytes_read;
+  f.window_lines_dirtied = r.window_lines_dirtied;
+  f.tail_cycles = r.tail_cycles;
+  f.tail_bytes_read = r.tail_bytes_read;
+  f.total_cycles = r.total_cycles;
+  f.dram_max_channel_busy = r.dram_max_channel_busy;
+  f.fragments = fragments;
+  f.units = r.units;
+  return f;
+}
+
+// The message a worker writes per unit: little-endian words and
+// length-prefixed strings.
+void put64(std::string& m, uint64_t v) {
+  for (int i = 0; i < 8; ++i) m.push_back(char(uint8_t(v >> (8 * i))));
+}
+void put_str(std::string& m, const std::string& s) {
+  put64(m, s.size());
+  m += s;
+}
+
+std::string encode_figures(uint64_t unit, const UnitFigures& f) {
+  std::string m;
+  for (uint64_t v : {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles,
+                     f.tail_bytes_read, f.total_cycles, f.dram_max_channel_busy, f.fragments})
+    put64(m, v);
+  put64(m, f.units.size());
+  for (const UnitReport& u : f.units) {
+    put_str(m, u.name);
+    put_str(m, u.kind);
+    put64(m, uint64_t(int64_t(u.rop)));
+    for (uint64_t c : u.stats.cycles) put64(m, c);
+    put64(m, u.stats.fragments);
+    put64(m, u.stats.samples);
+    put64(m, u.stats.activations);
+  }
+  return m;
+}
+
+struct MessageReader {
+  const std::string& m;
+  size_t at = 0;
+  uint64_t u64() {
+    invariant(at + 8 <= m.size(), "a worker's message holds every figure of its unit");
+    uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= uint64_t(uint8_t(m[at + size_t(i)])) << (8 * i);
+    at += 8;
+    return v;
+  }
+  std::string str() {
+    const uint64_t n = u64();
+    invariant(at + n <= m.size(), "a worker's message holds every figure of its unit");
+    std::string s = m.substr(at, size_t(n));
+    at += size_t(n);
+    return s;
+  }
+};
+
+UnitFigures decode_figures(const std::string& m, uint64_t& unit) {
+  MessageReader r{m};
+  UnitFigures f;
+  unit = r.u64();
+  for (uint64_t* v : {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles,
+                      &f.tail_bytes_read, &f.total_cycles, &f.dram_max_channel_busy, &f.fragments})
+    *v = r.u64();
+  f.units.resize(size_t(r.u64()));
+  for (UnitReport& u : f.units) {
+    u.name = r.str();
+    u.kind = r.str();
+    u.rop = int(int64_t(r.u64()));
+    for (uint64_t& c : u.stats.cycles) c = r.u64();
+    u.stats.fragments = r.u64();
+    u.stats.samples = r.u64();
+    u.stats.activations = r.u64();
+  }
+  invariant(r.at == m.size(), "a worker's message ends with its unit's figures");
+  return f;
+}
+
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+bool write_all(int fd, const void* data, size_t n) {
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::write(fd, p, n);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return false;
+    p += w;
+    n -= size_t(w);
+  }
+  return true;
+}
+
+/// A worker: simulates units j, j + jobs, ... and writes, per unit, a
+/// length-prefixed message; then its CPU seconds; or, on failure, a message
+/// of length ~0 and the error's text. Never returns.
+[[noreturn]] void worker(const LivePoints& lib, const HwConfig& hw, int j, int jobs, int fd) {
+  int status = 0;
+  try {
+    for (size_t i = size_t(j); i < lib.points.size(); i += size_t(jobs)) {
+      const std::string m =
+          encode_figures(i, figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
+      const uint64_t len = m.size();
+      if (!write_all(fd, &len, 8) || !write_all(fd, m.data(), m.size())) _exit(3);
+    }
+    const double cpu = process_cpu_seconds();
+    const uint64_t end = ~uint64_t{0} - 1;
+    if (!write_all(fd, &end, 8) || !write_all(fd, &cpu, sizeof cpu)) _exit(3);
+  } catch (const std::exception& e) {
+    const std::string what = e.what();
+    const uint64_t fail = ~uint64_t{0}, len = what.size(), kind = dynamic_cast<const UserError*>(&e) ? 1 : 2;
+    write_all(fd, &fail, 8);
+    write_all(fd, &kind, 8);
+    write_all(fd, &len, 8);
+    write_all(fd, what.data(), what.size());
+    status = int(kind);
+  }
+  ::close(fd);
+  std::fflush(nullptr);
+  _exit(status);
+}
+
+/// Runs every unit in `jobs` forked workers; the figures by unit index.
+std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, int jobs, double& cpu_seconds) {
+  std::fflush(nullptr);
+  struct Child {
+    pid_t pid = -1;
+    int fd = -1;
+    std::string in;
+    bool done = false;
+  };
+  std::vector<Child> kids(static_cast<size_t>(jobs));
+  for (int j = 0; j < jobs; ++j) {
+    int p[2];
+    if (::pipe(p) != 0)
+      throw UserError(std::string("sampled: cannot create a pipe for a worker: ") + std::strerror(errno));
+    const pid_t pid = ::fork();
+    if (pid < 0) throw UserError(std::string("sampled: cannot start a worker process: ") + std::strerror(errno));
+    if (pid == 0) {
+      ::close(p[0]);
+      for (int i = 0; i < j; ++i) ::close(kids[size_t(i)].fd);
+      worker(lib, hw, j, jobs, p[1]);
+    }
+    ::close(p[1]);
+    kids[size_t(j)].pid = pid;
+    kids[size_t(j)].fd = p[0];
+  }
+  // Read every pipe to its end (poll: no worker blocks on a full pipe).
+  std::vector<char> buf(1 << 16);
+  for (size_t open = kids.size(); open > 0;) {
+    std::vector<pollfd> fds;
+    std::vector<size_t> who;
+    for (size_t i = 0; i < kids.size(); ++i)
+      if (!kids[i].done) {
+        fds.push_back(pollfd{kids[i].fd, POLLIN, 0});
+        who.push_back(i);
+      }
+    if (::poll(fds.data(), fds.size(), -1) < 0) {
+      if (errno == EINTR) continue;
+      throw UserError(std::string("sampled: poll: ") + std::strerror(errno));
+    }
+    for (size_t k = 0; k < fds.size(); ++k) {
+      if (!(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      Child& c = kids[who[k]];
+      const ssize_t n = ::read(c.fd, buf.data(), buf.size());
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        ::close(c.fd);
+        c.done = true;
+        --open;
+      } else {
+        c.in.append(buf.data(), size_t(n));
+      }
+    }
+  }
+  std::vector<UnitFigures> out(lib.points.size());
+  std::vector<bool> got(lib.points.size(), false);
+  std::string failure;
+  int failure_kind = 0;
+  cpu_seconds = 0;
+  for (Child& c : kids) {
+    int status = 0;
+    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    MessageReader r{c.in};
+    bool ended = false;
+    while (r.at + 8 <= c.in.size()) {
+      const uint64_t len = r.u64();
+      if (len == ~uint64_t{0}) {
+        const uint64_t kind = r.u64();
+        const std::string what = r.str();
+        if (failure.empty()) {
+          failure = what;
+          failure_kind = int(kind);
+        }
+        ended = true;
+        break;
+      }
+      if (len == ~uint64_t{0} - 1) {
+        double cpu = 0;
+        invariant(r.at + sizeof cpu <= c.in.size(), "a worker sends its CPU time");
+        std::memcpy(&cpu, c.in.data() + r.at, sizeof cpu);
+        r.at += sizeof cpu;
+        cpu_seconds += cpu;
+        ended = true;
+        break;
+      }
+      invariant(r.at + len <= c.in.size(), "a worker's unit message arrives whole");
+      uint64_t unit = 0;
+      UnitFigures f = decode_figures(c.in.substr(r.at, size_t(len)), unit);
+      r.at += size_t(len);
+      invariant(unit < out.size() && !got[unit], "each unit is simulated by one worker, once");
+      got[unit] = true;
+      out[unit] = std::move(f);
+    }
+    if (!ended && failure.empty()) {
+      failure = "a worker process ended without its results (" +
+                std::string(WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status))
+                                                : "exit status " + std::to_string(WEXITSTATUS(status))) +
+                ")";
+      failure_kind = 2;
+    }
+  }
+  if (!failure.empty()) {
+    if (failure_kind == 1) throw UserError(failure);
+    throw InternalError(failure);
+  }
+  for (bool g : got) invariant(g, "every unit's figures come back from a worker");
+  return out;
+}
+
+}  // namespace
+
+SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   SampledRun out;
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_seconds();
   const size_t k = lib.points.size();
-  std::vector<double> cyc(k), rd(k), wr(k);
-  UnitRun last;
-  for (size_t i = 0; i < k; ++i) {
-    UnitRun r = simulate_livepoint(lib, i, hw);
-    const double u = double(lib.params.unit_fragments);
-    cyc[i] = double(r.window_cycles) / u;
-    rd[i] = double(r.window_bytes_read) / u;
-    wr[i] = double(r.window_lines_dirtied) * double(hw.cache.line_bytes) / u;
-    out.fragments_detailed += lib.points[i].fragments.size();
-    if (i + 1 == k) last = std::move(r);
+  jobs = int(std::max<size_t>(1, std::min<size_t>(size_t(std::max(jobs, 1)), k)));
+  out.jobs = jobs;
+  std::vector<UnitFigures> figs;
+  double worker_cpu = 0;
+  if (jobs > 1) {
+    figs = run_workers(lib, hw, jobs, worker_cpu);
+  } else {
+    for (size_t i = 0; i < k; ++i)
+      figs.push_back(figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
   }
+  std::vector<double> cyc(k), rd(k), wr(k);
+  const double u = double(lib.params.unit_fragments);
+  for (size_t i = 0; i < k; ++i) {
+    cyc[i] = double(figs[i].window_cycles) / u;
+    rd[i] = double(figs[i].window_bytes_read) / u;
+    wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes) / u;
+    out.fragments_detailed += figs[i].fragments;
+  }
+  const UnitFigures& last = figs.back();
   const double n = double(lib.fragments), t = student_t975(k - 1);
   auto estimate = [&](const std::vector<double>& v, double tail) {
     double mean = 0, var = 0;
@@ -265,7 +562,43 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw) {
   // Every dirtied line is written once, at an eviction or the final flush:
   // the flush is already counted by the lines the windows dirtied.
   out.dram_bytes_written = estimate(wr, 0.0);
+
+  // Activities: each unit instance's share of the units' cycles, over their
+  // whole runs, scaled to the estimated total.
+  uint64_t all_cycles = 0, all_busy = 0;
+  for (const UnitFigures& f : figs) {
+    all_cycles += f.total_cycles;
+    all_busy += f.dram_max_channel_busy;
+  }
+  const double scale = all_cycles ? out.total_cycles.value / double(all_cycles) : 0.0;
+  out.units_estimated = figs.front().units;
+  for (UnitReport& r : out.units_estimated) r.stats = UnitStats{};
+  for (const UnitFigures& f : figs) {
+    invariant(f.units.size() == out.units_estimated.size(), "every unit run elaborates the same pipeline");
+    for (size_t i = 0; i < f.units.size(); ++i) {
+      UnitStats& s = out.units_estimated[i].stats;
+      for (int a = 0; a < kActivities; ++a) s.cycles[size_t(a)] += f.units[i].stats.cycles[size_t(a)];
+      s.fragments += f.units[i].stats.fragments;
+      s.samples += f.units[i].stats.samples;
+      s.activations += f.units[i].stats.activations;
+    }
+  }
+  for (UnitReport& r : out.units_estimated)
+    for (uint64_t& c : r.stats.cycles) c = uint64_t(std::llround(double(c) * scale));
+  CycleStats& s = out.stats;
+  s.hw = hw;
+  s.total_cycles = uint64_t(std::llround(std::max(0.0, out.total_cycles.value)));
+  s.units = out.units_estimated;
+  s.dram_utilization = all_cycles ? double(all_busy) / double(all_cycles) : 0.0;
+  s.memory_bound = s.dram_utilization >= 0.8;
+  s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
+  s.dram_peak_gbps = double(hw.dram.channels) * hw.dram.bytes_per_clock * hw.clock.frequency_ghz;
+  const double bytes = out.dram_bytes_read.value + out.dram_bytes_written.value;
+  s.dram_achieved_gbps = s.frame_time_us > 0 ? bytes / (s.frame_time_us * 1e3) : 0.0;
+  s.bottleneck = classify_bottleneck(s);
+
   out.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.cpu_seconds = process_cpu_seconds() - cpu0 + worker_cpu;
   return out;
 }
 

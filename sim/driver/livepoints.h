@@ -8,8 +8,9 @@
 // design of a sweep. A *sampling unit* is a window of U consecutive fragments
 // of the input; K units are placed systematically, the last ending with the
 // input. Its *live-point* holds the W fragments before it (the warm-up) and
-// its own, and the pre-state of only the 8 x 8 tiles those fragments touch,
-// as the golden model held them before the warm-up. A unit is simulated by
+// its own, and the pre-state of only the pixels those fragments touch, as the
+// golden model held them before the warm-up, with which lines of their 8 x 8
+// tiles then held written values. A unit is simulated by
 // the cycle model from its live-point: the warm-up fragments warm the ROP
 // caches, the DRAM row buffers and the pipeline in detail, then the window
 // is measured from the retirement of the W-th fragment to that of the
@@ -36,6 +37,7 @@
 #include "fragment_source.h"
 #include "hw_config.h"
 #include "image.h"
+#include "memory_budget.h"
 #include "method.h"
 #include "sample_store.h"
 
@@ -66,16 +68,39 @@ struct Touch {
   bool slab_kept = false;      ///< slab: its layers were rewritten
 };
 
+/// A pixel of a live-point's tiles that held written values before its first
+/// fragment: its lines are taken to be in DRAM (see above).
+struct Resident {
+  uint64_t written = 0;  ///< samples whose depth or colour differ from the clear values
+  uint16_t x = 0, y = 0;
+  bool tracker = false;  ///< lk: the tracker is not in its clear state
+  bool layers = false;   ///< slab: the pixel holds layers
+};
+
 struct LivePoint {
-  uint64_t first = 0;                ///< the input's index of its first fragment (the warm-up's)
-  uint64_t warmup = 0;               ///< fragments before the window (W, fewer at the input's start)
-  uint64_t window = 0;               ///< U; then the cool-down, to the end of `fragments`
-  std::vector<Fragment> fragments;   ///< the warm-up's, then the window's
-  std::unique_ptr<SampleStore> pre;  ///< the tiles they touch, as before `first` (untouched tiles absent)
-  std::vector<Touch> warming;        ///< the T fragments before `first` (fewer at the input's start)
+  uint64_t first = 0;               ///< the input's index of its first fragment (the warm-up's)
+  uint64_t warmup = 0;              ///< fragments before the window (W, fewer at the input's start)
+  uint64_t window = 0;              ///< U; then the cool-down, to the end of `fragments`
+  std::vector<Fragment> fragments;  ///< the warm-up's, the window's, the cool-down's
+  /// The pixels they touch, as before `first`; the other pixels of their
+  /// tiles are cleared (the unit never reads them).
+  std::unique_ptr<SampleStore> pre;
+  std::vector<Resident> resident;  ///< the pixels of those tiles holding written values before `first`
+  std::vector<Touch> warming;      ///< the T fragments before `first` (fewer at the input's start)
+};
+
+/// What a library was recorded from: a trace file or a built-in scene.
+struct InputIdentity {
+  InputSpec spec;           ///< as given at recording (a trace's path, a scene's parameters)
+  std::string description;  ///< InputSpec::describe() at recording
+  bool from_trace = false;
+  /// XXH3-64 of the trace file's bytes, or of the scene's header and
+  /// fragment stream (livepoint_file.h, input_digest).
+  uint64_t digest = 0;
 };
 
 struct LivePoints {
+  InputIdentity input;
   TraceHeader header;
   MethodConfig method;
   SamplingParams params;
@@ -83,6 +108,14 @@ struct LivePoints {
   std::vector<LivePoint> points;
   Counters counters;  ///< the functional pass's (exact)
   Image image;        ///< the golden image (exact)
+  /// The points' fragments, touches and resident pixels in the run's memory
+  /// budget (--memory-limit; the pre-states charge their own tiles).
+  BudgetShare mem;
+  /// Charges point's vectors to mem (once per point, when it is filled).
+  void charge(const LivePoint& point);
+  void charge() {
+    for (const LivePoint& p : points) charge(p);
+  }
 };
 
 /// One functional pass over the input, recording K live-points. Throws
@@ -101,6 +134,8 @@ struct UnitRun {
   uint64_t tail_cycles = 0;         ///< after the window's last retirement: the cool-down, drain and cache flush
   uint64_t tail_bytes_read = 0, tail_bytes_written = 0;
   uint64_t total_cycles = 0;           ///< of the whole unit run
+  uint64_t dram_max_channel_busy = 0;  ///< the busiest DRAM channel's busy cycles, whole unit run
+  std::vector<UnitReport> units;       ///< every unit instance's activity over the whole unit run (no extras)
   std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
 };
 UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw);
@@ -112,11 +147,22 @@ struct Estimate {
 
 struct SampledRun {
   Estimate total_cycles, dram_bytes_read, dram_bytes_written;
+  /// Every unit instance with its activities estimated for the whole run:
+  /// each activity's share of the units' cycles (summed over the units' whole
+  /// runs) times total_cycles.value. Fragments and samples: the units' sums.
+  std::vector<UnitReport> units_estimated;
+  /// total_cycles, units, dram utilisation and the bottleneck filled; the
+  /// DRAM figures are the estimates' values (report printers take this).
+  CycleStats stats;
   size_t units = 0;
   uint64_t fragments_detailed = 0;  ///< fragments the cycle model simulated (warm-ups and windows)
-  double sim_seconds = 0;           ///< the units' host time
+  double sim_seconds = 0;           ///< the units' host time (wall clock, workers included)
+  double cpu_seconds = 0;           ///< the units' host time summed over the processes that ran them
+  int jobs = 1;                     ///< worker processes
 };
-SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw);
+/// Simulates every unit (in `jobs` worker processes when jobs > 1; the
+/// figures are the same for every job count) and estimates the run's.
+SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs = 1);
 
 /// The 0.975 quantile of Student's t with dof degrees of freedom (>= 1).
 double student_t975(uint64_t dof);

@@ -85,6 +85,23 @@ void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y)
   if (to.accum) std::memcpy(to.accum.get(), from->accum.get(), n * sample_bytes(targets_.formats.accum));
 }
 
+void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y) {
+  if (src.header_.width != header_.width || src.header_.height != header_.height || src.header_.spp != header_.spp ||
+      src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
+      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum)
+    throw std::logic_error("SampleStore::copy_pixel_from: the stores hold different buffers");
+  const PixelRef to = pixel(x, y);
+  const PixelView from = src.view(x, y);
+  if (!from.depth) return;
+  const size_t n = size_t(header_.spp);
+  std::memcpy(to.depth, from.depth, n * sizeof(float));
+  std::memcpy(to.rgb, from.rgb, 3 * n * sizeof(uint16_t));
+  if (to.tracker) *to.tracker = *from.tracker;
+  if (to.slab) *to.slab = *from.slab;
+  if (to.trans) std::memcpy(to.trans, from.trans, n * sample_bytes(targets_.formats.transmittance));
+  if (to.accum) std::memcpy(to.accum, from.accum, n * sample_bytes(targets_.formats.accum));
+}
+
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   const SampleTile* t = tiles_.find(x, y);
   if (!t) return {};

@@ -86,6 +86,10 @@ class SampleStore {
   /// screen and buffers, into this one (allocating it here); nothing if src
   /// never touched it. A live-point's pre-state (sampled simulation).
   void copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y);
+  /// Copies pixel (x, y)'s state from src, a store of the same screen and
+  /// buffers, allocating its tile here (cleared) if needed; the clear values
+  /// if src never touched it.
+  void copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y);
   /// The bytes of one touched tile's buffers.
   size_t tile_bytes() const;
   size_t tiles() const { return tiles_.tiles(); }

@@ -12,9 +12,7 @@
 
 namespace ropsim {
 
-namespace {
-
-Bottleneck classify(const CycleStats& s) {
+Bottleneck classify_bottleneck(const CycleStats& s) {
   Bottleneck b;
   if (s.memory_bound) {
     b.kind = Bottleneck::Kind::kMemory;
@@ -60,8 +58,6 @@ Bottleneck classify(const CycleStats& s) {
   }
   return b;
 }
-
-}  // namespace
 
 namespace {
 
@@ -202,7 +198,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   s.dram_achieved_gbps = s.frame_time_us > 0 ? double(bytes) / (s.frame_time_us * 1e3) : 0.0;
   s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
   s.memory_bound = s.dram_utilization >= 0.8;
-  s.bottleneck = classify(s);
+  s.bottleneck = classify_bottleneck(s);
 
   run.image = rop->resolve();
   run.state_bytes = rop->store().state_bytes();

@@ -96,6 +96,9 @@ struct CycleStats {
   bool lists(int b) const { return (listed >> b) & 1u; }
 };
 
+/// What limits the frame (s.memory_bound, s.units and s.total_cycles set).
+Bottleneck classify_bottleneck(const CycleStats& s);
+
 struct CycleRun {
   TraceHeader header;
   Counters counters;

@@ -1,0 +1,635 @@
+#include "livepoint_file.h"
+
+#include <xxhash.h>
+#include <zstd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string_view>
+
+#include "errors.h"
+#include "memory_budget.h"
+#include "output_file.h"
+
+namespace ropsim {
+
+namespace {
+
+constexpr char kMagic[8] = {'R', 'O', 'P', 'S', 'I', 'M', 'L', 'P'};
+constexpr size_t kFileHeaderBytes = 8 + 4 + 4 + 8 + 8;  // magic, version, reserved, payload bytes, XXH3-64
+constexpr uint64_t kMaxCount = uint64_t{1} << 40;       // any count read beyond this is corrupt
+
+// ------------------------------------------------------------------ encoding
+
+/// The payload, little-endian, field by field.
+class Put {
+ public:
+  void u8(uint8_t v) { b_.push_back(v); }
+  void u16(uint16_t v) { raw(v, 2); }
+  void u32(uint32_t v) { raw(v, 4); }
+  void u64(uint64_t v) { raw(v, 8); }
+  void f32(float v) {
+    uint32_t u;
+    std::memcpy(&u, &v, 4);
+    u32(u);
+  }
+  void str(const std::string& s) {
+    u64(s.size());
+    b_.insert(b_.end(), s.begin(), s.end());
+  }
+  std::vector<uint8_t>& bytes() { return b_; }
+
+ private:
+  void raw(uint64_t v, int n) {
+    for (int i = 0; i < n; ++i) b_.push_back(uint8_t(v >> (8 * i)));
+  }
+  std::vector<uint8_t> b_;
+};
+
+/// Reads the payload back; every read is bounds-checked and a failure names
+/// the library and what was being read.
+class Get {
+ public:
+  Get(const std::vector<uint8_t>& b, const std::string& path) : b_(b), path_(path) {}
+  void at(const char* what) { what_ = what; }
+  uint8_t u8() { return uint8_t(raw(1)); }
+  uint16_t u16() { return uint16_t(raw(2)); }
+  uint32_t u32() { return uint32_t(raw(4)); }
+  uint64_t u64() { return raw(8); }
+  float f32() {
+    const uint32_t u = u32();
+    float v;
+    std::memcpy(&v, &u, 4);
+    return v;
+  }
+  bool flag() {
+    const uint8_t v = u8();
+    if (v > 1) fail("a flag is " + std::to_string(v));
+    return v != 0;
+  }
+  /// A count of items of at least item_bytes bytes each, checked against what is left.
+  uint64_t count(uint64_t item_bytes) {
+    const uint64_t n = u64();
+    if (n > kMaxCount || n * std::max<uint64_t>(item_bytes, 1) > b_.size() - pos_)
+      fail("a count of " + std::to_string(n) + " runs past the payload's end");
+    return n;
+  }
+  std::string str() {
+    const uint64_t n = count(1);
+    std::string s(reinterpret_cast<const char*>(b_.data() + pos_), size_t(n));
+    pos_ += size_t(n);
+    return s;
+  }
+  bool done() const { return pos_ == b_.size(); }
+  [[noreturn]] void fail(const std::string& why) const {
+    throw UserError(path_ + ": not a valid live-point library (" + what_ + " at payload byte " + std::to_string(pos_) +
+                    ": " + why + ")");
+  }
+
+ private:
+  uint64_t raw(int n) {
+    if (b_.size() - pos_ < size_t(n)) fail("the payload ends");
+    uint64_t v = 0;
+    for (int i = 0; i < n; ++i) v |= uint64_t(b_[pos_ + size_t(i)]) << (8 * i);
+    pos_ += size_t(n);
+    return v;
+  }
+  const std::vector<uint8_t>& b_;
+  const std::string& path_;
+  size_t pos_ = 0;
+  std::string what_ = "the header";
+};
+
+void put_header(Put& p, const TraceHeader& h) {
+  p.u32(h.width);
+  p.u32(h.height);
+  p.u32(uint32_t(h.spp));
+  p.u8(uint8_t(h.depth_mode));
+  p.u8(uint8_t(h.color_format));
+  p.u8(uint8_t(h.compression));
+  for (float c : h.clear_color) p.f32(c);
+  p.f32(h.clear_depth);
+  for (const SamplePos& s : h.positions) {
+    p.u8(s.x);
+    p.u8(s.y);
+  }
+  p.str(h.scene_name);
+  p.u8(h.checksummed);
+}
+
+TraceHeader get_header(Get& g) {
+  TraceHeader h;
+  h.width = g.u32();
+  h.height = g.u32();
+  h.spp = int(g.u32());
+  h.depth_mode = DepthMode(g.u8());
+  h.color_format = ColorFormat(g.u8());
+  h.compression = Compression(g.u8());
+  for (float& c : h.clear_color) c = g.f32();
+  h.clear_depth = g.f32();
+  for (SamplePos& s : h.positions) {
+    s.x = g.u8();
+    s.y = g.u8();
+  }
+  h.scene_name = g.str();
+  h.checksummed = g.flag();
+  const std::string why = validate_header(h);
+  if (!why.empty()) g.fail("the trace header: " + why);
+  return h;
+}
+
+void put_fragment(Put& p, const TraceHeader& h, const Fragment& f) {
+  p.u32(f.draw_id);
+  p.u32(f.prim_id);
+  p.u16(f.x);
+  p.u16(f.y);
+  p.u64(f.coverage);
+  p.f32(f.z0);
+  p.f32(f.dzdx);
+  p.f32(f.dzdy);
+  if (h.depth_mode == DepthMode::kPerSample)
+    for (int i = 0; i < h.spp; ++i) p.f32(f.z[size_t(i)]);
+  for (float c : f.rgb) p.f32(c);
+  p.f32(f.alpha);
+}
+
+Fragment get_fragment(Get& g, const TraceHeader& h) {
+  Fragment f;
+  f.draw_id = g.u32();
+  f.prim_id = g.u32();
+  f.x = g.u16();
+  f.y = g.u16();
+  f.coverage = g.u64();
+  f.z0 = g.f32();
+  f.dzdx = g.f32();
+  f.dzdy = g.f32();
+  if (h.depth_mode == DepthMode::kPerSample)
+    for (int i = 0; i < h.spp; ++i) f.z[size_t(i)] = g.f32();
+  for (float& c : f.rgb) c = g.f32();
+  f.alpha = g.f32();
+  const std::string why = validate_fragment(h, f);
+  if (!why.empty()) g.fail("a fragment: " + why);
+  return f;
+}
+
+void put_method(Put& p, const MethodConfig& m) {
+  p.str(to_string(m.method));
+  p.u32(uint32_t(m.numerics.hash_bits));
+  p.u32(uint32_t(m.numerics.alpha_bits));
+  p.u32(uint32_t(m.numerics.surface_id_bits));
+  p.u64(m.seed);
+  p.u32(uint32_t(m.slab_layers));
+  p.u32(uint32_t(m.slab_bits));
+  p.u8(uint8_t(m.formats.transmittance));
+  p.u8(uint8_t(m.formats.accum));
+  p.u8(uint8_t(m.enderton_selection));
+}
+
+MethodConfig get_method(Get& g) {
+  MethodConfig m;
+  const std::string name = g.str();
+  if (!parse_method(name, m.method)) g.fail("unknown method \"" + name + "\"");
+  m.numerics.hash_bits = int(g.u32());
+  m.numerics.alpha_bits = int(g.u32());
+  m.numerics.surface_id_bits = int(g.u32());
+  if (const char* why = validate(m.numerics)) g.fail(why);
+  m.seed = g.u64();
+  m.slab_layers = int(g.u32());
+  m.slab_bits = int(g.u32());
+  const uint8_t tf = g.u8(), af = g.u8(), es = g.u8();
+  if (tf > uint8_t(TargetFormat::kRGBA32F) || af > uint8_t(TargetFormat::kRGBA32F) ||
+      es > uint8_t(EndertonSelection::kOriginal))
+    g.fail("a format or selection out of range");
+  m.formats.transmittance = TargetFormat(tf);
+  m.formats.accum = TargetFormat(af);
+  m.enderton_selection = EndertonSelection(es);
+  return m;
+}
+
+void put_pixel(Put& p, const SampleStore& s, uint32_t x, uint32_t y) {
+  const PixelView v = s.view(x, y);
+  const int spp = s.header().spp;
+  p.u16(uint16_t(x));
+  p.u16(uint16_t(y));
+  for (int i = 0; i < spp; ++i) p.f32(v.depth[i]);
+  for (int i = 0; i < 3 * spp; ++i) p.u16(v.rgb[i]);
+  if (s.has_tracker()) {
+    p.u64(v.tracker->covered);
+    p.u32(v.tracker->surface_id);
+  }
+  if (s.has_slab()) {
+    p.u8(v.slab->count);
+    for (int l = 0; l < v.slab->count; ++l) {
+      p.f32(v.slab->depth[l]);
+      p.u64(v.slab->mask[l]);
+      for (int c = 0; c < 3; ++c) p.u16(v.slab->rgb[l][c]);
+    }
+  }
+}
+
+void get_pixel(Get& g, SampleStore& s) {
+  const uint32_t x = g.u16(), y = g.u16();
+  if (x >= s.header().width || y >= s.header().height) g.fail("a pixel off the screen");
+  const PixelRef r = s.pixel(x, y);
+  const int spp = s.header().spp;
+  for (int i = 0; i < spp; ++i) r.depth[i] = g.f32();
+  for (int i = 0; i < 3 * spp; ++i) r.rgb[i] = g.u16();
+  if (s.has_tracker()) {
+    r.tracker->covered = g.u64();
+    r.tracker->surface_id = g.u32();
+  }
+  if (s.has_slab()) {
+    SlabPixel& sp = *r.slab;
+    sp.count = g.u8();
+    if (sp.count > kMaxSlabLayers) g.fail("a slab pixel with " + std::to_string(sp.count) + " layers");
+    for (int l = 0; l < sp.count; ++l) {
+      sp.depth[l] = g.f32();
+      sp.mask[l] = g.u64();
+      for (int c = 0; c < 3; ++c) sp.rgb[l][c] = g.u16();
+    }
+  }
+}
+
+void put_touch(Put& p, const Touch& t) {
+  p.u64(t.covered);
+  p.u64(t.written);
+  p.u16(t.x);
+  p.u16(t.y);
+  p.u8(uint8_t(t.reached_write) | uint8_t(t.slab_kept) << 1);
+}
+
+Touch get_touch(Get& g) {
+  Touch t;
+  t.covered = g.u64();
+  t.written = g.u64();
+  t.x = g.u16();
+  t.y = g.u16();
+  const uint8_t fl = g.u8();
+  if (fl > 3) g.fail("a touch's flags are " + std::to_string(fl));
+  t.reached_write = fl & 1;
+  t.slab_kept = fl & 2;
+  return t;
+}
+
+void put_image(Put& p, const Image& img) {
+  p.u32(img.width);
+  p.u32(img.height);
+  for (float c : img.background()) p.f32(c);
+  // The rows holding a written pixel, each whole.
+  std::vector<float> row(size_t(img.width) * 3);
+  uint64_t rows = 0;
+  for (uint32_t y = 0; y < img.height; ++y) rows += !img.row_untouched(y);
+  p.u64(rows);
+  for (uint32_t y = 0; y < img.height; ++y) {
+    if (img.row_untouched(y)) continue;
+    p.u32(y);
+    img.row(y, row.data());
+    for (float c : row) p.f32(c);
+  }
+}
+
+Image get_image(Get& g, const TraceHeader& h) {
+  const uint32_t w = g.u32(), ht = g.u32();
+  if (w != h.width || ht != h.height) g.fail("the image's size is not the screen's");
+  std::array<float, 3> bg;
+  for (float& c : bg) c = g.f32();
+  Image img(w, ht, bg);
+  const uint64_t rows = g.count(4 + uint64_t(w) * 12);
+  for (uint64_t r = 0; r < rows; ++r) {
+    const uint32_t y = g.u32();
+    if (y >= ht) g.fail("an image row off the screen");
+    for (uint32_t x = 0; x < w; ++x) {
+      float c[3];
+      for (float& v : c) v = g.f32();
+      // Only pixels other than the background take a tile, as in the resolve.
+      if (std::memcmp(c, bg.data(), sizeof c) != 0) std::memcpy(img.at(x, y), c, sizeof c);
+    }
+  }
+  return img;
+}
+
+// ------------------------------------------------------------------ the file
+
+std::vector<uint8_t> encode(const LivePoints& lib) {
+  Put p;
+  const TraceHeader& h = lib.header;
+  const InputSpec& in = lib.input.spec;
+  p.str(in.trace_path);
+  p.str(in.scene.name);
+  p.u32(uint32_t(in.scene.spp));
+  p.u32(in.scene.width);
+  p.u32(in.scene.height);
+  p.u64(in.scene.seed);
+  p.u32(in.repeat);
+  p.str(lib.input.description);
+  p.u8(lib.input.from_trace);
+  p.u64(lib.input.digest);
+  put_header(p, h);
+  put_method(p, lib.method);
+  const SamplingParams& s = lib.params;
+  for (uint64_t v : {s.unit_fragments, s.warmup_fragments, s.cooldown_fragments, s.units, s.warming_fragments})
+    p.u64(v);
+  p.u64(lib.fragments);
+  // The counters by name, so a reader of another build refuses a mismatch.
+  uint64_t n_counters = 0;
+  lib.counters.for_each([&](const char*, uint64_t) { ++n_counters; });
+  p.u64(n_counters);
+  lib.counters.for_each([&](const char* name, uint64_t v) {
+    p.str(name);
+    p.u64(v);
+  });
+  put_image(p, lib.image);
+  p.u64(lib.points.size());
+  for (const LivePoint& lp : lib.points) {
+    p.u64(lp.first);
+    p.u64(lp.warmup);
+    p.u64(lp.window);
+    p.u64(lp.fragments.size());
+    for (const Fragment& f : lp.fragments) put_fragment(p, h, f);
+    // The pre-state: the pixels the fragments touch, in their first touch's order.
+    std::vector<std::pair<uint32_t, uint32_t>> px;
+    {
+      std::vector<uint64_t> seen;
+      for (const Fragment& f : lp.fragments) seen.push_back(uint64_t(f.y) << 32 | f.x);
+      std::sort(seen.begin(), seen.end());
+      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+      for (uint64_t k : seen) px.emplace_back(uint32_t(k), uint32_t(k >> 32));
+    }
+    p.u8(lp.pre->has_tracker());
+    p.u32(uint32_t(lp.pre->targets().slab_bits));
+    p.u64(px.size());
+    for (const auto& [x, y] : px) put_pixel(p, *lp.pre, x, y);
+    p.u64(lp.resident.size());
+    for (const Resident& r : lp.resident) {
+      p.u64(r.written);
+      p.u16(r.x);
+      p.u16(r.y);
+      p.u8(uint8_t(r.tracker) | uint8_t(r.layers) << 1);
+    }
+    p.u64(lp.warming.size());
+    for (const Touch& t : lp.warming) put_touch(p, t);
+  }
+  return std::move(p.bytes());
+}
+
+LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
+  Get g(bytes, path);
+  LivePoints lib;
+  g.at("the input");
+  InputSpec& in = lib.input.spec;
+  in.trace_path = g.str();
+  in.scene.name = g.str();
+  in.scene.spp = int(g.u32());
+  in.scene.width = g.u32();
+  in.scene.height = g.u32();
+  in.scene.seed = g.u64();
+  in.repeat = g.u32();
+  lib.input.description = g.str();
+  lib.input.from_trace = g.flag();
+  lib.input.digest = g.u64();
+  g.at("the trace header");
+  lib.header = get_header(g);
+  const TraceHeader& h = lib.header;
+  g.at("the method");
+  lib.method = get_method(g);
+  g.at("the sampling parameters");
+  SamplingParams& s = lib.params;
+  for (uint64_t* v : {&s.unit_fragments, &s.warmup_fragments, &s.cooldown_fragments, &s.units, &s.warming_fragments})
+    *v = g.u64();
+  lib.fragments = g.u64();
+  g.at("the counters");
+  uint64_t n_counters = 0;
+  lib.counters.for_each([&](const char*, uint64_t) { ++n_counters; });
+  if (g.u64() != n_counters) g.fail("another build's counters");
+  // Counters::for_each is const; write through a name-ordered walk.
+  std::vector<uint64_t> values;
+  std::vector<std::string> names;
+  lib.counters.for_each([&](const char* name, uint64_t) { names.emplace_back(name); });
+  for (const std::string& name : names) {
+    if (g.str() != name) g.fail("another build's counters (expected " + name + ")");
+    values.push_back(g.u64());
+  }
+  {
+    size_t i = 0;
+#define ROPSIM_X(name, unit, meaning, scope) lib.counters.name = values[i++];
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+  }
+  g.at("the image");
+  lib.image = get_image(g, h);
+  g.at("the live-points");
+  const uint64_t k = g.count(8);
+  if (k != lib.params.units) g.fail("the unit count is not the sampling parameters'");
+  lib.points.resize(size_t(k));
+  uint64_t prev_end = 0;
+  for (LivePoint& lp : lib.points) {
+    lp.first = g.u64();
+    lp.warmup = g.u64();
+    lp.window = g.u64();
+    const uint64_t n = g.count(36);
+    if (lp.first < prev_end || lp.warmup + lp.window > n || n > lib.fragments || lp.first > lib.fragments - n)
+      g.fail("a live-point's fragments are out of order or off the input");
+    prev_end = lp.first + n;
+    lp.fragments.reserve(size_t(n));
+    for (uint64_t i = 0; i < n; ++i) lp.fragments.push_back(get_fragment(g, h));
+    const bool tracker = g.flag();
+    StoreTargets targets;
+    targets.slab_bits = int(g.u32());
+    if (targets.slab_bits > 64) g.fail("slab bits over 64");
+    lp.pre = std::make_unique<SampleStore>(h, tracker, targets);
+    const uint64_t pixels = g.count(4);
+    for (uint64_t i = 0; i < pixels; ++i) get_pixel(g, *lp.pre);
+    const uint64_t res = g.count(13);
+    lp.resident.resize(size_t(res));
+    for (Resident& r : lp.resident) {
+      r.written = g.u64();
+      r.x = g.u16();
+      r.y = g.u16();
+      const uint8_t fl = g.u8();
+      if (fl > 3 || r.x >= h.width || r.y >= h.height) g.fail("a resident pixel");
+      r.tracker = fl & 1;
+      r.layers = fl & 2;
+    }
+    const uint64_t t = g.count(21);
+    lp.warming.resize(size_t(t));
+    for (Touch& x : lp.warming) {
+      x = get_touch(g);
+      if (x.x >= h.width || x.y >= h.height) g.fail("a touch off the screen");
+    }
+  }
+  if (!g.done()) g.fail("bytes after the last live-point");
+  return lib;
+}
+
+std::string hex64(uint64_t v) {
+  char b[17];
+  std::snprintf(b, sizeof b, "%016llx", (unsigned long long)v);
+  return b;
+}
+
+void put_le(uint8_t* p, uint64_t v, int n) {
+  for (int i = 0; i < n; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+uint64_t get_le(const uint8_t* p, int n) {
+  uint64_t v = 0;
+  for (int i = 0; i < n; ++i) v |= uint64_t(p[i]) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+void canonicalise(const TraceHeader& h, Fragment& f) {
+  const size_t keep = h.depth_mode == DepthMode::kPerSample ? size_t(h.spp) : 0;
+  std::fill(f.z.begin() + std::ptrdiff_t(keep), f.z.end(), 0.0f);
+}
+
+InputIdentity input_identity(const InputSpec& in) {
+  InputIdentity id;
+  id.spec = in;
+  id.description = in.describe();
+  id.from_trace = in.from_trace();
+  XXH3_state_t* st = XXH3_createState();
+  invariant(st != nullptr, "XXH3 state allocated");
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> guard(st, XXH3_freeState);
+  XXH3_64bits_reset(st);
+  if (in.from_trace()) {
+    FILE* f = std::fopen(in.trace_path.c_str(), "rb");
+    if (!f) throw UserError(in.trace_path + ": " + std::strerror(errno));
+    std::vector<char> buf(size_t(1) << 20);
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) XXH3_64bits_update(st, buf.data(), n);
+    const bool bad = std::ferror(f);
+    std::fclose(f);
+    if (bad) throw UserError(in.trace_path + ": read error");
+    // A repeated input is another input.
+    const uint32_t r = in.repeat;
+    XXH3_64bits_update(st, &r, sizeof r);
+  } else {
+    auto src = open_fragments(in);
+    Put p;
+    put_header(p, src->header());
+    for (Fragment f; src->next(f);) {
+      canonicalise(src->header(), f);
+      put_fragment(p, src->header(), f);
+      if (p.bytes().size() >= (size_t(1) << 20)) {
+        XXH3_64bits_update(st, p.bytes().data(), p.bytes().size());
+        p.bytes().clear();
+      }
+    }
+    XXH3_64bits_update(st, p.bytes().data(), p.bytes().size());
+  }
+  id.digest = XXH3_64bits_digest(st);
+  return id;
+}
+
+void write_livepoints(const std::string& path, const LivePoints& lib) {
+  const std::vector<uint8_t> payload = encode(lib);
+  ensure_parent_dir(path);
+  OutputFile out(path);
+  uint8_t head[kFileHeaderBytes];
+  std::memcpy(head, kMagic, 8);
+  put_le(head + 8, kLivePointFileVersion, 4);
+  put_le(head + 12, 0, 4);
+  put_le(head + 16, payload.size(), 8);
+  put_le(head + 24, XXH3_64bits(payload.data(), payload.size()), 8);
+  out.write(head, sizeof head);
+  std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
+  invariant(cctx != nullptr, "zstd context allocated");
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_compressionLevel, 3);
+  std::vector<uint8_t> obuf(ZSTD_CStreamOutSize());
+  ZSTD_inBuffer in{payload.data(), payload.size(), 0};
+  for (;;) {
+    ZSTD_outBuffer ob{obuf.data(), obuf.size(), 0};
+    const size_t left = ZSTD_compressStream2(cctx.get(), &ob, &in, ZSTD_e_end);
+    if (ZSTD_isError(left)) out.fail(std::string("compression failed: ") + ZSTD_getErrorName(left));
+    out.write(obuf.data(), ob.pos);
+    if (left == 0) break;
+  }
+  out.commit();
+}
+
+LivePoints read_livepoints(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw UserError(path + ": " + std::strerror(errno));
+  std::unique_ptr<FILE, int (*)(FILE*)> guard(f, std::fclose);
+  uint8_t head[kFileHeaderBytes];
+  if (std::fread(head, 1, sizeof head, f) != sizeof head || std::memcmp(head, kMagic, 8) != 0)
+    throw UserError(path + ": not a live-point library (no ROPSIMLP header; build one with `ropsim livepoints`)");
+  const uint32_t version = uint32_t(get_le(head + 8, 4));
+  if (version != kLivePointFileVersion)
+    throw UserError(path + ": live-point library version " + std::to_string(version) + ", this ropsim reads " +
+                    std::to_string(kLivePointFileVersion) + " (rebuild it with `ropsim livepoints`)");
+  const uint64_t size = get_le(head + 16, 8), sum = get_le(head + 24, 8);
+  // The payload, and what it decodes into (about as much again), in the budget.
+  BudgetShare mem;
+  if (size > kMaxCount)
+    throw UserError(path + ": not a valid live-point library (a payload of " + std::to_string(size) + " bytes)");
+  mem.add(2 * size, "the live-point library");
+  std::vector<uint8_t> payload(static_cast<size_t>(size));
+  std::unique_ptr<ZSTD_DCtx, decltype(&ZSTD_freeDCtx)> dctx(ZSTD_createDCtx(), ZSTD_freeDCtx);
+  invariant(dctx != nullptr, "zstd context allocated");
+  std::vector<uint8_t> ibuf(ZSTD_DStreamInSize());
+  ZSTD_outBuffer ob{payload.data(), payload.size(), 0};
+  size_t last = 1;
+  for (;;) {
+    const size_t n = std::fread(ibuf.data(), 1, ibuf.size(), f);
+    if (n == 0) break;
+    ZSTD_inBuffer ib{ibuf.data(), n, 0};
+    while (ib.pos < ib.size) {
+      const size_t before_in = ib.pos, before_out = ob.pos;
+      last = ZSTD_decompressStream(dctx.get(), &ob, &ib);
+      if (ZSTD_isError(last))
+        throw UserError(path + ": not a valid live-point library (corrupt compressed data: " + ZSTD_getErrorName(last) +
+                        ")");
+      if (last == 0 && ib.pos < ib.size)
+        throw UserError(path + ": not a valid live-point library (bytes after the payload)");
+      if (ib.pos == before_in && ob.pos == before_out)
+        throw UserError(path + ": not a valid live-point library (the payload is longer than its header says)");
+    }
+  }
+  if (std::ferror(f)) throw UserError(path + ": read error");
+  if (last != 0 || ob.pos != payload.size())
+    throw UserError(path + ": not a valid live-point library (truncated: " + std::to_string(ob.pos) + " of " +
+                    std::to_string(payload.size()) + " payload bytes)");
+  if (XXH3_64bits(payload.data(), payload.size()) != sum)
+    throw UserError(path + ": not a valid live-point library (the payload's checksum does not match)");
+  LivePoints lib = decode(payload, path);
+  lib.charge();
+  return lib;
+}
+
+void check_library_input(const LivePoints& lib, const std::string& lib_path, const InputSpec& in) {
+  const InputIdentity id = input_identity(in);
+  if (id.digest != lib.input.digest || id.from_trace != lib.input.from_trace)
+    throw UserError(lib_path + ": the library was recorded from " + lib.input.description + " (digest " +
+                    hex64(lib.input.digest) + "), not from " + id.description + " (digest " + hex64(id.digest) +
+                    "); build one for it with `ropsim livepoints`");
+}
+
+void check_library_method(const LivePoints& lib, const std::string& lib_path, const MethodConfig& m) {
+  const MethodConfig& l = lib.method;
+  auto fail = [&](const std::string& what, const std::string& lib_v, const std::string& run_v) {
+    throw UserError(lib_path + ": the library was recorded with " + what + " " + lib_v + ", the run asks for " + run_v +
+                    " (a library serves one method and its numerics; build another with `ropsim livepoints`)");
+  };
+  if (l.method != m.method) fail("method", to_string(l.method), to_string(m.method));
+  if (l.numerics.hash_bits != m.numerics.hash_bits)
+    fail("numerics.hash_bits", std::to_string(l.numerics.hash_bits), std::to_string(m.numerics.hash_bits));
+  if (l.numerics.alpha_bits != m.numerics.alpha_bits)
+    fail("numerics.alpha_bits", std::to_string(l.numerics.alpha_bits), std::to_string(m.numerics.alpha_bits));
+  if (l.numerics.surface_id_bits != m.numerics.surface_id_bits)
+    fail("numerics.surface_id_bits", std::to_string(l.numerics.surface_id_bits),
+         std::to_string(m.numerics.surface_id_bits));
+  if (l.seed != m.seed) fail("seed", std::to_string(l.seed), std::to_string(m.seed));
+  if (l.method == Method::kSlab && (l.slab_layers != m.slab_layers || l.slab_bits != m.slab_bits))
+    fail("slab k/b", std::to_string(l.slab_layers) + "/" + std::to_string(l.slab_bits),
+         std::to_string(m.slab_layers) + "/" + std::to_string(m.slab_bits));
+  if (l.enderton_selection != m.enderton_selection)
+    fail("enderton selection", l.enderton_selection == EndertonSelection::kOriginal ? "original" : "depth-first",
+         m.enderton_selection == EndertonSelection::kOriginal ? "original" : "depth-first");
+}
+
+}  // namespace ropsim
