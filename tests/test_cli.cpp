@@ -558,6 +558,51 @@ TEST(CliCycle, SampledRunWritesTheGoldenImageAndEstimatesWithIntervals) {
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --sample-size 0", {"--sample-size"});
 }
 
+// `ropsim livepoints` records once; `run --fidelity sampled --livepoints LIB`
+// then serves each design without the trace (it is moved away), with the
+// estimates of a run that recorded its own live-points, the golden image, and
+// the same figures for any -j. Another trace, method or sampling is refused.
+TEST(CliCycle, LivePointLibraryServesDesignsWithoutTheTrace) {
+  CliSandbox box;
+  expect_ok(box.run("scene cloth --spp 16 -o c.rtr"), "scene");
+  expect_ok(box.run("scene smoke --spp 16 -o other.rtr"), "scene");
+  const std::string sampling = " --sample-units 6 --sample-size 1000 --sample-warmup 1500";
+  expect_ok(box.run("livepoints c.rtr -o c.rlp --quiet" + sampling), "livepoints");
+  expect_ok(box.run("run --fidelity sampled --trace c.rtr -j 1 --quiet --out own.exr --report own.json" + sampling),
+            "sampled run recording its own live-points");
+  expect_ok(box.run("run --trace c.rtr --quiet --out golden.exr"), "functional");
+  fs::rename(box.work() / "c.rtr", box.work() / "moved.rtr");
+  const auto own = nlohmann::json::parse(slurp(box.work() / "own.json"));
+  for (const char* design : {"default", "narrow", "wide"}) {
+    const std::string d = design;
+    expect_ok(box.run("run --fidelity sampled --livepoints c.rlp -j 2 --quiet --hw " + std::string(ROPSIM_SOURCE_DIR) +
+                      "/configs/" + d + ".toml --out " + d + ".exr --report " + d + ".json"),
+              "sampled from the library on " + d);
+    EXPECT_EQ(slurp(box.work() / (d + ".exr")), slurp(box.work() / "golden.exr")) << d << ": the golden image";
+    const auto r = nlohmann::json::parse(slurp(box.work() / (d + ".json")));
+    EXPECT_EQ(r["timing"]["sampling"]["library"], "c.rlp");
+    EXPECT_EQ(r["input"]["trace"], "c.rtr") << "the report names the library's input";
+    EXPECT_EQ(r["host"]["sampled_jobs"], 2);
+    if (d == "default") {
+      EXPECT_EQ(r["timing"]["total_cycles"], own["timing"]["total_cycles"]);
+      EXPECT_EQ(r["timing"]["total_cycles_ci95"], own["timing"]["total_cycles_ci95"]);
+      EXPECT_EQ(r["timing"]["dram"], own["timing"]["dram"]);
+      EXPECT_EQ(r["timing"]["bottleneck"], own["timing"]["bottleneck"]);
+      EXPECT_EQ(r["timing"]["units"], own["timing"]["units"]);
+      EXPECT_EQ(r["counters"], own["counters"]);
+    }
+  }
+  expect_cli_error(box, "run --fidelity sampled --livepoints c.rlp --trace other.rtr", {"c.rlp", "other.rtr"});
+  expect_cli_error(box, "run --fidelity sampled --livepoints c.rlp --method enderton", {"c.rlp", "enderton"});
+  expect_cli_error(box, "run --fidelity sampled --livepoints c.rlp --hash-bits 16", {"c.rlp", "hash_bits"});
+  expect_cli_error(box, "run --fidelity sampled --livepoints c.rlp --sample-units 3", {"--sample-units", "library"});
+  expect_cli_error(box, "run --fidelity sampled --livepoints other.rtr", {"other.rtr", "not a live-point library"});
+  expect_cli_error(box, "run --livepoints c.rlp", {"--livepoints", "sampled"});
+  expect_cli_error(box, "run --fidelity cycle -j 2", {"--jobs", "sampled"});
+  expect_cli_error(box, "livepoints other.rtr -o x.rlp --hw-set distributor.rop_units=8", {"--hw-set", "numerics"});
+  expect_cli_error(box, "livepoints other.rtr -o x.rlp --method wboit", {"wboit"});
+}
+
 TEST(CliCycle, BadCycleFlagsFailInOneLine) {
   CliSandbox box;
   expect_cli_error(box, "run --hw nope.toml --scene testcard --spp 1", {"--hw"});

@@ -4,6 +4,7 @@
 // pixel-ordering guarantee, the hardware config, and timing that behaves like
 // hardware (ROP scaling, memory-bound runs, linear cost in the work).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstring>
@@ -25,6 +26,7 @@
 #include "driver.h"
 #include "golden_model.h"
 #include "hw_config.h"
+#include "livepoint_file.h"
 #include "livepoints.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
@@ -1257,28 +1259,92 @@ TEST(StatsInterval, DecoupledRowsEqualLockstepRowsAndTheRunIsUnchanged) {
 
 namespace {
 
-/// Every pixel of every tile of `unit` holds what `golden` holds (depth and
-/// colour bits of every sample, the tracker).
-std::string tiles_differ(const SampleStore& unit, const SampleStore& golden) {
-  std::string out;
+/// Every pixel the unit's fragments touch holds what `golden` holds (depth
+/// and colour bits of every sample, the tracker).
+std::string pixels_differ(const SampleStore& unit, const SampleStore& golden, const std::vector<Fragment>& touched) {
   const int spp = unit.header().spp;
-  unit.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
-    for (int p = 0; p < 64 && out.empty(); ++p) {
-      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
-      if (x >= unit.header().width || y >= unit.header().height) continue;
-      const PixelView a = unit.view(x, y), b = golden.view(x, y);
-      if (!b.depth) {
-        out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + "): the golden model never touched it";
-        return;
-      }
-      for (int s = 0; s < spp; ++s)
-        if (std::memcmp(&a.depth[s], &b.depth[s], 4) != 0 || std::memcmp(&a.rgb[3 * s], &b.rgb[3 * s], 6) != 0)
-          out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") sample " + std::to_string(s);
-      if (a.tracker && !(*a.tracker == *b.tracker))
-        out = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") tracker";
-    }
-  });
-  return out;
+  for (const Fragment& f : touched) {
+    const uint32_t x = f.x, y = f.y;
+    const PixelView a = unit.view(x, y), b = golden.view(x, y);
+    const std::string at = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ")";
+    if (!a.depth || !b.depth) return at + ": untouched in " + (a.depth ? "the golden model" : "the unit");
+    for (int s = 0; s < spp; ++s)
+      if (std::memcmp(&a.depth[s], &b.depth[s], 4) != 0 || std::memcmp(&a.rgb[3 * s], &b.rgb[3 * s], 6) != 0)
+        return at + " sample " + std::to_string(s);
+    if (a.tracker && !(*a.tracker == *b.tracker)) return at + " tracker";
+    if (a.slab && !(*a.slab == *b.slab)) return at + " slab layers";
+  }
+  return "";
+}
+
+/// Every field of two fragments, bit for bit.
+bool same_fragment(const Fragment& a, const Fragment& b) {
+  auto bits = [](const auto& x, const auto& y) { return std::memcmp(&x, &y, sizeof x) == 0; };
+  return a.draw_id == b.draw_id && a.prim_id == b.prim_id && a.x == b.x && a.y == b.y && a.coverage == b.coverage &&
+         bits(a.z0, b.z0) && bits(a.dzdx, b.dzdx) && bits(a.dzdy, b.dzdy) && bits(a.z, b.z) && bits(a.rgb, b.rgb) &&
+         bits(a.alpha, b.alpha);
+}
+
+/// Two libraries hold the same live-points, bit for bit; "" or the first difference.
+std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
+  if (a.fragments != b.fragments || a.points.size() != b.points.size()) return "sizes";
+  if (a.input.digest != b.input.digest || a.input.description != b.input.description) return "input";
+  if (!(a.image == b.image)) return "image";
+  std::string c;
+  std::vector<uint64_t> ca, cb;
+  a.counters.for_each([&](const char*, uint64_t v) { ca.push_back(v); });
+  b.counters.for_each([&](const char*, uint64_t v) { cb.push_back(v); });
+  if (ca != cb) return "counters";
+  for (size_t k = 0; k < a.points.size(); ++k) {
+    const LivePoint &p = a.points[k], &q = b.points[k];
+    const std::string u = "unit " + std::to_string(k) + ": ";
+    if (p.first != q.first || p.warmup != q.warmup || p.window != q.window) return u + "placement";
+    if (p.fragments.size() != q.fragments.size()) return u + "fragment count";
+    for (size_t i = 0; i < p.fragments.size(); ++i)
+      if (!same_fragment(p.fragments[i], q.fragments[i])) return u + "fragment " + std::to_string(i);
+    const std::string d = first_state_difference(*p.pre, *q.pre);
+    if (!d.empty()) return u + "pre-state: " + d;
+    if (p.resident.size() != q.resident.size()) return u + "resident count";
+    for (size_t i = 0; i < p.resident.size(); ++i)
+      if (p.resident[i].written != q.resident[i].written || p.resident[i].x != q.resident[i].x ||
+          p.resident[i].y != q.resident[i].y || p.resident[i].tracker != q.resident[i].tracker ||
+          p.resident[i].layers != q.resident[i].layers)
+        return u + "resident " + std::to_string(i);
+    if (p.warming.size() != q.warming.size()) return u + "warming count";
+    for (size_t i = 0; i < p.warming.size(); ++i)
+      if (p.warming[i].covered != q.warming[i].covered || p.warming[i].written != q.warming[i].written ||
+          p.warming[i].x != q.warming[i].x || p.warming[i].y != q.warming[i].y ||
+          p.warming[i].reached_write != q.warming[i].reached_write || p.warming[i].slab_kept != q.warming[i].slab_kept)
+        return u + "warming " + std::to_string(i);
+  }
+  return "";
+}
+
+/// Every figure of two sampled runs, or the first that differs.
+std::string runs_differ(const SampledRun& a, const SampledRun& b) {
+  auto same = [](const Estimate& x, const Estimate& y) {
+    return x.value == y.value && x.low == y.low && x.high == y.high;
+  };
+  if (!same(a.total_cycles, b.total_cycles)) return "total cycles";
+  if (!same(a.dram_bytes_read, b.dram_bytes_read)) return "DRAM bytes read";
+  if (!same(a.dram_bytes_written, b.dram_bytes_written)) return "DRAM bytes written";
+  if (a.fragments_detailed != b.fragments_detailed) return "fragments detailed";
+  if (a.units_estimated.size() != b.units_estimated.size()) return "unit count";
+  for (size_t i = 0; i < a.units_estimated.size(); ++i)
+    if (a.units_estimated[i].name != b.units_estimated[i].name ||
+        a.units_estimated[i].stats.cycles != b.units_estimated[i].stats.cycles)
+      return "unit " + a.units_estimated[i].name;
+  if (format_bottleneck(a.stats) != format_bottleneck(b.stats)) return "bottleneck";
+  return "";
+}
+
+std::string temp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("ropsim-test-" + std::to_string(::getpid()) + "-" + name)).string();
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
 }
 
 }  // namespace
@@ -1336,11 +1402,146 @@ TEST(Sampled, EveryUnitEndsInTheGoldenState) {
         golden.process(w);
       }
       const UnitRun u = simulate_livepoint(lib, k, HwConfig{});
-      EXPECT_EQ(tiles_differ(*u.state, golden.store()), "") << to_string(m) << " unit " << k;
+      EXPECT_EQ(pixels_differ(*u.state, golden.store(), lp.fragments), "") << to_string(m) << " unit " << k;
       EXPECT_GT(u.window_cycles, 0u);
     }
     EXPECT_EQ(lib.points.back().first + lib.points.back().fragments.size(), lib.fragments)
         << "the last unit ends the input";
+  }
+}
+
+// A library written and read back is the library recorded, bit for bit, and
+// gives the same estimates; writing it twice gives the same bytes.
+TEST(LivePointLibrary, RoundTripIsExactAndDeterministic) {
+  const InputSpec in = scene_input("cloth", 16);
+  SamplingParams p;
+  p.units = 5;
+  p.unit_fragments = 1500;
+  p.warmup_fragments = 2000;
+  p.warming_fragments = 6000;
+  for (Method m : {Method::kLk, Method::kSlab, Method::kOpaque}) {
+    const LivePoints lib = record_livepoints(in, method_config(m), p);
+    const std::string a = temp_path("a.rlp"), b = temp_path("b.rlp");
+    write_livepoints(a, lib);
+    const LivePoints back = read_livepoints(a);
+    EXPECT_EQ(libraries_differ(lib, back), "") << to_string(m);
+    write_livepoints(b, back);
+    EXPECT_EQ(read_bytes(a), read_bytes(b)) << to_string(m) << ": the same library gives the same bytes";
+    EXPECT_EQ(runs_differ(run_sampled(lib, HwConfig{}), run_sampled(back, HwConfig{})), "") << to_string(m);
+    std::filesystem::remove(a);
+    std::filesystem::remove(b);
+  }
+}
+
+// One library, read once, serves every design: its estimates equal those of a
+// run that records its own live-points for that design.
+TEST(LivePointLibrary, ServesEveryDesign) {
+  const InputSpec in = scene_input("smoke", 16);
+  SamplingParams p;
+  p.units = 6;
+  p.unit_fragments = 1000;
+  p.warmup_fragments = 1500;
+  const std::string path = temp_path("designs.rlp");
+  write_livepoints(path, record_livepoints(in, GoldenConfig{}, p));
+  const LivePoints lib = read_livepoints(path);
+  std::filesystem::remove(path);
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    const LivePoints own = record_livepoints(in, GoldenConfig{}, p);
+    EXPECT_EQ(runs_differ(run_sampled(lib, hw), run_sampled(own, hw)), "") << config;
+  }
+}
+
+// A library is refused, in one line naming its file, when it is not one, is
+// of another version, is truncated or corrupt, or is asked to serve another
+// input or method.
+TEST(LivePointLibrary, RefusesWhatIsNotItsOwn) {
+  const InputSpec in = scene_input("testcard", 4);
+  SamplingParams p;
+  p.units = 3;
+  p.unit_fragments = 200;
+  const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
+  const std::string path = temp_path("refuse.rlp"), bad = temp_path("bad.rlp");
+  write_livepoints(path, lib);
+  const std::string bytes = read_bytes(path);
+  auto refused = [&](const std::string& content, const std::string& needle) {
+    std::ofstream(bad, std::ios::binary) << content;
+    try {
+      read_livepoints(bad);
+      ADD_FAILURE() << "accepted a library that " << needle;
+    } catch (const UserError& e) {
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line: " << e.what();
+    }
+  };
+  refused("", "not a live-point library");
+  refused("RTRACE01" + bytes.substr(8), "not a live-point library");
+  std::string v2 = bytes;
+  v2[8] = 2;
+  refused(v2, "version 2");
+  refused(bytes.substr(0, bytes.size() / 2), "truncated");
+  std::string flipped = bytes;
+  flipped[flipped.size() - 10] = char(flipped[flipped.size() - 10] ^ 0x40);
+  refused(flipped, "not a valid live-point library");
+  std::string longer = bytes + "x";
+  refused(longer, "not a valid live-point library");
+  // Another input, another method.
+  EXPECT_NO_THROW(check_library_input(lib, path, in));
+  EXPECT_THROW(check_library_input(lib, path, scene_input("testcard", 16)), UserError);
+  EXPECT_THROW(check_library_input(lib, path, scene_input("cloth", 4)), UserError);
+  GoldenConfig other;
+  EXPECT_NO_THROW(check_library_method(lib, path, other));
+  other.method = Method::kEnderton;
+  EXPECT_THROW(check_library_method(lib, path, other), UserError);
+  other = GoldenConfig{};
+  other.numerics.hash_bits = 16;
+  EXPECT_THROW(check_library_method(lib, path, other), UserError);
+  std::filesystem::remove(path);
+  std::filesystem::remove(bad);
+}
+
+// Units simulated in worker processes give every figure of the run exactly as
+// one process does, for any number of workers.
+TEST(Sampled, WorkersGiveTheSameFigures) {
+  const InputSpec in = scene_input("cloth", 16);
+  SamplingParams p;
+  p.units = 7;
+  p.unit_fragments = 1000;
+  p.warmup_fragments = 1000;
+  const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
+  const HwConfig hw = load_hw_config(kSource + "/configs/wide.toml");
+  const SampledRun one = run_sampled(lib, hw, 1);
+  for (int jobs : {2, 3, 16}) {
+    const SampledRun many = run_sampled(lib, hw, jobs);
+    EXPECT_EQ(runs_differ(one, many), "") << jobs << " workers";
+    EXPECT_EQ(many.jobs, std::min(jobs, 7)) << "no more workers than units";
+  }
+}
+
+// The bottleneck a sampled run names is the full cycle model's, on each
+// design, and its activities add up to the estimated cycles.
+TEST(Sampled, BottleneckIsTheCycleModels) {
+  const InputSpec in = scene_input("cloth", 16);
+  SamplingParams p;
+  p.units = 10;
+  p.unit_fragments = 1000;
+  p.warmup_fragments = 2000;
+  const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
+  for (const auto& config : config_files()) {
+    const HwConfig hw = load_hw_config(config);
+    const SampledRun s = run_sampled(lib, hw);
+    const CycleRun full = run_cycle(in, GoldenConfig{}, hw);
+    EXPECT_EQ(s.stats.bottleneck.kind, full.stats.bottleneck.kind)
+        << config << ": " << format_bottleneck(s.stats) << " vs " << format_bottleneck(full.stats);
+    EXPECT_EQ(s.stats.bottleneck.unit_kind, full.stats.bottleneck.unit_kind)
+        << config << ": " << format_bottleneck(s.stats) << " vs " << format_bottleneck(full.stats);
+    for (const UnitReport& u : s.stats.units) {
+      uint64_t sum = 0;
+      for (uint64_t c : u.stats.cycles) sum += c;
+      // Each activity is rounded on its own: at most one cycle each.
+      EXPECT_NEAR(double(sum), double(s.stats.total_cycles), double(kActivities)) << config << " " << u.name;
+    }
   }
 }
 
