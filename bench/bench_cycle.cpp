@@ -67,11 +67,11 @@ void BM_SampledVsCycle(benchmark::State& state, const char* design) {
   static const LivePoints lib = [&] {
     const auto t0 = std::chrono::steady_clock::now();
     SamplingParams sp;
-    // ROPSIM_BENCH_SAMPLING=U,W,C,K,T overrides the defaults (unit, warm-up,
-    // cool-down, units, tag-only warming).
+    // ROPSIM_BENCH_SAMPLING=U,W,C,K,T[,R] overrides the defaults (unit,
+    // warm-up, cool-down, units, tag-only warming, its reach).
     if (const char* v = std::getenv("ROPSIM_BENCH_SAMPLING"))
-      std::sscanf(v, "%lu,%lu,%lu,%lu,%lu", &sp.unit_fragments, &sp.warmup_fragments, &sp.cooldown_fragments, &sp.units,
-                  &sp.warming_fragments);
+      std::sscanf(v, "%lu,%lu,%lu,%lu,%lu,%lf", &sp.unit_fragments, &sp.warmup_fragments, &sp.cooldown_fragments,
+                  &sp.units, &sp.warming_fragments, &sp.warming_reach);
     LivePoints l = record_livepoints(in, GoldenConfig{}, sp);
     library_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return l;
@@ -97,6 +97,10 @@ void BM_SampledVsCycle(benchmark::State& state, const char* design) {
   state.counters["written_err_pct"] = err(s.dram_bytes_written, wr);
   state.counters["written_covered"] = covered(s.dram_bytes_written, wr);
   state.counters["detailed_share"] = double(s.fragments_detailed) / double(lib.fragments);
+  state.counters["warmed_per_unit"] = double(s.fragments_warmed) / double(s.units);
+  state.counters["sampled_s"] = s.sim_seconds;
+  state.counters["cycle_s"] = full_s;
+  state.counters["library_s"] = library_s;
   state.counters["speedup_per_design"] = full_s / s.sim_seconds;
   state.counters["speedup_with_library"] = full_s / (s.sim_seconds + library_s);
 }

@@ -1302,8 +1302,17 @@ std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
     if (p.fragments.size() != q.fragments.size()) return u + "fragment count";
     for (size_t i = 0; i < p.fragments.size(); ++i)
       if (!same_fragment(p.fragments[i], q.fragments[i])) return u + "fragment " + std::to_string(i);
-    const std::string d = first_state_difference(*p.pre, *q.pre);
-    if (!d.empty()) return u + "pre-state: " + d;
+    auto bits = [](const auto& x, const auto& y) {
+      return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof x[0]) == 0);
+    };
+    if (p.pre.tracker != q.pre.tracker || p.pre.slab_bits != q.pre.slab_bits || !bits(p.pre.x, q.pre.x) ||
+        !bits(p.pre.y, q.pre.y) || !bits(p.pre.depth, q.pre.depth) || !bits(p.pre.rgb, q.pre.rgb) ||
+        p.pre.trackers.size() != q.pre.trackers.size() || p.pre.slabs.size() != q.pre.slabs.size())
+      return u + "pre-state";
+    for (size_t i = 0; i < p.pre.trackers.size(); ++i)
+      if (!(p.pre.trackers[i] == q.pre.trackers[i])) return u + "pre-state tracker";
+    for (size_t i = 0; i < p.pre.slabs.size(); ++i)
+      if (!(p.pre.slabs[i] == q.pre.slabs[i])) return u + "pre-state slab";
     if (p.resident.size() != q.resident.size()) return u + "resident count";
     for (size_t i = 0; i < p.resident.size(); ++i)
       if (p.resident[i].written != q.resident[i].written || p.resident[i].x != q.resident[i].x ||

@@ -46,8 +46,8 @@ struct RunOpts {
 };
 
 /// The sampling flags (a library fixes them when it is built).
-constexpr const char* kSamplingFlags[] = {"--sample-units", "--sample-size", "--sample-warmup", "--sample-cooldown",
-                                          "--sample-warming"};
+constexpr const char* kSamplingFlags[] = {"--sample-units",    "--sample-size",    "--sample-warmup",
+                                          "--sample-cooldown", "--sample-warming", "--sample-warming-reach"};
 /// The flags that choose a scene input.
 constexpr const char* kSceneFlags[] = {"--scene", "--spp", "--width", "--height", "--scene-seed"};
 
@@ -401,8 +401,14 @@ void add_sampling_options(CLI::App* run, RunOpts* ro) {
       "--sample-cooldown", ro->sampling.cooldown_fragments,
       "sampled: fragments C simulated after each window (default " + std::to_string(dp.cooldown_fragments) + ")");
   run->add_option("--sample-warming", ro->sampling.warming_fragments,
-                  "sampled: fragments T before each warm-up that warm the caches tag-only (default " +
+                  "sampled: fragments T before each warm-up that may warm the caches tag-only (default " +
                       std::to_string(dp.warming_fragments) + ")");
+  run->add_option("--sample-warming-reach", ro->sampling.warming_reach,
+                  "sampled: per design, warm tag-only from where the touches before the warm-up reach R x the "
+                  "design's cache lines in distinct lines, at most T back (default " +
+                      fmt::format("{}", dp.warming_reach) + ")")
+      ->check(CLI::Range(0.0, 1e6))
+      ->type_name("R");
 }
 
 void add_design_options(CLI::App* run, RunOpts* ro) {

@@ -286,6 +286,14 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
          "sampled: fragments simulated after each window but the last (C)");
   sp.put("warming_fragments", lib.params.warming_fragments, "fragments",
          "sampled: fragments before each warm-up warming the caches tag-only (T, at most)");
+  sp.put("warming_reach", lib.params.warming_reach, "x cache lines",
+         "sampled: per design, the warming starts where the touches before the warm-up reach R times the design's "
+         "cache lines in distinct lines (R)");
+  sp.put("fragments_warmed", s.fragments_warmed, "fragments",
+         "sampled: fragments whose touches warmed the caches tag-only, summed over the units (this design)");
+  sp.put("units_warming_short", s.units_warming_short, "units",
+         "sampled: units whose warming stopped at T before reaching R x the cache lines (a larger T would warm "
+         "them more)");
   sp.put("fragments", lib.fragments, "fragments", "sampled: the input's fragments (N)");
   sp.put("fragments_detailed", s.fragments_detailed, "fragments",
          "sampled: fragments the cycle model simulated (warm-ups, windows, cool-downs)");

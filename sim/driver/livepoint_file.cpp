@@ -18,6 +18,9 @@ namespace ropsim {
 
 namespace {
 
+// Arrays of integers and floats are copied as they are in memory.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the library format is little-endian");
+
 constexpr char kMagic[8] = {'R', 'O', 'P', 'S', 'I', 'M', 'L', 'P'};
 constexpr size_t kFileHeaderBytes = 8 + 4 + 4 + 8 + 8;  // magic, version, reserved, payload bytes, XXH3-64
 constexpr uint64_t kMaxCount = uint64_t{1} << 40;       // any count read beyond this is corrupt
@@ -40,11 +43,18 @@ class Put {
     u64(s.size());
     b_.insert(b_.end(), s.begin(), s.end());
   }
+  /// n values of T, each little-endian (this host's order: see the static_assert).
+  template <class T>
+  void array(const T* v, size_t n) {
+    const auto* p = reinterpret_cast<const uint8_t*>(v);
+    b_.insert(b_.end(), p, p + n * sizeof(T));
+  }
   std::vector<uint8_t>& bytes() { return b_; }
 
  private:
   void raw(uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) b_.push_back(uint8_t(v >> (8 * i)));
+    const auto* p = reinterpret_cast<const uint8_t*>(&v);  // little-endian: the low n bytes first
+    b_.insert(b_.end(), p, p + n);
   }
   std::vector<uint8_t> b_;
 };
@@ -83,6 +93,12 @@ class Get {
     pos_ += size_t(n);
     return s;
   }
+  template <class T>
+  void array(T* v, size_t n) {
+    if ((b_.size() - pos_) / sizeof(T) < n) fail("the payload ends");
+    std::memcpy(v, b_.data() + pos_, n * sizeof(T));
+    pos_ += n * sizeof(T);
+  }
   bool done() const { return pos_ == b_.size(); }
   [[noreturn]] void fail(const std::string& why) const {
     throw UserError(path_ + ": not a valid live-point library (" + what_ + " at payload byte " + std::to_string(pos_) +
@@ -93,7 +109,7 @@ class Get {
   uint64_t raw(int n) {
     if (b_.size() - pos_ < size_t(n)) fail("the payload ends");
     uint64_t v = 0;
-    for (int i = 0; i < n; ++i) v |= uint64_t(b_[pos_ + size_t(i)]) << (8 * i);
+    std::memcpy(&v, b_.data() + pos_, size_t(n));  // little-endian host
     pos_ += size_t(n);
     return v;
   }
@@ -209,46 +225,66 @@ MethodConfig get_method(Get& g) {
   return m;
 }
 
-void put_pixel(Put& p, const SampleStore& s, uint32_t x, uint32_t y) {
-  const PixelView v = s.view(x, y);
-  const int spp = s.header().spp;
-  p.u16(uint16_t(x));
-  p.u16(uint16_t(y));
-  for (int i = 0; i < spp; ++i) p.f32(v.depth[i]);
-  for (int i = 0; i < 3 * spp; ++i) p.u16(v.rgb[i]);
-  if (s.has_tracker()) {
-    p.u64(v.tracker->covered);
-    p.u32(v.tracker->surface_id);
-  }
-  if (s.has_slab()) {
-    p.u8(v.slab->count);
-    for (int l = 0; l < v.slab->count; ++l) {
-      p.f32(v.slab->depth[l]);
-      p.u64(v.slab->mask[l]);
-      for (int c = 0; c < 3; ++c) p.u16(v.slab->rgb[l][c]);
+void put_pre(Put& p, const PrePixels& pre, int spp) {
+  p.u8(pre.tracker);
+  p.u32(uint32_t(pre.slab_bits));
+  p.u64(pre.size());
+  for (size_t i = 0; i < pre.size(); ++i) {
+    p.u16(pre.x[i]);
+    p.u16(pre.y[i]);
+    p.array(&pre.depth[i * size_t(spp)], size_t(spp));
+    p.array(&pre.rgb[3 * i * size_t(spp)], 3 * size_t(spp));
+    if (pre.tracker) {
+      p.u64(pre.trackers[i].covered);
+      p.u32(pre.trackers[i].surface_id);
+    }
+    if (pre.slab_bits > 0) {
+      const SlabPixel& sp = pre.slabs[i];
+      p.u8(sp.count);
+      for (int l = 0; l < sp.count; ++l) {
+        p.f32(sp.depth[l]);
+        p.u64(sp.mask[l]);
+        for (int c = 0; c < 3; ++c) p.u16(sp.rgb[l][c]);
+      }
     }
   }
 }
 
-void get_pixel(Get& g, SampleStore& s) {
-  const uint32_t x = g.u16(), y = g.u16();
-  if (x >= s.header().width || y >= s.header().height) g.fail("a pixel off the screen");
-  const PixelRef r = s.pixel(x, y);
-  const int spp = s.header().spp;
-  for (int i = 0; i < spp; ++i) r.depth[i] = g.f32();
-  for (int i = 0; i < 3 * spp; ++i) r.rgb[i] = g.u16();
-  if (s.has_tracker()) {
-    r.tracker->covered = g.u64();
-    r.tracker->surface_id = g.u32();
-  }
-  if (s.has_slab()) {
-    SlabPixel& sp = *r.slab;
-    sp.count = g.u8();
-    if (sp.count > kMaxSlabLayers) g.fail("a slab pixel with " + std::to_string(sp.count) + " layers");
-    for (int l = 0; l < sp.count; ++l) {
-      sp.depth[l] = g.f32();
-      sp.mask[l] = g.u64();
-      for (int c = 0; c < 3; ++c) sp.rgb[l][c] = g.u16();
+void get_pre(Get& g, PrePixels& pre, const TraceHeader& h) {
+  const size_t spp = size_t(h.spp);
+  pre.tracker = g.flag();
+  pre.slab_bits = int(g.u32());
+  if (pre.slab_bits > 64) g.fail("slab bits over 64");
+  const uint64_t n = g.count(4 + 10 * spp);
+  pre.x.resize(size_t(n));
+  pre.y.resize(size_t(n));
+  pre.depth.resize(size_t(n) * spp);
+  pre.rgb.resize(3 * size_t(n) * spp);
+  if (pre.tracker) pre.trackers.resize(size_t(n));
+  if (pre.slab_bits > 0) pre.slabs.resize(size_t(n));
+  uint64_t prev = 0;
+  for (size_t i = 0; i < size_t(n); ++i) {
+    pre.x[i] = g.u16();
+    pre.y[i] = g.u16();
+    const uint64_t key = uint64_t(pre.y[i]) << 16 | pre.x[i];
+    if (pre.x[i] >= h.width || pre.y[i] >= h.height || (i > 0 && key <= prev))
+      g.fail("a pre-state pixel off the screen or out of order");
+    prev = key;
+    g.array(&pre.depth[i * spp], spp);
+    g.array(&pre.rgb[3 * i * spp], 3 * spp);
+    if (pre.tracker) {
+      pre.trackers[i].covered = g.u64();
+      pre.trackers[i].surface_id = g.u32();
+    }
+    if (pre.slab_bits > 0) {
+      SlabPixel& sp = pre.slabs[i];
+      sp.count = g.u8();
+      if (sp.count > kMaxSlabLayers) g.fail("a slab pixel with " + std::to_string(sp.count) + " layers");
+      for (int l = 0; l < sp.count; ++l) {
+        sp.depth[l] = g.f32();
+        sp.mask[l] = g.u64();
+        for (int c = 0; c < 3; ++c) sp.rgb[l][c] = g.u16();
+      }
     }
   }
 }
@@ -332,6 +368,7 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
   const SamplingParams& s = lib.params;
   for (uint64_t v : {s.unit_fragments, s.warmup_fragments, s.cooldown_fragments, s.units, s.warming_fragments})
     p.u64(v);
+  p.array(&s.warming_reach, 1);
   p.u64(lib.fragments);
   // The counters by name, so a reader of another build refuses a mismatch.
   uint64_t n_counters = 0;
@@ -349,19 +386,7 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
     p.u64(lp.window);
     p.u64(lp.fragments.size());
     for (const Fragment& f : lp.fragments) put_fragment(p, h, f);
-    // The pre-state: the pixels the fragments touch, in their first touch's order.
-    std::vector<std::pair<uint32_t, uint32_t>> px;
-    {
-      std::vector<uint64_t> seen;
-      for (const Fragment& f : lp.fragments) seen.push_back(uint64_t(f.y) << 32 | f.x);
-      std::sort(seen.begin(), seen.end());
-      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
-      for (uint64_t k : seen) px.emplace_back(uint32_t(k), uint32_t(k >> 32));
-    }
-    p.u8(lp.pre->has_tracker());
-    p.u32(uint32_t(lp.pre->targets().slab_bits));
-    p.u64(px.size());
-    for (const auto& [x, y] : px) put_pixel(p, *lp.pre, x, y);
+    put_pre(p, lp.pre, h.spp);
     p.u64(lp.resident.size());
     for (const Resident& r : lp.resident) {
       p.u64(r.written);
@@ -399,6 +424,8 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
   SamplingParams& s = lib.params;
   for (uint64_t* v : {&s.unit_fragments, &s.warmup_fragments, &s.cooldown_fragments, &s.units, &s.warming_fragments})
     *v = g.u64();
+  g.array(&s.warming_reach, 1);
+  if (!(s.warming_reach >= 0 && s.warming_reach <= 1e6)) g.fail("the warming reach is out of range");
   lib.fragments = g.u64();
   g.at("the counters");
   uint64_t n_counters = 0;
@@ -435,13 +462,7 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
     prev_end = lp.first + n;
     lp.fragments.reserve(size_t(n));
     for (uint64_t i = 0; i < n; ++i) lp.fragments.push_back(get_fragment(g, h));
-    const bool tracker = g.flag();
-    StoreTargets targets;
-    targets.slab_bits = int(g.u32());
-    if (targets.slab_bits > 64) g.fail("slab bits over 64");
-    lp.pre = std::make_unique<SampleStore>(h, tracker, targets);
-    const uint64_t pixels = g.count(4);
-    for (uint64_t i = 0; i < pixels; ++i) get_pixel(g, *lp.pre);
+    get_pre(g, lp.pre, h);
     const uint64_t res = g.count(13);
     lp.resident.resize(size_t(res));
     for (Resident& r : lp.resident) {

@@ -5,6 +5,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -47,12 +48,88 @@ void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uin
   }
 }
 
+/// Calls f(line) for every line a touch reads or writes, in the order the
+/// pipeline does (depth reads, tracker read, then the writes).
+template <class F>
+void touch_lines(const Touch& x, const AddressMap& amap, bool tracker, bool slab, F&& f) {
+  if (slab) {
+    amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { f(l, false, Buffer::kLayers); });
+    if (x.slab_kept) amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { f(l, true, Buffer::kLayers); });
+    return;
+  }
+  amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.covered, [&](uint64_t l) { f(l, false, Buffer::kDepth); });
+  if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, false, Buffer::kTracker); });
+  if (!x.reached_write) return;
+  amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.written, [&](uint64_t l) { f(l, true, Buffer::kDepth); });
+  amap.for_each_sample_line(Buffer::kColor, x.x, x.y, x.written, [&](uint64_t l) { f(l, true, Buffer::kColor); });
+  if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, true, Buffer::kTracker); });
+}
+
+/// The distinct lines the warming must reach: R x the design's cache lines.
+uint64_t reach_lines(const HwConfig& hw, double reach) {
+  const double lines = double(hw.distributor.rop_units) * double(hw.cache.size_bytes) / double(hw.cache.line_bytes);
+  return uint64_t(std::ceil(std::max(0.0, reach) * lines));
+}
+
+/// Walks lp's touches backwards until they reach reach_lines distinct lines;
+/// returns the index of the first touch to warm with (0: all of them).
+size_t warming_start(const LivePoint& lp, const AddressMap& amap, const HwConfig& hw, double reach, bool tracker,
+                     bool slab, bool& met) {
+  const uint64_t want = reach_lines(hw, reach);
+  LineSet seen(hw.cache.line_bytes);
+  uint64_t distinct = 0;
+  for (size_t i = lp.warming.size(); i-- > 0;) {
+    if (distinct >= want) {
+      met = true;
+      return i + 1;
+    }
+    touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool, Buffer) {
+      if (!seen.contains(l)) {
+        seen.insert(l);
+        ++distinct;
+      }
+    });
+  }
+  met = distinct >= want;
+  return 0;
+}
+
 }  // namespace
+
+void PrePixels::add(const SampleStore& st, const PixelView& clear, uint32_t px, uint32_t py) {
+  const int spp = st.header().spp;
+  x.push_back(uint16_t(px));
+  y.push_back(uint16_t(py));
+  PixelView v = st.view(px, py);
+  if (!v.depth) v = clear;  // never touched: the clear values
+  depth.insert(depth.end(), v.depth, v.depth + spp);
+  rgb.insert(rgb.end(), v.rgb, v.rgb + 3 * spp);
+  if (tracker) trackers.push_back(*v.tracker);
+  if (slab_bits > 0) slabs.push_back(*v.slab);
+}
+
+void PrePixels::apply(SampleStore& st) const {
+  const size_t spp = size_t(st.header().spp);
+  invariant(st.has_tracker() == tracker && st.targets().slab_bits == slab_bits,
+            "a live-point's pre-state goes into a store of the same buffers");
+  for (size_t i = 0; i < size(); ++i) {
+    const PixelRef r = st.pixel(x[i], y[i]);
+    std::memcpy(r.depth, &depth[i * spp], spp * sizeof(float));
+    std::memcpy(r.rgb, &rgb[3 * i * spp], 3 * spp * sizeof(uint16_t));
+    if (tracker) *r.tracker = trackers[i];
+    if (slab_bits > 0) *r.slab = slabs[i];
+  }
+}
+
+size_t PrePixels::bytes() const {
+  return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2 +
+         trackers.capacity() * sizeof(TrackerState) + slabs.capacity() * sizeof(SlabPixel);
+}
 
 void LivePoints::charge(const LivePoint& p) {
   mem.add(p.fragments.capacity() * sizeof(Fragment) + p.warming.capacity() * sizeof(Touch) +
-              p.resident.capacity() * sizeof(Resident),
-          "the live-points' fragments and touches");
+              p.resident.capacity() * sizeof(Resident) + p.pre.bytes(),
+          "the live-points' fragments, pre-states and touches");
 }
 
 LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p) {
@@ -95,6 +172,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   // The clear values, from a tile allocated cleared.
   SampleStore cleared(lib.header, rop.store().has_tracker(), rop.store().targets());
   const PixelRef clear = cleared.pixel(0, 0);
+  const PixelView clear_view = cleared.view(0, 0);
   FragWork w;
   uint64_t i = 0;
   size_t k = 0;
@@ -126,13 +204,18 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       while (lp.fragments.size() < count && src->next(f)) lp.fragments.push_back(f);
       invariant(lp.fragments.size() == count, "the input delivers the fragments it was counted with");
       const SampleStore& st = rop.store();
-      lp.pre = std::make_unique<SampleStore>(lib.header, st.has_tracker(), st.targets());
-      std::set<std::pair<uint32_t, uint32_t>> pixels, tiles;
+      lp.pre.tracker = st.has_tracker();
+      lp.pre.slab_bits = st.targets().slab_bits;
+      std::vector<uint64_t> pixels;
+      std::set<std::pair<uint32_t, uint32_t>> tiles;
       for (Fragment& x : lp.fragments) {
         canonicalise(lib.header, x);
-        if (pixels.emplace(x.x, x.y).second) lp.pre->copy_pixel_from(st, x.x, x.y);
+        pixels.push_back(uint64_t(x.y) << 16 | x.x);
         tiles.emplace(x.x & ~7u, x.y & ~7u);
       }
+      std::sort(pixels.begin(), pixels.end());
+      pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+      for (uint64_t xy : pixels) lp.pre.add(st, clear_view, uint32_t(xy & 0xffff), uint32_t(xy >> 16));
       for (const auto& [x0, y0] : tiles) add_resident(st, clear, x0, y0, lp.resident);
       lp.warming.reserve(ring_fill);
       for (size_t j = 0; j < ring_fill; ++j)
@@ -170,8 +253,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
                         rop->setup().slab_bytes);
   const bool tracker = rop->store().has_tracker(), slab = rop->store().has_slab();
   auto insert = [&in_dram](uint64_t line) { in_dram.insert(line); };
-  lp.pre->tile_map().for_each(
-      [&](uint32_t x0, uint32_t y0, const SampleTile&) { rop->store().copy_tile_from(*lp.pre, x0, y0); });
+  lp.pre.apply(rop->store());
   // A line that holds a written value is taken to be in DRAM (see livepoints.h).
   for (const Resident& p : lp.resident) {
     if (p.written) {
@@ -191,26 +273,18 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     auto top = std::make_unique<RopPipeline>("unit", fragments_from(h, lp.fragments), *rop, in_dram, hw);
     top->set_decoupled(true);
     RopPipeline* t = top.get();
-    // Tag-only warming: the T fragments before the warm-up, in order, through
-    // the caches of the ROPs that own their pixels (depth test reads, then
-    // the writeback's writes).
+    // Tag-only warming: the touches before the warm-up that reach R times the
+    // design's cache lines (at most T), in order, through the caches of the
+    // ROPs that own their pixels (depth test reads, then the writeback's writes).
     const RopOwnership owner(hw.distributor, h.width);
-    for (const Touch& x : lp.warming) {
+    bool met = false;
+    const size_t from = warming_start(lp, amap, hw, lib.params.warming_reach, tracker, slab, met);
+    r.warming_used = lp.warming.size() - from;
+    r.warming_short = !met && lp.first > lp.warming.size();
+    for (size_t i = from; i < lp.warming.size(); ++i) {
+      const Touch& x = lp.warming[i];
       RopCache& c = *t->caches()[owner.rop_of(x.x, x.y)];
-      if (slab) {
-        amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { c.warm(l, false, Buffer::kLayers); });
-        if (x.slab_kept) amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { c.warm(l, true, Buffer::kLayers); });
-        continue;
-      }
-      amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.covered,
-                                [&](uint64_t l) { c.warm(l, false, Buffer::kDepth); });
-      if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { c.warm(l, false, Buffer::kTracker); });
-      if (!x.reached_write) continue;
-      amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.written,
-                                [&](uint64_t l) { c.warm(l, true, Buffer::kDepth); });
-      amap.for_each_sample_line(Buffer::kColor, x.x, x.y, x.written,
-                                [&](uint64_t l) { c.warm(l, true, Buffer::kColor); });
-      if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { c.warm(l, true, Buffer::kTracker); });
+      touch_lines(x, amap, tracker, slab, [&c](uint64_t l, bool write, Buffer b) { c.warm(l, write, b); });
     }
     auto dirtied = [t] {
       uint64_t n = 0;
@@ -275,6 +349,7 @@ struct UnitFigures {
   uint64_t window_cycles = 0, window_bytes_read = 0, window_lines_dirtied = 0;
   uint64_t tail_cycles = 0, tail_bytes_read = 0, total_cycles = 0, dram_max_channel_busy = 0;
   uint64_t fragments = 0;  ///< of its live-point
+  uint64_t warming_used = 0, warming_short = 0;
   std::vector<UnitReport> units;
 };
 
@@ -288,6 +363,8 @@ UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
   f.total_cycles = r.total_cycles;
   f.dram_max_channel_busy = r.dram_max_channel_busy;
   f.fragments = fragments;
+  f.warming_used = r.warming_used;
+  f.warming_short = r.warming_short;
   f.units = r.units;
   return f;
 }
@@ -304,8 +381,9 @@ void put_str(std::string& m, const std::string& s) {
 
 std::string encode_figures(uint64_t unit, const UnitFigures& f) {
   std::string m;
-  for (uint64_t v : {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles,
-                     f.tail_bytes_read, f.total_cycles, f.dram_max_channel_busy, f.fragments})
+  for (uint64_t v :
+       {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles, f.tail_bytes_read,
+        f.total_cycles, f.dram_max_channel_busy, f.fragments, f.warming_used, f.warming_short})
     put64(m, v);
   put64(m, f.units.size());
   for (const UnitReport& u : f.units) {
@@ -343,8 +421,9 @@ UnitFigures decode_figures(const std::string& m, uint64_t& unit) {
   MessageReader r{m};
   UnitFigures f;
   unit = r.u64();
-  for (uint64_t* v : {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles,
-                      &f.tail_bytes_read, &f.total_cycles, &f.dram_max_channel_busy, &f.fragments})
+  for (uint64_t* v :
+       {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles, &f.tail_bytes_read,
+        &f.total_cycles, &f.dram_max_channel_busy, &f.fragments, &f.warming_used, &f.warming_short})
     *v = r.u64();
   f.units.resize(size_t(r.u64()));
   for (UnitReport& u : f.units) {
@@ -540,6 +619,8 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
     rd[i] = double(figs[i].window_bytes_read) / u;
     wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes) / u;
     out.fragments_detailed += figs[i].fragments;
+    out.fragments_warmed += figs[i].warming_used;
+    out.units_warming_short += figs[i].warming_short;
   }
   const UnitFigures& last = figs.back();
   const double n = double(lib.fragments), t = student_t975(k - 1);

@@ -56,6 +56,11 @@ struct SamplingParams {
   /// T: fragments before each warm-up whose cache accesses warm the design's
   /// caches tag-only (no time, no DRAM traffic) before the detailed run.
   uint64_t warming_fragments = 50000;
+  /// R: per design, the tag-only warming starts where the touches before the
+  /// warm-up, walked backwards, have reached R times the design's cache
+  /// capacity (all ROPs) in distinct lines -- at most T fragments back. A
+  /// small cache is warmed by few fragments, a large one by many.
+  double warming_reach = 2.0;
 };
 
 /// What one fragment did to the per-pixel buffers, as the cache sees it
@@ -77,16 +82,33 @@ struct Resident {
   bool layers = false;   ///< slab: the pixel holds layers
 };
 
+/// The state of the pixels a unit's fragments touch, as before the unit,
+/// flat: pixel i is (x[i], y[i]), in (y, x) order; its samples are
+/// depth[i spp ...] and rgb[3 i spp ...].
+struct PrePixels {
+  bool tracker = false;  ///< lk: trackers held
+  int slab_bits = 0;     ///< slab: layers held (0: none)
+  std::vector<uint16_t> x, y;
+  std::vector<float> depth;            ///< spp per pixel
+  std::vector<uint16_t> rgb;           ///< 3 spp per pixel, binary16
+  std::vector<TrackerState> trackers;  ///< one per pixel when tracking
+  std::vector<SlabPixel> slabs;        ///< one per pixel with SLAB layers
+  size_t size() const { return x.size(); }
+  /// Appends pixel (x, y) of st; clear's values if st never touched it.
+  void add(const SampleStore& st, const PixelView& clear, uint32_t x, uint32_t y);
+  /// Writes every pixel into st (a store of the same screen and buffers).
+  void apply(SampleStore& st) const;
+  size_t bytes() const;
+};
+
 struct LivePoint {
   uint64_t first = 0;               ///< the input's index of its first fragment (the warm-up's)
   uint64_t warmup = 0;              ///< fragments before the window (W, fewer at the input's start)
   uint64_t window = 0;              ///< U; then the cool-down, to the end of `fragments`
   std::vector<Fragment> fragments;  ///< the warm-up's, the window's, the cool-down's
-  /// The pixels they touch, as before `first`; the other pixels of their
-  /// tiles are cleared (the unit never reads them).
-  std::unique_ptr<SampleStore> pre;
-  std::vector<Resident> resident;  ///< the pixels of those tiles holding written values before `first`
-  std::vector<Touch> warming;      ///< the T fragments before `first` (fewer at the input's start)
+  PrePixels pre;                    ///< the pixels they touch, as before `first`
+  std::vector<Resident> resident;   ///< the pixels of those tiles holding written values before `first`
+  std::vector<Touch> warming;       ///< the T fragments before `first` (fewer at the input's start)
 };
 
 /// What a library was recorded from: a trace file or a built-in scene.
@@ -133,7 +155,10 @@ struct UnitRun {
   uint64_t tail_lines_dirtied = 0;  ///< after the last retirement (the posted writes still pending)
   uint64_t tail_cycles = 0;         ///< after the window's last retirement: the cool-down, drain and cache flush
   uint64_t tail_bytes_read = 0, tail_bytes_written = 0;
-  uint64_t total_cycles = 0;           ///< of the whole unit run
+  uint64_t total_cycles = 0;  ///< of the whole unit run
+  uint64_t warming_used = 0;  ///< touches that warmed the caches tag-only (at most the live-point's)
+  bool warming_short =
+      false;  ///< the reach was not met within the live-point's touches, and the input had more before them
   uint64_t dram_max_channel_busy = 0;  ///< the busiest DRAM channel's busy cycles, whole unit run
   std::vector<UnitReport> units;       ///< every unit instance's activity over the whole unit run (no extras)
   std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
@@ -155,10 +180,12 @@ struct SampledRun {
   /// DRAM figures are the estimates' values (report printers take this).
   CycleStats stats;
   size_t units = 0;
-  uint64_t fragments_detailed = 0;  ///< fragments the cycle model simulated (warm-ups and windows)
-  double sim_seconds = 0;           ///< the units' host time (wall clock, workers included)
-  double cpu_seconds = 0;           ///< the units' host time summed over the processes that ran them
-  int jobs = 1;                     ///< worker processes
+  uint64_t fragments_detailed = 0;   ///< fragments the cycle model simulated (warm-ups and windows)
+  uint64_t fragments_warmed = 0;     ///< touches that warmed the caches tag-only, summed over the units
+  uint64_t units_warming_short = 0;  ///< units whose warming reach was cut short by the library's T
+  double sim_seconds = 0;            ///< the units' host time (wall clock, workers included)
+  double cpu_seconds = 0;            ///< the units' host time summed over the processes that ran them
+  int jobs = 1;                      ///< worker processes
 };
 /// Simulates every unit (in `jobs` worker processes when jobs > 1; the
 /// figures are the same for every job count) and estimates the run's.
