@@ -354,6 +354,56 @@ design = [")") + ROPSIM_SOURCE_DIR +
   EXPECT_FALSE(fs::exists(s.dir / "b"));
 }
 
+// Sampled points of several designs share one live-point library, recorded
+// once in the study's livepoints/ folder, and each equals the same
+// `ropsim run --fidelity sampled`; the image is the functional point's.
+TEST(Study, SampledPointsShareOneLibraryAndEqualTheRun) {
+  Scratch s;
+  s.put("d.toml", std::string(R"(
+[study]
+save_images = true
+reference = false
+
+[inputs]
+scenes = ["smoke"]
+
+[axes]
+fidelity = ["functional", "sampled"]
+spp = 4
+design = [")") + ROPSIM_SOURCE_DIR +
+                      R"(/configs/default.toml", ")" + ROPSIM_SOURCE_DIR + R"(/configs/narrow.toml", ")" +
+                      ROPSIM_SOURCE_DIR + R"(/configs/wide.toml"]
+)");
+  ASSERT_EQ(ropsim(s.dir, "study run d.toml --out st -j 2 --quiet").status, 0);
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 4u) << "one functional point (designs dropped) and three sampled";
+  size_t libs = 0;
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "livepoints")) libs += e.path().extension() == ".rlp";
+  EXPECT_EQ(libs, 1u) << "one library serves the three designs";
+  std::string functional_image;
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "points"))
+    if (slurp(e.path() / "params.json").find("functional") != std::string::npos)
+      functional_image = slurp(e.path() / "image.png");
+  ASSERT_FALSE(functional_image.empty());
+  size_t sampled = 0;
+  for (const auto& row : rows) {
+    if (row.at("fidelity") != "sampled") continue;
+    ++sampled;
+    const Ran r = ropsim(s.dir, "run --fidelity sampled --scene smoke --spp 4 -j 1 --hw '" + row.at("design") +
+                                    "' --quiet --report r.json");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string rep = slurp(s.dir / "r.json");
+    EXPECT_NE(rep.find("\"total_cycles\": " + row.at("timing.total_cycles") + ","), std::string::npos)
+        << row.at("design") << ": the study's estimate differs from run --fidelity sampled";
+    EXPECT_NE(rep.find("\"bottleneck\": \"" + row.at("timing.bottleneck") + "\""), std::string::npos)
+        << row.at("design");
+  }
+  EXPECT_EQ(sampled, 3u);
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "points"))
+    if (slurp(e.path() / "params.json").find("sampled") != std::string::npos)
+      EXPECT_EQ(slurp(e.path() / "image.png"), functional_image) << "a sampled point writes the golden image";
+}
+
 // The blend methods are values of the method axis, enderton's selection an
 // axis of its own; a study's points equal the same `ropsim run`s.
 TEST(Study, BlendMethodsAndEndertonSelectionAreAxes) {

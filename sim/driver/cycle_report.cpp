@@ -227,11 +227,12 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
                                       const HwConfig& hw, double wall_seconds, const LibrarySource& from,
-                                      FieldSink* sink) {
+                                      const std::optional<Image>& reference, FieldSink* sink) {
   FunctionalRun f;
   f.header = lib.header;
   f.counters = lib.counters;
   f.image = lib.image;
+  f.reference = reference;
   f.wall_seconds = wall_seconds;
   nlohmann::ordered_json j = functional_report(ctx, f, sink);
   Fields r(j, sink);
@@ -309,7 +310,7 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
 }
 
 std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
-                            double wall_seconds, const LibrarySource& from) {
+                            double wall_seconds, const LibrarySource& from, const std::optional<Image>& reference) {
   std::string out =
       fmt::format("ropsim: {} | method {} | {}x{} @ {} spp | sampled on {}\n", ctx.input.describe(),
                   to_string(ctx.config.method), lib.header.width, lib.header.height, lib.header.spp, hw.name);
@@ -324,6 +325,10 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
                      lib.params.unit_fragments, s.fragments_detailed, lib.fragments,
                      lib.fragments ? 100.0 * double(s.fragments_detailed) / double(lib.fragments) : 0.0);
   out += "  " + format_bottleneck(s.stats) + " (estimated)\n";
+  if (reference) {
+    const CompareResult cr = compare_images(lib.image, *reference);
+    out += fmt::format("  vs reference: RMSE {:.3f} (8-bit units), PSNR {:.2f} dB\n", cr.rmse_8bit, cr.psnr_db);
+  }
   out += fmt::format("  wall {:.3f} s ({} {:.3f} s, units {:.3f} s on {} process{})\n", wall_seconds,
                      from.path.empty() ? "live-points recorded in" : "library " + from.path + " read in", from.seconds,
                      s.sim_seconds, s.jobs, s.jobs == 1 ? "" : "es");
@@ -376,7 +381,8 @@ std::vector<FieldDoc> report_field_docs() {
     sp.warming_fragments = 8;
     ctx.config = MethodConfig{};
     const LivePoints lib = record_livepoints(in, ctx.config, sp);
-    sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, LibrarySource{"lib.rlp", 0.0}, &sink);
+    sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, LibrarySource{"lib.rlp", 0.0}, std::nullopt,
+                   &sink);
   }
   return sink.docs();
 }

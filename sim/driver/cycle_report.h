@@ -40,9 +40,10 @@ struct LibrarySource {
 };
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
                                       const HwConfig& hw, double wall_seconds, const LibrarySource& from,
-                                      FieldSink* sink = nullptr);
+                                      const std::optional<Image>& reference = std::nullopt, FieldSink* sink = nullptr);
 std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
-                            double wall_seconds, const LibrarySource& from);
+                            double wall_seconds, const LibrarySource& from,
+                            const std::optional<Image>& reference = std::nullopt);
 
 /// One column of the --stats-interval CSV: its name, unit and meaning.
 struct IntervalColumn {

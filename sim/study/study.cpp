@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "errors.h"
+#include "livepoint_file.h"
 #include "random_hash.h"
 #include "slab.h"
 #include "toml_guard.h"
@@ -45,7 +46,7 @@ constexpr RunParam kRunParams[] = {
     {"method", "the transparency method"},
     {"spp", "samples per pixel (scenes)"},
     {"seed", "seed of the methods' hash-based random numbers"},
-    {"fidelity", "functional or cycle"},
+    {"fidelity", "functional, cycle or sampled"},
     {"hash_bits", "alpha-reference hash width, bits"},
     {"alpha_bits", "opacity fixed-point precision, bits"},
     {"surface_id_bits", "surface id register width, bits"},
@@ -59,6 +60,10 @@ constexpr RunParam kRunParams[] = {
     {"slab_bits", "slab: b, bits of each layer's coverage mask (1..64)"},
     {"enderton_selection", "enderton and its variants: depth-first (default) or original (docs/methods.md)"},
 };
+
+bool is_fidelity(const std::string& f) { return f == "functional" || f == "cycle" || f == "sampled"; }
+/// Does the fidelity give time (and so take a design)?
+bool is_timed(const std::string& f) { return f != "functional"; }
 
 bool is_run_param(const std::string& k) {
   for (const auto& p : kRunParams)
@@ -119,7 +124,7 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
       fail(s, at, to_string(v) + " is not depth-first or original");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
-    if (!f || (*f != "functional" && *f != "cycle")) fail(s, at, to_string(v) + " is not functional or cycle");
+    if (!f || !is_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle or sampled");
   } else if (key == "spp") {
     const int64_t n = int_of(s, at, v, 1, kMaxSpp);
     if (!is_valid_spp(int(n))) fail(s, at, fmt::format("{} is not a power of two in [1, 64]", n));
@@ -350,7 +355,7 @@ Study parse_study(const std::string& text, const std::string& path) {
         if (!seen.insert(to_string(v)).second) fail(s, at, "the value " + to_string(v) + " appears twice");
         if (run) check_run_value(s, key, at, v);
         if (hw) check_hw_value(s, key, at, v);
-        if (key == "fidelity" && to_string(v) == "cycle") any_cycle = true;
+        if (key == "fidelity" && is_timed(to_string(v))) any_cycle = true;
       }
       if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
         fail(s, at, "applies to scenes and meshes only: the study has trace inputs");
@@ -364,7 +369,7 @@ Study parse_study(const std::string& text, const std::string& path) {
       s.axes.push_back(std::move(axis));
     }
   }
-  if (any_hw && !any_cycle) fail(s, "axes", "hardware keys need fidelity = \"cycle\" among the points");
+  if (any_hw && !any_cycle) fail(s, "axes", "hardware keys need a timed fidelity (cycle or sampled) among the points");
   if (s.combine == Study::Combine::kZip)
     for (const auto& a : s.axes)
       if (a.values.size() != s.axes.front().values.size())
@@ -431,7 +436,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       // A functional run has no hardware: its hardware values are dropped,
       // and the points that then repeat another are one point.
       auto f = p.params.find("fidelity");
-      if (f == p.params.end() || std::get<std::string>(f->second) != "cycle")
+      if (f == p.params.end() || !is_timed(std::get<std::string>(f->second)))
         for (auto it = p.params.begin(); it != p.params.end();)
           it = is_hardware(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
@@ -505,15 +510,35 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   r.method.slab_layers = int(get_int("slab_layers", MethodConfig{}.slab_layers));
   r.method.slab_bits = int(get_int("slab_bits", MethodConfig{}.slab_bits));
   const StudyValue* f = get("fidelity");
-  r.cycle = f && std::get<std::string>(*f) == "cycle";
+  if (f) r.fidelity = std::get<std::string>(*f);
   std::vector<std::string> overrides;
   for (const auto& [k, v] : p.params)
     if (is_hw_key(k)) overrides.push_back(k + "=" + to_string(v));
-  if (r.cycle) {
+  if (r.timed()) {
     const StudyValue* design = get("design");
     r.hw = resolve_hw_config(design ? design_path(s, std::get<std::string>(*design)) : "", overrides);
     r.hw.name = "study " + s.name + (design ? ", design " + std::get<std::string>(*design) : "");
     r.method.formats = r.hw.blend.formats;  // the blend targets' formats are functional too
+  }
+  if (r.fidelity == "sampled") {
+    // One library per input, method and sampling, shared by every design.
+    nlohmann::ordered_json id;
+    id["input"] = r.input.describe();
+    id["scene"] = {r.input.scene.name, r.input.scene.spp, r.input.scene.width, r.input.scene.height,
+                   r.input.scene.seed};
+    id["method"] = {to_string(r.method.method),
+                    r.method.seed,
+                    r.method.numerics.hash_bits,
+                    r.method.numerics.alpha_bits,
+                    r.method.numerics.surface_id_bits,
+                    r.method.slab_layers,
+                    r.method.slab_bits,
+                    int(r.method.enderton_selection)};
+    const SamplingParams& sp = r.sampling;
+    id["sampling"] = {sp.unit_fragments, sp.warmup_fragments,  sp.cooldown_fragments,
+                      sp.units,          sp.warming_fragments, sp.warming_reach};
+    id["version"] = kLivePointFileVersion;
+    r.livepoints_key = hex16(hash_text(id.dump()));
   }
   if (s.reference) {
     r.reference_input = r.input;

@@ -13,6 +13,7 @@
 
 #include "driver.h"
 #include "hw_config.h"
+#include "livepoints.h"
 #include "scene_file.h"
 
 namespace ropsim {
@@ -97,10 +98,13 @@ struct ResolvedPoint {
   SceneOverrides capture_overrides;  ///< mesh inputs: spp, resolution, seed and draw order
   InputSpec input;
   MethodConfig method;
-  bool cycle = false;
-  HwConfig hw;
-  std::string reference_key;  ///< "" when the study has no reference
-  InputSpec reference_input;  ///< the input the reference is rendered from
+  std::string fidelity = "functional";  ///< functional, cycle or sampled
+  bool timed() const { return fidelity != "functional"; }
+  HwConfig hw;                 ///< timed fidelities: the design
+  SamplingParams sampling;     ///< sampled: the defaults
+  std::string livepoints_key;  ///< sampled: its live-point library, DIR/livepoints/<key>.rlp
+  std::string reference_key;   ///< "" when the study has no reference
+  InputSpec reference_input;   ///< the input the reference is rendered from
 };
 /// dir: the study folder, where a mesh input's capture is (traces/<key>.rtr).
 ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::string& dir = "");

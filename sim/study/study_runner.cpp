@@ -27,6 +27,7 @@
 #include "errors.h"
 #include "host_threads.h"
 #include "image_io.h"
+#include "livepoint_file.h"
 #include "output_file.h"
 #include "report.h"
 
@@ -109,6 +110,41 @@ void render_reference(const Study& s, const StudyPoint& p, const std::string& di
   fs::remove(ref_error_path(dir, r.reference_key));  // an earlier attempt's
 }
 
+/// A sampled point's live-point library: the one this worker read last, or
+/// the study's DIR/livepoints/<key>.rlp, or recorded now and written there.
+/// A lock on <key>.lock makes the workers (and the executors' tasks) that
+/// need one library record it once. seconds: the time this call took.
+const LivePoints& point_library(const ResolvedPoint& r, const std::string& dir, double& seconds) {
+  static std::string held_key;
+  static std::unique_ptr<LivePoints> held;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!held || held_key != r.livepoints_key) {
+    held.reset();
+    const fs::path folder = fs::path(dir) / "livepoints";
+    fs::create_directories(folder);
+    const fs::path lib = folder / (r.livepoints_key + ".rlp"), lock = folder / (r.livepoints_key + ".lock");
+    const int fd = ::open(lock.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
+    if (fd < 0) throw UserError(lock.string() + ": " + std::strerror(errno));
+    while (::flock(fd, LOCK_EX) != 0 && errno == EINTR) {
+    }
+    try {
+      if (fs::exists(lib)) {
+        held = std::make_unique<LivePoints>(read_livepoints(lib.string()));
+      } else {
+        held = std::make_unique<LivePoints>(record_livepoints(r.input, r.method, r.sampling));
+        write_livepoints(lib.string(), *held);
+      }
+    } catch (...) {
+      ::close(fd);  // releases the lock
+      throw;
+    }
+    ::close(fd);
+    held_key = r.livepoints_key;
+  }
+  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return *held;
+}
+
 /// One point: its run, its report (with the metrics against the reference)
 /// and its folder. report.json is written last: its presence means done.
 void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
@@ -126,7 +162,18 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   nlohmann::ordered_json report;
   std::string summary;
   Image image;
-  if (r.cycle) {
+  if (r.fidelity == "sampled") {
+    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
+    const auto t0 = std::chrono::steady_clock::now();
+    LibrarySource from;
+    const LivePoints& lib = point_library(r, dir, from.seconds);
+    from.path = (fs::path(dir) / "livepoints" / (r.livepoints_key + ".rlp")).string();
+    const SampledRun run = run_sampled(lib, r.hw, 1);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report = sampled_report(ctx, lib, run, r.hw, wall, from, reference);
+    summary = sampled_summary(ctx, lib, run, r.hw, wall, from, reference);
+    image = lib.image;
+  } else if (r.timed()) {
     write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
     CycleRun run = run_cycle(r.input, r.method, r.hw);
     report = cycle_report(ctx, run, reference);
