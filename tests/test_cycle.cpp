@@ -1288,7 +1288,6 @@ bool same_fragment(const Fragment& a, const Fragment& b) {
 /// Two libraries hold the same live-points, bit for bit; "" or the first difference.
 std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
   if (a.fragments != b.fragments || a.points.size() != b.points.size()) return "sizes";
-  if (a.aux.samples_tested != b.aux.samples_tested || a.aux.samples_written != b.aux.samples_written) return "aux";
   if (a.input.digest != b.input.digest || a.input.description != b.input.description) return "input";
   if (!(a.image == b.image)) return "image";
   std::string c;
@@ -1320,8 +1319,6 @@ std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
           p.resident[i].y != q.resident[i].y || p.resident[i].tracker != q.resident[i].tracker ||
           p.resident[i].layers != q.resident[i].layers)
         return u + "resident " + std::to_string(i);
-    if (p.aux.samples_tested != q.aux.samples_tested || p.aux.samples_written != q.aux.samples_written)
-      return u + "auxiliary figures";
     if (p.warming.size() != q.warming.size()) return u + "warming count";
     for (size_t i = 0; i < p.warming.size(); ++i)
       if (p.warming[i].covered != q.warming[i].covered || p.warming[i].written != q.warming[i].written ||
@@ -1555,27 +1552,6 @@ TEST(Sampled, BottleneckIsTheCycleModels) {
       EXPECT_NEAR(double(sum), double(s.stats.total_cycles), double(kActivities)) << config << " " << u.name;
     }
   }
-}
-
-// The ratio estimate: exact (a zero-width interval) when y is proportional to
-// x; N times the mean per fragment when x is the units' sizes; its interval
-// from the residuals about the ratio; the fallback when no unit has any x.
-TEST(Sampled, RatioEstimate) {
-  const Estimate exact = ratio_estimate({10, 20, 30}, {1, 2, 3}, 100, 5);
-  EXPECT_DOUBLE_EQ(exact.value, 10.0 * 100 + 5);
-  EXPECT_DOUBLE_EQ(exact.low, exact.value);
-  EXPECT_DOUBLE_EQ(exact.high, exact.value);
-  const std::vector<double> y = {12, 7, 9, 15};
-  const Estimate mean = ratio_estimate(y, {2, 2, 2, 2}, 1000, 0);
-  EXPECT_DOUBLE_EQ(mean.value, 1000 * (12 + 7 + 9 + 15) / 8.0) << "N x the mean per fragment";
-  double m = 0, v = 0;
-  for (double x : y) m += x / 2 / 4;
-  for (double x : y) v += (x / 2 - m) * (x / 2 - m) / 3;
-  EXPECT_NEAR(mean.high - mean.value, student_t975(3) * 1000 * std::sqrt(v / 4), 1e-9)
-      << "the classic interval of a mean";
-  const std::vector<double> none = {0, 0, 0, 0}, sizes = {2, 2, 2, 2};
-  const Estimate fb = ratio_estimate(y, none, 0, 1, &sizes, 1000);
-  EXPECT_DOUBLE_EQ(fb.value, mean.value + 1);
 }
 
 TEST(Sampled, StudentT) {

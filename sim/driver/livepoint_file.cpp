@@ -370,8 +370,6 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
     p.u64(v);
   p.array(&s.warming_reach, 1);
   p.u64(lib.fragments);
-  p.u64(lib.aux.samples_tested);
-  p.u64(lib.aux.samples_written);
   // The counters by name, so a reader of another build refuses a mismatch.
   uint64_t n_counters = 0;
   lib.counters.for_each([&](const char*, uint64_t) { ++n_counters; });
@@ -398,8 +396,6 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
     }
     p.u64(lp.warming.size());
     for (const Touch& t : lp.warming) put_touch(p, t);
-    p.u64(lp.aux.samples_tested);
-    p.u64(lp.aux.samples_written);
   }
   return std::move(p.bytes());
 }
@@ -431,8 +427,6 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
   g.array(&s.warming_reach, 1);
   if (!(s.warming_reach >= 0 && s.warming_reach <= 1e6)) g.fail("the warming reach is out of range");
   lib.fragments = g.u64();
-  lib.aux.samples_tested = g.u64();
-  lib.aux.samples_written = g.u64();
   g.at("the counters");
   uint64_t n_counters = 0;
   lib.counters.for_each([&](const char*, uint64_t) { ++n_counters; });
@@ -486,8 +480,6 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
       x = get_touch(g);
       if (x.x >= h.width || x.y >= h.height) g.fail("a touch off the screen");
     }
-    lp.aux.samples_tested = g.u64();
-    lp.aux.samples_written = g.u64();
   }
   if (!g.done()) g.fail("bytes after the last live-point");
   return lib;

@@ -179,16 +179,9 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   Fragment f;
   // The last T fragments' touches, a ring.
   const size_t ring_size = size_t(std::min<uint64_t>(p.warming_fragments, n));
-  uint64_t last_tested = 0, last_written = 0;  // the last fragment's samples
   std::vector<Touch> ring(ring_size);
   size_t ring_at = 0, ring_fill = 0;
   auto touched = [&](const Fragment& x) {
-    const uint64_t tested = uint64_t(__builtin_popcountll(w.covered)),
-                   written = w.killed() ? 0 : uint64_t(__builtin_popcountll(w.written));
-    lib.aux.samples_tested += tested;
-    lib.aux.samples_written += written;
-    last_tested = tested;
-    last_written = written;
     if (ring_size == 0) return;
     Touch& t = ring[ring_at];
     t.x = x.x;
@@ -227,14 +220,10 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       lp.warming.reserve(ring_fill);
       for (size_t j = 0; j < ring_fill; ++j)
         lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
-      for (size_t j = 0; j < lp.fragments.size(); ++j) {
-        w.f = &lp.fragments[j];
+      for (const Fragment& x : lp.fragments) {
+        w.f = &x;
         rop.process(w);
-        touched(lp.fragments[j]);
-        if (j >= lp.warmup && j < lp.warmup + lp.window) {
-          lp.aux.samples_tested += last_tested;
-          lp.aux.samples_written += last_written;
-        }
+        touched(x);
       }
       i += count;
       ++k;
@@ -608,29 +597,6 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
 
 }  // namespace
 
-Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>& x, double x_total, double tail,
-                        const std::vector<double>* fallback_x, double fallback_total) {
-  const size_t n = y.size();
-  invariant(n > 0 && x.size() == n, "a ratio estimate has one auxiliary value per unit");
-  double sy = 0, sx = 0;
-  for (size_t i = 0; i < n; ++i) {
-    sy += y[i];
-    sx += x[i];
-  }
-  if (sx <= 0 && fallback_x) return ratio_estimate(y, *fallback_x, fallback_total, tail, nullptr, 0);
-  Estimate e;
-  const double r = sx > 0 ? sy / sx : 0.0;
-  e.value = r * x_total + tail;
-  double ss = 0;  // the residuals about the ratio
-  for (size_t i = 0; i < n; ++i) ss += (y[i] - r * x[i]) * (y[i] - r * x[i]);
-  const double xbar = sx / double(n);
-  const double half =
-      n > 1 && xbar > 0 ? student_t975(n - 1) * x_total * std::sqrt(ss / double(n - 1) / double(n)) / xbar : 0.0;
-  e.low = e.value - half;
-  e.high = e.value + half;
-  return e;
-}
-
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   SampledRun out;
   const auto t0 = std::chrono::steady_clock::now();
@@ -646,29 +612,37 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
     for (size_t i = 0; i < k; ++i)
       figs.push_back(figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
   }
-  // Per unit: the window's figure y and its auxiliary x, known exactly for
-  // the whole input (X): fragments for cycles, samples tested for bytes read,
-  // samples written for bytes written.
-  std::vector<double> cyc(k), rd(k), wr(k), xf(k), xt(k), xw(k);
+  std::vector<double> cyc(k), rd(k), wr(k);
+  const double u = double(lib.params.unit_fragments);
   for (size_t i = 0; i < k; ++i) {
-    cyc[i] = double(figs[i].window_cycles);
-    rd[i] = double(figs[i].window_bytes_read);
-    wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes);
-    xf[i] = double(lib.points[i].window);
-    xt[i] = double(lib.points[i].aux.samples_tested);
-    xw[i] = double(lib.points[i].aux.samples_written);
+    cyc[i] = double(figs[i].window_cycles) / u;
+    rd[i] = double(figs[i].window_bytes_read) / u;
+    wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes) / u;
     out.fragments_detailed += figs[i].fragments;
     out.fragments_warmed += figs[i].warming_used;
     out.units_warming_short += figs[i].warming_short;
   }
   const UnitFigures& last = figs.back();
+  const double n = double(lib.fragments), t = student_t975(k - 1);
+  auto estimate = [&](const std::vector<double>& v, double tail) {
+    double mean = 0, var = 0;
+    for (double x : v) mean += x;
+    mean /= double(v.size());
+    for (double x : v) var += (x - mean) * (x - mean);
+    var = v.size() > 1 ? var / double(v.size() - 1) : 0.0;
+    Estimate e;
+    e.value = n * mean + tail;
+    const double half = v.size() > 1 ? t * n * std::sqrt(var / double(v.size())) : 0.0;
+    e.low = e.value - half;
+    e.high = e.value + half;
+    return e;
+  };
   out.units = k;
-  out.total_cycles = ratio_estimate(cyc, xf, double(lib.fragments), double(last.tail_cycles));
-  out.dram_bytes_read =
-      ratio_estimate(rd, xt, double(lib.aux.samples_tested), double(last.tail_bytes_read), &xf, double(lib.fragments));
+  out.total_cycles = estimate(cyc, double(last.tail_cycles));
+  out.dram_bytes_read = estimate(rd, double(last.tail_bytes_read));
   // Every dirtied line is written once, at an eviction or the final flush:
   // the flush is already counted by the lines the windows dirtied.
-  out.dram_bytes_written = ratio_estimate(wr, xw, double(lib.aux.samples_written), 0.0, &xf, double(lib.fragments));
+  out.dram_bytes_written = estimate(wr, 0.0);
 
   // Activities: each unit instance's share of the units' cycles, over their
   // whole runs, scaled to the estimated total.

@@ -101,13 +101,6 @@ struct PrePixels {
   size_t bytes() const;
 };
 
-/// Design-independent figures of a stretch of the input, known exactly from
-/// the functional pass: the auxiliary variables of the ratio estimates.
-struct AuxFigures {
-  uint64_t samples_tested = 0;   ///< covered samples (each a depth read)
-  uint64_t samples_written = 0;  ///< samples written (each a depth and a colour write)
-};
-
 struct LivePoint {
   uint64_t first = 0;               ///< the input's index of its first fragment (the warm-up's)
   uint64_t warmup = 0;              ///< fragments before the window (W, fewer at the input's start)
@@ -116,7 +109,6 @@ struct LivePoint {
   PrePixels pre;                    ///< the pixels they touch, as before `first`
   std::vector<Resident> resident;   ///< the pixels of those tiles holding written values before `first`
   std::vector<Touch> warming;       ///< the T fragments before `first` (fewer at the input's start)
-  AuxFigures aux;                   ///< of the window's fragments (U)
 };
 
 /// What a library was recorded from: a trace file or a built-in scene.
@@ -137,7 +129,6 @@ struct LivePoints {
   uint64_t fragments = 0;  ///< N, the input's fragments
   std::vector<LivePoint> points;
   Counters counters;  ///< the functional pass's (exact)
-  AuxFigures aux;     ///< of the whole input
   Image image;        ///< the golden image (exact)
   /// The points' fragments, touches and resident pixels in the run's memory
   /// budget (--memory-limit; the pre-states charge their own tiles).
@@ -199,15 +190,6 @@ struct SampledRun {
 /// Simulates every unit (in `jobs` worker processes when jobs > 1; the
 /// figures are the same for every job count) and estimates the run's.
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs = 1);
-
-/// The ratio estimate of a total from a sample of units (Cochran, Sampling
-/// Techniques, ch. 6): Y ~ (sum y / sum x) X + tail, with the 95 % interval
-/// from the residuals y - R x (Student t, n - 1 degrees of freedom). x is an
-/// auxiliary variable known for every unit and for the whole input (X); with
-/// x = the units' sizes it is N times the mean per fragment. With sum x = 0,
-/// fallback_x (and its total) is used instead, when given.
-Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>& x, double x_total, double tail,
-                        const std::vector<double>* fallback_x = nullptr, double fallback_total = 0);
 
 /// The 0.975 quantile of Student's t with dof degrees of freedom (>= 1).
 double student_t975(uint64_t dof);
