@@ -279,6 +279,10 @@ Study parse_study(const std::string& text, const std::string& path) {
   }
   std::set<std::string> labels;
   if (const toml::table* in = t["inputs"].as_table()) {
+    std::set<std::string> scene_labels;  // the built-in scenes' names (checked below)
+    if (const toml::array* sc = (*in)["scenes"].as_array())
+      for (const auto& e : *sc)
+        if (auto v = e.value_exact<std::string>()) scene_labels.insert(*v);
     for (const auto& [k, node] : *in) {
       const std::string key = "inputs." + std::string(k.str());
       if (key != "inputs.scenes" && key != "inputs.traces" && key != "inputs.meshes")
@@ -310,6 +314,9 @@ Study parse_study(const std::string& text, const std::string& path) {
             }
           }
         }
+        // A mesh or trace named like a built-in scene of the study is
+        // "<stem>-mesh" / "<stem>-trace" (the scenes keep their names).
+        if (si.scene.empty() && scene_labels.count(si.label)) si.label += si.trace.empty() ? "-mesh" : "-trace";
         if (!labels.insert(si.label).second) fail(s, key, "two inputs are named " + si.label);
         s.inputs.push_back(si);
       }
