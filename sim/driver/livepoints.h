@@ -60,7 +60,7 @@ struct SamplingParams {
   /// warm-up, walked backwards, have reached R times the design's cache
   /// capacity (all ROPs) in distinct lines -- at most T fragments back. A
   /// small cache is warmed by few fragments, a large one by many.
-  double warming_reach = 2.0;
+  double warming_reach = 4.0;
 };
 
 /// What one fragment did to the per-pixel buffers, as the cache sees it
