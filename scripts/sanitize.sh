@@ -33,7 +33,8 @@ cd "$b"
 export ASAN_OPTIONS="detect_stack_use_after_return=0:detect_leaks=0:abort_on_error=1:halt_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Reduced where the plain suite already covers it: the bit-exact matrix's
-# narrow and wide designs, SLURM, and the thread-count check on the four
-# largest scenes (the four small ones still run every method and spp).
+# narrow and wide designs, SLURM, the thread-count check on the four
+# largest scenes (the four small ones still run every method and spp), and the
+# fidelity study (the full cycle model on the motor three times).
 ctest --output-on-failure -j "$(nproc)" \
-  -E 'BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"
+  -E 'BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"

@@ -1394,7 +1394,7 @@ TEST(Sampled, EveryUnitEndsInTheGoldenState) {
   SamplingParams p;
   p.units = 6;
   p.unit_fragments = 3000;
-  p.warmup_fragments = 5000;
+  p.warmup_fragments = 3000;
   for (Method m : {Method::kLk, Method::kEnderton}) {
     const LivePoints lib = record_livepoints(in, method_config(m), p);
     ASSERT_EQ(lib.points.size(), 6u);
@@ -1417,6 +1417,36 @@ TEST(Sampled, EveryUnitEndsInTheGoldenState) {
     EXPECT_EQ(lib.points.back().first + lib.points.back().fragments.size(), lib.fragments)
         << "the last unit ends the input";
   }
+}
+
+// An input whose units would simulate half of it or more in detail is
+// simulated whole, as one unit without warm-up: every estimate is the full
+// cycle run's figure exactly, with an interval of zero width.
+TEST(Sampled, ASmallInputIsSimulatedWholeAndExactly) {
+  for (const char* scene : {"testcard", "eight-layers"}) {
+    const InputSpec in = scene_input(scene, 16);
+    const LivePoints lib = record_livepoints(in, GoldenConfig{}, SamplingParams{});
+    ASSERT_TRUE(lib.whole) << scene << ": " << lib.fragments << " fragments";
+    ASSERT_EQ(lib.points.size(), 1u);
+    for (const auto& config : config_files()) {
+      const HwConfig hw = load_hw_config(config);
+      const SampledRun s = run_sampled(lib, hw);
+      const CycleRun full = run_cycle(in, GoldenConfig{}, hw);
+      const std::string what = std::string(scene) + " on " + config;
+      EXPECT_EQ(s.total_cycles.value, double(full.stats.total_cycles)) << what;
+      EXPECT_EQ(s.dram_bytes_read.value, double(full.stats.dram.total_bytes_read())) << what;
+      EXPECT_EQ(s.dram_bytes_written.value, double(full.stats.dram.total_bytes_written())) << what;
+      EXPECT_EQ(s.total_cycles.low, s.total_cycles.high) << what;
+      EXPECT_EQ(format_bottleneck(s.stats).substr(0, 12), format_bottleneck(full.stats).substr(0, 12)) << what;
+    }
+  }
+  // A large enough input is sampled.
+  SamplingParams p;
+  p.units = 4;
+  p.unit_fragments = 1000;
+  p.warmup_fragments = 1000;
+  p.cooldown_fragments = 1000;
+  EXPECT_FALSE(record_livepoints(scene_input("cloth", 16), GoldenConfig{}, p).whole);
 }
 
 // A library written and read back is the library recorded, bit for bit, and

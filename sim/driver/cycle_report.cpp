@@ -279,6 +279,9 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   sp.put(
       "input_digest", fmt::format("{:016x}", lib.input.digest), "-",
       "sampled: XXH3-64 of the input the live-points were recorded from (a trace file's bytes, a scene's fragments)");
+  sp.put("whole", lib.whole, "bool",
+         "sampled: the input was small (its units would have simulated at least half of it in detail), so one unit "
+         "simulated it whole: the figures are the full cycle run's, exactly");
   sp.put("units", s.units, "units", "sampled: sampling units simulated in detail (K)");
   sp.put("unit_fragments", lib.params.unit_fragments, "fragments", "sampled: fragments per measured window (U)");
   sp.put("warmup_fragments", lib.params.warmup_fragments, "fragments",

@@ -369,6 +369,7 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
   for (uint64_t v : {s.unit_fragments, s.warmup_fragments, s.cooldown_fragments, s.units, s.warming_fragments})
     p.u64(v);
   p.array(&s.warming_reach, 1);
+  p.u8(lib.whole);
   p.u64(lib.fragments);
   // The counters by name, so a reader of another build refuses a mismatch.
   uint64_t n_counters = 0;
@@ -426,6 +427,7 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
     *v = g.u64();
   g.array(&s.warming_reach, 1);
   if (!(s.warming_reach >= 0 && s.warming_reach <= 1e6)) g.fail("the warming reach is out of range");
+  lib.whole = g.flag();
   lib.fragments = g.u64();
   g.at("the counters");
   uint64_t n_counters = 0;

@@ -149,9 +149,18 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.header = src->header();
   lib.input = input_identity(in);
   const uint64_t n = lib.fragments;
-  const uint64_t u = std::min<uint64_t>(p.unit_fragments, std::max<uint64_t>(n, 1));
-  const uint64_t k_units = std::max<uint64_t>(1, std::min<uint64_t>(p.units, n / u));
-  const uint64_t period = n / k_units;  // >= u
+  uint64_t u = std::min<uint64_t>(p.unit_fragments, std::max<uint64_t>(n, 1));
+  uint64_t k_units = std::max<uint64_t>(1, std::min<uint64_t>(p.units, n / u));
+  // An input so small that the units would simulate a large share of it in
+  // detail anyway is simulated whole, as one unit without warm-up: exactly
+  // the full cycle run, faster than sampling it.
+  const double detailed = double(k_units) * double(p.warmup_fragments + u + p.cooldown_fragments);
+  lib.whole = n == 0 || detailed >= p.max_detailed_share * double(n);
+  if (lib.whole) {
+    u = n;
+    k_units = 1;
+  }
+  const uint64_t period = k_units ? n / k_units : 0;  // >= u
   lib.params.unit_fragments = u;
   lib.params.units = k_units;
   // Window k starts at n - u - (K - 1 - k) period: the last one ends the input.
@@ -162,11 +171,12 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   uint64_t prev_end = 0;
   for (uint64_t k = 0; k < k_units; ++k) {
     starts[k] = n - u - (k_units - 1 - k) * period;
-    firsts[k] = starts[k] - std::min<uint64_t>(p.warmup_fragments, starts[k] - prev_end);
+    firsts[k] = starts[k] - std::min<uint64_t>(lib.whole ? 0 : p.warmup_fragments, starts[k] - prev_end);
     ends[k] = starts[k] + u + (k + 1 < k_units ? cool : 0);
     prev_end = ends[k];
   }
   lib.params.cooldown_fragments = cool;
+  if (lib.whole) lib.params.warmup_fragments = 0;
 
   FunctionalRop rop(lib.header, method);
   // The clear values, from a tile allocated cleared.
@@ -347,7 +357,7 @@ namespace {
 /// What the estimate takes of one unit's run: what a worker sends back.
 struct UnitFigures {
   uint64_t window_cycles = 0, window_bytes_read = 0, window_lines_dirtied = 0;
-  uint64_t tail_cycles = 0, tail_bytes_read = 0, total_cycles = 0, dram_max_channel_busy = 0;
+  uint64_t tail_cycles = 0, tail_bytes_read = 0, tail_lines_dirtied = 0, total_cycles = 0, dram_max_channel_busy = 0;
   uint64_t fragments = 0;  ///< of its live-point
   uint64_t warming_used = 0, warming_short = 0;
   std::vector<UnitReport> units;
@@ -360,6 +370,7 @@ UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
   f.window_lines_dirtied = r.window_lines_dirtied;
   f.tail_cycles = r.tail_cycles;
   f.tail_bytes_read = r.tail_bytes_read;
+  f.tail_lines_dirtied = r.tail_lines_dirtied;
   f.total_cycles = r.total_cycles;
   f.dram_max_channel_busy = r.dram_max_channel_busy;
   f.fragments = fragments;
@@ -612,27 +623,35 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
     for (size_t i = 0; i < k; ++i)
       figs.push_back(figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
   }
-  std::vector<double> cyc(k), rd(k), wr(k);
-  const double u = double(lib.params.unit_fragments);
+  // Per unit: its window's figures y and its fragments m. The estimate is
+  // N (sum y) / (sum m), computed in that order so that one unit over the
+  // whole input (lib.whole) gives the full run's figures exactly.
+  std::vector<double> cyc(k), rd(k), wr(k), m(k);
   for (size_t i = 0; i < k; ++i) {
-    cyc[i] = double(figs[i].window_cycles) / u;
-    rd[i] = double(figs[i].window_bytes_read) / u;
-    wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes) / u;
+    cyc[i] = double(figs[i].window_cycles);
+    rd[i] = double(figs[i].window_bytes_read);
+    wr[i] = double(figs[i].window_lines_dirtied) * double(hw.cache.line_bytes);
+    m[i] = double(lib.points[i].window);
     out.fragments_detailed += figs[i].fragments;
     out.fragments_warmed += figs[i].warming_used;
     out.units_warming_short += figs[i].warming_short;
   }
   const UnitFigures& last = figs.back();
   const double n = double(lib.fragments), t = student_t975(k - 1);
-  auto estimate = [&](const std::vector<double>& v, double tail) {
-    double mean = 0, var = 0;
-    for (double x : v) mean += x;
-    mean /= double(v.size());
-    for (double x : v) var += (x - mean) * (x - mean);
-    var = v.size() > 1 ? var / double(v.size() - 1) : 0.0;
+  auto estimate = [&](const std::vector<double>& y, double tail) {
+    double sy = 0, sm = 0;
+    for (size_t i = 0; i < k; ++i) {
+      sy += y[i];
+      sm += m[i];
+    }
     Estimate e;
-    e.value = n * mean + tail;
-    const double half = v.size() > 1 ? t * n * std::sqrt(var / double(v.size())) : 0.0;
+    e.value = (sm > 0 ? n * sy / sm : 0.0) + tail;
+    // The interval: Student t over the units' figures per fragment.
+    double mean = 0, var = 0;
+    for (size_t i = 0; i < k; ++i) mean += y[i] / m[i] / double(k);
+    for (size_t i = 0; i < k; ++i) var += (y[i] / m[i] - mean) * (y[i] / m[i] - mean);
+    var = k > 1 ? var / double(k - 1) : 0.0;
+    const double half = k > 1 ? t * n * std::sqrt(var / double(k)) : 0.0;
     e.low = e.value - half;
     e.high = e.value + half;
     return e;
@@ -641,8 +660,12 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   out.total_cycles = estimate(cyc, double(last.tail_cycles));
   out.dram_bytes_read = estimate(rd, double(last.tail_bytes_read));
   // Every dirtied line is written once, at an eviction or the final flush:
-  // the flush is already counted by the lines the windows dirtied.
-  out.dram_bytes_written = estimate(wr, 0.0);
+  // the flush is already counted by the lines the windows dirtied. Writes
+  // applied after a window's last retirement are balanced by the warm-up's
+  // applied inside it -- except for a whole-input unit, which has no warm-up:
+  // its tail's lines count.
+  out.dram_bytes_written =
+      estimate(wr, lib.whole ? double(last.tail_lines_dirtied) * double(hw.cache.line_bytes) : 0.0);
 
   // Activities: each unit instance's share of the units' cycles, over their
   // whole runs, scaled to the estimated total.

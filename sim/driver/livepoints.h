@@ -61,6 +61,9 @@ struct SamplingParams {
   /// capacity (all ROPs) in distinct lines -- at most T fragments back. A
   /// small cache is warmed by few fragments, a large one by many.
   double warming_reach = 4.0;
+  /// An input whose units would simulate at least this share of it in detail
+  /// is simulated whole, as one unit without warm-up (the full run, exactly).
+  double max_detailed_share = 0.5;
 };
 
 /// What one fragment did to the per-pixel buffers, as the cache sees it
@@ -123,6 +126,9 @@ struct InputIdentity {
 
 struct LivePoints {
   InputIdentity input;
+  /// The input was small (SamplingParams::max_detailed_share): one unit
+  /// simulates it whole, and the estimates are the full run's, exactly.
+  bool whole = false;
   TraceHeader header;
   MethodConfig method;
   SamplingParams params;

@@ -59,7 +59,15 @@ constexpr RunParam kRunParams[] = {
     {"slab_layers", "slab: k, layers per pixel (1..16)"},
     {"slab_bits", "slab: b, bits of each layer's coverage mask (1..64)"},
     {"enderton_selection", "enderton and its variants: depth-first (default) or original (docs/methods.md)"},
+    {"sample_units", "sampled points: units K"},
+    {"sample_size", "sampled points: fragments U per measured window"},
+    {"sample_warmup", "sampled points: fragments W simulated in detail before each window"},
+    {"sample_cooldown", "sampled points: fragments C simulated after each window"},
+    {"sample_warming", "sampled points: fragments T before each warm-up that may warm the caches tag-only"},
+    {"sample_warming_reach", "sampled points: the warming reach R, times the design's cache lines"},
 };
+
+bool is_sampling_key(const std::string& k) { return k.rfind("sample_", 0) == 0; }
 
 bool is_fidelity(const std::string& f) { return f == "functional" || f == "cycle" || f == "sampled"; }
 /// Does the fidelity give time (and so take a design)?
@@ -125,6 +133,15 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
     if (!f || !is_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle or sampled");
+  } else if (key == "sample_units" || key == "sample_size") {
+    int_of(s, at, v, 1, int64_t{1} << 40);
+  } else if (key == "sample_warmup" || key == "sample_cooldown" || key == "sample_warming") {
+    int_of(s, at, v, 0, int64_t{1} << 40);
+  } else if (key == "sample_warming_reach") {
+    const double* d = std::get_if<double>(&v);
+    const int64_t* i = std::get_if<int64_t>(&v);
+    const double r = d ? *d : i ? double(*i) : -1.0;
+    if (!(r >= 0 && r <= 1e6)) fail(s, at, to_string(v) + " is not a number in [0, 1e6]");
   } else if (key == "spp") {
     const int64_t n = int_of(s, at, v, 1, kMaxSpp);
     if (!is_valid_spp(int(n))) fail(s, at, fmt::format("{} is not a power of two in [1, 64]", n));
@@ -446,6 +463,10 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       if (f == p.params.end() || !is_timed(std::get<std::string>(f->second)))
         for (auto it = p.params.begin(); it != p.params.end();)
           it = is_hardware(it->first) ? p.params.erase(it) : std::next(it);
+      // Likewise the sampling of a point that is not sampled.
+      if (f == p.params.end() || std::get<std::string>(f->second) != "sampled")
+        for (auto it = p.params.begin(); it != p.params.end();)
+          it = is_sampling_key(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
       // compare against, and the tool that computes them.
       nlohmann::ordered_json id;
@@ -528,6 +549,14 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     r.method.formats = r.hw.blend.formats;  // the blend targets' formats are functional too
   }
   if (r.fidelity == "sampled") {
+    SamplingParams& sp0 = r.sampling;
+    sp0.units = uint64_t(get_int("sample_units", int64_t(sp0.units)));
+    sp0.unit_fragments = uint64_t(get_int("sample_size", int64_t(sp0.unit_fragments)));
+    sp0.warmup_fragments = uint64_t(get_int("sample_warmup", int64_t(sp0.warmup_fragments)));
+    sp0.cooldown_fragments = uint64_t(get_int("sample_cooldown", int64_t(sp0.cooldown_fragments)));
+    sp0.warming_fragments = uint64_t(get_int("sample_warming", int64_t(sp0.warming_fragments)));
+    if (const StudyValue* v = get("sample_warming_reach"))
+      sp0.warming_reach = std::holds_alternative<double>(*v) ? std::get<double>(*v) : double(std::get<int64_t>(*v));
     // One library per input, method and sampling, shared by every design.
     nlohmann::ordered_json id;
     id["input"] = r.input.describe();
