@@ -189,6 +189,9 @@ def plot(res, summ, out):
             ax.scatter([r["speedup_vs_cycle"]], [r["cycles_mae_pct"]], s=120, marker="*",
                        color=colors[r["fidelity"]], edgecolor="black", label=f"{r['fidelity']}: mean")
     ax.scatter([1.0], [0.0], s=80, marker="s", color="black", label="cycle (the truth)")
+    f = summ[summ.fidelity == "functional"]
+    if len(f) and not math.isnan(f.iloc[0]["speedup_vs_cycle"]):
+        ax.axvline(f.iloc[0]["speedup_vs_cycle"], ls=":", color="gray", label="functional: the image, no time")
     ax.set_xscale("log")
     ax.set_xlabel("host time, cycle model / this fidelity (per design)")
     ax.set_ylabel("|error| in total cycles (%)")
