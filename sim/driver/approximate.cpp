@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <memory>
 
 #include "address_map.h"
@@ -54,7 +53,6 @@ class DramTags {
         channels_(cfg.channels),
         row_(cfg.row_bytes),
         banks_(cfg.banks),
-        transfer_(0),
         ch_(cfg.channels) {
     for (auto& c : ch_) {
       c.open_row.assign(cfg.banks, ~uint64_t{0});
@@ -66,8 +64,9 @@ class DramTags {
   /// with the bank and the bus idle.
   uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) {
     const uint64_t granule = interleave_.div(addr);
-    const uint64_t ch_index = channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48));
+    const size_t ch_index = channel_of(addr);
     Channel& c = ch_[ch_index];
+    if (!write) c.read = true;
     const uint64_t local = channels_.div(granule) * cfg_.interleave_bytes + interleave_.mod(addr);
     const uint64_t row = row_.div(local);
     const uint64_t bank = banks_.mod(row ^ (addr >> 48));
@@ -99,6 +98,11 @@ class DramTags {
     for (const auto& c : ch_) m = std::max(m, c.bus_free);
     return m;
   }
+  /// The channel of a burst address.
+  size_t channel_of(uint64_t addr) const {
+    const uint64_t granule = interleave_.div(addr);
+    return size_t(channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48)));
+  }
   /// Each channel's service clock.
   void clocks(std::vector<uint64_t>& out) const {
     out.resize(ch_.size());
@@ -109,14 +113,21 @@ class DramTags {
     for (const auto& c : ch_) m = std::max(m, c.busy);
     return m;
   }
+  /// Whether channel i served a read since the last call, and forget it.
+  bool take_read(size_t i) {
+    const bool r = ch_[i].read;
+    ch_[i].read = false;
+    return r;
+  }
+  size_t channels() const { return ch_.size(); }
   const DramStats& stats() const { return s_; }
 
  private:
   HwConfig::Dram cfg_;
   Divisor interleave_, channels_, row_, banks_;
-  uint64_t transfer_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
+    bool read = false;  // a read since the last take_reads
     std::vector<uint64_t> open_row, bank_free;
   };
   std::vector<Channel> ch_;
@@ -128,7 +139,10 @@ class DramTags {
 /// One ROP cache's tags, as RopCache holds them: the same sets (the same
 /// index function), ways, LRU replacement, read-allocate with a fill,
 /// write-allocate without one, fast clear from the lines DRAM holds, and the
-/// final flush in way order.
+/// final flush in way order. Its misses and write-backs go to the DRAM model
+/// (dram.h: the channel, bank and row map, the row buffers, each channel's
+/// bursts served in arrival order) at the cycle the model estimates for the
+/// access.
 class CacheTags {
  public:
   enum class Read { kHit, kClearFill, kMiss };
@@ -253,7 +267,6 @@ class Model {
  public:
   Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
       : hw_(hw),
-        rop_(rop),
         out_(out),
         owner_(hw.distributor, rop.header().width),
         amap_(rop.header().width, rop.header().spp, rop.setup().tracker_bytes, hw.cache.line_bytes,
@@ -278,9 +291,7 @@ class Model {
     const auto& o = hw.ordering;
     epoch_ = uint64_t(d.rop_units) * (d.fifo_depth + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles +
                                       hw.depth_test.max_outstanding);
-    if (const char* e = std::getenv("ROPSIM_APPROX_EPOCH")) epoch_ = std::max<uint64_t>(1, std::strtoull(e, 0, 10));
     out_.epoch_fragments = epoch_;
-    dram_.clocks(ch_at_epoch_);
   }
 
   /// One fragment, after the functional stages ran on w: its costs.
@@ -290,7 +301,9 @@ class Model {
     CacheTags& c = *caches_[r];
     RopEpoch& e = rops_[r];
     const HwConfig& hw = hw_;
-    // Depth test: the pixel's state, read through the cache.
+    // Depth test: the pixel's state, read through the cache; the fragment
+    // waits for the slowest of its lines (unloaded: the queueing is the DRAM
+    // bound's).
     uint64_t wait = 0;
     auto rd = [&](uint64_t line, Buffer b) {
       uint64_t lat = 0;
@@ -361,21 +374,17 @@ class Model {
   PassResult finish() {
     if (in_epoch_) close_epoch();
     PassResult p;
-    p.cycles = cycles_;
     p.fill = fill_;
-    const uint64_t before = dram_.max_clock();
-    std::vector<uint64_t> ch0;
-    dram_.clocks(ch0);
+    p.cycles = uint64_t(t_ + 0.5);
+    // The final flush starts when the last fragment retires; its writes
+    // queue behind the channels' backlog.
+    std::vector<uint64_t> before, after;
+    dram_.clocks(before);
     for (auto& c : caches_) c->flush();
-    std::vector<uint64_t> ch1;
-    dram_.clocks(ch1);
-    // The flush's writes queue behind what the channel still had to serve at
-    // the pipeline's end: its backlog is the service clock beyond the time
-    // the epochs took, where positive.
-    uint64_t flush = 0;
-    for (size_t i = 0; i < ch1.size(); ++i) flush = std::max(flush, ch1[i] - ch0[i]);
-    (void)before;
-    p.flush = flush;
+    dram_.clocks(after);
+    double tail = 0;
+    for (size_t i = 0; i < after.size(); ++i) tail = std::max(tail, backlog_[i] + double(after[i] - before[i]));
+    p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
     p.epochs = epochs_;
     for (auto& c : caches_) out_.cache += c->stats();
     const DramStats& d = dram_.stats();
@@ -388,9 +397,10 @@ class Model {
     out_.dram.row_hits += d.row_hits;
     out_.dram.row_misses += d.row_misses;
     out_.dram.max_channel_busy += dram_.max_busy();
-    out_.dram.busy_cycles += d.busy_cycles;
     return p;
   }
+
+  std::array<double, kUnitKinds> unit_cycles{};
 
  private:
   void close_epoch() {
@@ -410,31 +420,39 @@ class Model {
       b[int(ApproxBound::kScoreboard)] =
           std::max(b[int(ApproxBound::kScoreboard)], double(e.residence) / hw_.ordering.pixels_in_flight);
     }
-    std::vector<uint64_t> ch;
-    dram_.clocks(ch);
-    double dram = 0;
-    for (size_t i = 0; i < ch.size(); ++i) dram = std::max(dram, double(ch[i] - ch_at_epoch_[i]));
-    ch_at_epoch_ = ch;
-    b[int(ApproxBound::kDram)] = dram;
+    // DRAM: each channel's service of the epoch's bursts, behind its backlog.
+    // Only a channel that served a read holds the pipeline (write-backs are
+    // posted): it must have served the epoch's reads, so everything queued
+    // before them, by the epoch's end.
+    std::vector<uint64_t> clock;
+    dram_.clocks(clock);
+    if (backlog_.empty()) {
+      backlog_.assign(clock.size(), 0.0);
+      clock_.assign(clock.size(), 0);
+    }
+    std::vector<double> work(clock.size());
+    for (size_t i = 0; i < clock.size(); ++i) {
+      work[i] = backlog_[i] + double(clock[i] - clock_[i]);
+      if (dram_.take_read(i)) b[int(ApproxBound::kDram)] = std::max(b[int(ApproxBound::kDram)], work[i]);
+    }
+    clock_ = clock;
     int top = 0;
     for (int i = 0; i < kApproxBounds; ++i) {
       out_.bound_cycles[size_t(i)] += b[size_t(i)];
       if (b[size_t(i)] > b[size_t(top)]) top = i;
     }
-    out_.limiting_cycles[size_t(top)] += b[size_t(top)];
-    unit_cycles_[size_t(unit_kind)] += b[int(ApproxBound::kUnit)];
-    cycles_ += uint64_t(b[size_t(top)] + 0.5);
+    const double d = b[size_t(top)];
+    // What a channel could not serve in the epoch's cycles carries over.
+    for (size_t i = 0; i < clock.size(); ++i) backlog_[i] = std::max(0.0, work[i] - d);
+    out_.limiting_cycles[size_t(top)] += d;
+    unit_cycles[size_t(unit_kind)] += b[int(ApproxBound::kUnit)];
+    t_ += d;
     ++epochs_;
     in_epoch_ = 0;
     for (auto& e : rops_) e = RopEpoch{};
   }
 
- public:
-  std::array<double, kUnitKinds> unit_cycles_{};
-
- private:
   const HwConfig& hw_;
-  FunctionalRop& rop_;
   ApproxStats& out_;
   RopOwnership owner_;
   AddressMap amap_;
@@ -442,10 +460,12 @@ class Model {
   std::unique_ptr<SortAlgorithm> sorter_;
   std::vector<std::unique_ptr<CacheTags>> caches_;
   std::vector<RopEpoch> rops_;
-  std::vector<uint64_t> ch_at_epoch_;
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, color_ = true, trans_ = false, accum_ = false;
-  uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, cycles_ = 0, fill_ = 0;
+  uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
+  double t_ = 0;                 // the pipeline's cycles so far (the epochs')
+  std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start
+  std::vector<double> backlog_;  // each channel's work not yet served at the epoch's start
   bool first_ = true;
 };
 
@@ -501,7 +521,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     s.flush_cycles += p.flush;
     s.total_cycles += p.cycles + p.fill + p.flush;
     s.epochs += p.epochs;
-    for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles_[size_t(k)];
+    for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
   }
   s.busiest_unit = kUnitNames[std::max_element(unit_cycles.begin(), unit_cycles.end()) - unit_cycles.begin()];
   s.bottleneck =
@@ -526,6 +546,13 @@ std::string format_approx_bottleneck(const ApproxStats& s) {
       return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
                          100 * s.bound_cycles[int(ApproxBound::kDistributor)] / total);
     case ApproxBound::kUnit:
+      // Pixel ordering issues one fragment per clock, the rate at which the
+      // distributor feeds one ROP: when one ROP's ordering sets the pace, the
+      // cycle model sees the distributor busy every cycle (and each ROP's
+      // ordering busy only when its turn comes), and names the distributor.
+      if (s.busiest_unit == "pixel_ordering")
+        return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
+                           100 * s.limiting_cycles[int(ApproxBound::kUnit)] / total);
       return fmt::format("{}-bound (throughput): busy {:.0f}% of the cycles", s.busiest_unit,
                          100 * s.bound_cycles[int(ApproxBound::kUnit)] / total);
     case ApproxBound::kLatency:
