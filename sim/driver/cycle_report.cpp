@@ -267,7 +267,8 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
         "approximate: the first fragment's trip through the empty pipeline (source, distributor, its units' "
         "latencies), per pass");
   a.put("flush_cycles", s.flush_cycles, "cycles",
-        "approximate: the final cache flush: the dirty lines' bursts served by the busiest channel, per pass");
+        "approximate: the final cache flush: its bursts behind the channels' backlog, beyond the pipeline's drain "
+        "(summed over the passes)");
   Fields bc = a.obj("bound_cycles");
   Fields lc = a.obj("limiting_cycles");
   static const char* kMeaning[kApproxBounds] = {
@@ -280,8 +281,9 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
       "miss, transfer and read latency) summed / depth_test.max_outstanding",
       "the busiest ROP's pixel ordering: each fragment's unloaded trip from issue to retirement summed / "
       "ordering.pixels_in_flight",
-      "the busiest DRAM channel: its bursts served in order, each when the data bus and its bank are free (plus "
-      "row_miss_cycles on a row miss)"};
+      "the busiest DRAM channel that served a read in the epoch: its bursts served in order, each when the data bus "
+      "and its bank are free (plus row_miss_cycles on a row miss), behind the work it carried over from earlier "
+      "epochs"};
   for (int b = 0; b < kApproxBounds; ++b) {
     const std::string name = to_string(ApproxBound(b));
     bc.put(name, s.bound_cycles[size_t(b)], "cycles",
@@ -460,6 +462,9 @@ std::vector<FieldDoc> report_field_docs() {
     const LivePoints lib = record_livepoints(in, ctx.config, sp);
     sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, &sink);
   }
+  // An approximate run's fields (its method's buffers as above).
+  ctx.config = MethodConfig{};
+  approximate_report(ctx, run_approximate(in, ctx.config, HwConfig{}), &sink);
   return sink.docs();
 }
 
