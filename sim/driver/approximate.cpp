@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <future>
 #include <memory>
 
 #include "address_map.h"
@@ -263,6 +264,17 @@ struct PassResult {
   uint64_t cycles = 0, fill = 0, flush = 0, epochs = 0;
 };
 
+/// What the model needs of one fragment, from the functional pass: its
+/// pixel and the work each stage did (design-independent).
+struct FragRec {
+  uint64_t covered = 0, survivors = 0, written = 0;  ///< sample masks: tested, passed the depth test, written
+  uint16_t x = 0, y = 0;
+  uint16_t m = 0;                                  ///< popcount(survivors); 0: killed by the depth test
+  uint16_t hashes = 0, examined = 0, blended = 0;  ///< the reference, writeback and blend stages' counts
+  bool slab_kept = false;                          ///< slab: its layers were rewritten
+  bool killed() const { return m == 0; }
+};
+
 class Model {
  public:
   Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
@@ -295,8 +307,9 @@ class Model {
   }
 
   /// One fragment, after the functional stages ran on w: its costs.
-  void fragment(const FragWork& w, uint32_t hashes, uint32_t examined, uint32_t blended) {
-    const Fragment& f = *w.f;
+  void fragment(const FragRec& w) {
+    const FragRec& f = w;
+    const uint32_t hashes = w.hashes, examined = w.examined, blended = w.blended;
     const uint32_t r = owner_.rop_of(f.x, f.y);
     CacheTags& c = *caches_[r];
     RopEpoch& e = rops_[r];
@@ -359,7 +372,7 @@ class Model {
           amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.written,
                                      [&](uint64_t l) { c.write(l, Buffer::kColor); });
         if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kTracker); });
-        if (slab_ && w.slab.kept) amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kLayers); });
+        if (slab_ && w.slab_kept) amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kLayers); });
       }
     }
     e.residence += res;
@@ -496,25 +509,51 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     Model model(hw, *rop, in_dram, s);
     const MethodTraits& mt = rop->traits();
     const bool blend_pass = is_blend_pass(rop->pass());
+    // The functional pass fills batches of records; the model (the tag-only
+    // caches and DRAM, the epochs) consumes the previous batch on a second
+    // thread meanwhile, in order, so the result does not depend on it.
+    constexpr size_t kBatch = size_t{1} << 15;
+    std::vector<FragRec> batch, spare;
+    batch.reserve(kBatch);
+    spare.reserve(kBatch);
+    std::future<void> job;
+    auto hand_over = [&] {
+      if (job.valid()) job.get();
+      std::swap(batch, spare);
+      batch.clear();
+      job = std::async(std::launch::async, [&model, &spare] {
+        for (const FragRec& r : spare) model.fragment(r);
+      });
+    };
     FragWork w;
     Fragment f;
     while (src->next(f)) {
       w.f = &f;
       rop->fetch(w);
       rop->depth().run(w);
-      uint32_t hashes = 0, examined = 0, blended = 0;
+      FragRec r;
+      r.x = f.x;
+      r.y = f.y;
+      r.covered = w.covered;
+      r.survivors = w.survivors;
+      r.m = uint16_t(w.m);
       if (!w.killed()) {
         if (blend_pass) {
-          blended = rop->blend().run(w);
+          r.blended = uint16_t(rop->blend().run(w));
         } else {
           if (mt.tracker) rop->track().run(w);
           if (mt.sorter) rop->sort().run(w);
-          if (mt.reference) hashes = rop->reference().run(w);
-          examined = rop->write().run(w);
+          if (mt.reference) r.hashes = uint16_t(rop->reference().run(w));
+          r.examined = uint16_t(rop->write().run(w));
+          r.slab_kept = method.method == Method::kSlab && w.slab.kept;
         }
+        r.written = w.written;
       }
-      model.fragment(w, hashes, examined, blended);
+      batch.push_back(r);
+      if (batch.size() == kBatch) hand_over();
     }
+    if (job.valid()) job.get();
+    for (const FragRec& x : batch) model.fragment(x);
     const PassResult p = model.finish();
     s.pipeline_cycles += p.cycles + p.fill;
     s.fill_cycles += p.fill;
