@@ -59,7 +59,6 @@ struct ApproxStats {
   ApproxBound bottleneck = ApproxBound::kUnit;
   CacheStats cache;                            ///< tag-only, summed over the ROPs
   DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM
-  double mean_read_latency = 0;                ///< cycles: unloaded DRAM read latency, averaged over the read bursts
   uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed
   bool lists(int b) const { return (listed >> b) & 1u; }
 };
