@@ -31,6 +31,8 @@ const char* to_string(ApproxBound b) {
       return "scoreboard";
     case ApproxBound::kDram:
       return "dram";
+    case ApproxBound::kHazard:
+      return "hazard";
   }
   return "?";
 }
@@ -147,8 +149,10 @@ class DramTags {
 class CacheTags {
  public:
   enum class Read { kHit, kClearFill, kMiss };
-  CacheTags(const HwConfig::Cache& cfg, DramTags& dram, LineSet& in_dram)
-      : cfg_(cfg),
+  /// window: the depth test's outstanding fragments (depth_test.max_outstanding).
+  CacheTags(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram)
+      : window_(window),
+        cfg_(cfg),
         dram_(dram),
         in_dram_(in_dram),
         sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
@@ -164,17 +168,33 @@ class CacheTags {
     if (hit) {
       ++s_.read_hits[size_t(b)];
       latency = cfg_.hit_latency_cycles;
+      // A hit on a line whose fill is still in flight waits for it (the
+      // cache's MSHR merge). The fill is in flight while its fragment waits
+      // in the depth test: for the next `window` fragments of this ROP, the
+      // k-th of which (entering k / window of a fill's latency later, when
+      // the depth test's slots turn over once per fill) waits the rest. Not a
+      // fragment of the same pixel: pixel ordering issued it only after the
+      // filling fragment retired, its data there.
+      const uint64_t k = seq_ - w.fill_seq;
+      if (w.fill_seq != kNoFill && k > 0 && k < window_ && w.fill_pixel != pixel_) {
+        ++s_.merged;
+        latency = std::max<uint64_t>(latency, w.fill_latency * (window_ - k) / window_);
+      }
       return Read::kHit;
     }
     ++s_.read_misses[size_t(b)];
     w.buf = b;
     w.dirty = false;
+    w.fill_seq = kNoFill;
     if (cfg_.fast_clear && !in_dram_.contains(line)) {
       ++s_.clear_fills;
       latency = cfg_.hit_latency_cycles;
       return Read::kClearFill;
     }
     latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
+    w.fill_seq = seq_;
+    w.fill_latency = uint32_t(latency);
+    w.fill_pixel = pixel_;
     return Read::kMiss;
   }
   void write(uint64_t line, Buffer b) {
@@ -185,6 +205,7 @@ class CacheTags {
     } else {
       ++s_.write_misses[size_t(b)];
       w.buf = b;
+      w.fill_seq = kNoFill;
     }
     if (!w.dirty) ++s_.dirtied;
     w.dirty = true;
@@ -197,11 +218,20 @@ class CacheTags {
         w.dirty = false;
       }
   }
+  /// The next fragment of this ROP, at pixel key `pixel` (its reads follow).
+  void next_fragment(uint32_t pixel) {
+    ++seq_;
+    pixel_ = pixel;
+  }
   const CacheStats& stats() const { return s_; }
 
  private:
   static constexpr uint64_t kInvalid = ~uint64_t{0};
+  static constexpr uint64_t kNoFill = ~uint64_t{0};
   struct Way {
+    uint64_t fill_seq = kNoFill;  // the fragment whose read filled it from DRAM
+    uint32_t fill_latency = 0;    // that fill's latency
+    uint32_t fill_pixel = 0;      // that fragment's pixel
     Buffer buf = Buffer::kDepth;
     bool dirty = false;
   };
@@ -237,6 +267,8 @@ class CacheTags {
     lru_[victim] = ++tick_;
     return victim;
   }
+  uint64_t window_, seq_ = 0;
+  uint32_t pixel_ = 0;
   HwConfig::Cache cfg_;
   DramTags& dram_;
   LineSet& in_dram_;
@@ -258,6 +290,7 @@ struct RopEpoch {
   std::array<uint64_t, kUnitKinds> demand{};  ///< initiation intervals summed, per unit kind
   uint64_t hold = 0;                          ///< depth test: cycles each fragment waited for its data, summed
   uint64_t residence = 0;                     ///< cycles each fragment was in flight (issue to retire), summed
+  double issued_by = 0;                       ///< pixel ordering: the cycle after its last issue (hazard chain)
 };
 
 struct PassResult {
@@ -285,9 +318,13 @@ class Model {
               rop.setup().cfg.formats, rop.setup().slab_bytes),
         dram_(hw.dram),
         sorter_(make_sorter(hw.sorter.kind, rop.header().spp)),
-        rops_(hw.distributor.rop_units) {
+        rops_(hw.distributor.rop_units),
+        width_(rop.header().width),
+        retire_(size_t(rop.header().width) * rop.header().height, -1e300),
+        window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
+        window_at_(hw.distributor.rop_units, 0) {
     for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
-      caches_.push_back(std::make_unique<CacheTags>(hw.cache, dram_, in_dram));
+      caches_.push_back(std::make_unique<CacheTags>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram));
     const MethodTraits& mt = rop.traits();
     blend_pass_ = is_blend_pass(rop.pass());
     tracker_ = rop.pass_uses_tracker();
@@ -312,6 +349,7 @@ class Model {
     const uint32_t hashes = w.hashes, examined = w.examined, blended = w.blended;
     const uint32_t r = owner_.rop_of(f.x, f.y);
     CacheTags& c = *caches_[r];
+    c.next_fragment(uint32_t(f.y) * uint32_t(width_) + f.x);
     RopEpoch& e = rops_[r];
     const HwConfig& hw = hw_;
     // Depth test: the pixel's state, read through the cache; the fragment
@@ -376,6 +414,19 @@ class Model {
       }
     }
     e.residence += res;
+    // Pixel ordering's chain: the fragment issues once its pixel's previous
+    // fragment has retired and once the fragment `window` before it in this
+    // ROP has left the window, and not before the epoch starts.
+    {
+      std::vector<double>& ring = window_issue_[r];
+      size_t& at = window_at_[r];
+      double& ret = retire_[size_t(f.y) * width_ + f.x];
+      const double issue = std::max({t_, ring[at] + 1, ret + 1});
+      ring[at] = issue;
+      at = at + 1 == ring.size() ? 0 : at + 1;
+      ret = issue + double(res);
+      e.issued_by = std::max(e.issued_by, issue + 1);
+    }
     if (first_) {
       first_ = false;
       // Source (visible the clock after), distributor, then the fragment's own trip.
@@ -432,6 +483,7 @@ class Model {
           std::max(b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding);
       b[int(ApproxBound::kScoreboard)] =
           std::max(b[int(ApproxBound::kScoreboard)], double(e.residence) / hw_.ordering.pixels_in_flight);
+      b[int(ApproxBound::kHazard)] = std::max(b[int(ApproxBound::kHazard)], e.issued_by - t_);
     }
     // DRAM: each channel's service of the epoch's bursts, behind its backlog.
     // Only a channel that served a read holds the pipeline (write-backs are
@@ -473,6 +525,10 @@ class Model {
   std::unique_ptr<SortAlgorithm> sorter_;
   std::vector<std::unique_ptr<CacheTags>> caches_;
   std::vector<RopEpoch> rops_;
+  size_t width_;
+  std::vector<double> retire_;                     // per pixel: its last fragment's estimated retirement
+  std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
+  std::vector<size_t> window_at_;
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, color_ = true, trans_ = false, accum_ = false;
   uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
@@ -599,9 +655,20 @@ std::string format_approx_bottleneck(const ApproxStats& s) {
       return fmt::format(
           "depth_test-bound (memory latency): waiting for memory {:.0f}% of the cycles",
           100 * (s.limiting_cycles[int(ApproxBound::kLatency)] + s.limiting_cycles[int(ApproxBound::kDram)]) / total);
+    case ApproxBound::kHazard:
+      // Likewise a hazard stalls the ordering of the ROP whose pixels are in
+      // flight: with several ROPs the cycle model's average over the
+      // instances is small and the distributor, waiting on that ROP, is named.
+      if (s.hw.distributor.rop_units > 1)
+        return fmt::format("distributor-bound (throughput): pixel hazards in one ROP {:.0f}% of the cycles",
+                           100 * s.limiting_cycles[int(ApproxBound::kHazard)] / total);
+      [[fallthrough]];
     case ApproxBound::kScoreboard:
       return fmt::format("pixel_ordering-bound (pixel hazards): {:.0f}% of the cycles",
-                         100 * s.limiting_cycles[int(ApproxBound::kScoreboard)] / total);
+                         100 *
+                             (s.limiting_cycles[int(ApproxBound::kScoreboard)] +
+                              s.limiting_cycles[int(ApproxBound::kHazard)]) /
+                             total);
   }
   return "?";
 }

@@ -39,8 +39,9 @@ enum class ApproxBound : int {
   kLatency,      ///< the depth test: each fragment's wait for its pixel's data / max_outstanding
   kScoreboard,   ///< pixel ordering: each fragment's time in flight / pixels_in_flight
   kDram,         ///< the busiest DRAM channel: its bursts served in order (bus, banks, row misses)
+  kHazard,       ///< pixel ordering: chains of fragments of one pixel, each issued after the previous retired
 };
-constexpr int kApproxBounds = 6;
+constexpr int kApproxBounds = 7;
 const char* to_string(ApproxBound b);
 
 struct ApproxStats {

@@ -283,7 +283,9 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
       "ordering.pixels_in_flight",
       "the busiest DRAM channel that served a read in the epoch: its bursts served in order, each when the data bus "
       "and its bank are free (plus row_miss_cycles on a row miss), behind the work it carried over from earlier "
-      "epochs"};
+      "epochs",
+      "the busiest ROP's pixel ordering: the cycle after its last issue, each fragment issued once its pixel's "
+      "previous fragment retired (its unloaded trip) and the fragment ordering.window before it left the window"};
   for (int b = 0; b < kApproxBounds; ++b) {
     const std::string name = to_string(ApproxBound(b));
     bc.put(name, s.bound_cycles[size_t(b)], "cycles",
@@ -293,7 +295,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
   }
   a.put("limiting_bound", to_string(s.bottleneck), "-",
         "approximate: the bound that was the largest over the most cycles (source, distributor, unit, latency, "
-        "scoreboard, dram)");
+        "scoreboard, dram, hazard)");
   a.put("busiest_unit", s.busiest_unit, "-", "approximate: the unit kind whose demand made most of the unit bound");
 }
 }  // namespace
