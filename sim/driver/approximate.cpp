@@ -664,11 +664,10 @@ std::string format_approx_bottleneck(const ApproxStats& s) {
                            100 * s.limiting_cycles[int(ApproxBound::kHazard)] / total);
       [[fallthrough]];
     case ApproxBound::kScoreboard:
-      return fmt::format("pixel_ordering-bound (pixel hazards): {:.0f}% of the cycles",
-                         100 *
-                             (s.limiting_cycles[int(ApproxBound::kScoreboard)] +
-                              s.limiting_cycles[int(ApproxBound::kHazard)]) /
-                             total);
+      return fmt::format(
+          "pixel_ordering-bound (pixel hazards): {:.0f}% of the cycles",
+          100 * (s.limiting_cycles[int(ApproxBound::kScoreboard)] + s.limiting_cycles[int(ApproxBound::kHazard)]) /
+              total);
   }
   return "?";
 }

@@ -237,6 +237,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
   cache.put("hits", s.cache.hits(), "accesses", "read and write hits over every buffer");
   cache.put("misses", s.cache.misses(), "accesses", "read and write misses over every buffer");
   cache.put("hit_rate", s.cache.hit_rate(), "fraction", "hits / (hits + misses)");
+  cache.put("merged_reads", s.cache.merged, "accesses", "reads of a line whose fill was in flight");
   cache.put("evictions", s.cache.evictions, "lines", "lines evicted");
   cache.put("dirty_evictions", s.cache.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
   cache.put("fast_clear_fills", s.cache.clear_fills, "accesses", "misses served as the clear value, without DRAM");
