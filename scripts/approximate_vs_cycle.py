@@ -8,6 +8,7 @@ both, the wall time of the functional, approximate and cycle runs -- and the
 mean absolute error in total cycles.
 
     scripts/approximate_vs_cycle.py [--build build] [--trace motor.rtr] [--scenes cloth,smoke,testcard]
+        [--designs default,narrow,wide] [--spp 16] [--method lk] [--no-header]
 """
 import argparse
 import atexit
@@ -24,6 +25,9 @@ ap.add_argument("--build", default=os.path.join(root, "build"))
 ap.add_argument("--trace", action="append", default=[], help="a trace file (repeatable)")
 ap.add_argument("--scenes", default="cloth,smoke,testcard")
 ap.add_argument("--designs", default="default,narrow,wide")
+ap.add_argument("--spp", default="16", help="samples per pixel of the scenes")
+ap.add_argument("--method", default="lk")
+ap.add_argument("--no-header", action="store_true")
 a = ap.parse_args()
 ropsim = os.path.join(a.build, "ropsim")
 work = tempfile.mkdtemp(prefix="ropsim-approx-")
@@ -45,13 +49,17 @@ def kind(b):  # "depth_test-bound (memory latency): ..." -> "depth_test-bound (m
     return b.split(":")[0]
 
 
-inputs = [(s + " 16 spp", ["--scene", s, "--spp", "16"]) for s in a.scenes.split(",") if s]
+inputs = [(f"{s} {a.spp} spp", ["--scene", s, "--spp", a.spp]) for s in a.scenes.split(",") if s]
 inputs += [(os.path.basename(t), ["--trace", t]) for t in a.trace]
-print("| input | design | cycle total | approximate | error | DRAM read | DRAM written | bottleneck (cycle; same?) "
-      "| host s: functional / approximate / cycle |")
-print("|---|---|---:|---:|---:|---:|---:|---|---|")
+if not a.no_header:
+    print("| input | design | cycle total | approximate | error | DRAM read | DRAM written | bottleneck (cycle; same?) "
+          "| host s: functional / approximate / cycle |")
+    print("|---|---|---:|---:|---:|---:|---:|---|---|")
 errs = []
 for label, inp in inputs:
+    inp = [*inp, "--method", a.method]
+    if a.method != "lk":
+        label += " " + a.method
     tf, _ = run([*inp, "--fidelity", "functional"], "f")
     golden = open(f"{work}/f.png", "rb").read()
     for d in a.designs.split(","):

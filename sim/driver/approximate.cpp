@@ -320,7 +320,7 @@ class Model {
         sorter_(make_sorter(hw.sorter.kind, rop.header().spp)),
         rops_(hw.distributor.rop_units),
         width_(rop.header().width),
-        retire_(size_t(rop.header().width) * rop.header().height, -1e300),
+        retire_(size_t(ceil_div(rop.header().width, 8u)) * ceil_div(rop.header().height, 8u) * 64, -1e300),
         window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
         window_at_(hw.distributor.rop_units, 0) {
     for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
@@ -420,7 +420,7 @@ class Model {
     {
       std::vector<double>& ring = window_issue_[r];
       size_t& at = window_at_[r];
-      double& ret = retire_[size_t(f.y) * width_ + f.x];
+      double& ret = retire_[amap_.pixel_index(f.x, f.y)];  // tile-major: neighbours share host lines
       const double issue = std::max({t_, ring[at] + 1, ret + 1});
       ring[at] = issue;
       at = at + 1 == ring.size() ? 0 : at + 1;
