@@ -302,7 +302,7 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
   run->add_option(
          "--fidelity", ro->fidelity,
-         "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline) or sampled "
+         "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline), sampled "
          "(the pipeline on sampling units of the input, with 95 % intervals) or approximate (the analytical timing "
          "model: bounds from a tag-only cache and DRAM simulation)")
       ->check(CLI::IsMember({"functional", "cycle", "sampled", "approximate"}));

@@ -404,7 +404,7 @@ std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run) 
   f.state_bytes = run.state_bytes;
   f.wall_seconds = run.wall_seconds;
   std::string out = functional_summary(ctx, f);
-  out += fmt::format("  approximate model ({}): {} cycles = {:.2f} us at {} GHz (epochs {}, fill {}, flush {})\n",
+  out += fmt::format("  approximate model ({}): {} cycles = {:.2f} us at {} GHz ({} in epochs, fill {}, flush {})\n",
                      s.hw.name, s.total_cycles, double(s.total_cycles) / (s.hw.clock.frequency_ghz * 1e3),
                      s.hw.clock.frequency_ghz, s.total_cycles - s.fill_cycles - s.flush_cycles, s.fill_cycles,
                      s.flush_cycles);
