@@ -97,7 +97,7 @@ TEST(Approximate, DramBytesAreTheCycleModelsWhereTheTagsMustAgree) {
 
 // Total cycles against the cycle model on the built-in scenes at 16 spp and
 // the three designs: each within 15 % (the target for the mean), the
-// mean within 6 % (measured 3.4 % over these 9, the largest 9.1 %: docs/results.md).
+// mean within 6 % (measured 3.3 % over these 9, the largest 9.1 %: docs/results.md).
 TEST(Approximate, TotalCyclesAreNearTheCycleModels) {
   double sum = 0;
   int n = 0;
