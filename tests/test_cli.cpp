@@ -797,3 +797,36 @@ TEST(CliBlend, MethodsParseAndReportTheirPassesFormatsAndSelection) {
                    {"--enderton-selection"});
   expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --method lk+depth --vcd w.vcd", {"--vcd"});
 }
+
+// --fidelity approximate writes the golden image bit for bit and the cycle
+// report's timing keys with the bounds it computed; flags that do not apply
+// to it, and the reference method, are refused in one line.
+TEST(CliApproximate, WritesTheGoldenImageAndTheCycleReportsKeys) {
+  CliSandbox box;
+  expect_ok(box.run("run --scene cloth --spp 16 --quiet --out f.exr --out f.png --report f.json"), "functional");
+  const CliResult r = box.run("run --fidelity approximate --hw '" ROPSIM_SOURCE_DIR
+                              "/configs/narrow.toml' --scene cloth --spp 16 --out a.exr --out a.png --report a.json");
+  expect_ok(r, "approximate");
+  EXPECT_NE(r.out.find("approximate model"), std::string::npos) << "the summary line\n" << r.describe();
+  EXPECT_EQ(slurp(box.work() / "f.exr"), slurp(box.work() / "a.exr")) << "the approximate run writes the golden image";
+  EXPECT_EQ(slurp(box.work() / "f.png"), slurp(box.work() / "a.png"));
+  const auto f = nlohmann::json::parse(slurp(box.work() / "f.json"));
+  const auto a = nlohmann::json::parse(slurp(box.work() / "a.json"));
+  EXPECT_EQ(a["fidelity"], "approximate");
+  EXPECT_EQ(a["counters"], f["counters"]) << "the golden model's counters, exactly";
+  const auto& t = a["timing"];
+  EXPECT_GT(t["total_cycles"].get<uint64_t>(), 0u);
+  EXPECT_GT(t["dram"]["bytes_read"].get<uint64_t>(), 0u);
+  EXPECT_GT(t["dram"]["bytes_written"].get<uint64_t>(), 0u);
+  EXPECT_TRUE(t["bottleneck"].is_string());
+  for (const char* b : {"source", "distributor", "unit", "latency", "scoreboard", "dram"})
+    EXPECT_TRUE(t["approximate"]["bound_cycles"].contains(b)) << b;
+  EXPECT_EQ(a["hardware"]["resolved"]["distributor"]["rop_units"], 1) << "the design given";
+  expect_cli_error(box, "run --fidelity approximate --scene testcard --spp 1 --vcd w.vcd", {"--vcd", "approximate"});
+  expect_cli_error(box, "run --fidelity approximate --scene testcard --spp 1 --stats-interval 10 --stats-csv s.csv",
+                   {"--stats-interval", "approximate"});
+  expect_cli_error(box, "run --fidelity approximate --scene testcard --spp 1 --sample-units 3",
+                   {"--sample-units", "sampled"});
+  expect_cli_error(box, "run --fidelity approximate --scene testcard --spp 1 --method reference", {"reference"});
+  expect_cli_error(box, "run --fidelity approximate --scene testcard --spp 1 --hw-set cache.ways=3", {"cache.ways"});
+}

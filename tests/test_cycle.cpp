@@ -1459,7 +1459,9 @@ TEST(LivePointLibrary, RoundTripIsExactAndDeterministic) {
   p.warmup_fragments = 2000;
   p.warming_fragments = 6000;
   for (Method m : {Method::kLk, Method::kSlab, Method::kOpaque}) {
-    const LivePoints lib = record_livepoints(in, method_config(m), p);
+    const LivePoints lib = record_livepoints(in, method_config(m), p, 1);
+    EXPECT_EQ(libraries_differ(lib, record_livepoints(in, method_config(m), p, 3)), "")
+        << to_string(m) << ": the library recorded on 3 threads differs from 1 thread's";
     const std::string a = temp_path("a.rlp"), b = temp_path("b.rlp");
     write_livepoints(a, lib);
     const LivePoints back = read_livepoints(a);

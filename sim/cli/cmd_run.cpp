@@ -221,20 +221,33 @@ int cmd_run_sampled(const RunOpts& o, CLI::App& sub, const InputSpec& in, const 
   return 0;
 }
 
+int cmd_run_approximate(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, const RunOpts& o,
+                        const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
+  const ApproxRun run = run_approximate(in, cfg, hw);
+  ReportContext ctx{cmdline, in, cfg, {}};
+  write_outputs(ctx, run.image, outs, report, [&] { return approximate_report(ctx, run).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(approximate_summary(ctx, run).c_str(), stdout);
+  return 0;
+}
+
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
+  const bool approximate = o.fidelity == "approximate";
   if (!sampled) {
     for (const char* f : kSamplingFlags)
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
     for (const char* f : {"--livepoints", "--jobs"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
   }
+  if (approximate)
+    for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference"})
+      if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity approximate");
   if (sampled) {
     for (const char* f :
          {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference", "--repeat"})
       if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity sampled");
   }
-  if (!cycle && !sampled) {
+  if (!cycle && !sampled && !approximate) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
     // A functional run takes only the design's numerics and blend-target
@@ -285,8 +298,8 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     // when they are not the defaults.
     const Numerics& n = cfg.numerics;
     if (cfg.method == Method::kSlab) base += fmt::format("-k{}b{}", cfg.slab_layers, cfg.slab_bits);
-    if (cycle || sampled)
-      base += std::string(cycle ? "-cycle" : "-sampled") + "-hw" + hw_digest_hex(hw);
+    if (cycle || sampled || approximate)
+      base += "-" + o.fidelity + "-hw" + hw_digest_hex(hw);
     else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
              n.surface_id_bits != Numerics{}.surface_id_bits)
       base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
@@ -303,6 +316,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
     return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
   }
   if (sampled) return cmd_run_sampled(o, sub, in, cfg, hw, outs, report, cmdline);
+  if (approximate) return cmd_run_approximate(in, cfg, hw, o, outs, report, cmdline);
   FunctionalRun run = run_functional(in, cfg, o.vs_reference);
   ReportContext ctx{cmdline, in, cfg, {}};
   write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
@@ -431,10 +445,12 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   add_input_and_method_options(run, ro.get(), opt_trace);
   run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
-  run->add_option("--fidelity", ro->fidelity,
-                  "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline) or sampled "
-                  "(the pipeline on sampling units of the input, with 95 % intervals)")
-      ->check(CLI::IsMember({"functional", "cycle", "sampled"}));
+  run->add_option(
+         "--fidelity", ro->fidelity,
+         "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline), sampled "
+         "(the pipeline on sampling units of the input, with 95 % intervals) or approximate (the analytical timing "
+         "model: bounds from a tag-only cache and DRAM simulation)")
+      ->check(CLI::IsMember({"functional", "cycle", "sampled", "approximate"}));
   add_sampling_options(run, ro.get());
   run->add_option("--livepoints", ro->livepoints,
                   "sampled: read the live-points from this library (ropsim livepoints) instead of recording them: no "

@@ -210,6 +210,97 @@ void put_hardware(Fields hw, const HwConfig& c) {
 }
 }  // namespace
 
+namespace {
+void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
+  const double total = double(std::max<uint64_t>(1, s.total_cycles));
+  t.put("clock_ghz", s.hw.clock.frequency_ghz, "GHz", "the ROP clock");
+  t.put("total_cycles", s.total_cycles, "cycles", "to the end of the final cache flush");
+  t.put("pipeline_cycles", s.pipeline_cycles, "cycles", "to the retirement of the last fragment");
+  t.put("frame_time_us", double(s.total_cycles) / (s.hw.clock.frequency_ghz * 1e3), "µs", "total_cycles at the clock");
+  t.put("fragments_per_clock", double(c.fragments) / total, "1/clock", "fragments over total_cycles");
+  t.put("samples_per_clock", double(c.samples_tested) / total, "1/clock", "covered samples over total_cycles");
+  t.put("bottleneck", format_approx_bottleneck(s), "-",
+        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
+        "waits on its own resources most, and why");
+  Fields cache = t.obj("cache");
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!s.lists(b)) continue;
+    const size_t i = size_t(b);
+    const std::string buf = to_string(Buffer(b));
+    Fields x = cache.obj(buf);
+    x.put("read_hits", s.cache.read_hits[i], "accesses", buf + " line reads that hit, over the ROP caches");
+    x.put("read_misses", s.cache.read_misses[i], "accesses", buf + " line reads that missed");
+    x.put("write_hits", s.cache.write_hits[i], "accesses", buf + " line writes that hit");
+    x.put("write_misses", s.cache.write_misses[i], "accesses",
+          buf + " line writes that missed (allocated without a fill)");
+  }
+  cache.put("hits", s.cache.hits(), "accesses", "read and write hits over every buffer");
+  cache.put("misses", s.cache.misses(), "accesses", "read and write misses over every buffer");
+  cache.put("hit_rate", s.cache.hit_rate(), "fraction", "hits / (hits + misses)");
+  cache.put("merged_reads", s.cache.merged, "accesses", "reads of a line whose fill was in flight");
+  cache.put("evictions", s.cache.evictions, "lines", "lines evicted");
+  cache.put("dirty_evictions", s.cache.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
+  cache.put("fast_clear_fills", s.cache.clear_fills, "accesses", "misses served as the clear value, without DRAM");
+  Fields dram = t.obj("dram");
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!s.lists(b)) continue;
+    const std::string buf = to_string(Buffer(b));
+    Fields x = dram.obj(buf);
+    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes",
+          "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
+    x.put("bytes_written", s.dram.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
+  }
+  dram.put("bytes_read", s.dram.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
+  dram.put("bytes_written", s.dram.total_bytes_written(), "bytes", "DRAM bytes written, every buffer");
+  dram.put("reads", s.dram.reads, "bursts", "read bursts");
+  dram.put("writes", s.dram.writes, "bursts", "write bursts");
+  dram.put("row_hits", s.dram.row_hits, "bursts", "bursts to the open row");
+  dram.put("row_misses", s.dram.row_misses, "bursts", "bursts that opened a row");
+  dram.put("busiest_channel_utilization", double(s.dram.max_channel_busy) / total, "fraction",
+           "data-bus busy cycles of the busiest channel / total_cycles");
+  Fields a = t.obj("approximate");
+  a.put("epochs", s.epochs, "epochs",
+        "approximate: spans of the input whose bounds are taken together (summed over the passes)");
+  a.put("epoch_fragments", s.epoch_fragments, "fragments",
+        "approximate: fragments per epoch: the ROP units x the fragments queued in one ROP ahead of its depth test's "
+        "data (distributor FIFO and latency, ordering window, FIFO and latency, depth-test outstanding)");
+  a.put("fill_cycles", s.fill_cycles, "cycles",
+        "approximate: the first fragment's trip through the empty pipeline (source, distributor, its units' "
+        "latencies), per pass");
+  a.put("flush_cycles", s.flush_cycles, "cycles",
+        "approximate: the final cache flush: its bursts behind the channels' backlog, beyond the pipeline's drain "
+        "(summed over the passes)");
+  Fields bc = a.obj("bound_cycles");
+  Fields lc = a.obj("limiting_cycles");
+  static const char* kMeaning[kApproxBounds] = {
+      "fragments / source.fragments_per_clock",
+      "fragments / distributor.fragments_per_clock",
+      "the busiest unit of the busiest ROP: its initiation intervals summed (pixel ordering 1, depth test "
+      "ceil(covered / samples_per_clock), tracker 1, sorter its interval, alpha-ref ceil(hashes / lanes), writeback "
+      "ceil(examined / samples_per_clock), blend ceil(blended / samples_per_clock))",
+      "the busiest ROP's depth test: each fragment's wait for its pixel's data (hit latency; or the DRAM's row "
+      "miss, transfer and read latency) summed / depth_test.max_outstanding",
+      "the busiest ROP's pixel ordering: each fragment's unloaded trip from issue to retirement summed / "
+      "ordering.pixels_in_flight",
+      "the busiest DRAM channel that served a read in the epoch: its bursts served in order, each when the data bus "
+      "and its bank are free (plus row_miss_cycles on a row miss), behind the work it carried over from earlier "
+      "epochs",
+      "the busiest ROP's pixel ordering: the cycle after its last issue, each fragment issued once its pixel's "
+      "previous fragment retired (its unloaded trip) and the fragment ordering.window before it left the window"};
+  for (int b = 0; b < kApproxBounds; ++b) {
+    const std::string name = to_string(ApproxBound(b));
+    bc.put(name, s.bound_cycles[size_t(b)], "cycles",
+           std::string("approximate: summed over the epochs: ") + kMeaning[b]);
+    lc.put(name, s.limiting_cycles[size_t(b)], "cycles",
+           "approximate: the cycles of the epochs in which the " + name + " bound was the largest");
+  }
+  a.put("limiting_bound", to_string(s.bottleneck), "-",
+        "approximate: the bound that was the largest over the most cycles (source, distributor, unit, latency, "
+        "scoreboard, dram, hazard)");
+  a.put("busiest_unit", s.busiest_unit, "-", "approximate: the unit kind whose demand made most of the unit bound");
+}
+}  // namespace
+
 nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run,
                                     const std::optional<Image>& reference, FieldSink* sink) {
   nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
@@ -339,6 +430,48 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
   return out;
 }
 
+nlohmann::ordered_json approximate_report(const ReportContext& ctx, const ApproxRun& run,
+                                          const std::optional<Image>& reference, FieldSink* sink) {
+  FunctionalRun f;
+  f.header = run.header;
+  f.counters = run.counters;
+  f.image = run.image;
+  f.reference = reference;
+  f.state_bytes = run.state_bytes;
+  f.wall_seconds = run.wall_seconds;
+  nlohmann::ordered_json j = functional_report(ctx, f, sink);
+  Fields r(j, sink);
+  r.put("fidelity", "approximate", "-", kFidelityMeaning);
+  const ApproxStats& s = run.stats;
+  put_hardware(r.obj("hardware"), s.hw);
+  put_approx_stats(r.obj("timing"), s, run.counters);
+  return j;
+}
+
+std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run, const std::optional<Image>& reference) {
+  const ApproxStats& s = run.stats;
+  FunctionalRun f;
+  f.header = run.header;
+  f.counters = run.counters;
+  f.image = run.image;
+  f.reference = reference;
+  f.state_bytes = run.state_bytes;
+  f.wall_seconds = run.wall_seconds;
+  std::string out = functional_summary(ctx, f);
+  out += fmt::format("  approximate model ({}): {} cycles = {:.2f} us at {} GHz ({} in epochs, fill {}, flush {})\n",
+                     s.hw.name, s.total_cycles, double(s.total_cycles) / (s.hw.clock.frequency_ghz * 1e3),
+                     s.hw.clock.frequency_ghz, s.total_cycles - s.fill_cycles - s.flush_cycles, s.fill_cycles,
+                     s.flush_cycles);
+  out += fmt::format("  DRAM: {} B read, {} B written (tag-only)\n", s.dram.total_bytes_read(),
+                     s.dram.total_bytes_written());
+  std::string bounds;
+  for (int b = 0; b < kApproxBounds; ++b)
+    bounds += fmt::format("{}{} {:.0f}", b ? ", " : "", to_string(ApproxBound(b)), s.bound_cycles[size_t(b)]);
+  out += "  bounds (cycles): " + bounds + "\n";
+  out += "  " + format_approx_bottleneck(s) + "\n";
+  return out;
+}
+
 std::vector<FieldDoc> report_field_docs() {
   // The fields are described where they are written, so list them by writing
   // the reports of small runs that emit every field: lk (every unit) on a
@@ -387,6 +520,9 @@ std::vector<FieldDoc> report_field_docs() {
     sampled_report(ctx, lib, run_sampled(lib, HwConfig{}), HwConfig{}, 0.0, LibrarySource{"lib.rlp", 0.0}, std::nullopt,
                    &sink);
   }
+  // An approximate run's fields (its method's buffers as above).
+  ctx.config = MethodConfig{};
+  approximate_report(ctx, run_approximate(in, ctx.config, HwConfig{}), std::nullopt, &sink);
   return sink.docs();
 }
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "approximate.h"
 #include "cycle_run.h"
 #include "livepoints.h"
 #include "report.h"
@@ -44,6 +45,16 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
 std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s, const HwConfig& hw,
                             double wall_seconds, const LibrarySource& from,
                             const std::optional<Image>& reference = std::nullopt);
+
+/// The report of an approximate run (--fidelity approximate): the golden
+/// model's counters and image, the design, and the analytical model's
+/// estimates under the cycle report's keys, with the bounds it computed
+/// (timing.approximate.*).
+nlohmann::ordered_json approximate_report(const ReportContext& ctx, const ApproxRun& run,
+                                          const std::optional<Image>& reference = std::nullopt,
+                                          FieldSink* sink = nullptr);
+std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run,
+                                const std::optional<Image>& reference = std::nullopt);
 
 /// One column of the --stats-interval CSV: its name, unit and meaning.
 struct IntervalColumn {

@@ -18,6 +18,8 @@
 #include "distributor.h"
 #include "errors.h"
 #include "functional_rop.h"
+#include "golden_model.h"
+#include "host_threads.h"
 #include "line_set.h"
 #include "livepoint_file.h"
 #include "rop_pipeline.h"
@@ -132,7 +134,7 @@ void LivePoints::charge(const LivePoint& p) {
           "the live-points' fragments, pre-states and touches");
 }
 
-LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p) {
+LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p, int threads) {
   if (method.method == Method::kReference) throw UserError("sampled: the reference method has no ROP pipeline");
   if (passes_of(method.method).count != 1 || has_blend_pass(method.method))
     throw UserError(std::string("sampled simulation runs single-pass methods without blend targets; ") +
@@ -178,31 +180,44 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.params.cooldown_fragments = cool;
   if (lib.whole) lib.params.warmup_fragments = 0;
 
-  FunctionalRop rop(lib.header, method);
+  // The golden model on `threads` threads (golden_model.h: the same state
+  // for every thread count), drawn in batches that end where a live-point
+  // begins, so its pre-state is read between batches, from the lanes.
+  StochasticModel model(lib.header, method, threads > 0 ? threads : host_threads());
+  const SampleStore& st0 = model.store_of(0, 0);
   // The clear values, from a tile allocated cleared.
-  SampleStore cleared(lib.header, rop.store().has_tracker(), rop.store().targets());
+  SampleStore cleared(lib.header, st0.has_tracker(), st0.targets());
   const PixelRef clear = cleared.pixel(0, 0);
   const PixelView clear_view = cleared.view(0, 0);
-  FragWork w;
-  uint64_t i = 0;
-  size_t k = 0;
-  Fragment f;
-  // The last T fragments' touches, a ring.
+  // The last T fragments' touches, a ring; the batch's, by index.
   const size_t ring_size = size_t(std::min<uint64_t>(p.warming_fragments, n));
-  std::vector<Touch> ring(ring_size);
+  std::vector<Touch> ring(ring_size), seen;
   size_t ring_at = 0, ring_fill = 0;
-  auto touched = [&](const Fragment& x) {
-    if (ring_size == 0) return;
-    Touch& t = ring[ring_at];
-    t.x = x.x;
-    t.y = x.y;
+  const bool slab = method.method == Method::kSlab;
+  model.set_observer([&seen, slab](size_t i, const FragWork& w) {
+    Touch& t = seen[i];
+    t.x = w.f->x;
+    t.y = w.f->y;
     t.covered = w.covered;
     t.reached_write = !w.killed();
     t.written = t.reached_write ? w.written : 0;
-    t.slab_kept = t.reached_write && method.method == Method::kSlab && w.slab.kept;
-    ring_at = (ring_at + 1) % ring_size;
-    ring_fill = std::min(ring_fill + 1, ring_size);
+    t.slab_kept = t.reached_write && slab && w.slab.kept;
+  });
+  auto draw = [&](const Fragment* f, size_t m) {
+    seen.assign(m, Touch{});
+    model.draw_batch(f, m);
+    for (size_t j = 0; j < m && ring_size > 0; ++j) {
+      ring[ring_at] = seen[j];
+      ring_at = (ring_at + 1) % ring_size;
+      ring_fill = std::min(ring_fill + 1, ring_size);
+    }
   };
+  constexpr size_t kBatch = 4096;
+  std::vector<Fragment> batch;
+  batch.reserve(kBatch);
+  uint64_t i = 0;
+  size_t k = 0;
+  Fragment f;
   for (;;) {
     if (k < k_units && i == firsts[k]) {
       LivePoint lp;
@@ -213,9 +228,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       lp.fragments.reserve(count);
       while (lp.fragments.size() < count && src->next(f)) lp.fragments.push_back(f);
       invariant(lp.fragments.size() == count, "the input delivers the fragments it was counted with");
-      const SampleStore& st = rop.store();
-      lp.pre.tracker = st.has_tracker();
-      lp.pre.slab_bits = st.targets().slab_bits;
+      lp.pre.tracker = st0.has_tracker();
+      lp.pre.slab_bits = st0.targets().slab_bits;
       std::vector<uint64_t> pixels;
       std::set<std::pair<uint32_t, uint32_t>> tiles;
       for (Fragment& x : lp.fragments) {
@@ -225,31 +239,38 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       }
       std::sort(pixels.begin(), pixels.end());
       pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
-      for (uint64_t xy : pixels) lp.pre.add(st, clear_view, uint32_t(xy & 0xffff), uint32_t(xy >> 16));
-      for (const auto& [x0, y0] : tiles) add_resident(st, clear, x0, y0, lp.resident);
+      for (uint64_t xy : pixels) {
+        const uint32_t x = uint32_t(xy & 0xffff), y = uint32_t(xy >> 16);
+        lp.pre.add(model.store_of(x, y), clear_view, x, y);
+      }
+      for (const auto& [x0, y0] : tiles) add_resident(model.store_of(x0, y0), clear, x0, y0, lp.resident);
       lp.warming.reserve(ring_fill);
       for (size_t j = 0; j < ring_fill; ++j)
         lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
-      for (const Fragment& x : lp.fragments) {
-        w.f = &x;
-        rop.process(w);
-        touched(x);
-      }
+      for (size_t j = 0; j < lp.fragments.size(); j += kBatch)
+        draw(&lp.fragments[j], std::min<size_t>(kBatch, lp.fragments.size() - j));
       i += count;
       ++k;
       lib.charge(lp);
       lib.points.push_back(std::move(lp));
       continue;
     }
-    if (!src->next(f)) break;
-    w.f = &f;
-    rop.process(w);
-    touched(f);
-    ++i;
+    // A batch of the fragments between live-points, ending at the next one.
+    const uint64_t stop = k < k_units ? firsts[k] : n;
+    batch.clear();
+    while (batch.size() < kBatch && i + batch.size() < stop && src->next(f)) batch.push_back(f);
+    if (batch.empty()) {
+      invariant(i == stop, "the input delivers the fragments it was counted with");
+      if (k >= k_units) break;
+      continue;
+    }
+    draw(batch.data(), batch.size());
+    i += batch.size();
   }
-  invariant(k == k_units && i == n, "every live-point is recorded in one pass over the input");
-  lib.counters = rop.counters();
-  lib.image = rop.resolve();
+  invariant(k == k_units && i == n && !src->next(f), "every live-point is recorded in one pass over the input");
+  model.set_observer({});
+  lib.counters = model.counters();
+  lib.image = model.resolve();
   return lib;
 }
 

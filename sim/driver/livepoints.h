@@ -146,9 +146,11 @@ struct LivePoints {
   }
 };
 
-/// One functional pass over the input, recording K live-points. Throws
-/// UserError for a method with several passes or bad parameters.
-LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p);
+/// One functional pass over the input, recording K live-points, on `threads`
+/// host threads (0: host_threads(), --threads; the library is the same for
+/// every count). Throws UserError for a method with several passes or bad
+/// parameters.
+LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, const SamplingParams& p, int threads = 0);
 
 /// One unit simulated in detail.
 struct UnitRun {

@@ -15,8 +15,8 @@ nlohmann::ordered_json numerics_to_json(const Numerics& n);
 
 /// The report's "fidelity" field's meaning (every report writes it).
 inline constexpr const char* kFidelityMeaning =
-    "`functional` (the golden model), `cycle` (the SystemC pipeline) or `sampled` (the pipeline on samples of the "
-    "input, livepoints.h)";
+    "`functional` (the golden model), `cycle` (the SystemC pipeline), `sampled` (the pipeline on samples of the "
+    "input, livepoints.h) or `approximate` (the analytical model, approximate.h)";
 
 struct ReportContext {
   std::string command_line;

@@ -51,6 +51,10 @@ size_t StochasticModel::lane_of(uint32_t x, uint32_t y) const {
   return size_t(k % uint32_t(lanes_.size()));
 }
 
+const SampleStore& StochasticModel::store_of(uint32_t x, uint32_t y) const {
+  return lanes_[lane_of(x, y)]->rop.store();
+}
+
 void StochasticModel::draw(const Fragment& f) {
   Lane& l = *lanes_[lane_of(f.x, f.y)];
   l.work.f = &f;
@@ -62,6 +66,7 @@ void StochasticModel::draw_lane(size_t li, const Fragment* f, size_t n) {
   for (size_t i = 0; i < n; ++i) {
     l.work.f = &f[i];
     l.rop.process(l.work);
+    if (observer_) observer_(i, l.work);
   }
 }
 
@@ -84,6 +89,7 @@ void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::functio
           if (j + 1 < m) __builtin_prefetch(&f[l.batch[j + 1]]);
           l.work.f = &f[l.batch[j]];
           l.rop.process(l.work);
+          if (observer_) observer_(l.batch[j], l.work);
         }
       }
     });

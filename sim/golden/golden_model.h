@@ -78,6 +78,14 @@ class StochasticModel : public FunctionalModel {
   PixelView pixel_view(uint32_t x, uint32_t y) const { return merged().store().view(x, y); }
   const GoldenConfig& config() const { return lane0().setup().cfg; }
   int threads() const { return threads_; }
+  /// The store holding pixel (x, y)'s tile -- its lane's, without merging
+  /// the lanes (between batches: the state after every fragment drawn).
+  const SampleStore& store_of(uint32_t x, uint32_t y) const;
+  /// Called for every fragment of draw_batch, with its index in the batch
+  /// and its work record after the ROP processed it; on a lane's thread, so
+  /// concurrently for fragments of different lanes (never for one index
+  /// twice). Empty: nothing is called.
+  void set_observer(std::function<void(size_t, const FragWork&)> f) { observer_ = std::move(f); }
 
  private:
   struct Lane;
@@ -90,6 +98,7 @@ class StochasticModel : public FunctionalModel {
   /// draws then run on lane 0 alone).
   const FunctionalRop& merged() const;
   int threads_;
+  std::function<void(size_t, const FragWork&)> observer_;
   mutable std::vector<std::unique_ptr<Lane>> lanes_;
   struct Pool;
   std::unique_ptr<Pool> pool_;  // the threads (n > 1)

@@ -46,7 +46,7 @@ constexpr RunParam kRunParams[] = {
     {"method", "the transparency method"},
     {"spp", "samples per pixel (scenes)"},
     {"seed", "seed of the methods' hash-based random numbers"},
-    {"fidelity", "functional, cycle or sampled"},
+    {"fidelity", "functional, cycle, sampled or approximate"},
     {"hash_bits", "alpha-reference hash width, bits"},
     {"alpha_bits", "opacity fixed-point precision, bits"},
     {"surface_id_bits", "surface id register width, bits"},
@@ -69,7 +69,9 @@ constexpr RunParam kRunParams[] = {
 
 bool is_sampling_key(const std::string& k) { return k.rfind("sample_", 0) == 0; }
 
-bool is_fidelity(const std::string& f) { return f == "functional" || f == "cycle" || f == "sampled"; }
+bool is_fidelity(const std::string& f) {
+  return f == "functional" || f == "cycle" || f == "sampled" || f == "approximate";
+}
 /// Does the fidelity give time (and so take a design)?
 bool is_timed(const std::string& f) { return f != "functional"; }
 
@@ -132,7 +134,7 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
       fail(s, at, to_string(v) + " is not depth-first or original");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
-    if (!f || !is_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle or sampled");
+    if (!f || !is_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle, sampled or approximate");
   } else if (key == "sample_units" || key == "sample_size") {
     int_of(s, at, v, 1, int64_t{1} << 40);
   } else if (key == "sample_warmup" || key == "sample_cooldown" || key == "sample_warming") {

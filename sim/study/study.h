@@ -98,7 +98,7 @@ struct ResolvedPoint {
   SceneOverrides capture_overrides;  ///< mesh inputs: spp, resolution, seed and draw order
   InputSpec input;
   MethodConfig method;
-  std::string fidelity = "functional";  ///< functional, cycle or sampled
+  std::string fidelity = "functional";  ///< functional, cycle, sampled or approximate
   bool timed() const { return fidelity != "functional"; }
   HwConfig hw;                 ///< timed fidelities: the design
   SamplingParams sampling;     ///< sampled: the defaults

@@ -21,6 +21,7 @@
 #include <set>
 #include <sstream>
 
+#include "approximate.h"
 #include "capture.h"
 #include "cycle_report.h"
 #include "cycle_run.h"
@@ -173,6 +174,12 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
     report = sampled_report(ctx, lib, run, r.hw, wall, from, reference);
     summary = sampled_summary(ctx, lib, run, r.hw, wall, from, reference);
     image = lib.image;
+  } else if (r.fidelity == "approximate") {
+    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
+    ApproxRun run = run_approximate(r.input, r.method, r.hw);
+    report = approximate_report(ctx, run, reference);
+    summary = approximate_summary(ctx, run, reference);
+    image = std::move(run.image);
   } else if (r.timed()) {
     write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
     CycleRun run = run_cycle(r.input, r.method, r.hw);

@@ -1,0 +1,675 @@
+#include "approximate.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <future>
+#include <memory>
+
+#include "address_map.h"
+#include "bits.h"
+#include "errors.h"
+#include "functional_rop.h"
+#include "line_set.h"
+#include "rop_ownership.h"
+#include "sort_algorithm.h"
+
+namespace ropsim {
+
+const char* to_string(ApproxBound b) {
+  switch (b) {
+    case ApproxBound::kSource:
+      return "source";
+    case ApproxBound::kDistributor:
+      return "distributor";
+    case ApproxBound::kUnit:
+      return "unit";
+    case ApproxBound::kLatency:
+      return "latency";
+    case ApproxBound::kScoreboard:
+      return "scoreboard";
+    case ApproxBound::kDram:
+      return "dram";
+    case ApproxBound::kHazard:
+      return "hazard";
+  }
+  return "?";
+}
+
+namespace {
+
+// ------------------------------------------------------------ tag-only DRAM
+
+/// The DRAM's address map (dram.h: channel from the interleave granule folded
+/// with higher bits, bank from the row) and its row buffers, tag-only; and
+/// each channel's bursts served in arrival order as fast as the channel can,
+/// as Dram::access does for requests that all arrive at once: a burst starts
+/// when the data bus is free and its bank is free (plus the row-miss
+/// penalty). The clock this keeps per channel is the cycles the channel needs
+/// for its bursts so far, whatever the arrival times: a lower bound.
+class DramTags {
+ public:
+  explicit DramTags(const HwConfig::Dram& cfg)
+      : cfg_(cfg),
+        interleave_(cfg.interleave_bytes),
+        channels_(cfg.channels),
+        row_(cfg.row_bytes),
+        banks_(cfg.banks),
+        ch_(cfg.channels) {
+    for (auto& c : ch_) {
+      c.open_row.assign(cfg.banks, ~uint64_t{0});
+      c.bank_free.assign(cfg.banks, 0);
+    }
+  }
+  /// One burst of `bytes`; returns its unloaded read latency (row miss,
+  /// transfer, the read latency): the cycles from the request to the data
+  /// with the bank and the bus idle.
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) {
+    const uint64_t granule = interleave_.div(addr);
+    const size_t ch_index = channel_of(addr);
+    Channel& c = ch_[ch_index];
+    if (!write) c.read = true;
+    const uint64_t local = channels_.div(granule) * cfg_.interleave_bytes + interleave_.mod(addr);
+    const uint64_t row = row_.div(local);
+    const uint64_t bank = banks_.mod(row ^ (addr >> 48));
+    uint64_t ready = c.bank_free[bank], penalty = 0;
+    if (c.open_row[bank] == row) {
+      ++s_.row_hits;
+    } else {
+      ++s_.row_misses;
+      c.open_row[bank] = row;
+      penalty = cfg_.row_miss_cycles;
+    }
+    ready += penalty;
+    const uint64_t transfer = ceil_div<uint64_t>(bytes, cfg_.bytes_per_clock);
+    const uint64_t start = std::max(ready, c.bus_free);
+    c.bus_free = c.bank_free[bank] = start + transfer;
+    c.busy += transfer;
+    if (write) {
+      ++s_.writes;
+      s_.bytes_written[size_t(b)] += bytes;
+      return 0;
+    }
+    ++s_.reads;
+    s_.bytes_read[size_t(b)] += bytes;
+    return penalty + transfer + cfg_.latency_cycles;
+  }
+  /// The busiest channel's service clock (cycles).
+  uint64_t max_clock() const {
+    uint64_t m = 0;
+    for (const auto& c : ch_) m = std::max(m, c.bus_free);
+    return m;
+  }
+  /// The channel of a burst address.
+  size_t channel_of(uint64_t addr) const {
+    const uint64_t granule = interleave_.div(addr);
+    return size_t(channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48)));
+  }
+  /// Each channel's service clock.
+  void clocks(std::vector<uint64_t>& out) const {
+    out.resize(ch_.size());
+    for (size_t i = 0; i < ch_.size(); ++i) out[i] = ch_[i].bus_free;
+  }
+  uint64_t max_busy() const {
+    uint64_t m = 0;
+    for (const auto& c : ch_) m = std::max(m, c.busy);
+    return m;
+  }
+  /// Whether channel i served a read since the last call, and forget it.
+  bool take_read(size_t i) {
+    const bool r = ch_[i].read;
+    ch_[i].read = false;
+    return r;
+  }
+  size_t channels() const { return ch_.size(); }
+  const DramStats& stats() const { return s_; }
+
+ private:
+  HwConfig::Dram cfg_;
+  Divisor interleave_, channels_, row_, banks_;
+  struct Channel {
+    uint64_t bus_free = 0, busy = 0;
+    bool read = false;  // a read since the last take_reads
+    std::vector<uint64_t> open_row, bank_free;
+  };
+  std::vector<Channel> ch_;
+  DramStats s_;
+};
+
+// ------------------------------------------------------------ tag-only cache
+
+/// One ROP cache's tags, as RopCache holds them: the same sets (the same
+/// index function), ways, LRU replacement, read-allocate with a fill,
+/// write-allocate without one, fast clear from the lines DRAM holds, and the
+/// final flush in way order. Its misses and write-backs go to the DRAM model
+/// (dram.h: the channel, bank and row map, the row buffers, each channel's
+/// bursts served in arrival order) at the cycle the model estimates for the
+/// access.
+class CacheTags {
+ public:
+  enum class Read { kHit, kClearFill, kMiss };
+  /// window: the depth test's outstanding fragments (depth_test.max_outstanding).
+  CacheTags(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram)
+      : window_(window),
+        cfg_(cfg),
+        dram_(dram),
+        in_dram_(in_dram),
+        sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
+        set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
+        tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid),
+        lru_(tags_.size(), 0),
+        ways_(tags_.size()) {}
+
+  /// A read; latency: the cycles until its data is there, unloaded.
+  Read read(uint64_t line, Buffer b, uint64_t& latency) {
+    bool hit = false;
+    Way& w = ways_[lookup(line, hit)];
+    if (hit) {
+      ++s_.read_hits[size_t(b)];
+      latency = cfg_.hit_latency_cycles;
+      // A hit on a line whose fill is still in flight waits for it (the
+      // cache's MSHR merge). The fill is in flight while its fragment waits
+      // in the depth test: for the next `window` fragments of this ROP, the
+      // k-th of which (entering k / window of a fill's latency later, when
+      // the depth test's slots turn over once per fill) waits the rest. Not a
+      // fragment of the same pixel: pixel ordering issued it only after the
+      // filling fragment retired, its data there.
+      const uint64_t k = seq_ - w.fill_seq;
+      if (w.fill_seq != kNoFill && k > 0 && k < window_ && w.fill_pixel != pixel_) {
+        ++s_.merged;
+        latency = std::max<uint64_t>(latency, w.fill_latency * (window_ - k) / window_);
+      }
+      return Read::kHit;
+    }
+    ++s_.read_misses[size_t(b)];
+    w.buf = b;
+    w.dirty = false;
+    w.fill_seq = kNoFill;
+    if (cfg_.fast_clear && !in_dram_.contains(line)) {
+      ++s_.clear_fills;
+      latency = cfg_.hit_latency_cycles;
+      return Read::kClearFill;
+    }
+    latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
+    w.fill_seq = seq_;
+    w.fill_latency = uint32_t(latency);
+    w.fill_pixel = pixel_;
+    return Read::kMiss;
+  }
+  void write(uint64_t line, Buffer b) {
+    bool hit = false;
+    Way& w = ways_[lookup(line, hit)];
+    if (hit) {
+      ++s_.write_hits[size_t(b)];
+    } else {
+      ++s_.write_misses[size_t(b)];
+      w.buf = b;
+      w.fill_seq = kNoFill;
+    }
+    if (!w.dirty) ++s_.dirtied;
+    w.dirty = true;
+  }
+  void flush() {
+    for (size_t i = 0; i < ways_.size(); ++i)
+      if (Way& w = ways_[i]; tags_[i] != kInvalid && w.dirty) {
+        dram_.access(tags_[i], cfg_.line_bytes, true, w.buf);
+        in_dram_.insert(tags_[i]);
+        w.dirty = false;
+      }
+  }
+  /// The next fragment of this ROP, at pixel key `pixel` (its reads follow).
+  void next_fragment(uint32_t pixel) {
+    ++seq_;
+    pixel_ = pixel;
+  }
+  const CacheStats& stats() const { return s_; }
+
+ private:
+  static constexpr uint64_t kInvalid = ~uint64_t{0};
+  static constexpr uint64_t kNoFill = ~uint64_t{0};
+  struct Way {
+    uint64_t fill_seq = kNoFill;  // the fragment whose read filled it from DRAM
+    uint32_t fill_latency = 0;    // that fill's latency
+    uint32_t fill_pixel = 0;      // that fragment's pixel
+    Buffer buf = Buffer::kDepth;
+    bool dirty = false;
+  };
+  // RopCache::lookup: the set from the line address folded with its upper
+  // bits and the buffer; a hit refreshes the LRU tick; a miss takes the first
+  // invalid way, else the least recently used, evicting it.
+  size_t lookup(uint64_t line, bool& hit) {
+    const uint64_t l = line >> set_shift_;
+    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
+    const size_t base = size_t(set) * cfg_.ways;
+    const uint64_t* tag = &tags_[base];
+    const uint32_t n = cfg_.ways;
+    for (uint32_t i = 0; i < n; ++i)
+      if (tag[i] == line) {
+        hit = true;
+        lru_[base + i] = ++tick_;
+        return base + i;
+      }
+    size_t victim = base;
+    for (uint32_t i = 0; i < n && tags_[victim] != kInvalid; ++i)
+      if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
+    hit = false;
+    if (tags_[victim] != kInvalid) {
+      ++s_.evictions;
+      if (ways_[victim].dirty) {
+        ++s_.dirty_evictions;
+        dram_.access(tags_[victim], cfg_.line_bytes, true, ways_[victim].buf);
+        in_dram_.insert(tags_[victim]);
+      }
+      ways_[victim].dirty = false;
+    }
+    tags_[victim] = line;
+    lru_[victim] = ++tick_;
+    return victim;
+  }
+  uint64_t window_, seq_ = 0;
+  uint32_t pixel_ = 0;
+  HwConfig::Cache cfg_;
+  DramTags& dram_;
+  LineSet& in_dram_;
+  uint32_t sets_, set_shift_;
+  std::vector<uint64_t> tags_, lru_;
+  std::vector<Way> ways_;
+  uint64_t tick_ = 0;
+  CacheStats s_;
+};
+
+// ------------------------------------------------------------ the model
+
+enum UnitKind : int { kOrdering, kDepthTest, kTracker, kSorter, kAlphaRef, kWriteback, kBlend, kUnitKinds };
+const char* kUnitNames[kUnitKinds] = {
+    "pixel_ordering", "depth_test", "coverage_tracker", "sample_sorter", "alpha_ref_gen", "writeback", "blend"};
+
+/// What one ROP did in the current epoch.
+struct RopEpoch {
+  std::array<uint64_t, kUnitKinds> demand{};  ///< initiation intervals summed, per unit kind
+  uint64_t hold = 0;                          ///< depth test: cycles each fragment waited for its data, summed
+  uint64_t residence = 0;                     ///< cycles each fragment was in flight (issue to retire), summed
+  double issued_by = 0;                       ///< pixel ordering: the cycle after its last issue (hazard chain)
+};
+
+struct PassResult {
+  uint64_t cycles = 0, fill = 0, flush = 0, epochs = 0;
+};
+
+/// What the model needs of one fragment, from the functional pass: its
+/// pixel and the work each stage did (design-independent).
+struct FragRec {
+  uint64_t covered = 0, survivors = 0, written = 0;  ///< sample masks: tested, passed the depth test, written
+  uint16_t x = 0, y = 0;
+  uint16_t m = 0;                                  ///< popcount(survivors); 0: killed by the depth test
+  uint16_t hashes = 0, examined = 0, blended = 0;  ///< the reference, writeback and blend stages' counts
+  bool slab_kept = false;                          ///< slab: its layers were rewritten
+  bool killed() const { return m == 0; }
+};
+
+class Model {
+ public:
+  Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
+      : hw_(hw),
+        out_(out),
+        owner_(hw.distributor, rop.header().width),
+        amap_(rop.header().width, rop.header().spp, rop.setup().tracker_bytes, hw.cache.line_bytes,
+              rop.setup().cfg.formats, rop.setup().slab_bytes),
+        dram_(hw.dram),
+        sorter_(make_sorter(hw.sorter.kind, rop.header().spp)),
+        rops_(hw.distributor.rop_units),
+        width_(rop.header().width),
+        retire_(size_t(ceil_div(rop.header().width, 8u)) * ceil_div(rop.header().height, 8u) * 64, -1e300),
+        window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
+        window_at_(hw.distributor.rop_units, 0) {
+    for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
+      caches_.push_back(std::make_unique<CacheTags>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram));
+    const MethodTraits& mt = rop.traits();
+    blend_pass_ = is_blend_pass(rop.pass());
+    tracker_ = rop.pass_uses_tracker();
+    sorter_on_ = mt.sorter && !blend_pass_;
+    reference_on_ = mt.reference && !blend_pass_;
+    tracker_unit_ = mt.tracker && !blend_pass_;
+    slab_ = rop.setup().cfg.method == Method::kSlab;
+    color_ = stochastic_writes_color(rop.setup().cfg.method);
+    const PassKind p = rop.pass();
+    trans_ = p == PassKind::kTotalAlpha || p == PassKind::kWboit;
+    accum_ = p == PassKind::kAccumulate || p == PassKind::kWboit;
+    const auto& d = hw.distributor;
+    const auto& o = hw.ordering;
+    epoch_ = uint64_t(d.rop_units) * (d.fifo_depth + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles +
+                                      hw.depth_test.max_outstanding);
+    out_.epoch_fragments = epoch_;
+  }
+
+  /// One fragment, after the functional stages ran on w: its costs.
+  void fragment(const FragRec& w) {
+    const FragRec& f = w;
+    const uint32_t hashes = w.hashes, examined = w.examined, blended = w.blended;
+    const uint32_t r = owner_.rop_of(f.x, f.y);
+    CacheTags& c = *caches_[r];
+    c.next_fragment(uint32_t(f.y) * uint32_t(width_) + f.x);
+    RopEpoch& e = rops_[r];
+    const HwConfig& hw = hw_;
+    // Depth test: the pixel's state, read through the cache; the fragment
+    // waits for the slowest of its lines (unloaded: the queueing is the DRAM
+    // bound's).
+    uint64_t wait = 0;
+    auto rd = [&](uint64_t line, Buffer b) {
+      uint64_t lat = 0;
+      c.read(line, b, lat);
+      wait = std::max(wait, lat);
+    };
+    const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
+    if (slab_) {
+      amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kLayers); });
+    } else {
+      amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
+      if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kTracker); });
+      if (trans_)
+        amap_.for_each_sample_line(Buffer::kTransmittance, f.x, f.y, w.survivors,
+                                   [&](uint64_t l) { rd(l, Buffer::kTransmittance); });
+      if (accum_)
+        amap_.for_each_sample_line(Buffer::kAccum, f.x, f.y, w.survivors, [&](uint64_t l) { rd(l, Buffer::kAccum); });
+    }
+    e.demand[kOrdering] += 1;
+    e.demand[kDepthTest] += std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
+    e.hold += wait;
+    uint64_t res = hw.ordering.latency_cycles + wait;
+    if (!w.killed()) {
+      res += hw.depth_test.latency_cycles;
+      if (blend_pass_) {
+        e.demand[kBlend] += std::max<uint32_t>(1, ceil_div(blended, hw.blend.samples_per_clock));
+        res += hw.blend.latency_cycles;
+        if (trans_)
+          amap_.for_each_sample_line(Buffer::kTransmittance, f.x, f.y, w.survivors,
+                                     [&](uint64_t l) { c.write(l, Buffer::kTransmittance); });
+        if (accum_)
+          amap_.for_each_sample_line(Buffer::kAccum, f.x, f.y, w.survivors,
+                                     [&](uint64_t l) { c.write(l, Buffer::kAccum); });
+      } else {
+        if (tracker_unit_) {
+          e.demand[kTracker] += 1;
+          res += hw.tracker.latency_cycles;
+        }
+        if (sorter_on_) {
+          e.demand[kSorter] += sorter_->interval_cycles(int(w.m));
+          res += sorter_->latency_cycles(int(w.m));
+        }
+        if (reference_on_) {
+          const uint32_t ii = std::max<uint32_t>(1, ceil_div(hashes, hw.alpha_ref.lanes));
+          e.demand[kAlphaRef] += ii;
+          res += hw.alpha_ref.pipeline_depth + ii - 1;
+        }
+        e.demand[kWriteback] += std::max<uint32_t>(1, ceil_div(examined, hw.writeback.samples_per_clock));
+        res += hw.writeback.latency_cycles;
+        amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.written,
+                                   [&](uint64_t l) { c.write(l, Buffer::kDepth); });
+        if (color_)
+          amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.written,
+                                     [&](uint64_t l) { c.write(l, Buffer::kColor); });
+        if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kTracker); });
+        if (slab_ && w.slab_kept) amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kLayers); });
+      }
+    }
+    e.residence += res;
+    // Pixel ordering's chain: the fragment issues once its pixel's previous
+    // fragment has retired and once the fragment `window` before it in this
+    // ROP has left the window, and not before the epoch starts.
+    {
+      std::vector<double>& ring = window_issue_[r];
+      size_t& at = window_at_[r];
+      double& ret = retire_[amap_.pixel_index(f.x, f.y)];  // tile-major: neighbours share host lines
+      const double issue = std::max({t_, ring[at] + 1, ret + 1});
+      ring[at] = issue;
+      at = at + 1 == ring.size() ? 0 : at + 1;
+      ret = issue + double(res);
+      e.issued_by = std::max(e.issued_by, issue + 1);
+    }
+    if (first_) {
+      first_ = false;
+      // Source (visible the clock after), distributor, then the fragment's own trip.
+      fill_ = 1 + hw.distributor.latency_cycles + res;
+    }
+    if (++in_epoch_ == epoch_) close_epoch();
+  }
+
+  PassResult finish() {
+    if (in_epoch_) close_epoch();
+    PassResult p;
+    p.fill = fill_;
+    p.cycles = uint64_t(t_ + 0.5);
+    // The final flush starts when the last fragment retires; its writes
+    // queue behind the channels' backlog.
+    std::vector<uint64_t> before, after;
+    dram_.clocks(before);
+    for (auto& c : caches_) c->flush();
+    dram_.clocks(after);
+    double tail = 0;
+    for (size_t i = 0; i < after.size(); ++i) tail = std::max(tail, backlog_[i] + double(after[i] - before[i]));
+    p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
+    p.epochs = epochs_;
+    for (auto& c : caches_) out_.cache += c->stats();
+    const DramStats& d = dram_.stats();
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      out_.dram.bytes_read[b] += d.bytes_read[b];
+      out_.dram.bytes_written[b] += d.bytes_written[b];
+    }
+    out_.dram.reads += d.reads;
+    out_.dram.writes += d.writes;
+    out_.dram.row_hits += d.row_hits;
+    out_.dram.row_misses += d.row_misses;
+    out_.dram.max_channel_busy += dram_.max_busy();
+    return p;
+  }
+
+  std::array<double, kUnitKinds> unit_cycles{};
+
+ private:
+  void close_epoch() {
+    std::array<double, kApproxBounds> b{};
+    const double n = double(in_epoch_);
+    b[int(ApproxBound::kSource)] = n / hw_.source.fragments_per_clock;
+    b[int(ApproxBound::kDistributor)] = n / hw_.distributor.fragments_per_clock;
+    int unit_kind = kOrdering;
+    for (const RopEpoch& e : rops_) {
+      for (int k = 0; k < kUnitKinds; ++k)
+        if (double(e.demand[size_t(k)]) > b[int(ApproxBound::kUnit)]) {
+          b[int(ApproxBound::kUnit)] = double(e.demand[size_t(k)]);
+          unit_kind = k;
+        }
+      b[int(ApproxBound::kLatency)] =
+          std::max(b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding);
+      b[int(ApproxBound::kScoreboard)] =
+          std::max(b[int(ApproxBound::kScoreboard)], double(e.residence) / hw_.ordering.pixels_in_flight);
+      b[int(ApproxBound::kHazard)] = std::max(b[int(ApproxBound::kHazard)], e.issued_by - t_);
+    }
+    // DRAM: each channel's service of the epoch's bursts, behind its backlog.
+    // Only a channel that served a read holds the pipeline (write-backs are
+    // posted): it must have served the epoch's reads, so everything queued
+    // before them, by the epoch's end.
+    std::vector<uint64_t> clock;
+    dram_.clocks(clock);
+    if (backlog_.empty()) {
+      backlog_.assign(clock.size(), 0.0);
+      clock_.assign(clock.size(), 0);
+    }
+    std::vector<double> work(clock.size());
+    for (size_t i = 0; i < clock.size(); ++i) {
+      work[i] = backlog_[i] + double(clock[i] - clock_[i]);
+      if (dram_.take_read(i)) b[int(ApproxBound::kDram)] = std::max(b[int(ApproxBound::kDram)], work[i]);
+    }
+    clock_ = clock;
+    int top = 0;
+    for (int i = 0; i < kApproxBounds; ++i) {
+      out_.bound_cycles[size_t(i)] += b[size_t(i)];
+      if (b[size_t(i)] > b[size_t(top)]) top = i;
+    }
+    const double d = b[size_t(top)];
+    // What a channel could not serve in the epoch's cycles carries over.
+    for (size_t i = 0; i < clock.size(); ++i) backlog_[i] = std::max(0.0, work[i] - d);
+    out_.limiting_cycles[size_t(top)] += d;
+    unit_cycles[size_t(unit_kind)] += b[int(ApproxBound::kUnit)];
+    t_ += d;
+    ++epochs_;
+    in_epoch_ = 0;
+    for (auto& e : rops_) e = RopEpoch{};
+  }
+
+  const HwConfig& hw_;
+  ApproxStats& out_;
+  RopOwnership owner_;
+  AddressMap amap_;
+  DramTags dram_;
+  std::unique_ptr<SortAlgorithm> sorter_;
+  std::vector<std::unique_ptr<CacheTags>> caches_;
+  std::vector<RopEpoch> rops_;
+  size_t width_;
+  std::vector<double> retire_;                     // per pixel: its last fragment's estimated retirement
+  std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
+  std::vector<size_t> window_at_;
+  bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
+  bool slab_ = false, color_ = true, trans_ = false, accum_ = false;
+  uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
+  double t_ = 0;                 // the pipeline's cycles so far (the epochs')
+  std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start
+  std::vector<double> backlog_;  // each channel's work not yet served at the epoch's start
+  bool first_ = true;
+};
+
+}  // namespace
+
+ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw) {
+  if (method.method == Method::kReference)
+    throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
+  if (const char* err = validate(method.numerics)) throw UserError(err);
+  validate_hw_config(hw);
+  const auto t0 = std::chrono::steady_clock::now();
+  ApproxRun run;
+  std::unique_ptr<FragmentSource> src = open_fragments(in);
+  run.header = src->header();
+  auto rop = std::make_unique<FunctionalRop>(run.header, method);
+  ApproxStats& s = run.stats;
+  s.hw = hw;
+  s.hw.numerics = method.numerics;
+  s.hw.blend.formats = method.formats;
+  if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
+  if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
+  if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
+  LineSet in_dram(hw.cache.line_bytes);
+  std::array<double, kUnitKinds> unit_cycles{};
+  for (int pass = 0; pass < rop->passes(); ++pass) {
+    rop->begin_pass(pass);
+    if (pass > 0) src = open_fragments(in);
+    Model model(hw, *rop, in_dram, s);
+    const MethodTraits& mt = rop->traits();
+    const bool blend_pass = is_blend_pass(rop->pass());
+    // The functional pass fills batches of records; the model (the tag-only
+    // caches and DRAM, the epochs) consumes the previous batch on a second
+    // thread meanwhile, in order, so the result does not depend on it.
+    constexpr size_t kBatch = size_t{1} << 15;
+    std::vector<FragRec> batch, spare;
+    batch.reserve(kBatch);
+    spare.reserve(kBatch);
+    std::future<void> job;
+    auto hand_over = [&] {
+      if (job.valid()) job.get();
+      std::swap(batch, spare);
+      batch.clear();
+      job = std::async(std::launch::async, [&model, &spare] {
+        for (const FragRec& r : spare) model.fragment(r);
+      });
+    };
+    FragWork w;
+    Fragment f;
+    while (src->next(f)) {
+      w.f = &f;
+      rop->fetch(w);
+      rop->depth().run(w);
+      FragRec r;
+      r.x = f.x;
+      r.y = f.y;
+      r.covered = w.covered;
+      r.survivors = w.survivors;
+      r.m = uint16_t(w.m);
+      if (!w.killed()) {
+        if (blend_pass) {
+          r.blended = uint16_t(rop->blend().run(w));
+        } else {
+          if (mt.tracker) rop->track().run(w);
+          if (mt.sorter) rop->sort().run(w);
+          if (mt.reference) r.hashes = uint16_t(rop->reference().run(w));
+          r.examined = uint16_t(rop->write().run(w));
+          r.slab_kept = method.method == Method::kSlab && w.slab.kept;
+        }
+        r.written = w.written;
+      }
+      batch.push_back(r);
+      if (batch.size() == kBatch) hand_over();
+    }
+    if (job.valid()) job.get();
+    for (const FragRec& x : batch) model.fragment(x);
+    const PassResult p = model.finish();
+    s.pipeline_cycles += p.cycles + p.fill;
+    s.fill_cycles += p.fill;
+    s.flush_cycles += p.flush;
+    s.total_cycles += p.cycles + p.fill + p.flush;
+    s.epochs += p.epochs;
+    for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
+  }
+  s.busiest_unit = kUnitNames[std::max_element(unit_cycles.begin(), unit_cycles.end()) - unit_cycles.begin()];
+  s.bottleneck =
+      ApproxBound(std::max_element(s.limiting_cycles.begin(), s.limiting_cycles.end()) - s.limiting_cycles.begin());
+  run.counters = rop->counters();
+  run.image = rop->resolve();
+  run.state_bytes = rop->store().state_bytes();
+  run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return run;
+}
+
+std::string format_approx_bottleneck(const ApproxStats& s) {
+  const double total = double(std::max<uint64_t>(1, s.total_cycles));
+  const double util = double(s.dram.max_channel_busy) / total;
+  if (util >= 0.8)
+    return fmt::format("memory-bound: the busiest DRAM channel is busy {:.0f}% of the cycles", 100 * util);
+  switch (s.bottleneck) {
+    case ApproxBound::kSource:
+      return fmt::format("source-bound: the trace source delivers fragments {:.0f}% of the cycles ({} per clock)",
+                         100 * s.bound_cycles[int(ApproxBound::kSource)] / total, s.hw.source.fragments_per_clock);
+    case ApproxBound::kDistributor:
+      return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
+                         100 * s.bound_cycles[int(ApproxBound::kDistributor)] / total);
+    case ApproxBound::kUnit:
+      // Pixel ordering issues one fragment per clock, the rate at which the
+      // distributor feeds one ROP: when one ROP's ordering sets the pace, the
+      // cycle model sees the distributor busy every cycle (and each ROP's
+      // ordering busy only when its turn comes), and names the distributor.
+      if (s.busiest_unit == "pixel_ordering")
+        return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
+                           100 * s.limiting_cycles[int(ApproxBound::kUnit)] / total);
+      return fmt::format("{}-bound (throughput): busy {:.0f}% of the cycles", s.busiest_unit,
+                         100 * s.bound_cycles[int(ApproxBound::kUnit)] / total);
+    case ApproxBound::kLatency:
+    case ApproxBound::kDram:
+      return fmt::format(
+          "depth_test-bound (memory latency): waiting for memory {:.0f}% of the cycles",
+          100 * (s.limiting_cycles[int(ApproxBound::kLatency)] + s.limiting_cycles[int(ApproxBound::kDram)]) / total);
+    case ApproxBound::kHazard:
+      // Likewise a hazard stalls the ordering of the ROP whose pixels are in
+      // flight: with several ROPs the cycle model's average over the
+      // instances is small and the distributor, waiting on that ROP, is named.
+      if (s.hw.distributor.rop_units > 1)
+        return fmt::format("distributor-bound (throughput): pixel hazards in one ROP {:.0f}% of the cycles",
+                           100 * s.limiting_cycles[int(ApproxBound::kHazard)] / total);
+      [[fallthrough]];
+    case ApproxBound::kScoreboard:
+      return fmt::format(
+          "pixel_ordering-bound (pixel hazards): {:.0f}% of the cycles",
+          100 * (s.limiting_cycles[int(ApproxBound::kScoreboard)] + s.limiting_cycles[int(ApproxBound::kHazard)]) /
+              total);
+  }
+  return "?";
+}
+
+}  // namespace ropsim

@@ -1,0 +1,84 @@
+// The analytical timing model (--fidelity approximate; issue #12, part 2).
+//
+// One functional pass over the input (the golden image, bit for bit, and each
+// fragment's design-independent work: the samples it tested, passed, hashed,
+// examined and wrote) drives a tag-only simulation of the design's ROP caches
+// (the geometry, set index, LRU, write-allocate and fast-clear rules of
+// rop_cache.h) and of the DRAM's row buffers (the channel, bank and row map of
+// dram.h). No SystemC, no time-stepped simulation: from those counts the model
+// computes, per epoch of the input, lower bounds on the cycles the design
+// needs -- every unit's demand against its throughput, the depth test's
+// memory latency against its requests in flight, the pixel scoreboard, the
+// DRAM channels' service of their bursts -- and adds the epochs' largest
+// bounds, the pipeline's fill and the final cache flush. docs/architecture.md
+// ("The analytical model") derives each term from the design's parameters;
+// nothing is fitted to the cycle model's outputs.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "counters.h"
+#include "dram.h"
+#include "fragment_source.h"
+#include "hw_config.h"
+#include "image.h"
+#include "method.h"
+#include "rop_cache.h"
+
+namespace ropsim {
+
+/// The bounds the model computes, each a number of cycles: the sum over the
+/// epochs of that bound alone (so the largest one, were it alone, would be
+/// the time), and the bottleneck: the bound that was largest over most cycles.
+enum class ApproxBound : int {
+  kSource,       ///< the trace source: fragments / source.fragments_per_clock
+  kDistributor,  ///< the distributor: fragments / distributor.fragments_per_clock
+  kUnit,         ///< the busiest unit of the busiest ROP: its initiation intervals summed
+  kLatency,      ///< the depth test: each fragment's wait for its pixel's data / max_outstanding
+  kScoreboard,   ///< pixel ordering: each fragment's time in flight / pixels_in_flight
+  kDram,         ///< the busiest DRAM channel: its bursts served in order (bus, banks, row misses)
+  kHazard,       ///< pixel ordering: chains of fragments of one pixel, each issued after the previous retired
+};
+constexpr int kApproxBounds = 7;
+const char* to_string(ApproxBound b);
+
+struct ApproxStats {
+  HwConfig hw;
+  uint64_t total_cycles = 0;     ///< the estimate: epochs + fill + final flush
+  uint64_t pipeline_cycles = 0;  ///< the estimate without the final flush
+  uint64_t fill_cycles = 0;      ///< the first fragment's trip through an empty pipeline (summed over passes)
+  uint64_t flush_cycles = 0;     ///< the final cache flush's DRAM writes, served by the channels
+  uint64_t epochs = 0;
+  uint64_t epoch_fragments = 0;  ///< fragments per epoch (the buffering that lets the ROPs drift apart)
+  /// Per bound: its sum over the epochs (cycles), and the cycles of the
+  /// epochs in which it was the largest.
+  std::array<double, kApproxBounds> bound_cycles{}, limiting_cycles{};
+  /// The unit kind whose demand made kUnit (the busiest over the run).
+  std::string busiest_unit;
+  ApproxBound bottleneck = ApproxBound::kUnit;
+  CacheStats cache;                            ///< tag-only, summed over the ROPs
+  DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM
+  uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed
+  bool lists(int b) const { return (listed >> b) & 1u; }
+};
+
+struct ApproxRun {
+  TraceHeader header;
+  Counters counters;
+  Image image;
+  ApproxStats stats;
+  size_t state_bytes = 0;
+  double wall_seconds = 0;
+};
+
+/// Throws UserError for the reference method (no pipeline) and bad numerics;
+/// TraceError for a bad trace.
+ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw);
+
+/// The bottleneck as one line, in the words of the cycle model's
+/// (format_bottleneck): memory-bound, source-bound or unit-bound.
+std::string format_approx_bottleneck(const ApproxStats& s);
+
+}  // namespace ropsim

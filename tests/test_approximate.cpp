@@ -1,0 +1,125 @@
+// The analytical timing model (--fidelity approximate, sim/driver/approximate.h)
+// against the golden model (its image, bit for bit) and the cycle model (its
+// DRAM bytes and total cycles, within the bounds stated here).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "approximate.h"
+#include "cycle_run.h"
+#include "driver.h"
+#include "errors.h"
+
+using namespace ropsim;
+
+namespace {
+
+const std::string kSource = ROPSIM_SOURCE_DIR;
+
+InputSpec scene(const std::string& name, int spp) {
+  InputSpec in;
+  in.scene.name = name;
+  in.scene.spp = spp;
+  return in;
+}
+
+GoldenConfig method(Method m) {
+  GoldenConfig c;
+  c.method = m;
+  return c;
+}
+
+double rel(double a, double b) { return b != 0 ? (a - b) / b : (a == 0 ? 0.0 : 1.0); }
+
+const char* const kConfigs[] = {"default", "narrow", "wide"};
+
+HwConfig design(const std::string& name) { return load_hw_config(kSource + "/configs/" + name + ".toml"); }
+
+}  // namespace
+
+// The image comes from the functional pass: the golden image, bit for bit,
+// with the golden model's counters, for single- and multi-pass methods.
+TEST(Approximate, WritesTheGoldenImageBitForBit) {
+  for (Method m : {Method::kLk, Method::kSlab, Method::kLkDepthAc, Method::kWboit}) {
+    for (const char* s : {"cloth", "smoke"}) {
+      const std::string what = std::string(s) + " 8 spp " + to_string(m);
+      const InputSpec in = scene(s, 8);
+      const FunctionalRun golden = run_functional(in, method(m));
+      const ApproxRun a = run_approximate(in, method(m), HwConfig{});
+      EXPECT_TRUE(golden.image == a.image) << what << ": the approximate run's image is not the golden image";
+      EXPECT_EQ(golden.counters.fragments, a.counters.fragments) << what;
+      EXPECT_EQ(golden.counters.samples_written, a.counters.samples_written) << what;
+      EXPECT_EQ(golden.counters.samples_blended, a.counters.samples_blended) << what;
+      EXPECT_GT(a.stats.total_cycles, 0u) << what;
+    }
+  }
+}
+
+// The tag-only caches mirror the ROP caches (geometry, set index, LRU,
+// write-allocate, fast clear, the flush): where the cycle model cannot
+// reorder accesses to a line across an eviction -- a cache that holds the
+// whole frame -- the DRAM bytes are the cycle model's exactly; elsewhere the
+// pipeline's reordering (the depth test of later fragments reads before the
+// writeback of earlier ones writes) moves them by at most 2.5 % (measured:
+// 1.7 % at most, docs/results.md).
+TEST(Approximate, DramBytesAreTheCycleModelsWhereTheTagsMustAgree) {
+  {
+    HwConfig hw = design("wide");  // 8 x 256 KiB: testcard's lines all fit, nothing is evicted
+    const InputSpec in = scene("testcard", 16);
+    const CycleRun c = run_cycle(in, method(Method::kLk), hw);
+    const ApproxRun a = run_approximate(in, method(Method::kLk), hw);
+    EXPECT_EQ(c.stats.dram.total_bytes_read(), a.stats.dram.total_bytes_read()) << "testcard on wide";
+    EXPECT_EQ(c.stats.dram.total_bytes_written(), a.stats.dram.total_bytes_written()) << "testcard on wide";
+    CacheStats cs;
+    for (const auto& x : c.stats.caches) cs += x;
+    EXPECT_EQ(cs.dirtied, a.stats.cache.dirtied) << "lines made dirty";
+    EXPECT_EQ(cs.clear_fills, a.stats.cache.clear_fills) << "fast-clear fills";
+  }
+  for (const char* cfg : kConfigs)
+    for (const char* s : {"cloth", "smoke"}) {
+      const std::string what = std::string(s) + " 16 spp on " + cfg;
+      const HwConfig hw = design(cfg);
+      const InputSpec in = scene(s, 16);
+      const CycleRun c = run_cycle(in, method(Method::kLk), hw);
+      const ApproxRun a = run_approximate(in, method(Method::kLk), hw);
+      EXPECT_LE(std::abs(rel(double(a.stats.dram.total_bytes_read()), double(c.stats.dram.total_bytes_read()))), 0.025)
+          << what << ": DRAM bytes read " << a.stats.dram.total_bytes_read() << " vs the cycle model's "
+          << c.stats.dram.total_bytes_read();
+      EXPECT_LE(std::abs(rel(double(a.stats.dram.total_bytes_written()), double(c.stats.dram.total_bytes_written()))),
+                0.025)
+          << what << ": DRAM bytes written " << a.stats.dram.total_bytes_written() << " vs the cycle model's "
+          << c.stats.dram.total_bytes_written();
+    }
+}
+
+// Total cycles against the cycle model on the built-in scenes at 16 spp and
+// the three designs: each within 15 % (the target for the mean), the
+// mean within 6 % (measured 3.3 % over these 9, the largest 9.1 %: docs/results.md).
+TEST(Approximate, TotalCyclesAreNearTheCycleModels) {
+  double sum = 0;
+  int n = 0;
+  for (const char* cfg : kConfigs)
+    for (const char* s : {"cloth", "smoke", "testcard"}) {
+      const std::string what = std::string(s) + " 16 spp on " + cfg;
+      const HwConfig hw = design(cfg);
+      const InputSpec in = scene(s, 16);
+      const CycleRun c = run_cycle(in, method(Method::kLk), hw);
+      const ApproxRun a = run_approximate(in, method(Method::kLk), hw);
+      const double e = rel(double(a.stats.total_cycles), double(c.stats.total_cycles));
+      EXPECT_LE(std::abs(e), 0.15) << what << ": " << a.stats.total_cycles << " cycles vs the cycle model's "
+                                   << c.stats.total_cycles << " (" << 100 * e << " %)";
+      EXPECT_LE(a.stats.flush_cycles + a.stats.fill_cycles, a.stats.total_cycles) << what;
+      EXPECT_GE(a.stats.total_cycles, uint64_t(a.stats.bound_cycles[int(ApproxBound::kSource)])) << what;
+      sum += std::abs(e);
+      ++n;
+    }
+  EXPECT_LE(sum / n, 0.06) << "mean absolute error " << 100 * sum / n << " %";
+}
+
+// Inputs it cannot model are refused as user errors.
+TEST(Approximate, RefusesTheReferenceMethod) {
+  EXPECT_THROW(run_approximate(scene("testcard", 1), method(Method::kReference), HwConfig{}), UserError);
+}
