@@ -131,13 +131,15 @@ def summary(df, res):
             "cycles_max_pct": g.cycles_err_pct.abs().max(),
             "bytes_mae_pct": g.bytes_err_pct.abs().mean(),
             "bytes_max_pct": g.bytes_err_pct.abs().max(),
-            "bottleneck_agreement": g.bottleneck_ok.mean(),
+            "bottleneck_agreement": float(g.bottleneck_ok.astype(bool).mean()),
         }
         if f == "sampled":
-            e["coverage_cycles"] = g.covers_cycles.mean()
-            e["coverage_read"] = g.covers_read.mean()
-            e["coverage_written"] = g.covers_written.mean()
-            e["coverage_all"] = (g.covers_cycles & g.covers_read & g.covers_written).mean()
+            c, r, w = (g[k].astype(bool) for k in ("covers_cycles", "covers_read", "covers_written"))
+            e["coverage_cycles"] = float(c.mean())
+            e["coverage_read"] = float(r.mean())
+            e["coverage_written"] = float(w.mean())
+            e["coverage_all"] = float((c & r & w).mean())
+            e["pairs_whole"] = int((g.detailed_share >= 1.0).sum())
         s.append(e)
     return pd.DataFrame(s)
 
@@ -149,17 +151,27 @@ def fmt(v, spec):
 
 
 def markdown(res, summ):
+    def pct(v):
+        t = fmt(v, ".2f")
+        return t + " %" if t else ""
+
+    def times(v):
+        t = fmt(v, ".1f")
+        return t + "x less" if t else ""
+
     lines = ["| fidelity | pairs | fragments / host s | host time vs cycle | with the library | total cycles: mean abs error | max | DRAM bytes: mean abs error | max | bottleneck as cycle's | 95 % intervals cover (cycles, read, written) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for _, r in summ.iterrows():
         cov = ""
         if r["fidelity"] == "sampled":
             cov = f"{r['coverage_cycles']:.0%}, {r['coverage_read']:.0%}, {r['coverage_written']:.0%}"
+            if r.get("pairs_whole", 0):
+                cov += f" ({r['pairs_whole']:.0f} pairs simulated whole)"
         lines.append(
             f"| {r['fidelity']} | {fmt(r.get('pairs'), '.0f')} | {fmt(r['fragments_per_host_s'] / 1e6, '.2f')} M "
-            f"| {fmt(r['speedup_vs_cycle'], '.1f')}x less | {fmt(r.get('speedup_with_library'), '.1f')}{'x less' if isinstance(r.get('speedup_with_library'), float) and not math.isnan(r.get('speedup_with_library')) else ''} "
-            f"| {fmt(r.get('cycles_mae_pct'), '.2f')} % | {fmt(r.get('cycles_max_pct'), '.2f')} % | {fmt(r.get('bytes_mae_pct'), '.2f')} % "
-            f"| {fmt(r.get('bytes_max_pct'), '.2f')} % | {fmt(r.get('bottleneck_agreement'), '.0%')} | {cov} |")
+            f"| {times(r['speedup_vs_cycle'])} | {times(r.get('speedup_with_library'))} "
+            f"| {pct(r.get('cycles_mae_pct'))} | {pct(r.get('cycles_max_pct'))} | {pct(r.get('bytes_mae_pct'))} "
+            f"| {pct(r.get('bytes_max_pct'))} | {fmt(r.get('bottleneck_agreement'), '.0%')} | {cov} |")
     lines.append("")
     lines.append("| input | design | fidelity | host s | cycle host s | total cycles error | DRAM bytes error | bottleneck (cycle's) | interval covers |")
     lines.append("|---|---|---|---:|---:|---:|---:|---|---|")
