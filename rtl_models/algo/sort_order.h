@@ -6,6 +6,10 @@
 #include <algorithm>
 #include <cstdint>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "depth.h"
 
 namespace ropsim {
@@ -40,6 +44,27 @@ inline int sort_by_stored_depth(const float* stored, uint64_t samples, uint8_t* 
   uint32_t vals[64];
   uint64_t masks[64];
   int d = 0;
+#if defined(__SSE2__)
+  // One group per distinct depth: the first remaining sample's depth,
+  // compared with every sample's four at a time (only samples below the
+  // highest one in `samples` are read: stored holds at least that many).
+  const int n = samples ? 64 - __builtin_clzll(samples) : 0;
+  for (uint64_t rest = samples; rest;) {
+    const uint32_t v = depth_bits(stored[__builtin_ctzll(rest)]);
+    const __m128i vv = _mm_set1_epi32(static_cast<int>(v));
+    uint64_t eq = 0;
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+      const __m128i z = _mm_loadu_si128(reinterpret_cast<const __m128i*>(stored + i));
+      eq |= uint64_t(uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(z, vv))))) << i;
+    }
+    for (; i < n; ++i) eq |= uint64_t(depth_bits(stored[i]) == v) << i;
+    eq &= rest;
+    vals[d] = v;
+    masks[d++] = eq;
+    rest &= ~eq;
+  }
+#else
   for (uint64_t s = samples; s; s &= s - 1) {
     const uint32_t v = depth_bits(stored[__builtin_ctzll(s)]);
     const uint64_t bit = s & (~s + 1);
@@ -52,6 +77,7 @@ inline int sort_by_stored_depth(const float* stored, uint64_t samples, uint8_t* 
       masks[j] |= bit;
     }
   }
+#endif
   for (int i = 1; i < d; ++i) {  // insertion sort of the distinct depths
     const uint32_t v = vals[i];
     const uint64_t mk = masks[i];
