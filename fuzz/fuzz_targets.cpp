@@ -3,6 +3,9 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
 #include <cstdlib>
 #include <stdexcept>
 #include <vector>
@@ -10,6 +13,7 @@
 #include "errors.h"
 #include "golden_model.h"
 #include "hw_config.h"
+#include "livepoint_file.h"
 #include "scene_file.h"
 #include "study.h"
 #include "trace.h"
@@ -118,6 +122,31 @@ int fuzz_study(const uint8_t* data, size_t size) {
     // the large ones are checked for their count only, so the campaign
     // reaches its executions (docs/testing.md "Fuzzing").
     if (s.points_at_most <= kMaxFuzzStudyPoints) (void)ropsim::expand_study(s);
+  });
+}
+
+int fuzz_livepoints(const uint8_t* data, size_t size) {
+  std::vector<uint8_t> file;
+  if (size >= 8 && std::memcmp(data, "ROPSIMLP", 8) == 0) {
+    file.assign(data, data + size);
+  } else {
+    file = ropsim::wrap_livepoint_payload(data, size);
+  }
+  const std::string path = input_file(file.data(), file.size(), ".rlp");
+  return expect_input_errors([&] {
+    const ropsim::LivePoints lib = ropsim::read_livepoints(path);
+    // What reads, writes and reads back to the same bytes.
+    const std::string again = path + ".again.rlp", third = path + ".third.rlp";
+    ropsim::write_livepoints(again, lib);
+    ropsim::write_livepoints(third, ropsim::read_livepoints(again));
+    auto bytes = [](const std::string& p) {
+      std::ifstream f(p, std::ios::binary);
+      return std::vector<char>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    };
+    const bool same = bytes(again) == bytes(third);
+    std::remove(again.c_str());
+    std::remove(third.c_str());
+    if (!same) std::abort();
   });
 }
 

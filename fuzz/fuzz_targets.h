@@ -26,6 +26,12 @@ int fuzz_scene(const uint8_t* data, size_t size);
 int fuzz_design(const uint8_t* data, size_t size);
 /// A study file, parsed, checked and expanded into its points.
 int fuzz_study(const uint8_t* data, size_t size);
+/// A live-point library (docs/livepoints.md): an input that starts with the
+/// magic is the file as it is; any other is taken as the payload and wrapped
+/// in a valid header, checksum and zstd frame, so that the fuzzer reaches the
+/// payload's parser. A library that reads is written and read again, and must
+/// give the same bytes.
+int fuzz_livepoints(const uint8_t* data, size_t size);
 
 struct Target {
   const char* name;
@@ -33,7 +39,8 @@ struct Target {
 };
 inline const std::vector<Target>& targets() {
   static const std::vector<Target> t = {
-      {"trace", fuzz_trace}, {"scene", fuzz_scene}, {"design", fuzz_design}, {"study", fuzz_study}};
+      {"trace", fuzz_trace}, {"scene", fuzz_scene}, {"design", fuzz_design}, {"study", fuzz_study},
+      {"livepoints", fuzz_livepoints}};
   return t;
 }
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs one fuzz target (docs/testing.md "Fuzzing") for SECONDS seconds.
 #
-#   scripts/fuzz.sh TARGET SECONDS [RUNS]   # TARGET: trace, scene, design, study, or all
+#   scripts/fuzz.sh TARGET SECONDS [RUNS]   # TARGET: trace, scene, design, study, livepoints, or all
 #
 # Builds the libFuzzer executables with clang, ASan and UBSan in build-fuzz/
 # (installing clang and its fuzzer runtime if missing), generates a seed corpus
@@ -14,19 +14,19 @@
 # copy it into fuzz/regressions/TARGET/ once fixed.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-[ $# -ge 2 ] || { echo "usage: $0 trace|scene|design|study|all SECONDS [RUNS]" >&2; exit 2; }
+[ $# -ge 2 ] || { echo "usage: $0 trace|scene|design|study|livepoints|all SECONDS [RUNS]" >&2; exit 2; }
 target="$1"
 seconds="$2"
 runs="${3:-0}"
 if [ "$target" = all ]; then
-  for t in trace scene design study; do bash "$0" "$t" "$seconds" "$runs"; done
+  for t in trace scene design study livepoints; do bash "$0" "$t" "$seconds" "$runs"; done
   exit 0
 fi
-case "$target" in trace | scene | design | study) ;; *) echo "$0: unknown target '$target'" >&2; exit 2 ;; esac
+case "$target" in trace | scene | design | study | livepoints) ;; *) echo "$0: unknown target '$target'" >&2; exit 2 ;; esac
 
 bash "$root/scripts/deps.sh"
 need=()
-for p in clang libclang-rt-14-dev; do
+for p in clang libclang-rt-14-dev zstd; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
 done
 if [ ${#need[@]} -gt 0 ]; then
@@ -71,6 +71,16 @@ if [ ! -d "$seeds" ]; then
       printf '[cache]\nways = 8\n%%%%\ncache.ways=4\nclock.frequency_ghz=1.25\nsorter.kind=bitonic\n' >"$seeds.tmp/overrides.toml"
       ;;
     study) cp "$root"/studies/*.toml "$seeds.tmp/" ;;
+    livepoints)
+      # Small libraries of three methods (lk: the tracker; slab: its layers),
+      # whole files and their bare payloads (the target wraps those itself).
+      for m in lk slab opaque; do
+        ASAN_OPTIONS=detect_leaks=0 "$b/ropsim" livepoints --scene eight-layers --spp 4 --width 16 --height 12 \
+          --method "$m" --sample-units 3 --sample-size 16 --sample-warmup 8 --sample-cooldown 8 --sample-warming 16 \
+          --threads 1 --quiet -o "$seeds.tmp/$m.rlp"
+        tail -c +33 "$seeds.tmp/$m.rlp" | zstd -q -d -c >"$seeds.tmp/$m.payload"
+      done
+      ;;
   esac
   mv "$seeds.tmp" "$seeds"
 fi

@@ -548,6 +548,20 @@ InputIdentity input_identity(const InputSpec& in) {
   return id;
 }
 
+std::vector<uint8_t> wrap_livepoint_payload(const uint8_t* payload, size_t size) {
+  std::vector<uint8_t> file(kFileHeaderBytes);
+  std::memcpy(file.data(), kMagic, 8);
+  put_le(file.data() + 8, kLivePointFileVersion, 4);
+  put_le(file.data() + 12, 0, 4);
+  put_le(file.data() + 16, size, 8);
+  put_le(file.data() + 24, XXH3_64bits(payload, size), 8);
+  std::vector<uint8_t> frame(ZSTD_compressBound(size));
+  const size_t n = ZSTD_compress(frame.data(), frame.size(), payload, size, 1);
+  invariant(!ZSTD_isError(n), "zstd compresses into its bound");
+  file.insert(file.end(), frame.begin(), frame.begin() + std::ptrdiff_t(n));
+  return file;
+}
+
 void write_livepoints(const std::string& path, const LivePoints& lib) {
   const std::vector<uint8_t> payload = encode(lib);
   ensure_parent_dir(path);

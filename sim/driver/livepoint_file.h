@@ -10,6 +10,7 @@
 // input_digest) and for a different method or numerics.
 #pragma once
 #include <string>
+#include <vector>
 
 #include "fragment_source.h"
 #include "livepoints.h"
@@ -36,6 +37,10 @@ void write_livepoints(const std::string& path, const LivePoints& lib);
 /// of another version, truncated or corrupt (the checksum), or over the
 /// memory limit.
 LivePoints read_livepoints(const std::string& path);
+
+/// A library file around payload bytes (the header, the checksum and the zstd
+/// frame): for the fuzz target, which reaches the payload's parser this way.
+std::vector<uint8_t> wrap_livepoint_payload(const uint8_t* payload, size_t size);
 
 /// Throws UserError unless in is the input lib was recorded from (its digest).
 void check_library_input(const LivePoints& lib, const std::string& lib_path, const InputSpec& in);
