@@ -600,37 +600,44 @@ LivePoints read_livepoints(const std::string& path) {
     throw UserError(path + ": live-point library version " + std::to_string(version) + ", this ropsim reads " +
                     std::to_string(kLivePointFileVersion) + " (rebuild it with `ropsim livepoints`)");
   const uint64_t size = get_le(head + 16, 8), sum = get_le(head + 24, 8);
-  // The payload, and what it decodes into (about as much again), in the budget.
-  BudgetShare mem;
   if (size > kMaxCount)
     throw UserError(path + ": not a valid live-point library (a payload of " + std::to_string(size) + " bytes)");
-  mem.add(2 * size, "the live-point library");
-  std::vector<uint8_t> payload(static_cast<size_t>(size));
+  // The payload grows as it is decompressed -- never beyond the size the
+  // header declares, and never allocated on the header's word alone -- and is
+  // charged to the budget as it grows, with as much again for what it decodes
+  // into.
+  BudgetShare mem;
+  std::vector<uint8_t> payload;
   std::unique_ptr<ZSTD_DCtx, decltype(&ZSTD_freeDCtx)> dctx(ZSTD_createDCtx(), ZSTD_freeDCtx);
   invariant(dctx != nullptr, "zstd context allocated");
-  std::vector<uint8_t> ibuf(ZSTD_DStreamInSize());
-  ZSTD_outBuffer ob{payload.data(), payload.size(), 0};
+  std::vector<uint8_t> ibuf(ZSTD_DStreamInSize()), obuf(size_t(1) << 20);
+  uint64_t charged = 0;
   size_t last = 1;
   for (;;) {
     const size_t n = std::fread(ibuf.data(), 1, ibuf.size(), f);
     if (n == 0) break;
     ZSTD_inBuffer ib{ibuf.data(), n, 0};
     while (ib.pos < ib.size) {
-      const size_t before_in = ib.pos, before_out = ob.pos;
+      if (last == 0) throw UserError(path + ": not a valid live-point library (bytes after the payload)");
+      ZSTD_outBuffer ob{obuf.data(), obuf.size(), 0};
       last = ZSTD_decompressStream(dctx.get(), &ob, &ib);
       if (ZSTD_isError(last))
         throw UserError(path + ": not a valid live-point library (corrupt compressed data: " + ZSTD_getErrorName(last) +
                         ")");
-      if (last == 0 && ib.pos < ib.size)
-        throw UserError(path + ": not a valid live-point library (bytes after the payload)");
-      if (ib.pos == before_in && ob.pos == before_out)
+      if (payload.size() + ob.pos > size)
         throw UserError(path + ": not a valid live-point library (the payload is longer than its header says)");
+      if (payload.size() + ob.pos > charged) {
+        const uint64_t more = std::max<uint64_t>(payload.size() + ob.pos - charged, uint64_t{16} << 20);
+        mem.add(2 * more, "the live-point library");
+        charged += more;
+      }
+      payload.insert(payload.end(), obuf.begin(), obuf.begin() + std::ptrdiff_t(ob.pos));
     }
   }
   if (std::ferror(f)) throw UserError(path + ": read error");
-  if (last != 0 || ob.pos != payload.size())
-    throw UserError(path + ": not a valid live-point library (truncated: " + std::to_string(ob.pos) + " of " +
-                    std::to_string(payload.size()) + " payload bytes)");
+  if (last != 0 || payload.size() != size)
+    throw UserError(path + ": not a valid live-point library (truncated: " + std::to_string(payload.size()) + " of " +
+                    std::to_string(size) + " payload bytes)");
   if (XXH3_64bits(payload.data(), payload.size()) != sum)
     throw UserError(path + ": not a valid live-point library (the payload's checksum does not match)");
   LivePoints lib = decode(payload, path);
