@@ -43,6 +43,66 @@ const char* activity_meaning(Activity a) {
 
 }  // namespace
 
+/// A unit instance's identity (cycle and sampled reports).
+static void put_unit_identity(Fields j, const UnitReport& u) {
+  j.put("name", u.name, "-", "the unit instance (SystemC name)");
+  j.put("kind", u.kind, "-",
+        "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
+        "alpha_ref_gen, writeback or blend");
+  j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
+}
+
+/// A unit instance's cycles per activity (cycle and sampled reports).
+static void put_unit_activity(Fields j, const UnitReport& u, uint64_t total_cycles) {
+  Fields c = j.obj("cycles");
+  for (int a = 0; a < kActivities; ++a)
+    c.put(to_string(Activity(a)), u.stats.cycles[size_t(a)], "cycles",
+          std::string(activity_meaning(Activity(a))) + " (the activities sum to total_cycles)");
+  const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
+  j.put("busy_fraction", total_cycles ? double(busy) / double(total_cycles) : 0.0, "fraction",
+        "busy cycles / total_cycles");
+}
+
+/// The ROP caches' figures, summed over the ROPs (cycle and approximate reports).
+static void put_cache_stats(Fields cache, const CacheStats& sum, uint32_t listed) {
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!((listed >> b) & 1u)) continue;
+    const size_t i = size_t(b);
+    const std::string buf = to_string(Buffer(b));
+    Fields x = cache.obj(buf);
+    x.put("read_hits", sum.read_hits[i], "accesses", buf + " line reads that hit, over the ROP caches");
+    x.put("read_misses", sum.read_misses[i], "accesses", buf + " line reads that missed");
+    x.put("write_hits", sum.write_hits[i], "accesses", buf + " line writes that hit");
+    x.put("write_misses", sum.write_misses[i], "accesses", buf + " line writes that missed (allocated without a fill)");
+  }
+  cache.put("hits", sum.hits(), "accesses", "read and write hits over every buffer");
+  cache.put("misses", sum.misses(), "accesses", "read and write misses over every buffer");
+  cache.put("hit_rate", sum.hit_rate(), "fraction", "hits / (hits + misses)");
+  cache.put("merged_reads", sum.merged, "accesses", "reads of a line whose fill was in flight");
+  cache.put("evictions", sum.evictions, "lines", "lines evicted");
+  cache.put("dirty_evictions", sum.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
+  cache.put("fast_clear_fills", sum.clear_fills, "accesses", "misses served as the clear value, without DRAM");
+}
+
+/// The DRAM's bytes per buffer and in all, its bursts and row hits (cycle
+/// and approximate reports).
+static void put_dram_traffic(Fields dram, const DramStats& d, uint32_t listed) {
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!((listed >> b) & 1u)) continue;
+    const std::string buf = to_string(Buffer(b));
+    Fields x = dram.obj(buf);
+    x.put("bytes_read", d.bytes_read[size_t(b)], "bytes",
+          "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
+    x.put("bytes_written", d.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
+  }
+  dram.put("bytes_read", d.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
+  dram.put("bytes_written", d.total_bytes_written(), "bytes", "DRAM bytes written, every buffer");
+  dram.put("reads", d.reads, "bursts", "read bursts");
+  dram.put("writes", d.writes, "bursts", "write bursts");
+  dram.put("row_hits", d.row_hits, "bursts", "bursts to the open row");
+  dram.put("row_misses", d.row_misses, "bursts", "bursts that opened a row");
+}
+
 std::string format_bottleneck(const CycleStats& s) {
   const Bottleneck& b = s.bottleneck;
   switch (b.kind) {
@@ -74,21 +134,11 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   t.empty_array("units");
   for (const auto& u : s.units) {
     Fields j = t.item("units");
-    j.put("name", u.name, "-", "the unit instance (SystemC name)");
-    j.put("kind", u.kind, "-",
-          "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
-          "alpha_ref_gen, writeback or blend");
-    j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
+    put_unit_identity(j, u);
     j.put("fragments", u.stats.fragments, "fragments", "fragments it accepted");
     j.put("samples", u.stats.samples, "samples",
           "unit-specific: tested (depth test), tracked, sorted, hashed (alpha-ref gen), examined (writeback)");
-    Fields c = j.obj("cycles");
-    for (int a = 0; a < kActivities; ++a)
-      c.put(to_string(Activity(a)), u.stats.cycles[size_t(a)], "cycles",
-            std::string(activity_meaning(Activity(a))) + " (the activities sum to total_cycles)");
-    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
-    j.put("busy_fraction", s.total_cycles ? double(busy) / double(s.total_cycles) : 0.0, "fraction",
-          "busy cycles / total_cycles");
+    put_unit_activity(j, u, s.total_cycles);
     j.put("activations", u.stats.activations, "-",
           "times the scheduler ran the unit (0 for a decoupled unit, which runs inside its neighbours' runs)");
     for (const auto& e : u.extras) j.put(e.name, e.value, e.unit, u.kind + ": " + e.meaning);
@@ -106,39 +156,9 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   // Caches: the sum over the ROPs.
   CacheStats sum;
   for (const auto& c : s.caches) sum += c;
-  Fields cache = t.obj("cache");
-  for (int b = 0; b < kBuffers; ++b) {
-    if (!s.lists(b)) continue;
-    const size_t i = size_t(b);
-    const std::string buf = to_string(Buffer(b));
-    Fields x = cache.obj(buf);
-    x.put("read_hits", sum.read_hits[i], "accesses", buf + " line reads that hit, over the ROP caches");
-    x.put("read_misses", sum.read_misses[i], "accesses", buf + " line reads that missed");
-    x.put("write_hits", sum.write_hits[i], "accesses", buf + " line writes that hit");
-    x.put("write_misses", sum.write_misses[i], "accesses", buf + " line writes that missed (allocated without a fill)");
-  }
-  cache.put("hits", sum.hits(), "accesses", "read and write hits over every buffer");
-  cache.put("misses", sum.misses(), "accesses", "read and write misses over every buffer");
-  cache.put("hit_rate", sum.hit_rate(), "fraction", "hits / (hits + misses)");
-  cache.put("merged_reads", sum.merged, "accesses", "reads of a line whose fill was in flight");
-  cache.put("evictions", sum.evictions, "lines", "lines evicted");
-  cache.put("dirty_evictions", sum.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
-  cache.put("fast_clear_fills", sum.clear_fills, "accesses", "misses served as the clear value, without DRAM");
+  put_cache_stats(t.obj("cache"), sum, s.listed);
   Fields dram = t.obj("dram");
-  for (int b = 0; b < kBuffers; ++b) {
-    if (!s.lists(b)) continue;
-    const std::string buf = to_string(Buffer(b));
-    Fields x = dram.obj(buf);
-    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes",
-          "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
-    x.put("bytes_written", s.dram.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
-  }
-  dram.put("bytes_read", s.dram.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
-  dram.put("bytes_written", s.dram.total_bytes_written(), "bytes", "DRAM bytes written, every buffer");
-  dram.put("reads", s.dram.reads, "bursts", "read bursts");
-  dram.put("writes", s.dram.writes, "bursts", "write bursts");
-  dram.put("row_hits", s.dram.row_hits, "bursts", "bursts to the open row");
-  dram.put("row_misses", s.dram.row_misses, "bursts", "bursts that opened a row");
+  put_dram_traffic(dram, s.dram, s.listed);
   dram.put("peak_gbps", s.dram_peak_gbps, "GB/s", "channels x bytes/clock x GHz (GB/s = 10^9 B/s)");
   dram.put("achieved_gbps", s.dram_achieved_gbps, "GB/s", "bytes moved / frame time");
   dram.put("busiest_channel_utilization", s.dram_utilization, "fraction",
@@ -222,40 +242,9 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
   t.put("bottleneck", format_approx_bottleneck(s), "-",
         "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
         "waits on its own resources most, and why");
-  Fields cache = t.obj("cache");
-  for (int b = 0; b < kBuffers; ++b) {
-    if (!s.lists(b)) continue;
-    const size_t i = size_t(b);
-    const std::string buf = to_string(Buffer(b));
-    Fields x = cache.obj(buf);
-    x.put("read_hits", s.cache.read_hits[i], "accesses", buf + " line reads that hit, over the ROP caches");
-    x.put("read_misses", s.cache.read_misses[i], "accesses", buf + " line reads that missed");
-    x.put("write_hits", s.cache.write_hits[i], "accesses", buf + " line writes that hit");
-    x.put("write_misses", s.cache.write_misses[i], "accesses",
-          buf + " line writes that missed (allocated without a fill)");
-  }
-  cache.put("hits", s.cache.hits(), "accesses", "read and write hits over every buffer");
-  cache.put("misses", s.cache.misses(), "accesses", "read and write misses over every buffer");
-  cache.put("hit_rate", s.cache.hit_rate(), "fraction", "hits / (hits + misses)");
-  cache.put("merged_reads", s.cache.merged, "accesses", "reads of a line whose fill was in flight");
-  cache.put("evictions", s.cache.evictions, "lines", "lines evicted");
-  cache.put("dirty_evictions", s.cache.dirty_evictions, "lines", "dirty lines evicted (written to DRAM)");
-  cache.put("fast_clear_fills", s.cache.clear_fills, "accesses", "misses served as the clear value, without DRAM");
+  put_cache_stats(t.obj("cache"), s.cache, s.listed);
   Fields dram = t.obj("dram");
-  for (int b = 0; b < kBuffers; ++b) {
-    if (!s.lists(b)) continue;
-    const std::string buf = to_string(Buffer(b));
-    Fields x = dram.obj(buf);
-    x.put("bytes_read", s.dram.bytes_read[size_t(b)], "bytes",
-          "DRAM bytes read for the " + buf + " buffer (line-sized bursts)");
-    x.put("bytes_written", s.dram.bytes_written[size_t(b)], "bytes", "DRAM bytes written for the " + buf + " buffer");
-  }
-  dram.put("bytes_read", s.dram.total_bytes_read(), "bytes", "DRAM bytes read, every buffer");
-  dram.put("bytes_written", s.dram.total_bytes_written(), "bytes", "DRAM bytes written, every buffer");
-  dram.put("reads", s.dram.reads, "bursts", "read bursts");
-  dram.put("writes", s.dram.writes, "bursts", "write bursts");
-  dram.put("row_hits", s.dram.row_hits, "bursts", "bursts to the open row");
-  dram.put("row_misses", s.dram.row_misses, "bursts", "bursts that opened a row");
+  put_dram_traffic(dram, s.dram, s.listed);
   dram.put("busiest_channel_utilization", double(s.dram.max_channel_busy) / total, "fraction",
            "data-bus busy cycles of the busiest channel / total_cycles");
   Fields a = t.obj("approximate");
@@ -351,18 +340,8 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   t.empty_array("units");
   for (const auto& u : s.stats.units) {
     Fields j = t.item("units");
-    j.put("name", u.name, "-", "the unit instance (SystemC name)");
-    j.put("kind", u.kind, "-",
-          "trace_source, distributor, pixel_ordering, depth_test, coverage_tracker, sample_sorter, "
-          "alpha_ref_gen, writeback or blend");
-    j.put("rop", u.rop, "-", "the ROP unit it belongs to (-1: shared)");
-    Fields c = j.obj("cycles");
-    for (int a = 0; a < kActivities; ++a)
-      c.put(to_string(Activity(a)), u.stats.cycles[size_t(a)], "cycles",
-            std::string(activity_meaning(Activity(a))) + " (the activities sum to total_cycles)");
-    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
-    j.put("busy_fraction", s.stats.total_cycles ? double(busy) / double(s.stats.total_cycles) : 0.0, "fraction",
-          "busy cycles / total_cycles");
+    put_unit_identity(j, u);
+    put_unit_activity(j, u, s.stats.total_cycles);
   }
   Fields sp = t.obj("sampling");
   sp.put("library", from.path.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(from.path), "-",
