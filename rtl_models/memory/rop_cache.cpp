@@ -23,54 +23,32 @@ void PostedWrites::apply(uint64_t before) {
 }
 
 RopCache::RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram, PostedWrites* posted, uint32_t rop)
-    : cfg_(cfg),
-      dram_(dram),
-      in_dram_(in_dram),
-      posted_(posted),
-      rop_(rop),
-      sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
-      set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
-      tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid),
-      lru_(tags_.size(), 0),
-      ways_(size_t(cfg.size_bytes / cfg.line_bytes)) {}
+    : cfg_(cfg), dram_(dram), in_dram_(in_dram), posted_(posted), rop_(rop), tags_(cfg), ways_(tags_.size()) {}
 
 size_t RopCache::lookup(uint64_t line, bool& hit, uint64_t now) {
-  const uint64_t l = line >> set_shift_;
-  const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
-  const size_t base = size_t(set) * cfg_.ways;
-  const uint64_t* tag = &tags_[base];
-  const uint32_t n = cfg_.ways;
-  for (uint32_t i = 0; i < n; ++i)
-    if (tag[i] == line) {
-      hit = true;
-      lru_[base + i] = ++tick_;
-      return base + i;
-    }
-  // Miss: the first invalid way, else the least recently used.
-  size_t victim = base;
-  for (uint32_t i = 0; i < n && tags_[victim] != kInvalid; ++i)
-    if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
-  hit = false;
-  evict(victim, now);
-  tags_[victim] = line;
-  lru_[victim] = ++tick_;
-  return victim;
+  const size_t way = tags_.find(line, hit);
+  if (!hit) {
+    evict(way, now);
+    tags_.install(way, line);
+  }
+  return way;
 }
 
 void RopCache::evict(size_t way, uint64_t now) {
-  if (tags_[way] == kInvalid) return;
+  const uint64_t line = tags_.tag(way);
+  if (line == CacheTags::kInvalid) return;
   Way& w = ways_[way];
   if (warming_) {
-    if (w.dirty) in_dram_.insert(tags_[way]);
+    if (w.dirty) in_dram_.insert(line);
   } else {
     ++s_.evictions;
     if (w.dirty) {
       ++s_.dirty_evictions;
-      dram_.access(tags_[way], cfg_.line_bytes, true, w.buf, now);
-      in_dram_.insert(tags_[way]);
+      dram_.access(line, cfg_.line_bytes, true, w.buf, now);
+      in_dram_.insert(line);
     }
   }
-  tags_[way] = kInvalid;
+  tags_.invalidate(way);
   w.dirty = false;
 }
 
@@ -131,9 +109,9 @@ uint64_t RopCache::flush(uint64_t now) {
   if (posted_) posted_->apply_all();
   uint64_t done = now;
   for (size_t i = 0; i < ways_.size(); ++i)
-    if (Way& w = ways_[i]; tags_[i] != kInvalid && w.dirty) {
-      done = std::max(done, dram_.access(tags_[i], cfg_.line_bytes, true, w.buf, now));
-      in_dram_.insert(tags_[i]);
+    if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
+      done = std::max(done, dram_.access(tags_.tag(i), cfg_.line_bytes, true, w.buf, now));
+      in_dram_.insert(tags_.tag(i));
       w.dirty = false;
     }
   return done;

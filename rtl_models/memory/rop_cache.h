@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "address_map.h"
+#include "cache_tags.h"
 #include "dram.h"
 #include "hw_config.h"
 #include "line_set.h"
@@ -125,8 +126,7 @@ class RopCache {
 
  private:
   IntervalLog* log_ = nullptr;
-  // A way's tag apart from the rest, so a set's tags share one host cache line.
-  static constexpr uint64_t kInvalid = ~uint64_t{0};  // no line address is all ones
+  // A way's state apart from its tag (CacheTags), so a set's tags share one host cache line.
   struct Way {
     uint64_t ready = 0;
     Buffer buf = Buffer::kDepth;
@@ -141,11 +141,8 @@ class RopCache {
   LineSet& in_dram_;  // lines DRAM holds (shared by all caches)
   PostedWrites* posted_;
   uint32_t rop_;
-  uint32_t sets_, set_shift_;
-  std::vector<uint64_t> tags_;  // per way, kInvalid when empty
-  std::vector<uint64_t> lru_;   // per way: last use (tick), next to the tags for the victim search
+  CacheTags tags_;
   std::vector<Way> ways_;
-  uint64_t tick_ = 0;
   CacheStats s_;
 };
 

@@ -9,6 +9,7 @@
 
 #include "address_map.h"
 #include "bits.h"
+#include "cache_tags.h"
 #include "errors.h"
 #include "functional_rop.h"
 #include "line_set.h"
@@ -146,20 +147,12 @@ class DramTags {
 /// (dram.h: the channel, bank and row map, the row buffers, each channel's
 /// bursts served in arrival order) at the cycle the model estimates for the
 /// access.
-class CacheTags {
+class TagOnlyCache {
  public:
   enum class Read { kHit, kClearFill, kMiss };
   /// window: the depth test's outstanding fragments (depth_test.max_outstanding).
-  CacheTags(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram)
-      : window_(window),
-        cfg_(cfg),
-        dram_(dram),
-        in_dram_(in_dram),
-        sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
-        set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
-        tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid),
-        lru_(tags_.size(), 0),
-        ways_(tags_.size()) {}
+  TagOnlyCache(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram)
+      : window_(window), cfg_(cfg), dram_(dram), in_dram_(in_dram), tags_(cfg), ways_(tags_.size()) {}
 
   /// A read; latency: the cycles until its data is there, unloaded.
   Read read(uint64_t line, Buffer b, uint64_t& latency) {
@@ -212,9 +205,9 @@ class CacheTags {
   }
   void flush() {
     for (size_t i = 0; i < ways_.size(); ++i)
-      if (Way& w = ways_[i]; tags_[i] != kInvalid && w.dirty) {
-        dram_.access(tags_[i], cfg_.line_bytes, true, w.buf);
-        in_dram_.insert(tags_[i]);
+      if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
+        dram_.access(tags_.tag(i), cfg_.line_bytes, true, w.buf);
+        in_dram_.insert(tags_.tag(i));
         w.dirty = false;
       }
   }
@@ -226,7 +219,6 @@ class CacheTags {
   const CacheStats& stats() const { return s_; }
 
  private:
-  static constexpr uint64_t kInvalid = ~uint64_t{0};
   static constexpr uint64_t kNoFill = ~uint64_t{0};
   struct Way {
     uint64_t fill_seq = kNoFill;  // the fragment whose read filled it from DRAM
@@ -235,36 +227,20 @@ class CacheTags {
     Buffer buf = Buffer::kDepth;
     bool dirty = false;
   };
-  // RopCache::lookup: the set from the line address folded with its upper
-  // bits and the buffer; a hit refreshes the LRU tick; a miss takes the first
-  // invalid way, else the least recently used, evicting it.
+  // The cycle model's placement (cache_tags.h); a miss evicts the way's line.
   size_t lookup(uint64_t line, bool& hit) {
-    const uint64_t l = line >> set_shift_;
-    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
-    const size_t base = size_t(set) * cfg_.ways;
-    const uint64_t* tag = &tags_[base];
-    const uint32_t n = cfg_.ways;
-    for (uint32_t i = 0; i < n; ++i)
-      if (tag[i] == line) {
-        hit = true;
-        lru_[base + i] = ++tick_;
-        return base + i;
-      }
-    size_t victim = base;
-    for (uint32_t i = 0; i < n && tags_[victim] != kInvalid; ++i)
-      if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
-    hit = false;
-    if (tags_[victim] != kInvalid) {
+    const size_t victim = tags_.find(line, hit);
+    if (hit) return victim;
+    if (const uint64_t old = tags_.tag(victim); old != CacheTags::kInvalid) {
       ++s_.evictions;
       if (ways_[victim].dirty) {
         ++s_.dirty_evictions;
-        dram_.access(tags_[victim], cfg_.line_bytes, true, ways_[victim].buf);
-        in_dram_.insert(tags_[victim]);
+        dram_.access(old, cfg_.line_bytes, true, ways_[victim].buf);
+        in_dram_.insert(old);
       }
       ways_[victim].dirty = false;
     }
-    tags_[victim] = line;
-    lru_[victim] = ++tick_;
+    tags_.install(victim, line);
     return victim;
   }
   uint64_t window_, seq_ = 0;
@@ -272,10 +248,8 @@ class CacheTags {
   HwConfig::Cache cfg_;
   DramTags& dram_;
   LineSet& in_dram_;
-  uint32_t sets_, set_shift_;
-  std::vector<uint64_t> tags_, lru_;
+  CacheTags tags_;
   std::vector<Way> ways_;
-  uint64_t tick_ = 0;
   CacheStats s_;
 };
 
@@ -324,7 +298,7 @@ class Model {
         window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
         window_at_(hw.distributor.rop_units, 0) {
     for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
-      caches_.push_back(std::make_unique<CacheTags>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram));
+      caches_.push_back(std::make_unique<TagOnlyCache>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram));
     const MethodTraits& mt = rop.traits();
     blend_pass_ = is_blend_pass(rop.pass());
     tracker_ = rop.pass_uses_tracker();
@@ -348,7 +322,7 @@ class Model {
     const FragRec& f = w;
     const uint32_t hashes = w.hashes, examined = w.examined, blended = w.blended;
     const uint32_t r = owner_.rop_of(f.x, f.y);
-    CacheTags& c = *caches_[r];
+    TagOnlyCache& c = *caches_[r];
     c.next_fragment(uint32_t(f.y) * uint32_t(width_) + f.x);
     RopEpoch& e = rops_[r];
     const HwConfig& hw = hw_;
@@ -523,7 +497,7 @@ class Model {
   AddressMap amap_;
   DramTags dram_;
   std::unique_ptr<SortAlgorithm> sorter_;
-  std::vector<std::unique_ptr<CacheTags>> caches_;
+  std::vector<std::unique_ptr<TagOnlyCache>> caches_;
   std::vector<RopEpoch> rops_;
   size_t width_;
   std::vector<double> retire_;                     // per pixel: its last fragment's estimated retirement

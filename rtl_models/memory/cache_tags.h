@@ -1,0 +1,67 @@
+// The ROP cache's tags and replacement, written once: the set a line maps to,
+// a hit's LRU refresh, and the way a miss takes (the set's first invalid way,
+// else its least recently used). The cycle model's RopCache and the
+// analytical model's tag-only cache both hold one, so they place every line
+// alike. No SystemC; the caller moves the data and counts the traffic.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "bits.h"
+#include "hw_config.h"
+
+namespace ropsim {
+
+class CacheTags {
+ public:
+  static constexpr uint64_t kInvalid = ~uint64_t{0};
+
+  explicit CacheTags(const HwConfig::Cache& cfg)
+      : ways_(cfg.ways),
+        sets_(cfg.size_bytes / (cfg.line_bytes * cfg.ways)),
+        set_shift_(uint32_t(log2_ceil(cfg.line_bytes))),
+        tags_(size_t(cfg.size_bytes / cfg.line_bytes), kInvalid),
+        lru_(tags_.size(), 0) {}
+
+  /// The way holding line (hit = true, its LRU refreshed), or the way a miss
+  /// takes (hit = false): the set's first invalid way, else its least
+  /// recently used. On a miss the way still holds its old line (tag()), for
+  /// the caller to evict before install().
+  size_t find(uint64_t line, bool& hit) {
+    const uint64_t l = line >> set_shift_;
+    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
+    const size_t base = size_t(set) * ways_;
+    const uint64_t* tag = &tags_[base];
+    for (uint32_t i = 0; i < ways_; ++i)
+      if (tag[i] == line) {
+        hit = true;
+        lru_[base + i] = ++tick_;
+        return base + i;
+      }
+    size_t victim = base;
+    for (uint32_t i = 0; i < ways_ && tags_[victim] != kInvalid; ++i)
+      if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
+    hit = false;
+    return victim;
+  }
+  /// Puts line in way (a miss's, its old line evicted), most recently used.
+  void install(size_t way, uint64_t line) {
+    tags_[way] = line;
+    lru_[way] = ++tick_;
+  }
+  /// Empties way (its line evicted).
+  void invalidate(size_t way) { tags_[way] = kInvalid; }
+  uint64_t tag(size_t way) const { return tags_[way]; }
+  size_t size() const { return tags_.size(); }  ///< ways over every set
+
+ private:
+  uint32_t ways_;
+  uint64_t sets_;
+  uint32_t set_shift_;
+  std::vector<uint64_t> tags_;  // per way, kInvalid when empty
+  std::vector<uint64_t> lru_;   // per way: last use (tick), next to the tags for the victim search
+  uint64_t tick_ = 0;
+};
+
+}  // namespace ropsim
