@@ -4,14 +4,7 @@
 
 namespace ropsim {
 
-Dram::Dram(const HwConfig::Dram& cfg)
-    : cfg_(cfg),
-      interleave_(cfg.interleave_bytes),
-      channels_(cfg.channels),
-      row_(cfg.row_bytes),
-      banks_(cfg.banks),
-      bus_(cfg.bytes_per_clock),
-      ch_(cfg.channels) {
+Dram::Dram(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), bus_(cfg.bytes_per_clock), ch_(cfg.channels) {
   for (auto& c : ch_) {
     c.open_row.assign(cfg.banks, ~uint64_t{0});
     c.bank_free.assign(cfg.banks, 0);
@@ -19,14 +12,10 @@ Dram::Dram(const HwConfig::Dram& cfg)
 }
 
 uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t now) {
-  const uint64_t granule = interleave_.div(addr);
-  // Channel from the granule, folded with higher bits so that the three
-  // buffers (2^48 apart) and tile strides spread over the channels.
-  const uint64_t ch_index = channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48));
+  const DramAddressMap::Place at = map_.place(addr);
+  const size_t ch_index = at.channel;
   Channel& c = ch_[ch_index];
-  const uint64_t local = channels_.div(granule) * cfg_.interleave_bytes + interleave_.mod(addr);
-  const uint64_t row = row_.div(local);
-  const uint64_t bank = banks_.mod(row ^ (addr >> 48));
+  const uint64_t row = at.row, bank = at.bank;
   uint64_t ready = std::max(now, c.bank_free[bank]);  // the bank may still serve an earlier access
   if (c.open_row[bank] == row) {
     ++s_.row_hits;

@@ -53,6 +53,39 @@ class Divisor {
   int shift_;
 };
 
+/// Where an address lives in the DRAM: its channel (the interleave granule
+/// folded with higher bits, so that the buffers, 2^48 apart, and tile strides
+/// spread over the channels), its row within the channel, and its bank (the
+/// row folded with the buffer). Written once for the cycle model's Dram and
+/// the analytical model's tag-only DRAM.
+class DramAddressMap {
+ public:
+  struct Place {
+    size_t channel;
+    uint64_t row, bank;
+  };
+  explicit DramAddressMap(const HwConfig::Dram& cfg)
+      : interleave_bytes_(cfg.interleave_bytes),
+        interleave_(cfg.interleave_bytes),
+        channels_(cfg.channels),
+        row_(cfg.row_bytes),
+        banks_(cfg.banks) {}
+  size_t channel_of(uint64_t addr) const {
+    const uint64_t granule = interleave_.div(addr);
+    return size_t(channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48)));
+  }
+  Place place(uint64_t addr) const {
+    const uint64_t granule = interleave_.div(addr);
+    const uint64_t local = channels_.div(granule) * interleave_bytes_ + interleave_.mod(addr);
+    const uint64_t row = row_.div(local);
+    return Place{channel_of(addr), row, banks_.mod(row ^ (addr >> 48))};
+  }
+
+ private:
+  uint64_t interleave_bytes_;
+  Divisor interleave_, channels_, row_, banks_;
+};
+
 class Dram {
  public:
   explicit Dram(const HwConfig::Dram& cfg);
@@ -66,7 +99,8 @@ class Dram {
  private:
   IntervalLog* log_ = nullptr;
   HwConfig::Dram cfg_;
-  Divisor interleave_, channels_, row_, banks_, bus_;
+  DramAddressMap map_;
+  Divisor bus_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
     std::vector<uint64_t> open_row;   // per bank, ~0 = closed

@@ -51,13 +51,7 @@ namespace {
 /// for its bursts so far, whatever the arrival times: a lower bound.
 class DramTags {
  public:
-  explicit DramTags(const HwConfig::Dram& cfg)
-      : cfg_(cfg),
-        interleave_(cfg.interleave_bytes),
-        channels_(cfg.channels),
-        row_(cfg.row_bytes),
-        banks_(cfg.banks),
-        ch_(cfg.channels) {
+  explicit DramTags(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), ch_(cfg.channels) {
     for (auto& c : ch_) {
       c.open_row.assign(cfg.banks, ~uint64_t{0});
       c.bank_free.assign(cfg.banks, 0);
@@ -67,13 +61,11 @@ class DramTags {
   /// transfer, the read latency): the cycles from the request to the data
   /// with the bank and the bus idle.
   uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) {
-    const uint64_t granule = interleave_.div(addr);
-    const size_t ch_index = channel_of(addr);
+    const DramAddressMap::Place at = map_.place(addr);
+    const size_t ch_index = at.channel;
     Channel& c = ch_[ch_index];
     if (!write) c.read = true;
-    const uint64_t local = channels_.div(granule) * cfg_.interleave_bytes + interleave_.mod(addr);
-    const uint64_t row = row_.div(local);
-    const uint64_t bank = banks_.mod(row ^ (addr >> 48));
+    const uint64_t row = at.row, bank = at.bank;
     uint64_t ready = c.bank_free[bank], penalty = 0;
     if (c.open_row[bank] == row) {
       ++s_.row_hits;
@@ -103,10 +95,7 @@ class DramTags {
     return m;
   }
   /// The channel of a burst address.
-  size_t channel_of(uint64_t addr) const {
-    const uint64_t granule = interleave_.div(addr);
-    return size_t(channels_.mod(granule ^ (granule >> 7) ^ (granule >> 17) ^ (addr >> 48)));
-  }
+  size_t channel_of(uint64_t addr) const { return map_.channel_of(addr); }
   /// Each channel's service clock.
   void clocks(std::vector<uint64_t>& out) const {
     out.resize(ch_.size());
@@ -128,7 +117,7 @@ class DramTags {
 
  private:
   HwConfig::Dram cfg_;
-  Divisor interleave_, channels_, row_, banks_;
+  DramAddressMap map_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
     bool read = false;  // a read since the last take_reads
