@@ -42,6 +42,20 @@ inline void sort_keys(uint64_t* keys, int m) {
 /// is O(m x distinct) instead of O(m^2). Writes the sample ids to order[0..m)
 /// and returns m.
 #if defined(__SSE2__)
+/// The samples among the first n whose stored depth has the bits v, four
+/// compares at a time.
+inline uint64_t same_depth_mask(const float* stored, int n, uint32_t v) {
+  const __m128i vv = _mm_set1_epi32(static_cast<int>(v));
+  uint64_t eq = 0;
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const __m128i z = _mm_loadu_si128(reinterpret_cast<const __m128i*>(stored + i));
+    eq |= uint64_t(uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(z, vv))))) << i;
+  }
+  for (; i < n; ++i) eq |= uint64_t(depth_bits(stored[i]) == v) << i;
+  return eq;
+}
+
 /// The rank sort of up to 16 samples: each sample's place is the number of
 /// samples whose key is smaller (a smaller stored depth, or the same and a
 /// smaller sample id), four compares at a time, without a branch on the data.
@@ -74,46 +88,20 @@ inline int sort_by_rank16(const float* stored, uint64_t samples, uint8_t* order)
 #endif
 
 inline int sort_by_stored_depth(const float* stored, uint64_t samples, uint8_t* order) {
-#if defined(__SSE2__)
-  // The common case first: every sample holds the same depth (a pixel still
-  // clear, or covered by one surface): the order is the sample ids'.
-  if (samples) {
-    const int n = 64 - __builtin_clzll(samples);
-    const __m128i v0 = _mm_set1_epi32(static_cast<int>(depth_bits(stored[__builtin_ctzll(samples)])));
-    uint64_t eq = 0;
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-      const __m128i z = _mm_loadu_si128(reinterpret_cast<const __m128i*>(stored + i));
-      eq |= uint64_t(uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(z, v0))))) << i;
-    }
-    for (; i < n; ++i) eq |= uint64_t(static_cast<int>(depth_bits(stored[i])) == _mm_cvtsi128_si32(v0)) << i;
-    if ((eq & samples) == samples) {
-      int m = 0;
-      for (uint64_t s = samples; s; s &= s - 1) order[m++] = static_cast<uint8_t>(__builtin_ctzll(s));
-      return m;
-    }
-  }
-  if (__builtin_popcountll(samples) <= 16) return sort_by_rank16(stored, samples, order);
-#endif
   uint32_t vals[64];
   uint64_t masks[64];
   int d = 0;
 #if defined(__SSE2__)
-  // One group per distinct depth: the first remaining sample's depth,
-  // compared with every sample's four at a time (only samples below the
-  // highest one in `samples` are read: stored holds at least that many).
+  // One group per distinct depth, each found four samples at a time (only
+  // samples below the highest one in `samples` are read: stored holds at
+  // least that many). The common case first: one group holds every sample (a
+  // pixel still clear, or covered by one surface), and the order is the ids'.
   const int n = samples ? 64 - __builtin_clzll(samples) : 0;
   for (uint64_t rest = samples; rest;) {
     const uint32_t v = depth_bits(stored[__builtin_ctzll(rest)]);
-    const __m128i vv = _mm_set1_epi32(static_cast<int>(v));
-    uint64_t eq = 0;
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-      const __m128i z = _mm_loadu_si128(reinterpret_cast<const __m128i*>(stored + i));
-      eq |= uint64_t(uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(z, vv))))) << i;
-    }
-    for (; i < n; ++i) eq |= uint64_t(depth_bits(stored[i]) == v) << i;
-    eq &= rest;
+    const uint64_t eq = same_depth_mask(stored, n, v) & rest;
+    // Several depths among up to 16 samples: the rank sort.
+    if (d == 0 && eq != samples && __builtin_popcountll(samples) <= 16) return sort_by_rank16(stored, samples, order);
     vals[d] = v;
     masks[d++] = eq;
     rest &= ~eq;

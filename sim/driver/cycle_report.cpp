@@ -12,13 +12,27 @@ namespace ropsim {
 
 namespace {
 
-FunctionalRun as_functional(const CycleRun& run, const std::optional<Image>& reference) {
+/// The functional part of a timed run (a CycleRun or an ApproxRun), for the
+/// functional report and summary it extends.
+template <class Run>
+FunctionalRun as_functional(const Run& run, const std::optional<Image>& reference) {
   FunctionalRun f;
   f.header = run.header;
   f.counters = run.counters;
   f.image = run.image;
   f.state_bytes = run.state_bytes;
   f.wall_seconds = run.wall_seconds;
+  f.reference = reference;
+  return f;
+}
+
+/// A sampled run's functional part: the library's exact counters and image.
+FunctionalRun as_functional(const LivePoints& lib, double wall_seconds, const std::optional<Image>& reference) {
+  FunctionalRun f;
+  f.header = lib.header;
+  f.counters = lib.counters;
+  f.image = lib.image;
+  f.wall_seconds = wall_seconds;
   f.reference = reference;
   return f;
 }
@@ -308,13 +322,7 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
                                       const HwConfig& hw, double wall_seconds, const LibrarySource& from,
                                       const std::optional<Image>& reference, FieldSink* sink) {
-  FunctionalRun f;
-  f.header = lib.header;
-  f.counters = lib.counters;
-  f.image = lib.image;
-  f.reference = reference;
-  f.wall_seconds = wall_seconds;
-  nlohmann::ordered_json j = functional_report(ctx, f, sink);
+  nlohmann::ordered_json j = functional_report(ctx, as_functional(lib, wall_seconds, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "sampled", "-", kFidelityMeaning);
   put_hardware(r.obj("hardware"), hw);
@@ -411,14 +419,7 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
 
 nlohmann::ordered_json approximate_report(const ReportContext& ctx, const ApproxRun& run,
                                           const std::optional<Image>& reference, FieldSink* sink) {
-  FunctionalRun f;
-  f.header = run.header;
-  f.counters = run.counters;
-  f.image = run.image;
-  f.reference = reference;
-  f.state_bytes = run.state_bytes;
-  f.wall_seconds = run.wall_seconds;
-  nlohmann::ordered_json j = functional_report(ctx, f, sink);
+  nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "approximate", "-", kFidelityMeaning);
   const ApproxStats& s = run.stats;
@@ -429,14 +430,7 @@ nlohmann::ordered_json approximate_report(const ReportContext& ctx, const Approx
 
 std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run, const std::optional<Image>& reference) {
   const ApproxStats& s = run.stats;
-  FunctionalRun f;
-  f.header = run.header;
-  f.counters = run.counters;
-  f.image = run.image;
-  f.reference = reference;
-  f.state_bytes = run.state_bytes;
-  f.wall_seconds = run.wall_seconds;
-  std::string out = functional_summary(ctx, f);
+  std::string out = functional_summary(ctx, as_functional(run, reference));
   out += fmt::format("  approximate model ({}): {} cycles = {:.2f} us at {} GHz ({} in epochs, fill {}, flush {})\n",
                      s.hw.name, s.total_cycles, double(s.total_cycles) / (s.hw.clock.frequency_ghz * 1e3),
                      s.hw.clock.frequency_ghz, s.total_cycles - s.fill_cycles - s.flush_cycles, s.fill_cycles,
