@@ -279,7 +279,39 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   expect_cli_error(box, "compare small.png missing.png", {"missing.png"});
   const CliResult same = box.run("compare small.png small.png --json");
   expect_ok(same, "compare an image with itself");
-  EXPECT_EQ(nlohmann::json::parse(same.out).value("rmse_8bit", -1.0), 0.0) << same.describe();
+  const auto sj = nlohmann::json::parse(same.out);
+  EXPECT_EQ(sj.value("rmse_8bit", -1.0), 0.0) << same.describe();
+  EXPECT_TRUE(sj["psnr_db"].is_null()) << "identical images: PSNR is infinite, JSON null (was 999)\n"
+                                       << same.describe();
+  const CliResult same_text = box.run("compare small.png small.png");
+  expect_ok(same_text, "compare an image with itself (text)");
+  EXPECT_NE(same_text.out.find("PSNR inf dB"), std::string::npos) << same_text.describe();
+}
+
+// compare converts an sRGB PNG to linear light before comparing: a PNG of
+// an image against the reference's EXR gives the EXR-against-EXR RMSE, up to
+// 8-bit quantisation (half a code step of sRGB is at most 0.5 * 12.92 / 255
+// ... in linear terms below 1/255 over the range, i.e. < 1 8-bit unit; the
+// test allows 0.5 units of difference in RMSE). Before, the PNG's sRGB code
+// values were compared with linear values (RMSE 44.8 where 3.73 was right).
+TEST(Cli, ComparePngAgainstExrIsInLinearLight) {
+  CliSandbox box;
+  expect_ok(box.run("run --scene enderton-1 --spp 16 --method lk --out lk.png --out lk.exr --quiet"), "lk");
+  expect_ok(box.run("run --scene enderton-1 --spp 16 --method reference --out ref.exr --quiet"), "reference");
+  const CliResult ee = box.run("compare lk.exr ref.exr --json");
+  const CliResult pe = box.run("compare lk.png ref.exr --json");
+  expect_ok(ee, "compare EXR against EXR");
+  expect_ok(pe, "compare PNG against EXR");
+  const auto je = nlohmann::json::parse(ee.out), jp = nlohmann::json::parse(pe.out);
+  const double exr = je.value("rmse_8bit", -1.0), png = jp.value("rmse_8bit", -1.0);
+  ASSERT_GT(exr, 0.5) << "lk differs from the reference on enderton-1; the test needs a nonzero RMSE";
+  EXPECT_NEAR(png, exr, 0.5) << "PNG (sRGB) against EXR (linear) must be compared in one colour space";
+  EXPECT_EQ(jp.value("a_transfer", ""), "sRGB") << pe.describe();
+  EXPECT_EQ(jp.value("b_transfer", ""), "linear") << pe.describe();
+  EXPECT_EQ(jp.value("compared_in", ""), "linear") << pe.describe();
+  // The text form says which file was converted.
+  const CliResult text = box.run("compare lk.png ref.exr");
+  EXPECT_NE(text.out.find("lk.png converted from sRGB"), std::string::npos) << text.describe();
 }
 
 TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {

@@ -96,3 +96,32 @@ TEST(ImageCompare, ClosedFormFigures) {
 }
 
 }  // namespace
+
+namespace {
+
+// A file's transfer: its named colour space first, then the pixel type; a
+// named space that is neither linear nor sRGB is refused, naming the file.
+TEST(ImageTransfer, NamedSpaceFirstThenPixelTypeElseRefused) {
+  using ropsim::Transfer;
+  EXPECT_EQ(ropsim::transfer_of("a.exr", "Linear", true), Transfer::kLinear);
+  EXPECT_EQ(ropsim::transfer_of("a.png", "sRGB", false), Transfer::kSrgb);
+  EXPECT_EQ(ropsim::transfer_of("a.tif", "", true), Transfer::kLinear) << "float pixels, no name: linear";
+  EXPECT_EQ(ropsim::transfer_of("a.png", "", false), Transfer::kSrgb) << "integer code values, no name: sRGB";
+  EXPECT_EQ(ropsim::transfer_of("a.png", "linear", false), Transfer::kLinear) << "a named space wins";
+  try {
+    ropsim::transfer_of("g.png", "GammaCorrected2.2", false);
+    ADD_FAILURE() << "a gamma-2.2 image was accepted as sRGB or linear";
+  } catch (const ropsim::ImageError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("g.png"), std::string::npos) << m;
+    EXPECT_NE(m.find("GammaCorrected2.2"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << "one line: " << m;
+  }
+  // srgb_to_linear inverts linear_to_srgb over [0, 1].
+  for (int i = 0; i <= 1000; ++i) {
+    const float v = float(i) / 1000.0f;
+    EXPECT_NEAR(ropsim::srgb_to_linear(ropsim::linear_to_srgb(v)), v, 2e-6f) << v;
+  }
+}
+
+}  // namespace

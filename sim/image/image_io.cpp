@@ -1,6 +1,7 @@
 #include "image_io.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -15,6 +16,24 @@ float linear_to_srgb(float v) {
   if (!(v > 0.0f)) return 0.0f;
   if (v >= 1.0f) return 1.0f;
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+float srgb_to_linear(float v) {
+  if (!(v > 0.0f)) return 0.0f;
+  if (v >= 1.0f) return 1.0f;
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+const char* to_string(Transfer t) { return t == Transfer::kSrgb ? "sRGB" : "linear"; }
+
+Transfer transfer_of(const std::string& path, const std::string& color_space, bool float_pixels) {
+  std::string cs;
+  for (char ch : color_space) cs += char(std::tolower(static_cast<unsigned char>(ch)));
+  if (cs.empty()) return float_pixels ? Transfer::kLinear : Transfer::kSrgb;
+  if (cs == "linear" || cs == "lin_srgb" || cs == "scene_linear" || cs == "lin_rec709") return Transfer::kLinear;
+  if (cs == "srgb" || cs == "srgb_texture" || cs == "srgb_rec709_scene") return Transfer::kSrgb;
+  throw ImageError(path + ": colour space '" + color_space +
+                   "' is neither linear nor sRGB; convert the image to a linear EXR or an sRGB PNG first");
 }
 
 std::vector<unsigned char> encode_image(const Image& img, const std::string& path) {
@@ -50,7 +69,7 @@ void write_image(const Image& img, const std::string& path) {
   file.commit();
 }
 
-Image read_image(const std::string& path) {
+Image read_image(const std::string& path, Transfer* transfer) {
   DecodedImage d;
   try {
     d = decode_image_file(path);
@@ -58,12 +77,14 @@ Image read_image(const std::string& path) {
     throw ImageError(e.what());
   }
   if (d.channels < 3) throw ImageError(path + ": image has " + std::to_string(d.channels) + " channels, need RGB");
+  const Transfer t = transfer_of(path, d.color_space, d.float_pixels);
+  if (transfer) *transfer = t;
   Image img(uint32_t(d.width), uint32_t(d.height));
   for (uint32_t y = 0; y < img.height; ++y)
     for (uint32_t x = 0; x < img.width; ++x) {
       const float* p = &d.px[(size_t(y) * img.width + x) * size_t(d.channels)];
       float* o = img.at(x, y);
-      for (size_t c = 0; c < 3; ++c) o[c] = p[c];
+      for (size_t c = 0; c < 3; ++c) o[c] = t == Transfer::kSrgb ? srgb_to_linear(p[c]) : p[c];
     }
   return img;
 }
@@ -102,10 +123,12 @@ CompareResult compare_images(const Image& a, const Image& b) {
   return c;
 }
 
-CompareResult compare_image_files(const std::string& a, const std::string& b) {
-  const Image ia = read_image(a), ib = read_image(b);
+FileComparison compare_image_files(const std::string& a, const std::string& b) {
+  FileComparison fc;
+  const Image ia = read_image(a, &fc.a), ib = read_image(b, &fc.b);
   try {
-    return compare_images(ia, ib);
+    fc.result = compare_images(ia, ib);
+    return fc;
   } catch (const ImageError& e) {
     throw ImageError(a + " vs " + b + ": " + e.what());
   }

@@ -101,9 +101,13 @@ DecodedImage decode(const char* path, const void* data, size_t bytes, const std:
   const Module& m = module_for(name);
   DecodedImage img;
   float* px = nullptr;
-  char err[512];
-  if (m.decode(path, data, bytes, &img.width, &img.height, &img.channels, &px, err, sizeof err) != 0)
+  char err[512], cs[128];
+  int is_float = 0;
+  if (m.decode(path, data, bytes, &img.width, &img.height, &img.channels, &px, cs, sizeof cs, &is_float, err,
+               sizeof err) != 0)
     throw ImageCodecError(name + ": cannot read the image: " + err);
+  img.color_space = cs;
+  img.float_pixels = is_float != 0;
   std::unique_ptr<float, decltype(m.release)> owned(px, m.release);
   img.px.assign(px, px + size_t(img.width) * size_t(img.height) * size_t(img.channels));
   return img;

@@ -31,7 +31,9 @@ struct DecodedImage {
   int width = 0;
   int height = 0;
   int channels = 0;
-  std::vector<float> px;  ///< [(y * width + x) * channels + c]
+  std::vector<float> px;      ///< [(y * width + x) * channels + c], values as stored (code value / max for integers)
+  std::string color_space;    ///< as the file names it (OpenImageIO's "oiio:ColorSpace"); empty if it names none
+  bool float_pixels = false;  ///< stored as floating point (EXR, HDR), not as integer code values
 };
 
 /// Decodes any image OpenImageIO reads. Throws ImageCodecError.

@@ -9,15 +9,17 @@
 extern "C" {
 
 /// Bumped on any change below; the loader refuses a module of another version.
-#define ROPSIM_OIIO_ABI_VERSION 2
+#define ROPSIM_OIIO_ABI_VERSION 3
 
 int ropsim_oiio_abi_version(void);
 
 /// Decodes a file (data == NULL) or a memory buffer (data, bytes; path then
 /// names the format by its extension). *px receives width * height * channels
-/// floats, unassociated alpha.
+/// floats, unassociated alpha. color_space receives the file's colour space
+/// as OpenImageIO names it ("oiio:ColorSpace"; empty if it names none,
+/// truncated to cs_size), *is_float whether its pixels are stored as floats.
 int ropsim_oiio_decode(const char* path, const void* data, size_t bytes, int* width, int* height, int* channels,
-                       float** px, char* err, size_t err_size);
+                       float** px, char* color_space, size_t cs_size, int* is_float, char* err, size_t err_size);
 
 /// Fills row y of an image being encoded: width * 3 values (exr: float; png:
 /// unsigned char). Must not throw.

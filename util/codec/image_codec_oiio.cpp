@@ -43,8 +43,11 @@ __attribute__((visibility("default"))) void ropsim_oiio_free(void* p) { std::fre
 
 __attribute__((visibility("default"))) int ropsim_oiio_decode(const char* path, const void* data, size_t bytes,
                                                               int* width, int* height, int* channels, float** px,
+                                                              char* color_space, size_t cs_size, int* is_float,
                                                               char* err, size_t err_size) try {
   *px = nullptr;
+  if (color_space && cs_size) color_space[0] = '\0';
+  *is_float = 0;
   const OIIO::ImageSpec config = straight_alpha();
   // From memory: OpenImageIO 2.4's ImageInput::open(name, config, proxy)
   // still opens the named file; the reader must get the proxy before open().
@@ -75,6 +78,13 @@ __attribute__((visibility("default"))) int ropsim_oiio_decode(const char* path, 
   *height = spec.height;
   *channels = spec.nchannels;
   *px = p;
+  *is_float = spec.format.is_floating_point() ? 1 : 0;
+  const std::string cs = spec.get_string_attribute("oiio:ColorSpace");
+  if (color_space && cs_size) {
+    const size_t n = std::min(cs.size(), cs_size - 1);
+    std::memcpy(color_space, cs.data(), n);
+    color_space[n] = '\0';
+  }
   return 0;
 } catch (const std::exception& e) {
   return fail(err, err_size, e.what());
