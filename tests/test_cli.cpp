@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "progress.h"
 #include "trace.h"
 
 #ifndef ROPSIM_BINARY
@@ -312,6 +313,52 @@ TEST(Cli, ComparePngAgainstExrIsInLinearLight) {
   // The text form says which file was converted.
   const CliResult text = box.run("compare lk.png ref.exr");
   EXPECT_NE(text.out.find("lk.png converted from sRGB"), std::string::npos) << text.describe();
+}
+
+// Progress (util/progress.h): on a terminal by default, never in a log
+// unless --progress forces it, never with --quiet; every long phase has one
+// (the functional model, the reference pre-pass, the cycle model, the
+// live-points, the sampled units, the approximate model).
+TEST(Cli, ProgressGoesToLogsOnlyWithTheFlag) {
+  CliSandbox box;
+  const CliResult plain = box.run("run --scene eight-layers --spp 4 --quiet --out a.exr");
+  expect_ok(plain, "run without --progress");
+  EXPECT_TRUE(plain.err.empty()) << "stderr is not a terminal: no progress without --progress\n" << plain.describe();
+  const CliResult quiet = box.run("run --scene eight-layers --spp 4 --quiet --progress --out b.exr");
+  expect_ok(quiet, "run --quiet --progress");
+  EXPECT_TRUE(quiet.err.empty()) << "--quiet wins over --progress\n" << quiet.describe();
+  const struct {
+    const char* args;
+    std::vector<const char*> lines;
+  } cases[] = {
+      {"run --scene eight-layers --spp 4 --progress --vs-reference --out c.exr", {"functional: 100.0 %"}},
+      {"run --scene eight-layers --spp 4 --progress --fidelity cycle --vs-reference --out d.exr",
+       {"reference: 100.0 %", "cycle model: 100.0 %"}},
+      {"run --scene eight-layers --spp 4 --progress --fidelity approximate --out e.exr", {"approximate: 100.0 %"}},
+      {"run --scene cloth --spp 4 --width 1024 --height 1024 --progress --fidelity sampled -j 2 --out f.exr",
+       {"live-points: counting the input: 100.0 %", "live-points: recording: 100.0 %", "sampled: units: 100.0 %"}},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = box.run(c.args);
+    EXPECT_EQ(r.code, 0) << r.describe();
+    for (const char* l : c.lines)
+      EXPECT_NE(r.err.find(l), std::string::npos) << c.args << ": no '" << l << "'\n" << r.describe();
+  }
+}
+
+// The progress line: the share consumed, the count, the rate, the elapsed
+// time, and the ETA = elapsed * (1 - f) / f once 1 % or a second is behind.
+TEST(ProgressLine, ShareRateElapsedAndEta) {
+  using ropsim::Progress;
+  EXPECT_EQ(Progress::line("functional", "fragments", 0.25, 2'000'000, 10.0),
+            "functional:  25.0 %, 2000000 fragments (200.0 k/s), 10.0 s, ETA 30.0 s");
+  EXPECT_EQ(Progress::line("cycle model", "fragments", 0.5, 40'000'000, 100.0),
+            "cycle model:  50.0 %, 40.0 M fragments (400.0 k/s), 1 min 40 s, ETA 1 min 40 s");
+  EXPECT_EQ(Progress::line("x", "units", 0.005, 1, 0.5), "x:   0.5 %, 1 units (2.0 /s), 0.5 s")
+      << "no ETA before 1 % or a second";
+  EXPECT_EQ(Progress::line("x", "units", -1.0, 3'000'000, 1.0), "x: 3000000 units (3.00 M/s), 1.0 s")
+      << "an unknown share: no percentage, no ETA";
+  EXPECT_EQ(Progress::format_duration(7300), "2 h 02 min");
 }
 
 TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {

@@ -36,7 +36,7 @@ struct RunOpts {
   int slab_layers = MethodConfig{}.slab_layers, slab_bits = MethodConfig{}.slab_bits;
   std::string enderton_selection = "depth-first";
   Numerics num;
-  bool vs_reference = false, quiet = false, lockstep = false;
+  bool vs_reference = false, quiet = false, lockstep = false, progress = false;
   uint64_t stats_interval = 0;
   std::string stats_csv;
   SamplingParams sampling;
@@ -148,14 +148,8 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   opt.vcd_last = vcd_last;
   opt.lockstep = o.lockstep;
   opt.stats_interval = o.stats_interval;
-  const bool tty = !o.quiet && isatty(fileno(stderr));
-  const auto t0 = std::chrono::steady_clock::now();
-  if (tty)
-    opt.progress = [t0](uint64_t n) {
-      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n,
-                   s > 0 ? n / s / 1e6 : 0.0);
-    };
+  auto progress = std::make_shared<Progress>("cycle model", "fragments");
+  if (progress->shown()) opt.progress = [progress](uint64_t n, double consumed) { progress->update(consumed, n); };
   if (!o.vcd.empty()) {
     ensure_parent_dir(o.vcd);
     opt.vcd_path = o.vcd;
@@ -167,7 +161,8 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
     reference = run_functional(in, rc).image;
   }
   CycleRun run = run_cycle(in, cfg, hw, opt);
-  if (tty) std::fputs("\n", stderr);
+  progress->update(1.0, run.counters.fragments);
+  progress->finish();
   ReportContext ctx{cmdline, in, cfg, {}};
   if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
   std::vector<TextOutput> texts;
@@ -231,6 +226,7 @@ int cmd_run_approximate(const InputSpec& in, const GoldenConfig& cfg, const HwCo
 }
 
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
+  set_progress_flags(o.quiet, o.progress);
   const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
   const bool approximate = o.fidelity == "approximate";
   if (!sampled) {
@@ -331,6 +327,7 @@ namespace {
 /// `ropsim livepoints`: one functional pass recording the live-points of a
 /// sampled simulation, written to a library every design of a sweep reuses.
 int cmd_livepoints(const RunOpts& o, CLI::App& sub) {
+  set_progress_flags(o.quiet, o.progress);
   for (const auto& a : o.hw_sets)
     if (a.rfind("numerics.", 0) != 0)
       throw UserError("--hw-set " + a +
@@ -475,6 +472,9 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_flag("--vs-reference", ro->vs_reference,
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  run->add_flag("--progress", ro->progress,
+                "Show progress (share of the input consumed, rate, ETA) even when stderr is not a terminal: a line "
+                "every 5 s, for logs");
   return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
 }
 
@@ -494,6 +494,8 @@ VerbRunner add_livepoints_command(CLI::App& app) {
   lp->add_option("--hw-set", ro->hw_sets, "Override one numerics.* key of the design, section.key=value; repeatable");
   lp->add_option("-o,--out", ro->library_out, "The library file to write")->required()->type_name("LIB");
   lp->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  lp->add_flag("--progress", ro->progress,
+               "Show progress even when stderr is not a terminal: a line every 5 s, for logs");
   return [ro, lp]() { return lp->parsed() ? cmd_livepoints(*ro, *lp) : -1; };
 }
 

@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "memory_budget.h"
+#include "progress.h"
 
 namespace ropsim {
 
@@ -37,12 +38,18 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   // reads the next and runs the reference over the current one.
   constexpr size_t kBatch = 4096;
   std::vector<Fragment> cur(kBatch), next(kBatch);
-  auto fill = [&src](std::vector<Fragment>& b) {
+  Progress progress(cfg.method == Method::kReference ? "reference" : "functional", "fragments");
+  uint64_t read = 0;
+  int pass = 0;
+  const int passes = model->passes();
+  auto fill = [&](std::vector<Fragment>& b) {
     size_t n = 0;
     while (n < b.size() && src->next(b[n])) ++n;
+    read += n;
+    progress.update((double(pass) + src->consumed()) / double(passes), read);
     return n;
   };
-  for (int pass = 0; pass < model->passes(); ++pass) {
+  for (; pass < passes; ++pass) {
     if (pass > 0) src = open_fragments(in);  // every pass replays the input
     model->begin_pass(pass);
     FunctionalModel* r = pass == 0 ? ref.get() : nullptr;
@@ -55,6 +62,8 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
       cur.swap(next);
     }
   }
+  progress.update(1.0, read);
+  progress.finish();
   run.image = model->resolve();
   run.counters = model->counters();
   run.state_bytes = model->state_bytes();
