@@ -828,9 +828,19 @@ TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
   for (const char* k : {"covered_samples", "covered_samples_per_fragment", "draws", "bytes", "pixels_touched",
                         "pixels_touched_percent", "fragments_per_touched_pixel", "depth_complexity_histogram_pixels"})
     EXPECT_TRUE(t.contains(k)) << "trace info --json lacks " << k << "\n" << r.out;
-  uint64_t hist = 0;
-  for (const auto& [k, v] : t["depth_complexity_histogram_pixels"].items()) hist += v.get<uint64_t>();
+  // The full histogram (it saturated at 16+ before): exact counts, whose
+  // largest is the deepest pixel's, and which weighted by their count give
+  // every fragment.
+  uint64_t hist = 0, weighted = 0, deepest = 0;
+  for (const auto& [k, v] : t["depth_complexity_histogram_pixels"].items()) {
+    hist += v.get<uint64_t>();
+    weighted += std::stoull(k) * v.get<uint64_t>();
+    deepest = std::max<uint64_t>(deepest, std::stoull(k));
+  }
   EXPECT_EQ(hist, t["pixels_touched"].get<uint64_t>());
+  EXPECT_EQ(weighted, n) << "sum of k x pixels with k fragments = fragments";
+  EXPECT_EQ(deepest, t["fragments_per_touched_pixel"]["max"].get<uint64_t>());
+  EXPECT_GT(deepest, 16u) << "cloth has pixels deeper than 16: the histogram must not saturate";
   EXPECT_NE(text.out.find("fragments " + std::to_string(n) + " "), std::string::npos) << text.describe();
   EXPECT_NE(text.out.find("pixels touched " + std::to_string(t["pixels_touched"].get<uint64_t>()) + " "),
             std::string::npos)
