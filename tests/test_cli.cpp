@@ -8,12 +8,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "heat_map.h"
+#include "image_codec.h"
 #include "progress.h"
 #include "trace.h"
 
@@ -344,6 +347,56 @@ TEST(Cli, ProgressGoesToLogsOnlyWithTheFlag) {
     for (const char* l : c.lines)
       EXPECT_NE(r.err.find(l), std::string::npos) << c.args << ": no '" << l << "'\n" << r.describe();
   }
+}
+
+// --per-draw, --draw-csv and --maps (RunBreakdown): every draw's counters,
+// in the report and the CSV, add up to the run's counters, and each per-pixel
+// map (EXR) sums to its counter; the error map's RMS is the report's RMSE;
+// the PNGs carry the legend below the image. Threads do not change them.
+TEST(Cli, PerDrawStatisticsAndMapsAddUpToTheCounters) {
+  CliSandbox box;
+  for (const char* method : {"lk", "enderton", "lk+depth+ac"}) {
+    SCOPED_TRACE(method);
+    const std::string m = method;
+    const std::string args = "run --scene smoke --spp 8 --method " + m + " --per-draw --draw-csv d-" + m +
+                             ".csv --maps maps-" + m + " --vs-reference --quiet --report r-" + m + ".json";
+    expect_ok(box.run(args), args);
+    const auto j = nlohmann::json::parse(slurp(box.path("r-" + m + ".json")));
+    const auto& draws = j["draws"];
+    ASSERT_GT(draws.size(), 10u) << "smoke has 96 draws";
+    std::map<std::string, uint64_t> sums;
+    for (const auto& d : draws)
+      for (const auto& [k, v] : d["counters"].items()) sums[k] += v.get<uint64_t>();
+    for (const auto& [k, v] : j["counters"].items())
+      EXPECT_EQ(sums[k], v.get<uint64_t>()) << "draws[].counters." << k << " do not add up to counters." << k;
+    // The CSV: one row per draw, the same numbers.
+    const auto rows = lines_of(slurp(box.path("d-" + m + ".csv")));
+    ASSERT_EQ(rows.size(), draws.size() + 1) << "a header and one row per draw";
+    EXPECT_EQ(rows[0].rfind("draw,fragments,samples_tested,", 0), 0u) << rows[0];
+    EXPECT_EQ(rows[1].substr(0, rows[1].find(',', rows[1].find(',') + 1)),
+              std::to_string(draws[0]["draw"].get<uint64_t>()) + "," +
+                  std::to_string(draws[0]["counters"]["fragments"].get<uint64_t>()));
+    // Each map sums to its counter.
+    for (const char* map :
+         {"fragments", "samples_tested", "samples_depth_passed", "samples_written", "surface_id_changes"}) {
+      const ropsim::DecodedImage e = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".exr"));
+      double sum = 0;
+      for (size_t i = 0; i < e.px.size(); i += size_t(e.channels)) sum += e.px[i];
+      EXPECT_EQ(uint64_t(sum), j["counters"][map].get<uint64_t>()) << map << ".exr does not sum to counters." << map;
+      const ropsim::DecodedImage p = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".png"));
+      EXPECT_EQ(p.height, e.height + int(ropsim::kLegendRows)) << map << ".png lacks its legend";
+    }
+    const ropsim::DecodedImage err = ropsim::decode_image_file(box.path("maps-" + m + "/error.exr"));
+    double sq = 0;
+    for (size_t i = 0; i < err.px.size(); i += size_t(err.channels)) sq += double(err.px[i]) * err.px[i];
+    EXPECT_NEAR(std::sqrt(sq / double(err.width * err.height)), j["vs_reference"]["rmse_8bit"].get<double>(), 1e-3)
+        << "the error map's RMS is the report's RMSE";
+  }
+  // The same per-draw table on one thread.
+  expect_ok(box.run("run --scene smoke --spp 8 --method lk --draw-csv d1.csv --threads 1 --quiet --out x.exr"),
+            "1 thr");
+  EXPECT_EQ(slurp(box.path("d1.csv")), slurp(box.path("d-lk.csv"))) << "the per-draw table depends on --threads";
+  expect_cli_error(box, "run --scene smoke --method reference --per-draw --out y.exr", {"--per-draw"});
 }
 
 // The progress line: the share consumed, the count, the rate, the elapsed
