@@ -399,6 +399,39 @@ TEST(Cli, PerDrawStatisticsAndMapsAddUpToTheCounters) {
   expect_cli_error(box, "run --scene smoke --method reference --per-draw --out y.exr", {"--per-draw"});
 }
 
+// The cycle model's breakdown: each draw's counters are the functional
+// run's (each stage's delta travels with the token), and the cycles
+// attributed to the draws (retirement to retirement, in cycle order) add up
+// to timing.pipeline_cycles, on one pass and on three.
+TEST(CliCycle, PerDrawCountersAreTheFunctionalOnesAndCyclesAddUp) {
+  CliSandbox box;
+  for (const char* method : {"lk", "lk+depth+ac"}) {
+    SCOPED_TRACE(method);
+    const std::string m = method;
+    expect_ok(box.run("run --scene smoke --spp 8 --method " + m + " --draw-csv f-" + m + ".csv --quiet --out f.exr"),
+              "functional");
+    expect_ok(box.run("run --fidelity cycle --scene smoke --spp 8 --method " + m + " --per-draw --draw-csv c-" + m +
+                      ".csv --maps maps-" + m + " --quiet --out c.exr --report c-" + m + ".json"),
+              "cycle");
+    const auto f = lines_of(slurp(box.path("f-" + m + ".csv"))), c = lines_of(slurp(box.path("c-" + m + ".csv")));
+    ASSERT_EQ(f.size(), c.size());
+    ASSERT_EQ(c[0].rfind("draw,cycles,fragments,", 0), 0u) << c[0];
+    for (size_t i = 0; i < f.size(); ++i) {
+      // Drop the cycle table's `cycles` column.
+      const size_t a = c[i].find(','), b = c[i].find(',', a + 1);
+      EXPECT_EQ(c[i].substr(0, a) + c[i].substr(b), f[i]) << "draw row " << i << " differs from the functional run's";
+    }
+    const auto j = nlohmann::json::parse(slurp(box.path("c-" + m + ".json")));
+    uint64_t cycles = 0;
+    for (const auto& d : j["draws"]) cycles += d["cycles"].get<uint64_t>();
+    EXPECT_EQ(cycles, j["timing"]["pipeline_cycles"].get<uint64_t>()) << "the draws' cycles do not add up";
+    const ropsim::DecodedImage e = ropsim::decode_image_file(box.path("maps-" + m + "/samples_written.exr"));
+    double sum = 0;
+    for (size_t i = 0; i < e.px.size(); i += size_t(e.channels)) sum += e.px[i];
+    EXPECT_EQ(uint64_t(sum), j["counters"]["samples_written"].get<uint64_t>());
+  }
+}
+
 // The progress line: the share consumed, the count, the rate, the elapsed
 // time, and the ETA = elapsed * (1 - f) / f once 1 % or a second is behind.
 TEST(ProgressLine, ShareRateElapsedAndEta) {

@@ -8,8 +8,10 @@
 #include <functional>
 #include <memory>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 
+#include "counters.h"
 #include "errors.h"
 #include "frag_work.h"
 
@@ -24,7 +26,33 @@ struct FragToken : FragWork {
   uint64_t seq = 0;        ///< position in the input (API order)
   uint32_t rop = 0;        ///< the ROP unit that owns its pixel
   uint64_t pixel_key = 0;  ///< y * width + x
+  /// With a breakdown (--per-draw, --maps): what the fragment's stages added
+  /// to the counters (run_stage), reset when the source issues it.
+  bool counting = false;
+  Counters counts;
 };
+
+/// Runs a stage of the functional ROP on a token; a counting token also
+/// collects what the stage added to the counters (the stage's own counters
+/// before and after: the units run one at a time, so the difference is this
+/// call's).
+template <class Stage>
+auto run_stage(Stage& stage, FragToken& t) {
+  if (!t.counting) return stage.run(t);
+  const Counters before = stage.counters();
+  if constexpr (std::is_void_v<decltype(stage.run(t))>) {
+    stage.run(t);
+    Counters d = stage.counters();
+    d -= before;
+    t.counts += d;
+  } else {
+    auto r = stage.run(t);
+    Counters d = stage.counters();
+    d -= before;
+    t.counts += d;
+    return r;
+  }
+}
 
 /// Tokens are recycled: their number is bounded by the FIFOs and windows.
 class TokenPool {

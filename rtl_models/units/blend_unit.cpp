@@ -7,7 +7,7 @@ BlendUnit::BlendUnit(const sc_core::sc_module_name& name, const Clock& clk, Func
     : DecoupledUnit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
-  const uint32_t n = rop_.blend().run(*t);
+  const uint32_t n = run_stage(rop_.blend(), *t);
   blended_ += n;
   const PassKind p = rop_.pass();
   if (pass_blends_transmittance(p))

@@ -3,7 +3,7 @@
 namespace ropsim {
 
 PipeUnit::Timing CoverageTracker::process(FragToken* t, uint64_t) {
-  rop_.track().run(*t);
+  run_stage(rop_.track(), *t);
   new_surfaces_ += t->lk.track.new_surface;
   stats_.samples += t->m;
   return {1, cfg_.latency_cycles};

@@ -10,7 +10,7 @@ DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, Func
     : Unit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in), out_(out) {}
 
 uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
-  stats_.samples += rop_.depth().run(*t);
+  stats_.samples += run_stage(rop_.depth(), *t);
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
   if (rop_.setup().cfg.method == Method::kSlab) {  // slab: the pixel's layers, no per-sample depth

@@ -5,7 +5,7 @@ namespace ropsim {
 PipeUnit::Timing SampleSorter::process(FragToken* t, uint64_t) {
   // The order is the sort stage's (sort_order.h), which every variant's
   // network produces (SortVariants tests); the variant supplies the timing.
-  const uint32_t m = rop_.sort().run(*t);
+  const uint32_t m = run_stage(rop_.sort(), *t);
   stats_.samples += m;
   return {algo_->interval_cycles(int(m)), algo_->latency_cycles(int(m))};
 }

@@ -26,7 +26,18 @@ void TraceSource::advance(uint64_t limit) {
         // memory budget, which may refuse it) here and fetched into the
         // host's caches while the fragment waits in the FIFOs: the depth
         // test reads it many fragments later. Host speed only; no model effect.
-        if (got) rop_.fetch(*tok);
+        if (got) {
+          tok->counting = counting_;
+          if (counting_) {
+            // The tile the fetch allocates is the fragment's (tiles_touched).
+            tok->counts = Counters{};
+            const uint64_t tiles = rop_.store().tiles();
+            rop_.fetch(*tok);
+            tok->counts.tiles_touched = rop_.store().tiles() - tiles;
+          } else {
+            rop_.fetch(*tok);
+          }
+        }
       } catch (...) {
         error_ = std::current_exception();
         got = false;

@@ -27,6 +27,8 @@ class TraceSource : public DecoupledUnit {
   /// share of the input consumed (FragmentSource::consumed).
   std::function<void(uint64_t produced, double consumed)> on_progress;
   static constexpr uint64_t kProgressEvery = 1 << 16;
+  /// Issue counting tokens (FragToken::counting: a breakdown is collected).
+  void set_counting(bool on) { counting_ = on; }
 
  protected:
   void advance(uint64_t limit) override;
@@ -38,6 +40,7 @@ class TraceSource : public DecoupledUnit {
   HwConfig::Source cfg_;
   TokenFifo& out_;
   uint64_t seq_ = 0;
+  bool counting_ = false;
   uint64_t t_ = 0;  // the clock being decided
   uint32_t n_ = 0;  // fragments already delivered in it
   bool done_ = false;

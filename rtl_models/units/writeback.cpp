@@ -7,7 +7,7 @@ Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, Func
     : DecoupledUnit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
-  const uint32_t examined = rop_.write().run(*t);
+  const uint32_t examined = run_stage(rop_.write(), *t);
   written_ += uint64_t(__builtin_popcountll(t->written));
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written,
                              [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now); });

@@ -199,6 +199,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   opt.vcd_last = vcd_last;
   opt.lockstep = o.lockstep;
   opt.stats_interval = o.stats_interval;
+  opt.breakdown = o.breakdown();
   auto progress = std::make_shared<Progress>("cycle model", "fragments");
   if (progress->shown()) opt.progress = [progress](uint64_t n, double consumed) { progress->update(consumed, n); };
   if (!o.vcd.empty()) {
@@ -218,6 +219,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
   std::vector<TextOutput> texts;
   if (run.intervals) texts.push_back(TextOutput{o.stats_csv, interval_csv(run)});
+  add_breakdown_outputs(o, run.breakdown.get(), true, run.image, reference, texts);
   write_outputs(
       ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); }, texts);
   if (!o.quiet && report != "-") std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);

@@ -316,6 +316,8 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
   host.put("simulated_fragments_per_second",
            run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0, "1/s",
            "cycle: fragments over sim_seconds");
+  if (run.breakdown && run.breakdown->per_draw())
+    put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
   return j;
 }
 
@@ -462,7 +464,9 @@ std::vector<FieldDoc> report_field_docs() {
   ctx.config = m;
   const FunctionalRun f = run_functional(in, m, true, 0, BreakdownRequest{true, false});
   functional_report(ctx, f, &sink);
-  const CycleRun c = run_cycle(in, m, HwConfig{});
+  CycleOptions with_draws;
+  with_draws.breakdown.per_draw = true;
+  const CycleRun c = run_cycle(in, m, HwConfig{}, with_draws);
   ctx.input.trace_path = "scene.rtr";
   cycle_report(ctx, c, f.reference, &sink);
   // The fields only some methods write (the hashed coverage selection's,

@@ -31,13 +31,6 @@ struct FunctionalRun {
   std::unique_ptr<RunBreakdown> breakdown;  ///< per draw and per pixel, when asked for
 };
 
-/// What to break a run's counts down by (--per-draw, --maps).
-struct BreakdownRequest {
-  bool per_draw = false;
-  bool per_pixel = false;
-  bool any() const { return per_draw || per_pixel; }
-};
-
 /// Runs the functional model of cfg.method over the input; with
 /// with_reference also the A-buffer reference on the same stream. threads:
 /// the model's host threads, 0 for host_threads() (--threads); the result is

@@ -38,6 +38,13 @@ constexpr int kPixelMaps = 0
 /// The maps' descriptions, in declaration order (StatDesc: counters.h).
 const std::vector<StatDesc>& pixel_map_descs();
 
+/// What to break a run's counts down by (--per-draw, --maps).
+struct BreakdownRequest {
+  bool per_draw = false;
+  bool per_pixel = false;
+  bool any() const { return per_draw || per_pixel; }
+};
+
 class RunBreakdown {
  public:
   RunBreakdown(const TraceHeader& h, bool per_draw, bool per_pixel);

@@ -104,6 +104,16 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   uint64_t progress_base = 0;
   if (opt.stats_interval > 0) run.intervals = std::make_unique<IntervalLog>(opt.stats_interval);
+  if (opt.breakdown.any())
+    run.breakdown = std::make_unique<RunBreakdown>(run.header, opt.breakdown.per_draw, opt.breakdown.per_pixel);
+  // A pass's retirements by (cycle, input order) and draw: the cycles from
+  // one retirement to the next are the later one's draw's. Sorted at the end
+  // of the pass: decoupled units may retire out of cycle order.
+  struct Retired {
+    uint64_t cycle, seq;
+    uint32_t draw;
+  };
+  std::vector<Retired> retired;
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) input = open_fragments(in);
@@ -119,6 +129,14 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
         opt.progress(progress_base + n, (double(pass) + consumed) / double(n_passes));
       };
     top->retirement().hook = opt.retire_hook;
+    if (RunBreakdown* b = run.breakdown.get()) {
+      top->source().set_counting(true);
+      top->retirement().hook = [b, &retired, user = opt.retire_hook](const FragToken& t, uint64_t cycle) {
+        b->add(t.fragment, t.counts);
+        if (b->per_draw()) retired.push_back(Retired{cycle, t.seq, t.fragment.draw_id});
+        if (user) user(t, cycle);
+      };
+    }
     if (IntervalLog* log = run.intervals.get()) {
       log->set_base(s.total_cycles);  // this pass follows the previous ones
       top->log_to(log);
@@ -126,7 +144,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
       // to this one: every fragment's write comes before its retirement, so
       // the rows add up to the counters.
       top->retirement().hook =
-          [log, r = rop.get(), user = opt.retire_hook, written = rop->write().counters().samples_written,
+          [log, r = rop.get(), user = top->retirement().hook, written = rop->write().counters().samples_written,
            blended = rop->blend().counters().samples_blended](const FragToken& t, uint64_t cycle) mutable {
             IntervalRow& row = log->row(cycle);
             ++row.fragments_retired;
@@ -156,6 +174,17 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     }
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     progress_base += top->source().produced();
+    if (RunBreakdown* b = run.breakdown.get(); b && b->per_draw()) {
+      std::sort(retired.begin(), retired.end(), [](const Retired& a, const Retired& c) {
+        return a.cycle != c.cycle ? a.cycle < c.cycle : a.seq < c.seq;
+      });
+      uint64_t prev = 0;
+      for (const Retired& r : retired) {
+        b->add_cycles(r.draw, r.cycle - prev);
+        prev = r.cycle;
+      }
+      retired.clear();
+    }
 
     s.period_ps = top->clock().period_ps();
     s.total_cycles += top->total_cycles();

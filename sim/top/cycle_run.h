@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "breakdown.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -36,6 +37,9 @@ struct CycleOptions {
   /// > 0: also record the run's statistics per interval of this many cycles
   /// (CycleRun::intervals, --stats-interval).
   uint64_t stats_interval = 0;
+  /// Split the counters by draw and sum them per pixel (CycleRun::breakdown,
+  /// --per-draw, --maps); per draw also the cycles attributed to it.
+  BreakdownRequest breakdown;
 };
 
 struct UnitReport {
@@ -113,6 +117,8 @@ struct CycleRun {
   /// With CycleOptions::stats_interval: the statistics per interval; each
   /// column adds up to the run's total.
   std::unique_ptr<IntervalLog> intervals;
+  /// With CycleOptions::breakdown: per draw (counters, cycles) and per pixel.
+  std::unique_ptr<RunBreakdown> breakdown;
 };
 
 /// Throws std::invalid_argument for the reference method (it has no pipeline)
