@@ -30,6 +30,7 @@
 #include "image_io.h"
 #include "livepoint_file.h"
 #include "output_file.h"
+#include "progress.h"
 #include "report.h"
 
 namespace fs = std::filesystem;
@@ -598,10 +599,13 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     last_print = now;
     const double el = std::chrono::duration<double>(now - t0).count();
     const size_t rem = total_now - done_now;
-    const std::string eta = done_now ? fmt::format(", ETA {:.0f} s", el / double(done_now) * double(rem)) : "";
-    std::fprintf(stderr, "%sstudy %s: %zu of %zu points done, %zu failed, %zu remaining%s%s", tty ? "\r" : "",
-                 s.name.c_str(), sum.reused + sum.ran + sum.failed, sum.points, sum.failed, rem, eta.c_str(),
-                 tty && !final ? "   " : "\n");
+    const std::string eta =
+        done_now && rem ? ", ETA " + Progress::format_duration(el / double(done_now) * double(rem)) : std::string();
+    const size_t done = sum.reused + sum.ran + sum.failed;
+    std::fprintf(stderr, "%sstudy %s: %zu of %zu points done (%.1f %%), %zu failed, %zu remaining, %s%s%s",
+                 tty ? "\r" : "", s.name.c_str(), done, sum.points,
+                 sum.points ? 100.0 * double(done) / double(sum.points) : 100.0, sum.failed, rem,
+                 Progress::format_duration(el).c_str(), eta.c_str(), tty && !final ? "   " : "\n");
   };
 
   auto busy_with = [&](char kind) {
