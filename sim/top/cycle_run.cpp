@@ -93,7 +93,9 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   if (n_passes > 1 && !opt.vcd_path.empty())
     throw std::invalid_argument(std::string("--vcd traces single-pass methods; ") + to_string(method.method) +
                                 " makes " + std::to_string(n_passes) + " passes");
-  const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
+  // The waveform records every event at its own cycle (waveform.h), so a
+  // --vcd run stays decoupled like any other.
+  const bool decoupled = !opt.lockstep;
   CycleStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
@@ -107,10 +109,9 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) input = open_fragments(in);
-    // Declared before top: top's destructor closes SystemC's file, which the
-    // writer waits for. SystemC ignores write errors, so the VCD goes through a
-    // FIFO whose bytes OutputFile writes with every write checked.
+    // Opened before the run, so a path that cannot be written fails at once.
     std::unique_ptr<OutputFile> vcd;
+    std::unique_ptr<Waveform> wave;
     FreshSimContext sim;
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
@@ -138,21 +139,23 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     }
     top->set_decoupled(decoupled);
     if (!opt.vcd_path.empty()) {
-      OutputFile::Options vo;
-      vo.named = vo.via_pipe = true;
-      vo.suffix = ".vcd";  // SystemC appends it to the name it is given
-      vcd = std::make_unique<OutputFile>(opt.vcd_path, vo);
-      const std::string& name = vcd->write_name();
-      top->trace_to(name.substr(0, name.size() - vo.suffix.size()), opt.vcd_first, opt.vcd_last);
+      vcd = std::make_unique<OutputFile>(opt.vcd_path);
+      wave = std::make_unique<Waveform>(opt.vcd_first, opt.vcd_last);
+      top->trace_to(*wave);
     }
     const auto t1 = std::chrono::steady_clock::now();
-    try {
-      top->run();
-    } catch (...) {
-      top.reset();  // then vcd's destructor discards the waveform
-      throw;
-    }
+    top->run();  // on an error, vcd's destructor discards the file
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    if (wave) {
+      char comment[256];
+      std::snprintf(comment, sizeof comment,
+                    "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
+                    "%llu ps at %g GHz. Cycles %llu..%llu of a run of %llu.",
+                    (unsigned long long)top->clock().period_ps(), hw.clock.frequency_ghz,
+                    (unsigned long long)wave->first(), (unsigned long long)wave->last_shown(top->total_cycles()),
+                    (unsigned long long)top->total_cycles());
+      wave->write_vcd(top_name, comment, top->total_cycles(), [&vcd](std::string_view s) { vcd->write(s); });
+    }
     progress_base += top->source().produced();
 
     s.period_ps = top->clock().period_ps();
@@ -184,7 +187,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     if (n_passes > 1) s.passes.push_back(ps);
     if (pass == 0 && n_passes == 1) s.dram = ps.dram;  // a single pass: its figures exactly
     s.tokens_allocated = std::max(s.tokens_allocated, top->tokens().allocated());
-    top.reset();  // closes the VCD file
+    top.reset();
     if (vcd) vcd->commit();
   }
   if (run.intervals) run.intervals->finish(s.total_cycles);

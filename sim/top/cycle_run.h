@@ -23,13 +23,12 @@
 namespace ropsim {
 
 struct CycleOptions {
-  std::string vcd_path;                                               ///< non-empty: write a VCD waveform here
-  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};                    ///< cycle window of the waveform
-  std::function<void(uint64_t fragments)> progress;                   ///< every 65536 fragments
+  std::string vcd_path;                              ///< non-empty: write a VCD waveform here (waveform.h)
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};   ///< cycles [first, last] the waveform shows
+  std::function<void(uint64_t fragments)> progress;  ///< every 65536 fragments
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
   /// Runs every unit in lockstep with SystemC time, none decoupled (unit.h).
-  /// The results are identical; it is slower. A --vcd run is always lockstep,
-  /// so traced values change at their own cycles.
+  /// The results are identical, the waveform too; it is slower.
   bool lockstep = false;
   /// > 0: also record the run's statistics per interval of this many cycles
   /// (CycleRun::intervals, --stats-interval).
