@@ -32,6 +32,8 @@
 #include "sample_sorter.h"
 #include "sim_context.h"
 #include "sort_order.h"
+#include "vcd_reader.h"
+#include "waveform.h"
 #include "writeback.h"
 
 using namespace ropsim;
@@ -1253,6 +1255,159 @@ TEST(StatsInterval, DecoupledRowsEqualLockstepRowsAndTheRunIsUnchanged) {
   const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
   expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --stats-interval");
   EXPECT_EQ(dec.stats.total_cycles, plain.stats.total_cycles);
+}
+
+// ------------------------------------------------------------ waveforms (waveform.h, --vcd)
+
+// The recorder alone: a value set before the window is the one it starts
+// with, the last set at a cycle wins, nothing after the window is kept, a
+// FIFO's occupancy comes from pushes and pops recorded out of cycle order
+// (a decoupled producer ahead of its consumer), and a signal's events going
+// back in time are a broken invariant.
+TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
+  Waveform w(10, 20);
+  const int st = w.add_state("rop0", "unit", {"idle", "busy", "memory"});
+  const int occ = w.add_occupancy("rop0", "fifo_in");
+  w.set(st, 3, 2);   // before the window: overridden by the next
+  w.set(st, 8, 1);   // the value at cycle 10
+  w.set(st, 12, 2);  // two sets at cycle 12: the last wins
+  w.set(st, 12, 0);
+  w.set(st, 15, 1);
+  w.set(st, 21, 2);                                       // after the window: dropped
+  for (uint64_t t : {5, 10, 14, 14, 16}) w.push(occ, t);  // the producer runs ahead...
+  for (uint64_t t : {9, 13, 16, 25}) w.pop(occ, t);       // ...of the consumer
+  std::string text;
+  w.write_vcd("top", "test", 100, [&](std::string_view s) { text += s; });
+  const ropsim_test::Vcd v = ropsim_test::parse_vcd(text);
+  EXPECT_EQ(v.stamps.front(), 10u);
+  EXPECT_EQ(v.stamps.back(), 20u);
+  const std::vector<std::string> unit = v.trace(size_t(v.find("top.rop0", "unit")), 10, 20);
+  EXPECT_EQ(unit, (std::vector<std::string>{"busy", "busy", "idle", "idle", "idle", "busy", "busy", "busy", "busy",
+                                            "busy", "busy"}));
+  const std::vector<std::string> fifo = v.trace(size_t(v.find("top.rop0", "fifo_in")), 10, 20);
+  // Entries in at a cycle: pushed at or before it, popped after it.
+  const uint64_t expect[] = {1, 1, 1, 0, 2, 2, 2, 2, 2, 2, 2};
+  for (size_t i = 0; i < fifo.size(); ++i)
+    EXPECT_EQ(ropsim_test::Vcd::number(fifo[i]), expect[i]) << "occupancy at cycle " << 10 + i;
+  // A run that ends inside the window: nothing after its last cycle.
+  std::string short_run;
+  w.write_vcd("top", "test", 16, [&](std::string_view s) { short_run += s; });
+  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 15u);
+  EXPECT_THROW(w.set(st, 14, 1), InternalError) << "an event before the signal's last one";
+}
+
+namespace {
+
+std::string wave_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("ropsim-wave-" + std::to_string(::getpid()) + "-" + name)).string();
+}
+
+std::string slurp_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+CycleRun run_with_vcd(const InputSpec& in, const HwConfig& hw, const std::string& path, uint64_t first, uint64_t last,
+                      bool lockstep) {
+  CycleOptions opt;
+  opt.vcd_path = path;
+  opt.vcd_first = first;
+  opt.vcd_last = last;
+  opt.lockstep = lockstep;
+  return run_cycle(in, method_config(Method::kLk), hw, opt);
+}
+
+}  // namespace
+
+// The waveform records every event at its own cycle, so a decoupled run
+// (units ahead of SystemC time) writes the lockstep run's file byte for byte,
+// and either run's timing is the run's without --vcd.
+TEST(Waveform, DecoupledAndLockstepRunsWriteTheSameFile) {
+  const HwConfig hw;
+  const InputSpec in = scene_input("cloth", 16);
+  const std::string a = wave_path("dec.vcd"), b = wave_path("lock.vcd");
+  const CycleRun dec = run_with_vcd(in, hw, a, 30000, 40000, false);
+  const CycleRun lock = run_with_vcd(in, hw, b, 30000, 40000, true);
+  const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
+  ASSERT_TRUE(dec.stats.decoupled);
+  ASSERT_FALSE(lock.stats.decoupled);
+  const std::string da = slurp_file(a), lb = slurp_file(b);
+  std::filesystem::remove(a);
+  std::filesystem::remove(b);
+  ASSERT_GT(da.size(), 10000u) << "the waveform is nearly empty";
+  EXPECT_TRUE(da == lb) << "the decoupled run's waveform differs from the lockstep run's";
+  expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --vcd");
+  EXPECT_EQ(dec.stats.unit_runs, plain.stats.unit_runs) << "--vcd changed how the units ran";
+}
+
+// A waveform of the whole run adds up to the report: each unit's cycles in
+// each named activity are its activity cycles, each FIFO's occupancy summed
+// over the cycles is its mean times the run's cycles and peaks at its
+// maximum, the DRAM channels' busy cycles and final row-miss counts are the
+// DRAM's. So the waveform shows what the statistics count, cycle by cycle.
+TEST(Waveform, AWholeRunAddsUpToTheReport) {
+  HwConfig hw;
+  apply_hw_override(hw, "distributor.rop_units=2");
+  const std::string path = wave_path("all.vcd");
+  const CycleRun run = run_with_vcd(scene_input("cloth", 4), hw, path, 0, ~uint64_t{0}, false);
+  const ropsim_test::Vcd v = ropsim_test::parse_vcd(slurp_file(path));
+  std::filesystem::remove(path);
+  const CycleStats& s = run.stats;
+  const uint64_t end = s.total_cycles;
+  ASSERT_EQ(v.stamps.size(), end) << "one time stamp per cycle of the run";
+  // Per variable: the cycles spent at each value, the sum and the maximum of
+  // its numbers, and its last value.
+  struct Acc {
+    std::string value;
+    uint64_t since = 0, sum = 0, max = 0;
+    std::map<std::string, uint64_t> cycles;
+  };
+  std::vector<Acc> acc(v.vars.size());
+  auto close = [&](Acc& a, const ropsim_test::Vcd::Var& var, uint64_t t) {
+    if (t <= a.since) return;
+    a.cycles[a.value] += t - a.since;
+    if (var.type == "integer") {
+      const uint64_t n = ropsim_test::Vcd::number(a.value);
+      a.sum += n * (t - a.since);
+      a.max = std::max(a.max, n);
+    }
+    a.since = t;
+  };
+  for (const auto& c : v.changes) {
+    close(acc[c.var], v.vars[c.var], c.time);
+    acc[c.var].value = c.value;
+  }
+  for (size_t i = 0; i < acc.size(); ++i) close(acc[i], v.vars[i], end);
+  for (const auto& u : s.units) {
+    const std::string scope = u.rop >= 0 ? "top.rop" + std::to_string(u.rop) : "top." + u.kind;
+    const int var = v.find(scope, u.kind);
+    ASSERT_GE(var, 0) << u.name;
+    for (int a = 0; a < kActivities; ++a)
+      EXPECT_EQ(acc[size_t(var)].cycles[to_string(Activity(a))], u.stats.cycles[size_t(a)])
+          << u.name << ": cycles " << to_string(Activity(a));
+  }
+  size_t fifos = 0;
+  for (const auto& f : s.fifos) {
+    const auto dot = f.name.find('.');
+    const std::string scope = dot == std::string::npos ? "top.distributor" : "top." + f.name.substr(0, dot);
+    const int var = v.find(scope, "fifo_" + (dot == std::string::npos ? f.name : f.name.substr(dot + 1)));
+    ASSERT_GE(var, 0) << f.name;
+    ++fifos;
+    EXPECT_NEAR(double(acc[size_t(var)].sum) / double(end), f.mean_occupancy, 1e-9) << f.name << " mean occupancy";
+    EXPECT_EQ(acc[size_t(var)].max, f.max_occupancy) << f.name << " maximum occupancy";
+  }
+  EXPECT_EQ(fifos, s.fifos.size());
+  uint64_t busy = 0, misses = 0;
+  for (uint32_t ch = 0; ch < hw.dram.channels; ++ch) {
+    const int bus = v.find("top.dram", "ch" + std::to_string(ch) + "_bus");
+    const int rm = v.find("top.dram", "ch" + std::to_string(ch) + "_row_misses");
+    ASSERT_TRUE(bus >= 0 && rm >= 0) << "channel " << ch;
+    busy += acc[size_t(bus)].cycles["read"] + acc[size_t(bus)].cycles["write"];
+    misses += ropsim_test::Vcd::number(acc[size_t(rm)].value);
+  }
+  ASSERT_GT(s.dram.busy_cycles, 0u) << "the test needs DRAM traffic";
+  EXPECT_EQ(busy, s.dram.busy_cycles) << "DRAM data-bus cycles";
+  EXPECT_EQ(misses, s.dram.row_misses) << "DRAM row misses";
 }
 
 // ------------------------------------------------------------ sampled simulation (livepoints.h)
