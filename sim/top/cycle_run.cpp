@@ -147,13 +147,19 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     top->run();  // on an error, vcd's destructor discards the file
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     if (wave) {
-      char comment[256];
-      std::snprintf(comment, sizeof comment,
-                    "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
-                    "%llu ps at %g GHz. Cycles %llu..%llu of a run of %llu.",
-                    (unsigned long long)top->clock().period_ps(), hw.clock.frequency_ghz,
-                    (unsigned long long)wave->first(), (unsigned long long)wave->last_shown(top->total_cycles()),
-                    (unsigned long long)top->total_cycles());
+      const uint64_t end = top->total_cycles(), shown = wave->last_shown(end);
+      char comment[320];
+      const int n = std::snprintf(comment, sizeof comment,
+                                  "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
+                                  "%llu ps at %g GHz. ",
+                                  (unsigned long long)top->clock().period_ps(), hw.clock.frequency_ghz);
+      if (end > 0 && shown >= wave->first())
+        std::snprintf(comment + n, sizeof comment - size_t(n), "Cycles %llu..%llu of a run of %llu.",
+                      (unsigned long long)wave->first(), (unsigned long long)shown, (unsigned long long)end);
+      else
+        std::snprintf(comment + n, sizeof comment - size_t(n),
+                      "The run ended (%llu cycles) before the window's first cycle %llu: no values.",
+                      (unsigned long long)end, (unsigned long long)wave->first());
       wave->write_vcd(top_name, comment, top->total_cycles(), [&vcd](std::string_view s) { vcd->write(s); });
     }
     progress_base += top->source().produced();
