@@ -1345,69 +1345,98 @@ TEST(Waveform, DecoupledAndLockstepRunsWriteTheSameFile) {
 // over the cycles is its mean times the run's cycles and peaks at its
 // maximum, the DRAM channels' busy cycles and final row-miss counts are the
 // DRAM's. So the waveform shows what the statistics count, cycle by cycle.
+// A multi-pass method's passes follow each other, each in its own scope.
 TEST(Waveform, AWholeRunAddsUpToTheReport) {
   HwConfig hw;
   apply_hw_override(hw, "distributor.rop_units=2");
-  const std::string path = wave_path("all.vcd");
-  const CycleRun run = run_with_vcd(scene_input("cloth", 4), hw, path, 0, ~uint64_t{0}, false);
-  const ropsim_test::Vcd v = ropsim_test::parse_vcd(slurp_file(path));
-  std::filesystem::remove(path);
-  const CycleStats& s = run.stats;
-  const uint64_t end = s.total_cycles;
-  ASSERT_EQ(v.stamps.size(), end) << "one time stamp per cycle of the run";
-  // Per variable: the cycles spent at each value, the sum and the maximum of
-  // its numbers, and its last value.
-  struct Acc {
-    std::string value;
-    uint64_t since = 0, sum = 0, max = 0;
-    std::map<std::string, uint64_t> cycles;
-  };
-  std::vector<Acc> acc(v.vars.size());
-  auto close = [&](Acc& a, const ropsim_test::Vcd::Var& var, uint64_t t) {
-    if (t <= a.since) return;
-    a.cycles[a.value] += t - a.since;
-    if (var.type == "integer") {
-      const uint64_t n = ropsim_test::Vcd::number(a.value);
-      a.sum += n * (t - a.since);
-      a.max = std::max(a.max, n);
+  for (Method m : {Method::kLk, Method::kLkDepthAc}) {
+    const std::string what = to_string(m), path = wave_path("all.vcd");
+    CycleOptions opt;
+    opt.vcd_path = path;
+    const CycleRun run = run_cycle(scene_input("cloth", 4), method_config(m), hw, opt);
+    const ropsim_test::Vcd v = ropsim_test::parse_vcd(slurp_file(path));
+    std::filesystem::remove(path);
+    const CycleStats& s = run.stats;
+    ASSERT_EQ(v.stamps.size(), s.total_cycles) << what << ": one time stamp per cycle of the run";
+    // Each pass: its scope prefix and its cycles [from, to) in the run.
+    struct Pass {
+      std::string prefix;
+      uint64_t from, to;
+    };
+    std::vector<Pass> passes;
+    if (s.passes.empty()) passes.push_back(Pass{"top.", 0, s.total_cycles});
+    for (const auto& p : s.passes) {
+      const uint64_t from = passes.empty() ? 0 : passes.back().to;
+      passes.push_back(Pass{"top." + p.name + ".", from, from + p.total_cycles});
     }
-    a.since = t;
-  };
-  for (const auto& c : v.changes) {
-    close(acc[c.var], v.vars[c.var], c.time);
-    acc[c.var].value = c.value;
+    ASSERT_EQ(passes.back().to, s.total_cycles) << what;
+    auto pass_of = [&](const std::string& name) {  // "stochastic.rop0_depth_test", "stochastic.rop0.input"
+      if (s.passes.empty()) return passes[0];
+      for (const auto& p : passes)
+        if (name.rfind(p.prefix.substr(4), 0) == 0) return p;
+      ADD_FAILURE() << name << " belongs to no pass";
+      return passes[0];
+    };
+    // Per variable: its changes; the cycles at each value, the sum and the
+    // maximum of its numbers over [from, to).
+    std::vector<std::vector<std::pair<uint64_t, std::string>>> changes(v.vars.size());
+    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time, c.value);
+    struct Sums {
+      std::map<std::string, uint64_t> cycles;
+      uint64_t sum = 0, max = 0;
+      std::string last;
+    };
+    auto sums = [&](int var, uint64_t from, uint64_t to) {
+      Sums r;
+      const auto& ch = changes[size_t(var)];
+      for (size_t k = 0; k < ch.size(); ++k) {
+        const uint64_t a = std::max(ch[k].first, from), b = std::min(k + 1 < ch.size() ? ch[k + 1].first : to, to);
+        if (a >= b) continue;
+        r.cycles[ch[k].second] += b - a;
+        r.last = ch[k].second;
+        if (v.vars[size_t(var)].type == "integer") {
+          const uint64_t n = ropsim_test::Vcd::number(ch[k].second);
+          r.sum += n * (b - a);
+          r.max = std::max(r.max, n);
+        }
+      }
+      return r;
+    };
+    for (const auto& u : s.units) {
+      const Pass p = pass_of(u.name);
+      const std::string scope = p.prefix + (u.rop >= 0 ? "rop" + std::to_string(u.rop) : u.kind);
+      const int var = v.find(scope.substr(0, scope.size()), u.kind);
+      ASSERT_GE(var, 0) << what << ": " << u.name << " is not " << scope << "." << u.kind;
+      Sums got = sums(var, p.from, p.to);
+      for (int a = 0; a < kActivities; ++a)
+        EXPECT_EQ(got.cycles[to_string(Activity(a))], u.stats.cycles[size_t(a)])
+            << what << ": " << u.name << ": cycles " << to_string(Activity(a));
+    }
+    for (const auto& f : s.fifos) {
+      const Pass p = pass_of(f.name);
+      const std::string local = s.passes.empty() ? f.name : f.name.substr(f.name.find('.') + 1);
+      const auto dot = local.find('.');
+      const std::string scope = p.prefix + (dot == std::string::npos ? "distributor" : local.substr(0, dot));
+      const int var = v.find(scope, "fifo_" + (dot == std::string::npos ? local : local.substr(dot + 1)));
+      ASSERT_GE(var, 0) << what << ": " << f.name;
+      const Sums got = sums(var, p.from, p.to);
+      EXPECT_NEAR(double(got.sum) / double(p.to - p.from), f.mean_occupancy, 1e-9) << what << ": " << f.name;
+      EXPECT_EQ(got.max, f.max_occupancy) << what << ": " << f.name << " maximum occupancy";
+    }
+    uint64_t busy = 0, misses = 0;
+    for (const auto& p : passes)
+      for (uint32_t ch = 0; ch < hw.dram.channels; ++ch) {
+        const int bus = v.find(p.prefix + "dram", "ch" + std::to_string(ch) + "_bus");
+        const int rm = v.find(p.prefix + "dram", "ch" + std::to_string(ch) + "_row_misses");
+        ASSERT_TRUE(bus >= 0 && rm >= 0) << what << ": " << p.prefix << " channel " << ch;
+        Sums b = sums(bus, 0, s.total_cycles);
+        busy += b.cycles["read"] + b.cycles["write"];
+        misses += ropsim_test::Vcd::number(sums(rm, 0, s.total_cycles).last);
+      }
+    ASSERT_GT(s.dram.busy_cycles, 0u) << what << ": the test needs DRAM traffic";
+    EXPECT_EQ(busy, s.dram.busy_cycles) << what << ": DRAM data-bus cycles";
+    EXPECT_EQ(misses, s.dram.row_misses) << what << ": DRAM row misses";
   }
-  for (size_t i = 0; i < acc.size(); ++i) close(acc[i], v.vars[i], end);
-  for (const auto& u : s.units) {
-    const std::string scope = u.rop >= 0 ? "top.rop" + std::to_string(u.rop) : "top." + u.kind;
-    const int var = v.find(scope, u.kind);
-    ASSERT_GE(var, 0) << u.name;
-    for (int a = 0; a < kActivities; ++a)
-      EXPECT_EQ(acc[size_t(var)].cycles[to_string(Activity(a))], u.stats.cycles[size_t(a)])
-          << u.name << ": cycles " << to_string(Activity(a));
-  }
-  size_t fifos = 0;
-  for (const auto& f : s.fifos) {
-    const auto dot = f.name.find('.');
-    const std::string scope = dot == std::string::npos ? "top.distributor" : "top." + f.name.substr(0, dot);
-    const int var = v.find(scope, "fifo_" + (dot == std::string::npos ? f.name : f.name.substr(dot + 1)));
-    ASSERT_GE(var, 0) << f.name;
-    ++fifos;
-    EXPECT_NEAR(double(acc[size_t(var)].sum) / double(end), f.mean_occupancy, 1e-9) << f.name << " mean occupancy";
-    EXPECT_EQ(acc[size_t(var)].max, f.max_occupancy) << f.name << " maximum occupancy";
-  }
-  EXPECT_EQ(fifos, s.fifos.size());
-  uint64_t busy = 0, misses = 0;
-  for (uint32_t ch = 0; ch < hw.dram.channels; ++ch) {
-    const int bus = v.find("top.dram", "ch" + std::to_string(ch) + "_bus");
-    const int rm = v.find("top.dram", "ch" + std::to_string(ch) + "_row_misses");
-    ASSERT_TRUE(bus >= 0 && rm >= 0) << "channel " << ch;
-    busy += acc[size_t(bus)].cycles["read"] + acc[size_t(bus)].cycles["write"];
-    misses += ropsim_test::Vcd::number(acc[size_t(rm)].value);
-  }
-  ASSERT_GT(s.dram.busy_cycles, 0u) << "the test needs DRAM traffic";
-  EXPECT_EQ(busy, s.dram.busy_cycles) << "DRAM data-bus cycles";
-  EXPECT_EQ(misses, s.dram.row_misses) << "DRAM row misses";
 }
 
 // ------------------------------------------------------------ sampled simulation (livepoints.h)

@@ -161,20 +161,43 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
   o += "$timescale 1 ns $end\n";  // one time unit = one clock cycle (the comment says so)
   o += "$scope module " + top + " $end\n";
   o += "$var integer 64 " + vcd_id(0) + " cycle $end\n";
-  // Scopes in the order of their first signal; each scope's signals together.
+  // Scopes in the order of their first signal, each scope's signals
+  // together; "a.b" is scope b inside scope a.
   std::vector<std::string> scopes;
   for (const auto& s : signals_)
     if (std::find(scopes.begin(), scopes.end(), s.scope) == scopes.end()) scopes.push_back(s.scope);
+  std::vector<std::string> open;  // the scopes open now, outermost first
+  auto enter = [&](const std::string& scope) {
+    std::vector<std::string> path;
+    for (size_t a = 0, b; a <= scope.size(); a = b + 1) {
+      b = std::min(scope.find('.', a), scope.size());
+      path.push_back(scope.substr(a, b - a));
+    }
+    size_t common = 0;
+    while (common < open.size() && common < path.size() && open[common] == path[common]) ++common;
+    for (; open.size() > common; open.pop_back()) o += "$upscope $end\n";
+    for (; open.size() < path.size(); open.push_back(path[open.size()]))
+      o += "$scope module " + path[open.size()] + " $end\n";
+  };
+  // A nested scope's parents are listed once: group the scopes by their
+  // first part in first-appearance order.
+  std::vector<std::string> heads;  // first parts, in first-appearance order
+  auto head = [](const std::string& x) { return x.substr(0, x.find('.')); };
+  for (const auto& sc : scopes)
+    if (std::find(heads.begin(), heads.end(), head(sc)) == heads.end()) heads.push_back(head(sc));
+  auto rank = [&](const std::string& x) { return std::find(heads.begin(), heads.end(), head(x)) - heads.begin(); };
+  std::stable_sort(scopes.begin(), scopes.end(),
+                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
   for (const auto& sc : scopes) {
-    o += "$scope module " + sc + " $end\n";
+    enter(sc);
     for (size_t i = 0; i < signals_.size(); ++i) {
       const Signal& s = signals_[i];
       if (s.scope != sc) continue;
       const char* type = s.kind == Signal::Kind::kState ? "string 1 " : "integer 64 ";
       o += std::string("$var ") + type + vcd_id(i + 1) + " " + s.name + " $end\n";
     }
-    o += "$upscope $end\n";
   }
+  for (; !open.empty(); open.pop_back()) o += "$upscope $end\n";
   o += "$upscope $end\n$enddefinitions $end\n";
 
   const uint64_t last = last_shown(end);

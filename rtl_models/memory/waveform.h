@@ -32,7 +32,13 @@ class Waveform {
   /// Records the cycles [first, last] (last >= first).
   Waveform(uint64_t first, uint64_t last);
 
-  // ---- declaration (before the run), in the order the file lists them
+  /// The current pass's first cycle in the run: the events that follow are
+  /// of its cycles, counted from 0 (a multi-pass method's passes follow each
+  /// other, as in the IntervalLog).
+  void set_base(uint64_t cycle) { base_ = cycle; }
+
+  // ---- declaration (before the run), in the order the file lists them;
+  // a scope may be nested ("stochastic.rop0")
   /// A signal shown as a name from `states` (a VCD string variable: GTKWave
   /// shows the name); set() takes the index. Starts at states[0].
   int add_state(const std::string& scope, const std::string& name, std::vector<std::string> states);
@@ -47,13 +53,16 @@ class Waveform {
   /// a set before the window gives the value the window starts with, one
   /// after it is ignored.
   void set(int sig, uint64_t t, uint64_t v) {
+    t += base_;
     if (t <= last_) record(sig, t, v);
   }
   /// An entry enters (push) or leaves (pop) the FIFO of occupancy signal sig at cycle t.
   void push(int sig, uint64_t t) {
+    t += base_;
     if (t <= last_) count_edge(sig, t, 0);
   }
   void pop(int sig, uint64_t t) {
+    t += base_;
     if (t <= last_) count_edge(sig, t, 1);
   }
 
@@ -88,7 +97,7 @@ class Waveform {
   void count_edge(int sig, uint64_t t, int which);
   void append(Signal& s, int which, uint64_t v);
   void check_order(Signal& s, int which, uint64_t t);
-  uint64_t first_, last_;
+  uint64_t first_, last_, base_ = 0;
   std::vector<Signal> signals_;
   size_t bytes_ = 0;  // stream bytes, charged to the memory budget in steps
   BudgetShare mem_;

@@ -90,9 +90,6 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   auto rop = std::make_unique<FunctionalRop>(run.header, method);
   LineSet in_dram(hw.cache.line_bytes);
   const int n_passes = rop->passes();
-  if (n_passes > 1 && !opt.vcd_path.empty())
-    throw std::invalid_argument(std::string("--vcd traces single-pass methods; ") + to_string(method.method) +
-                                " makes " + std::to_string(n_passes) + " passes");
   // The waveform records every event at its own cycle (waveform.h), so a
   // --vcd run stays decoupled like any other.
   const bool decoupled = !opt.lockstep;
@@ -105,13 +102,18 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   uint64_t progress_base = 0;
+  // The waveform of every pass, one after the other (--vcd), opened before
+  // the run so that a path that cannot be written fails at once.
+  std::unique_ptr<OutputFile> vcd;
+  std::unique_ptr<Waveform> wave;
+  if (!opt.vcd_path.empty()) {
+    vcd = std::make_unique<OutputFile>(opt.vcd_path);
+    wave = std::make_unique<Waveform>(opt.vcd_first, opt.vcd_last);
+  }
   if (opt.stats_interval > 0) run.intervals = std::make_unique<IntervalLog>(opt.stats_interval);
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) input = open_fragments(in);
-    // Opened before the run, so a path that cannot be written fails at once.
-    std::unique_ptr<OutputFile> vcd;
-    std::unique_ptr<Waveform> wave;
     FreshSimContext sim;
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
@@ -138,30 +140,13 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
           };
     }
     top->set_decoupled(decoupled);
-    if (!opt.vcd_path.empty()) {
-      vcd = std::make_unique<OutputFile>(opt.vcd_path);
-      wave = std::make_unique<Waveform>(opt.vcd_first, opt.vcd_last);
-      top->trace_to(*wave);
+    if (wave) {
+      wave->set_base(s.total_cycles);  // this pass follows the previous ones
+      top->trace_to(*wave, n_passes > 1 ? std::string(to_string(rop->pass())) + "." : "");
     }
     const auto t1 = std::chrono::steady_clock::now();
     top->run();  // on an error, vcd's destructor discards the file
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-    if (wave) {
-      const uint64_t end = top->total_cycles(), shown = wave->last_shown(end);
-      char comment[320];
-      const int n = std::snprintf(comment, sizeof comment,
-                                  "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
-                                  "%llu ps at %g GHz. ",
-                                  (unsigned long long)top->clock().period_ps(), hw.clock.frequency_ghz);
-      if (end > 0 && shown >= wave->first())
-        std::snprintf(comment + n, sizeof comment - size_t(n), "Cycles %llu..%llu of a run of %llu.",
-                      (unsigned long long)wave->first(), (unsigned long long)shown, (unsigned long long)end);
-      else
-        std::snprintf(comment + n, sizeof comment - size_t(n),
-                      "The run ended (%llu cycles) before the window's first cycle %llu: no values.",
-                      (unsigned long long)end, (unsigned long long)wave->first());
-      wave->write_vcd(top_name, comment, top->total_cycles(), [&vcd](std::string_view s) { vcd->write(s); });
-    }
     progress_base += top->source().produced();
 
     s.period_ps = top->clock().period_ps();
@@ -194,7 +179,23 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     if (pass == 0 && n_passes == 1) s.dram = ps.dram;  // a single pass: its figures exactly
     s.tokens_allocated = std::max(s.tokens_allocated, top->tokens().allocated());
     top.reset();
-    if (vcd) vcd->commit();
+  }
+  if (wave) {
+    const uint64_t end = s.total_cycles, shown = wave->last_shown(end);
+    char comment[320];
+    const int n = std::snprintf(comment, sizeof comment,
+                                "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
+                                "%llu ps at %g GHz. ",
+                                (unsigned long long)s.period_ps, hw.clock.frequency_ghz);
+    if (end > 0 && shown >= wave->first())
+      std::snprintf(comment + n, sizeof comment - size_t(n), "Cycles %llu..%llu of a run of %llu.",
+                    (unsigned long long)wave->first(), (unsigned long long)shown, (unsigned long long)end);
+    else
+      std::snprintf(comment + n, sizeof comment - size_t(n),
+                    "The run ended (%llu cycles) before the window's first cycle %llu: no values.",
+                    (unsigned long long)end, (unsigned long long)wave->first());
+    wave->write_vcd("top", comment, end, [&vcd](std::string_view t) { vcd->write(t); });
+    vcd->commit();
   }
   if (run.intervals) run.intervals->finish(s.total_cycles);
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);

@@ -137,13 +137,13 @@ std::vector<TokenFifo*> RopPipeline::fifos() const {
   return v;
 }
 
-void RopPipeline::trace_to(Waveform& wave) {
+void RopPipeline::trace_to(Waveform& wave, const std::string& prefix) {
   std::vector<std::string> states;
   for (int a = 0; a < kActivities; ++a) states.push_back(to_string(Activity(a)));
   // Unit by unit in pipeline order, each after the FIFOs it reads, under its
   // ROP's scope (a shared unit: its own).
   for (const auto& u : units_) {
-    const std::string scope = u.rop >= 0 ? "rop" + std::to_string(u.rop) : u.kind;
+    const std::string scope = prefix + (u.rop >= 0 ? "rop" + std::to_string(u.rop) : u.kind);
     for (const auto& f : fifos_) {
       if (f->consumer() != u.unit) continue;
       const std::string& n = f->name();  // "rop0.ordering_to_depth", "source_to_distributor"
@@ -152,7 +152,7 @@ void RopPipeline::trace_to(Waveform& wave) {
     }
     u.unit->trace_to(&wave, wave.add_state(scope, u.kind, states));
   }
-  dram_.trace_to(wave, "dram");
+  dram_.trace_to(wave, prefix + "dram");
 }
 
 uint64_t RopPipeline::run() {

@@ -50,8 +50,9 @@ class RopPipeline : public sc_core::sc_module {
   /// DRAM channels (--vcd); call before run(). Each ROP is one scope (rop0:
   /// its units and the FIFOs they read, in pipeline order); the shared units
   /// (trace_source, distributor with the FIFO it reads) and the DRAM have
-  /// their own.
-  void trace_to(Waveform& wave);
+  /// their own. `prefix` comes before every scope ("stochastic." for a pass
+  /// of a multi-pass method, whose cycles the caller places: Waveform::set_base).
+  void trace_to(Waveform& wave, const std::string& prefix = "");
 
   /// SystemC process activations of the run (the scheduler's).
   uint64_t activations() const { return sched_->activations(); }
