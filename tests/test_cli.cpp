@@ -896,7 +896,12 @@ TEST(CliBlend, MethodsParseAndReportTheirPassesFormatsAndSelection) {
                    {"--hw-set", "cycle"});
   expect_cli_error(box, "run --scene testcard --spp 1 --method lk --enderton-selection sideways",
                    {"--enderton-selection"});
-  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --method lk+depth --vcd w.vcd", {"--vcd"});
+  // A multi-pass method's waveform: each pass under its own scope.
+  expect_ok(box.run("run --fidelity cycle --scene testcard --spp 1 --method lk+depth --quiet --vcd w.vcd"),
+            "--vcd of a two-pass method");
+  const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.path("w.vcd")));
+  EXPECT_GE(w.find("top.stochastic.rop0", "depth_test"), 0) << "the first pass has no scope";
+  EXPECT_GE(w.find("top.accumulate.rop0", "blend"), 0) << "the second pass has no scope";
 }
 
 // --fidelity approximate writes the golden image bit for bit and the cycle
