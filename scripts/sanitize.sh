@@ -35,6 +35,7 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Reduced where the plain suite already covers it: the bit-exact matrix's
 # narrow and wide designs, SLURM, the thread-count check on the four
 # largest scenes (the four small ones still run every method and spp), and the
-# fidelity study (the full cycle model on the motor three times).
+# fidelity study (the full cycle model on the motor three times) and the
+# README's command block (the same verbs, each tested on its own here).
 ctest --output-on-failure -j "$(nproc)" \
-  -E 'BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"
+  -E 'BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"

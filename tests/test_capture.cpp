@@ -666,6 +666,11 @@ TEST(CaptureCli, WritesAValidTraceWithoutAProgressBarWhenNotATerminal) {
   sb << b.rdbuf();
   EXPECT_TRUE(sa.str() == sb.str()) << "two captures of one scene differ";
   EXPECT_TRUE(tr.header().checksummed) << "capture writes a checksummed payload by default";
+  // --progress forces the progress into a log (stderr not a terminal).
+  const CliResult pr =
+      run_cli(box, "capture '" + scene + "' --progress -o '" + box.path("q.trace") + "' --spp 8 --width 50");
+  ASSERT_EQ(pr.code, 0) << pr.err;
+  EXPECT_NE(pr.err.find("capture: 100.0 %"), std::string::npos) << "--progress shows the capture's end: " << pr.err;
   // --no-checksum: the same fragments, in the layout without checksum records.
   ASSERT_EQ(
       run_cli(box, "capture '" + scene + "' --quiet --no-checksum -o '" + box.path("p.trace") + "' --spp 8 --width 50")

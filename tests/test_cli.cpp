@@ -8,12 +8,16 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "heat_map.h"
+#include "image_codec.h"
+#include "progress.h"
 #include "trace.h"
 #include "vcd_reader.h"
 
@@ -313,6 +317,102 @@ TEST(Cli, ComparePngAgainstExrIsInLinearLight) {
   // The text form says which file was converted.
   const CliResult text = box.run("compare lk.png ref.exr");
   EXPECT_NE(text.out.find("lk.png converted from sRGB"), std::string::npos) << text.describe();
+}
+
+// Progress (util/progress.h): on a terminal by default, never in a log
+// unless --progress forces it, never with --quiet; every long phase has one
+// (the functional model, the reference pre-pass, the cycle model, the
+// live-points, the sampled units, the approximate model).
+TEST(Cli, ProgressGoesToLogsOnlyWithTheFlag) {
+  CliSandbox box;
+  const CliResult plain = box.run("run --scene eight-layers --spp 4 --quiet --out a.exr");
+  expect_ok(plain, "run without --progress");
+  EXPECT_TRUE(plain.err.empty()) << "stderr is not a terminal: no progress without --progress\n" << plain.describe();
+  const CliResult quiet = box.run("run --scene eight-layers --spp 4 --quiet --progress --out b.exr");
+  expect_ok(quiet, "run --quiet --progress");
+  EXPECT_TRUE(quiet.err.empty()) << "--quiet wins over --progress\n" << quiet.describe();
+  const struct {
+    const char* args;
+    std::vector<const char*> lines;
+  } cases[] = {
+      {"run --scene eight-layers --spp 4 --progress --vs-reference --out c.exr", {"functional: 100.0 %"}},
+      {"run --scene eight-layers --spp 4 --progress --fidelity cycle --vs-reference --out d.exr",
+       {"reference: 100.0 %", "cycle model: 100.0 %"}},
+      {"run --scene eight-layers --spp 4 --progress --fidelity approximate --out e.exr", {"approximate: 100.0 %"}},
+      {"run --scene cloth --spp 4 --width 1024 --height 1024 --progress --fidelity sampled -j 2 --out f.exr",
+       {"live-points: counting the input: 100.0 %", "live-points: recording: 100.0 %", "sampled: units: 100.0 %"}},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = box.run(c.args);
+    EXPECT_EQ(r.code, 0) << r.describe();
+    for (const char* l : c.lines)
+      EXPECT_NE(r.err.find(l), std::string::npos) << c.args << ": no '" << l << "'\n" << r.describe();
+  }
+}
+
+// --per-draw, --draw-csv and --maps (RunBreakdown): every draw's counters,
+// in the report and the CSV, add up to the run's counters, and each per-pixel
+// map (EXR) sums to its counter; the error map's RMS is the report's RMSE;
+// the PNGs carry the legend below the image. Threads do not change them.
+TEST(Cli, PerDrawStatisticsAndMapsAddUpToTheCounters) {
+  CliSandbox box;
+  for (const char* method : {"lk", "enderton", "lk+depth+ac"}) {
+    SCOPED_TRACE(method);
+    const std::string m = method;
+    const std::string args = "run --scene smoke --spp 8 --method " + m + " --per-draw --draw-csv d-" + m +
+                             ".csv --maps maps-" + m + " --vs-reference --quiet --report r-" + m + ".json";
+    expect_ok(box.run(args), args);
+    const auto j = nlohmann::json::parse(slurp(box.path("r-" + m + ".json")));
+    const auto& draws = j["draws"];
+    ASSERT_GT(draws.size(), 10u) << "smoke has 96 draws";
+    std::map<std::string, uint64_t> sums;
+    for (const auto& d : draws)
+      for (const auto& [k, v] : d["counters"].items()) sums[k] += v.get<uint64_t>();
+    for (const auto& [k, v] : j["counters"].items())
+      EXPECT_EQ(sums[k], v.get<uint64_t>()) << "draws[].counters." << k << " do not add up to counters." << k;
+    // The CSV: one row per draw, the same numbers.
+    const auto rows = lines_of(slurp(box.path("d-" + m + ".csv")));
+    ASSERT_EQ(rows.size(), draws.size() + 1) << "a header and one row per draw";
+    EXPECT_EQ(rows[0].rfind("draw,fragments,samples_tested,", 0), 0u) << rows[0];
+    EXPECT_EQ(rows[1].substr(0, rows[1].find(',', rows[1].find(',') + 1)),
+              std::to_string(draws[0]["draw"].get<uint64_t>()) + "," +
+                  std::to_string(draws[0]["counters"]["fragments"].get<uint64_t>()));
+    // Each map sums to its counter.
+    for (const char* map :
+         {"fragments", "samples_tested", "samples_depth_passed", "samples_written", "surface_id_changes"}) {
+      const ropsim::DecodedImage e = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".exr"));
+      double sum = 0;
+      for (size_t i = 0; i < e.px.size(); i += size_t(e.channels)) sum += e.px[i];
+      EXPECT_EQ(uint64_t(sum), j["counters"][map].get<uint64_t>()) << map << ".exr does not sum to counters." << map;
+      const ropsim::DecodedImage p = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".png"));
+      EXPECT_EQ(p.height, e.height + int(ropsim::kLegendRows)) << map << ".png lacks its legend";
+    }
+    const ropsim::DecodedImage err = ropsim::decode_image_file(box.path("maps-" + m + "/error.exr"));
+    double sq = 0;
+    for (size_t i = 0; i < err.px.size(); i += size_t(err.channels)) sq += double(err.px[i]) * err.px[i];
+    EXPECT_NEAR(std::sqrt(sq / double(err.width * err.height)), j["vs_reference"]["rmse_8bit"].get<double>(), 1e-3)
+        << "the error map's RMS is the report's RMSE";
+  }
+  // The same per-draw table on one thread.
+  expect_ok(box.run("run --scene smoke --spp 8 --method lk --draw-csv d1.csv --threads 1 --quiet --out x.exr"),
+            "1 thr");
+  EXPECT_EQ(slurp(box.path("d1.csv")), slurp(box.path("d-lk.csv"))) << "the per-draw table depends on --threads";
+  expect_cli_error(box, "run --scene smoke --method reference --per-draw --out y.exr", {"--per-draw"});
+}
+
+// The progress line: the share consumed, the count, the rate, the elapsed
+// time, and the ETA = elapsed * (1 - f) / f once 1 % or a second is behind.
+TEST(ProgressLine, ShareRateElapsedAndEta) {
+  using ropsim::Progress;
+  EXPECT_EQ(Progress::line("functional", "fragments", 0.25, 2'000'000, 10.0),
+            "functional:  25.0 %, 2000000 fragments (200.0 k/s), 10.0 s, ETA 30.0 s");
+  EXPECT_EQ(Progress::line("cycle model", "fragments", 0.5, 40'000'000, 100.0),
+            "cycle model:  50.0 %, 40.0 M fragments (400.0 k/s), 1 min 40 s, ETA 1 min 40 s");
+  EXPECT_EQ(Progress::line("x", "units", 0.005, 1, 0.5), "x:   0.5 %, 1 units (2.0 /s), 0.5 s")
+      << "no ETA before 1 % or a second";
+  EXPECT_EQ(Progress::line("x", "units", -1.0, 3'000'000, 1.0), "x: 3000000 units (3.00 M/s), 1.0 s")
+      << "an unknown share: no percentage, no ETA";
+  EXPECT_EQ(Progress::format_duration(7300), "2 h 02 min");
 }
 
 TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
@@ -850,9 +950,19 @@ TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
   for (const char* k : {"covered_samples", "covered_samples_per_fragment", "draws", "bytes", "pixels_touched",
                         "pixels_touched_percent", "fragments_per_touched_pixel", "depth_complexity_histogram_pixels"})
     EXPECT_TRUE(t.contains(k)) << "trace info --json lacks " << k << "\n" << r.out;
-  uint64_t hist = 0;
-  for (const auto& [k, v] : t["depth_complexity_histogram_pixels"].items()) hist += v.get<uint64_t>();
+  // The full histogram (it saturated at 16+ before): exact counts, whose
+  // largest is the deepest pixel's, and which weighted by their count give
+  // every fragment.
+  uint64_t hist = 0, weighted = 0, deepest = 0;
+  for (const auto& [k, v] : t["depth_complexity_histogram_pixels"].items()) {
+    hist += v.get<uint64_t>();
+    weighted += std::stoull(k) * v.get<uint64_t>();
+    deepest = std::max<uint64_t>(deepest, std::stoull(k));
+  }
   EXPECT_EQ(hist, t["pixels_touched"].get<uint64_t>());
+  EXPECT_EQ(weighted, n) << "sum of k x pixels with k fragments = fragments";
+  EXPECT_EQ(deepest, t["fragments_per_touched_pixel"]["max"].get<uint64_t>());
+  EXPECT_GT(deepest, 16u) << "cloth has pixels deeper than 16: the histogram must not saturate";
   EXPECT_NE(text.out.find("fragments " + std::to_string(n) + " "), std::string::npos) << text.describe();
   EXPECT_NE(text.out.find("pixels touched " + std::to_string(t["pixels_touched"].get<uint64_t>()) + " "),
             std::string::npos)

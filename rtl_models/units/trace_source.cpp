@@ -49,7 +49,7 @@ void TraceSource::advance(uint64_t limit) {
       out_.push(tok, t, t + 1);
       ++n_;
       ++stats_.fragments;
-      if (on_progress && seq_ % kProgressEvery == 0) on_progress(seq_);
+      if (on_progress && seq_ % kProgressEvery == 0) on_progress(seq_, input_.consumed());
     }
     // Clock t is decided.
     if (!done_) out_.settle(t + 1);  // later pushes are at t + 1 or after, visible after t + 1

@@ -23,8 +23,9 @@ class TraceSource : public DecoupledUnit {
   /// The input has no more fragments; `produced` were delivered.
   bool done() const { return done_; }
   uint64_t produced() const { return seq_; }
-  /// Called every progress_every fragments with the count so far.
-  std::function<void(uint64_t)> on_progress;
+  /// Called every kProgressEvery fragments with the count so far and the
+  /// share of the input consumed (FragmentSource::consumed).
+  std::function<void(uint64_t produced, double consumed)> on_progress;
   static constexpr uint64_t kProgressEvery = 1 << 16;
 
  protected:

@@ -16,6 +16,7 @@
 
 #include "errors.h"
 #include "output_file.h"
+#include "progress.h"
 #include "scenes.h"
 
 namespace ropsim {
@@ -32,6 +33,12 @@ VerbRunner add_config_command(CLI::App& app);
 VerbRunner add_report_fields_command(CLI::App& app);
 VerbRunner add_study_command(CLI::App& app);
 // add_capture_command: cmd_capture.h
+
+/// The progress mode of a verb's run (util/progress.h): none with --quiet,
+/// forced into logs with --progress, else on a terminal only.
+inline void set_progress_flags(bool quiet, bool force) {
+  set_progress_mode(quiet ? ProgressMode::kOff : force ? ProgressMode::kAlways : ProgressMode::kTerminal);
+}
 
 inline std::string join(const std::vector<std::string>& v, const char* sep = ", ") {
   std::string s;

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "capture.h"
+#include "cli_common.h"
 #include "output_file.h"
 #include "scene_file.h"
 #ifdef ROPSIM_HAVE_OSMESA
@@ -24,38 +25,11 @@ struct CaptureOpts {
   int spp = 0;
   uint32_t width = 0, height = 0;
   uint64_t seed = 0;
-  bool allow_empty = false, quiet = false, cross_check = false, no_checksum = false;
-};
-
-/// A one-line progress bar on stderr, only when stderr is a terminal.
-class ProgressBar {
- public:
-  ProgressBar() : tty_(::isatty(2) == 1), t0_(std::chrono::steady_clock::now()) {}
-  ~ProgressBar() { done(); }
-  void update(uint64_t done, uint64_t total) {
-    if (!tty_ || !total) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (done < total && now - last_ < std::chrono::milliseconds(100)) return;
-    last_ = now;
-    const double f = double(done) / double(total);
-    const int w = 40, fill = int(f * w);
-    const double sec = std::chrono::duration<double>(now - t0_).count();
-    std::fprintf(stderr, "\rcapture [%s%s] %5.1f%%  %llu/%llu triangles  %.1f s",
-                 std::string(size_t(fill), '#').c_str(), std::string(size_t(w - fill), ' ').c_str(), 100.0 * f,
-                 (unsigned long long)done, (unsigned long long)total, sec);
-    shown_ = true;
-  }
-  void done() {
-    if (shown_) std::fputs("\n", stderr);
-    shown_ = false;
-  }
-
- private:
-  bool tty_, shown_ = false;
-  std::chrono::steady_clock::time_point t0_, last_{};
+  bool allow_empty = false, quiet = false, cross_check = false, no_checksum = false, progress = false;
 };
 
 int run_capture(const CaptureOpts& o, const CLI::App& sub) {
+  set_progress_flags(o.quiet, o.progress);
   SceneOverrides ov;
   if (sub.count("--mesh-dir")) ov.mesh_dir = o.mesh_dir;
   if (sub.count("--spp")) ov.spp = o.spp;
@@ -82,8 +56,11 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
   ensure_parent_dir(o.out);
   CaptureStats st;
   {
-    ProgressBar bar;
-    st = capture_to_file(spec, o.out, o.allow_empty, [&](uint64_t d, uint64_t t) { bar.update(d, t); });
+    Progress bar("capture", "triangles");
+    st = capture_to_file(spec, o.out, o.allow_empty,
+                         [&](uint64_t d, uint64_t t) { bar.update(t ? double(d) / double(t) : -1.0, d); });
+    bar.update(1.0, st.triangles);
+    bar.finish();
   }
   if (!o.quiet)
     fmt::print(
@@ -119,6 +96,9 @@ std::function<int()> add_capture_command(CLI::App& app) {
                 "Instead of writing a trace, capture the scene at 4 spp through Mesa (llvmpipe) and through ropsim "
                 "with Mesa's sample positions, and print how the records agree");
   sub->add_flag("--quiet", o->quiet, "Print nothing on success");
+  sub->add_flag("--progress", o->progress,
+                "Show progress (share of the triangles, rate, ETA) even when stderr is not a terminal: a line every "
+                "5 s, for logs");
   return [o, sub]() { return sub->parsed() ? run_capture(*o, *sub) : -1; };
 }
 

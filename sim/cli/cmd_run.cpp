@@ -13,6 +13,7 @@
 #include "cycle_report.h"
 #include "cycle_run.h"
 #include "driver.h"
+#include "heat_map.h"
 #include "host_threads.h"
 #include "hw_config.h"
 #include "image_io.h"
@@ -36,13 +37,17 @@ struct RunOpts {
   int slab_layers = MethodConfig{}.slab_layers, slab_bits = MethodConfig{}.slab_bits;
   std::string enderton_selection = "depth-first";
   Numerics num;
-  bool vs_reference = false, quiet = false, lockstep = false;
+  bool vs_reference = false, quiet = false, lockstep = false, progress = false;
   uint64_t stats_interval = 0;
   std::string stats_csv;
   SamplingParams sampling;
   std::string livepoints;   ///< sampled: read the live-points from this library
   int jobs = 0;             ///< sampled: worker processes (0: every core)
   std::string library_out;  ///< the livepoints verb: the library to write
+  bool per_draw = false;    ///< the counters split by draw id, in the report
+  std::string draw_csv;     ///< ... and as CSV
+  std::string maps;         ///< the per-pixel maps' folder
+  BreakdownRequest breakdown() const { return {per_draw || !draw_csv.empty(), !maps.empty()}; }
 };
 
 /// The sampling flags (a library fixes them when it is built).
@@ -51,10 +56,56 @@ constexpr const char* kSamplingFlags[] = {"--sample-units",    "--sample-size", 
 /// The flags that choose a scene input.
 constexpr const char* kSceneFlags[] = {"--scene", "--spp", "--width", "--height", "--scene-seed"};
 
-/// A text output staged beside the images (the --stats-interval CSV).
+/// A text output staged beside the images (the --stats-interval CSV, the
+/// --draw-csv table, a --maps image: text holds any bytes).
 struct TextOutput {
   std::string path, text;
 };
+
+/// The breakdown's outputs: the per-draw CSV, and per map an EXR and a PNG
+/// in the --maps folder (the error against the reference too, when there is
+/// one: per-pixel RMSE over R, G, B in 8-bit units).
+void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cycles, const Image& image,
+                           const std::optional<Image>& reference, std::vector<TextOutput>& texts) {
+  if (!b) return;
+  if (!o.draw_csv.empty()) texts.push_back(TextOutput{o.draw_csv, draws_csv(*b, with_cycles)});
+  if (o.maps.empty()) return;
+  const uint32_t w = b->width(), h = b->height();
+  auto add = [&](const std::string& name, const MapRows& rows, double max) {
+    const std::string base = (std::filesystem::path(o.maps) / name).string();
+    const auto exr = encode_heat_exr(w, h, rows, base + ".exr");
+    const auto png = encode_heat_png(w, h, rows, max, base + ".png");
+    texts.push_back(TextOutput{base + ".exr", std::string(exr.begin(), exr.end())});
+    texts.push_back(TextOutput{base + ".png", std::string(png.begin(), png.end())});
+  };
+  for (size_t i = 0; i < pixel_map_descs().size(); ++i) {
+    const PixelMap m = PixelMap(i);
+    add(
+        pixel_map_descs()[i].name, [b, m](uint32_t y, float* out) { b->row(m, y, out); }, double(b->max(m)));
+  }
+  if (reference) {
+    std::vector<float> a(size_t(w) * 3), r(a.size());
+    auto rows = [&](uint32_t y, float* out) {
+      image.row(y, a.data());
+      reference->row(y, r.data());
+      for (uint32_t x = 0; x < w; ++x) {
+        double s = 0;
+        for (int c = 0; c < 3; ++c) {
+          const double d = double(a[3 * x + c]) - double(r[3 * x + c]);
+          s += d * d;
+        }
+        out[x] = float(std::sqrt(s / 3.0) * 255.0);
+      }
+    };
+    float max = 0;
+    std::vector<float> row(w);
+    for (uint32_t y = 0; y < h; ++y) {
+      rows(y, row.data());
+      for (float v : row) max = std::max(max, v);
+    }
+    add("error", rows, double(max));
+  }
+}
 
 /// Writes the images and the report, all or none: every output is staged in
 /// its own temporary file first, then all are committed (renamed). A failure
@@ -148,14 +199,8 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   opt.vcd_last = vcd_last;
   opt.lockstep = o.lockstep;
   opt.stats_interval = o.stats_interval;
-  const bool tty = !o.quiet && isatty(fileno(stderr));
-  const auto t0 = std::chrono::steady_clock::now();
-  if (tty)
-    opt.progress = [t0](uint64_t n) {
-      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::fprintf(stderr, "\r  cycle model: %llu fragments, %.2f M/s ", (unsigned long long)n,
-                   s > 0 ? n / s / 1e6 : 0.0);
-    };
+  auto progress = std::make_shared<Progress>("cycle model", "fragments");
+  if (progress->shown()) opt.progress = [progress](uint64_t n, double consumed) { progress->update(consumed, n); };
   if (!o.vcd.empty()) {
     ensure_parent_dir(o.vcd);
     opt.vcd_path = o.vcd;
@@ -167,7 +212,8 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
     reference = run_functional(in, rc).image;
   }
   CycleRun run = run_cycle(in, cfg, hw, opt);
-  if (tty) std::fputs("\n", stderr);
+  progress->update(1.0, run.counters.fragments);
+  progress->finish();
   ReportContext ctx{cmdline, in, cfg, {}};
   if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
   std::vector<TextOutput> texts;
@@ -231,6 +277,7 @@ int cmd_run_approximate(const InputSpec& in, const GoldenConfig& cfg, const HwCo
 }
 
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
+  set_progress_flags(o.quiet, o.progress);
   const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
   const bool approximate = o.fidelity == "approximate";
   if (!sampled) {
@@ -317,9 +364,12 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   }
   if (sampled) return cmd_run_sampled(o, sub, in, cfg, hw, outs, report, cmdline);
   if (approximate) return cmd_run_approximate(in, cfg, hw, o, outs, report, cmdline);
-  FunctionalRun run = run_functional(in, cfg, o.vs_reference);
+  FunctionalRun run = run_functional(in, cfg, o.vs_reference, 0, o.breakdown());
   ReportContext ctx{cmdline, in, cfg, {}};
-  write_outputs(ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); });
+  std::vector<TextOutput> texts;
+  add_breakdown_outputs(o, run.breakdown.get(), false, run.image, run.reference, texts);
+  write_outputs(
+      ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); }, texts);
   if (!o.quiet && report != "-") std::fputs(functional_summary(ctx, run).c_str(), stdout);
   return 0;
 }
@@ -331,6 +381,7 @@ namespace {
 /// `ropsim livepoints`: one functional pass recording the live-points of a
 /// sampled simulation, written to a library every design of a sweep reuses.
 int cmd_livepoints(const RunOpts& o, CLI::App& sub) {
+  set_progress_flags(o.quiet, o.progress);
   for (const auto& a : o.hw_sets)
     if (a.rfind("numerics.", 0) != 0)
       throw UserError("--hw-set " + a +
@@ -477,7 +528,19 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::Range(1u, 1000u));
   run->add_flag("--vs-reference", ro->vs_reference,
                 "Also run the A-buffer reference on the same stream and report the RMSE");
+  run->add_flag("--per-draw", ro->per_draw,
+                "Split the counters by the trace's draw ids: the report's draws[] (functional, cycle: also the cycles "
+                "attributed to each draw)");
+  run->add_option("--draw-csv", ro->draw_csv, "The per-draw table as CSV (implies --per-draw)")->type_name("FILE");
+  run->add_option("--maps", ro->maps,
+                  "Write per-pixel heat maps into DIR, each as EXR (values) and PNG (colour scale): fragments (depth "
+                  "complexity), samples tested, depth-passed and written, surface-id changes, and with --vs-reference "
+                  "the error")
+      ->type_name("DIR");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  run->add_flag("--progress", ro->progress,
+                "Show progress (share of the input consumed, rate, ETA) even when stderr is not a terminal: a line "
+                "every 5 s, for logs");
   return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
 }
 
@@ -497,6 +560,8 @@ VerbRunner add_livepoints_command(CLI::App& app) {
   lp->add_option("--hw-set", ro->hw_sets, "Override one numerics.* key of the design, section.key=value; repeatable");
   lp->add_option("-o,--out", ro->library_out, "The library file to write")->required()->type_name("LIB");
   lp->add_flag("--quiet", ro->quiet, "Print nothing on success");
+  lp->add_flag("--progress", ro->progress,
+               "Show progress even when stderr is not a terminal: a line every 5 s, for logs");
   return [ro, lp]() { return lp->parsed() ? cmd_livepoints(*ro, *lp) : -1; };
 }
 

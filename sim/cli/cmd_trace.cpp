@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -53,13 +54,14 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   }
   const auto& h = r.header();
   const auto file_bytes = std::filesystem::file_size(path);
-  std::array<uint64_t, 17> hist{};
+  // The full histogram: touched pixels by their exact number of fragments.
+  std::map<uint32_t, uint64_t> hist;
   uint64_t touched = 0, max_n = 0;
   counts.for_each([&](uint32_t, uint32_t, const Counts& c) {
     for (uint32_t k : c.n) {
       if (!k) continue;
       ++touched;
-      ++hist[std::min<uint32_t>(k, 16)];
+      ++hist[k];
       max_n = std::max<uint64_t>(max_n, k);
     }
   });
@@ -84,10 +86,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     j["pixels_touched"] = touched;
     j["pixels_touched_percent"] = touched_pct;
     j["fragments_per_touched_pixel"] = {{"mean", mean_n}, {"max", max_n}};
-    // Touched pixels by their number of fragments (1 .. 15, and 16 or more).
+    // Touched pixels by their exact number of fragments (every count that
+    // occurs, ascending; the counts sum to pixels_touched).
     nlohmann::ordered_json hj = nlohmann::ordered_json::object();
-    for (int k = 1; k <= 16; ++k)
-      if (hist[k]) hj[std::to_string(k) + (k == 16 ? "+" : "")] = hist[k];
+    for (const auto& [k, c] : hist) hj[std::to_string(k)] = c;
     j["depth_complexity_histogram_pixels"] = hj;
     fmt::print("{}\n", j.dump(2));
     return 0;
@@ -104,10 +106,19 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
              r.payload_bytes(), rec_per_frag, disk_per_frag);
   fmt::print("  pixels touched {} ({:.1f}% of the screen), fragments per touched pixel: mean {:.2f}, max {}\n", touched,
              touched_pct, mean_n, max_n);
-  std::string hs;
-  for (int k = 1; k <= 16; ++k)
-    if (hist[k]) hs += fmt::format(" {}{}:{:.1f}%", k, k == 16 ? "+" : "", 100.0 * hist[k] / touched);
-  fmt::print("  depth complexity histogram:{}\n", hs);
+  // Every count that occurs: fragments:pixels (share of the touched pixels),
+  // wrapped.
+  fmt::print("  depth complexity histogram (fragments: touched pixels, share), every count that occurs:\n");
+  std::string line = "   ";
+  for (const auto& [k, c] : hist) {
+    const std::string item = fmt::format(" {}:{} ({:.2f}%)", k, c, 100.0 * double(c) / double(touched));
+    if (line.size() + item.size() > 100) {
+      fmt::print("{}\n", line);
+      line = "   ";
+    }
+    line += item;
+  }
+  if (line.size() > 3) fmt::print("{}\n", line);
   return 0;
 }
 

@@ -13,6 +13,7 @@
 #include "errors.h"
 #include "functional_rop.h"
 #include "line_set.h"
+#include "progress.h"
 #include "rop_ownership.h"
 #include "sort_algorithm.h"
 
@@ -522,6 +523,8 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   LineSet in_dram(hw.cache.line_bytes);
   std::array<double, kUnitKinds> unit_cycles{};
+  Progress progress("approximate", "fragments");
+  uint64_t read = 0;
   for (int pass = 0; pass < rop->passes(); ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) src = open_fragments(in);
@@ -569,9 +572,14 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
         r.written = w.written;
       }
       batch.push_back(r);
-      if (batch.size() == kBatch) hand_over();
+      if (batch.size() == kBatch) {
+        hand_over();
+        read += kBatch;
+        progress.update((double(pass) + src->consumed()) / double(rop->passes()), read);
+      }
     }
     if (job.valid()) job.get();
+    read += batch.size();
     for (const FragRec& x : batch) model.fragment(x);
     const PassResult p = model.finish();
     s.pipeline_cycles += p.cycles + p.fill;
@@ -581,6 +589,8 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     s.epochs += p.epochs;
     for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
   }
+  progress.update(1.0, read);
+  progress.finish();
   s.busiest_unit = kUnitNames[std::max_element(unit_cycles.begin(), unit_cycles.end()) - unit_cycles.begin()];
   s.bottleneck =
       ApproxBound(std::max_element(s.limiting_cycles.begin(), s.limiting_cycles.end()) - s.limiting_cycles.begin());

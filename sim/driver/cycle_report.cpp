@@ -461,7 +461,7 @@ std::vector<FieldDoc> report_field_docs() {
   ctx.command_line = "ropsim run ...";
   ctx.input = in;
   ctx.config = m;
-  const FunctionalRun f = run_functional(in, m, true);
+  const FunctionalRun f = run_functional(in, m, true, 0, BreakdownRequest{true, false});
   functional_report(ctx, f, &sink);
   const CycleRun c = run_cycle(in, m, HwConfig{});
   ctx.input.trace_path = "scene.rtr";

@@ -3,7 +3,9 @@
 #include <chrono>
 #include <fstream>
 
+#include "errors.h"
 #include "memory_budget.h"
+#include "progress.h"
 
 namespace ropsim {
 
@@ -21,7 +23,8 @@ void check_reference_estimate(const FragmentSource& src) {
                                    "the A-buffer reference of at least " + std::to_string(n) + " fragments");
 }
 
-FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference, int threads) {
+FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference, int threads,
+                             const BreakdownRequest& breakdown) {
   const auto t0 = std::chrono::steady_clock::now();
   FunctionalRun run;
   auto src = open_fragments(in);
@@ -37,12 +40,28 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   // reads the next and runs the reference over the current one.
   constexpr size_t kBatch = 4096;
   std::vector<Fragment> cur(kBatch), next(kBatch);
-  auto fill = [&src](std::vector<Fragment>& b) {
+  // The breakdown: each fragment's counter delta, recorded by index on the
+  // lanes' threads, added in API order on this one after the batch.
+  std::vector<Counters> deltas;
+  if (breakdown.any()) {
+    auto* sm = dynamic_cast<StochasticModel*>(model.get());
+    if (!sm) throw UserError("--per-draw and --maps need a method with a ROP (not the reference)");
+    run.breakdown = std::make_unique<RunBreakdown>(run.header, breakdown.per_draw, breakdown.per_pixel);
+    deltas.resize(kBatch);
+    sm->set_counts_observer([&deltas](size_t i, const FragWork&, const Counters& d) { deltas[i] = d; });
+  }
+  Progress progress(cfg.method == Method::kReference ? "reference" : "functional", "fragments");
+  uint64_t read = 0;
+  int pass = 0;
+  const int passes = model->passes();
+  auto fill = [&](std::vector<Fragment>& b) {
     size_t n = 0;
     while (n < b.size() && src->next(b[n])) ++n;
+    read += n;
+    progress.update((double(pass) + src->consumed()) / double(passes), read);
     return n;
   };
-  for (int pass = 0; pass < model->passes(); ++pass) {
+  for (; pass < passes; ++pass) {
     if (pass > 0) src = open_fragments(in);  // every pass replays the input
     model->begin_pass(pass);
     FunctionalModel* r = pass == 0 ? ref.get() : nullptr;
@@ -52,9 +71,13 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
           for (size_t i = 0; i < n; ++i) r->draw(cur[i]);
         n_next = fill(next);
       });
+      if (RunBreakdown* b = run.breakdown.get())
+        for (size_t i = 0; i < n; ++i) b->add(cur[i], deltas[i]);
       cur.swap(next);
     }
   }
+  progress.update(1.0, read);
+  progress.finish();
   run.image = model->resolve();
   run.counters = model->counters();
   run.state_bytes = model->state_bytes();

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "breakdown.h"
 #include "fragment_source.h"
 #include "golden_model.h"
 #include "trace.h"
@@ -24,17 +25,27 @@ struct FunctionalRun {
   Counters counters;
   Image image;
   size_t state_bytes = 0;
-  int threads = 1;                 ///< host threads of the model
-  double wall_seconds = 0;         ///< whole run: input, model and resolve
-  std::optional<Image> reference;  ///< the reference method's image, when asked for
+  int threads = 1;                          ///< host threads of the model
+  double wall_seconds = 0;                  ///< whole run: input, model and resolve
+  std::optional<Image> reference;           ///< the reference method's image, when asked for
+  std::unique_ptr<RunBreakdown> breakdown;  ///< per draw and per pixel, when asked for
+};
+
+/// What to break a run's counts down by (--per-draw, --maps).
+struct BreakdownRequest {
+  bool per_draw = false;
+  bool per_pixel = false;
+  bool any() const { return per_draw || per_pixel; }
 };
 
 /// Runs the functional model of cfg.method over the input; with
 /// with_reference also the A-buffer reference on the same stream. threads:
 /// the model's host threads, 0 for host_threads() (--threads); the result is
 /// the same for every count.
-FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference = false,
-                             int threads = 0);
+/// breakdown: also split the counters by draw and sum them per pixel
+/// (RunBreakdown; not for the reference method, which has no ROP).
+FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference = false, int threads = 0,
+                             const BreakdownRequest& breakdown = {});
 
 /// Peak resident set size of this process in bytes (VmHWM), 0 if unknown.
 size_t peak_rss_bytes();

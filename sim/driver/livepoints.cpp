@@ -22,6 +22,7 @@
 #include "host_threads.h"
 #include "line_set.h"
 #include "livepoint_file.h"
+#include "progress.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
 
@@ -145,7 +146,11 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.params = p;
   {  // N: the sampling design needs the input's length
     auto src = open_fragments(in);
-    for (Fragment f; src->next(f);) ++lib.fragments;
+    Progress progress("live-points: counting the input", "fragments");
+    for (Fragment f; src->next(f);)
+      if (++lib.fragments % 65536 == 0) progress.update(src->consumed(), lib.fragments);
+    progress.update(1.0, lib.fragments);
+    progress.finish();
   }
   auto src = open_fragments(in);
   lib.header = src->header();
@@ -218,7 +223,9 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   uint64_t i = 0;
   size_t k = 0;
   Fragment f;
+  Progress progress("live-points: recording", "fragments");
   for (;;) {
+    progress.update(n ? double(i) / double(n) : 1.0, i);
     if (k < k_units && i == firsts[k]) {
       LivePoint lp;
       lp.first = firsts[k];
@@ -268,6 +275,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
     i += batch.size();
   }
   invariant(k == k_units && i == n && !src->next(f), "every live-point is recorded in one pass over the input");
+  progress.update(1.0, n);
+  progress.finish();
   model.set_observer({});
   lib.counters = model.counters();
   lib.image = model.resolve();
@@ -526,7 +535,10 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
     int fd = -1;
     std::string in;
     bool done = false;
+    size_t scanned = 0;  ///< bytes of `in` counted into units_done (whole messages)
   };
+  Progress progress("sampled: units", "units");
+  size_t units_done = 0;
   std::vector<Child> kids(static_cast<size_t>(jobs));
   for (int j = 0; j < jobs; ++j) {
     int p[2];
@@ -568,9 +580,17 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
         --open;
       } else {
         c.in.append(buf.data(), size_t(n));
+        // Whole unit messages so far (the last messages, of length ~0 or
+        // ~0 - 1, end a worker's stream).
+        for (uint64_t len = 0; c.scanned + 8 <= c.in.size(); c.scanned += 8 + size_t(len), ++units_done) {
+          std::memcpy(&len, c.in.data() + c.scanned, 8);
+          if (len >= ~uint64_t{0} - 1 || c.scanned + 8 + len > c.in.size()) break;
+        }
+        progress.update(double(units_done) / double(std::max<size_t>(lib.points.size(), 1)), units_done);
       }
     }
   }
+  progress.finish();
   std::vector<UnitFigures> out(lib.points.size());
   std::vector<bool> got(lib.points.size(), false);
   std::string failure;
@@ -641,8 +661,12 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   if (jobs > 1) {
     figs = run_workers(lib, hw, jobs, worker_cpu);
   } else {
-    for (size_t i = 0; i < k; ++i)
+    Progress progress("sampled: units", "units");
+    for (size_t i = 0; i < k; ++i) {
       figs.push_back(figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
+      progress.update(double(i + 1) / double(k), i + 1);
+    }
+    progress.finish();
   }
   // Per unit: its window's figures y and its fragments m. The estimate is
   // N (sum y) / (sum m), computed in that order so that one unit over the

@@ -110,8 +110,37 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
     v.put("bias_8bit", c.bias_8bit, "8-bit units",
           "mean signed error against the reference (image minus reference): a systematic darkening or brightening");
   }
+  if (run.breakdown && run.breakdown->per_draw())
+    put_draws(r, *run.breakdown, false, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
   r.put("outputs", ctx.outputs, "-", "files written");
   return j;
+}
+
+void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab) {
+  r.empty_array("draws");
+  for (const auto& [id, d] : b.draws()) {
+    Fields f = r.item("draws");
+    f.put("draw", id, "-", "with --per-draw: the trace's draw id (one entry per draw that had a fragment, ascending)");
+    if (with_cycles)
+      f.put("cycles", d.cycles, "cycles",
+            "cycle model, --per-draw: the cycles attributed to the draw, from each of its fragments' retirement back "
+            "to the previous retirement (the draws' cycles add up to timing.pipeline_cycles)");
+    put_counters(f.obj("counters"), d.counters, with_blend, with_slab);
+  }
+}
+
+std::string draws_csv(const RunBreakdown& b, bool with_cycles) {
+  std::string s = "draw";
+  if (with_cycles) s += ",cycles";
+  for (const StatDesc& d : counter_descs()) s += std::string(",") + d.name;
+  s += "\n";
+  for (const auto& [id, d] : b.draws()) {
+    s += std::to_string(id);
+    if (with_cycles) s += "," + std::to_string(d.cycles);
+    d.counters.for_each([&](const char*, uint64_t v) { s += "," + std::to_string(v); });
+    s += "\n";
+  }
+  return s;
 }
 
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run) {

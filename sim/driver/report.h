@@ -28,6 +28,14 @@ struct ReportContext {
 /// The functional report; with a sink, also each field's description.
 nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run, FieldSink* sink = nullptr);
 
+/// The run's counters split by the trace's draw ids (--per-draw): the
+/// report's `draws[]`, each draw's counters (and, from the cycle model, the
+/// cycles attributed to it); they add up to the run's counters.
+void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab);
+/// The same as CSV (--draw-csv): draw, [cycles,] then every counter, one row
+/// per draw, ascending.
+std::string draws_csv(const RunBreakdown& b, bool with_cycles);
+
 /// A short human summary of a functional run (a few lines).
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);
 

@@ -50,6 +50,20 @@ struct Counters {
 #undef ROPSIM_X
     return *this;
   }
+  /// The difference of two snapshots of one run's counters (o no later than this).
+  Counters& operator-=(const Counters& o) {
+#define ROPSIM_X(name, unit, meaning, scope) name -= o.name;
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+    return *this;
+  }
+  bool operator==(const Counters& o) const {
+    bool eq = true;
+#define ROPSIM_X(name, unit, meaning, scope) eq = eq && name == o.name;
+    ROPSIM_COUNTERS(ROPSIM_X)
+#undef ROPSIM_X
+    return eq;
+  }
   /// Per-pixel state bytes moved: depth, colour, tracker, render targets and
   /// slab's layers, read and written.
   uint64_t state_bytes_read() const {

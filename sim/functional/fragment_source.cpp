@@ -41,6 +41,7 @@ class TraceFragments : public FragmentSource {
     // more than the fragments, so take 1/1000 off.
     return bytes / fragment_record_bytes(header_, header_.spp) / 1000 * 999 * repeat_;
   }
+  double consumed() const override { return (double(pass_ - 1) + reader_->file_fraction()) / double(repeat_); }
 
  private:
   std::string path_;
@@ -70,6 +71,10 @@ class SceneFragments : public FragmentSource {
     ++delivered_;
     return true;
   }
+  double consumed() const override {
+    const double n = double(scene_.triangles.size());
+    return (double(pass_ - 1) + (n > 0 ? double(tri_) / n : 1.0)) / double(repeat_);
+  }
 
  private:
   Scene scene_;
@@ -89,6 +94,7 @@ class VectorFragments : public FragmentSource {
     return true;
   }
   uint64_t fragments_at_least() const override { return v_.size(); }
+  double consumed() const override { return v_.empty() ? 1.0 : double(at_) / double(v_.size()); }
 
  private:
   const std::vector<Fragment>& v_;

@@ -37,6 +37,9 @@ class FragmentSource {
   /// bytes over the largest record's); 0 where nothing is known. For the
   /// up-front memory estimate (--memory-limit).
   virtual uint64_t fragments_at_least() const { return 0; }
+  /// The share of the input consumed so far, in [0, 1], repeats included: a
+  /// trace's file bytes read, a scene's triangles rasterized; for progress.
+  virtual double consumed() const = 0;
 
  protected:
   TraceHeader header_;

@@ -61,12 +61,24 @@ void StochasticModel::draw(const Fragment& f) {
   l.rop.process(l.work);
 }
 
+void StochasticModel::process_on(Lane& l, size_t i) {
+  if (counts_observer_) {
+    const Counters before = l.rop.counters();
+    l.rop.process(l.work);
+    Counters delta = l.rop.counters();
+    delta -= before;
+    counts_observer_(i, l.work, delta);
+  } else {
+    l.rop.process(l.work);
+  }
+  if (observer_) observer_(i, l.work);
+}
+
 void StochasticModel::draw_lane(size_t li, const Fragment* f, size_t n) {
   Lane& l = *lanes_[li];
   for (size_t i = 0; i < n; ++i) {
     l.work.f = &f[i];
-    l.rop.process(l.work);
-    if (observer_) observer_(i, l.work);
+    process_on(l, i);
   }
 }
 
@@ -88,8 +100,7 @@ void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::functio
           // next one's header line and its plane while this one runs.
           if (j + 1 < m) __builtin_prefetch(&f[l.batch[j + 1]]);
           l.work.f = &f[l.batch[j]];
-          l.rop.process(l.work);
-          if (observer_) observer_(l.batch[j], l.work);
+          process_on(l, l.batch[j]);
         }
       }
     });

@@ -86,6 +86,12 @@ class StochasticModel : public FunctionalModel {
   /// concurrently for fragments of different lanes (never for one index
   /// twice). Empty: nothing is called.
   void set_observer(std::function<void(size_t, const FragWork&)> f) { observer_ = std::move(f); }
+  /// Like set_observer, with what the fragment added to the counters (every
+  /// counter, so the deltas of a run add up to counters() exactly). Costs two
+  /// counter snapshots per fragment; empty: nothing is called.
+  void set_counts_observer(std::function<void(size_t, const FragWork&, const Counters&)> f) {
+    counts_observer_ = std::move(f);
+  }
 
  private:
   struct Lane;
@@ -99,6 +105,9 @@ class StochasticModel : public FunctionalModel {
   const FunctionalRop& merged() const;
   int threads_;
   std::function<void(size_t, const FragWork&)> observer_;
+  std::function<void(size_t, const FragWork&, const Counters&)> counts_observer_;
+  /// Processes one fragment on lane l and tells the observers (index i).
+  void process_on(Lane& l, size_t i);
   mutable std::vector<std::unique_ptr<Lane>> lanes_;
   struct Pool;
   std::unique_ptr<Pool> pool_;  // the threads (n > 1)

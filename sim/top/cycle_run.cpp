@@ -118,7 +118,9 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
     if (opt.progress)
-      top->source().on_progress = [&opt, progress_base](uint64_t n) { opt.progress(progress_base + n); };
+      top->source().on_progress = [&opt, progress_base, pass, n_passes](uint64_t n, double consumed) {
+        opt.progress(progress_base + n, (double(pass) + consumed) / double(n_passes));
+      };
     top->retirement().hook = opt.retire_hook;
     if (IntervalLog* log = run.intervals.get()) {
       log->set_base(s.total_cycles);  // this pass follows the previous ones

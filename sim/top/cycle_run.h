@@ -23,9 +23,11 @@
 namespace ropsim {
 
 struct CycleOptions {
-  std::string vcd_path;                              ///< non-empty: write a VCD waveform here (waveform.h)
-  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};   ///< cycles [first, last] the waveform shows
-  std::function<void(uint64_t fragments)> progress;  ///< every 65536 fragments
+  std::string vcd_path;                             ///< non-empty: write a VCD waveform here (waveform.h)
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycles [first, last] the waveform shows
+  /// Every 65536 fragments: the fragments so far (every pass) and the share
+  /// of the run's input consumed (passes included), in [0, 1].
+  std::function<void(uint64_t fragments, double consumed)> progress;
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
   /// Runs every unit in lockstep with SystemC time, none decoupled (unit.h).
   /// The results are identical, the waveform too; it is slower.

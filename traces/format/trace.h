@@ -110,6 +110,9 @@ class TraceReader {
   uint64_t payload_bytes() const;
   /// Checksummed blocks read and verified so far.
   uint64_t blocks_read() const { return blocks_; }
+  /// The share of the file's bytes read so far, in [0, 1] (read-ahead
+  /// included: for progress, not for positions).
+  double file_fraction() const;
 
  private:
   [[noreturn]] void fail(const std::string& what) const;
@@ -127,6 +130,7 @@ class TraceReader {
   TraceHeader header_;
   std::unique_ptr<ByteSource> src_;
   FILE* file_ = nullptr;
+  uint64_t file_size_ = 0;
   uint64_t records_ = 0;
   bool ended_ = false;
   // Checksummed payloads: the current verified block and where it started.

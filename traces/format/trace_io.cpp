@@ -1,4 +1,5 @@
 // Trace v1 reader and writer (docs/trace-format.md).
+#include <sys/stat.h>
 #include <xxhash.h>
 #include <zstd.h>
 
@@ -309,6 +310,15 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     src_ = std::make_unique<FileSource>(f);
   guard.release();
   file_ = f;
+  struct stat sb;
+  if (::fstat(fileno(f), &sb) == 0 && sb.st_size > 0) file_size_ = uint64_t(sb.st_size);
+}
+
+double TraceReader::file_fraction() const {
+  if (ended_) return 1.0;
+  if (!file_ || file_size_ == 0) return 0.0;
+  const off_t at = ::ftello(file_);
+  return at <= 0 ? 0.0 : std::min(1.0, double(at) / double(file_size_));
 }
 
 TraceReader::~TraceReader() {
