@@ -105,8 +105,49 @@ void BM_SampledVsCycle(benchmark::State& state, const char* design) {
   state.counters["speedup_with_library"] = full_s / (s.sim_seconds + library_s);
 }
 
+// The host cost of a waveform (--vcd, waveform.h), all sides in this run on
+// the cloth trace above: a 1,000-cycle window (the run stays decoupled), the
+// same window in lockstep (what every --vcd run cost before the waveform
+// recorded events at their own cycles) and the whole run, each over the run
+// without --vcd: sim_ the simulation alone (CycleRun::sim_seconds), wall_ the
+// whole run_cycle (writing the file included).
+//   build/ropsim_bench_cycle --benchmark_filter=Waveform
+void BM_WaveformCost(benchmark::State& state) {
+  InputSpec in;
+  in.trace_path = trace_path();
+  const GoldenConfig g;
+  const HwConfig hw;
+  const std::string vcd = "/tmp/ropsim-bench-waveform.vcd";
+  double sim[4] = {0, 0, 0, 0}, wall[4] = {0, 0, 0, 0};  // plain, window, window in lockstep, whole run
+  auto add = [&](int k, const CycleRun& r) {
+    sim[k] += r.sim_seconds;
+    wall[k] += r.wall_seconds;
+  };
+  auto with = [&](uint64_t first, uint64_t last, bool lock) {
+    CycleOptions o;
+    o.vcd_path = vcd;
+    o.vcd_first = first;
+    o.vcd_last = last;
+    o.lockstep = lock;
+    return run_cycle(in, g, hw, o);
+  };
+  for (auto _ : state) {
+    add(0, run_cycle(in, g, hw));
+    add(1, with(20000, 21000, false));
+    add(2, with(20000, 21000, true));
+    add(3, with(0, ~uint64_t{0}, false));
+  }
+  std::remove(vcd.c_str());
+  const char* names[4] = {"", "window", "window_lockstep", "whole_run"};
+  for (int k = 1; k < 4; ++k) {
+    state.counters[std::string("sim_") + names[k] + "_over_plain"] = sim[k] / sim[0];
+    state.counters[std::string("wall_") + names[k] + "_over_plain"] = wall[k] / wall[0];
+  }
+}
+
 }  // namespace
 
+BENCHMARK(BM_WaveformCost)->Iterations(5)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_SampledVsCycle, default, "default")->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_SampledVsCycle, narrow, "narrow")->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_SampledVsCycle, wide, "wide")->Iterations(1)->Unit(benchmark::kSecond);

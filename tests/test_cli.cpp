@@ -19,6 +19,7 @@
 #include "image_codec.h"
 #include "progress.h"
 #include "trace.h"
+#include "vcd_reader.h"
 
 #ifndef ROPSIM_BINARY
 #error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
@@ -581,21 +582,89 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
   for (const auto& u : t["units"])
     for (const char* a : {"busy", "idle", "input_starved", "output_blocked", "pixel_hazard", "memory"})
       EXPECT_TRUE(u["cycles"].contains(a)) << u["name"] << " lacks " << a;
-  // The waveform: a VCD with the units' activities, changes only inside the window.
-  const std::string vcd = slurp(box.work() / "w.vcd");
-  EXPECT_NE(vcd.find("$var"), std::string::npos);
-  EXPECT_NE(vcd.find("rop0_depth_test"), std::string::npos);
-  EXPECT_NE(vcd.find(" activity "), std::string::npos);
-  // narrow.toml clocks at 1 GHz: cycle c is at c * 1000 ps. Value changes lie
-  // inside cycles 100..400 (the last time stamp may close the file).
-  std::vector<uint64_t> stamps;
-  for (const auto& l : lines_of(vcd))
-    if (l.size() > 1 && l[0] == '#') stamps.push_back(std::stoull(l.substr(1)));
-  ASSERT_GE(stamps.size(), 3u) << "no value changes in the window";
-  for (size_t i = 0; i + 1 < stamps.size(); ++i)
-    EXPECT_TRUE(stamps[i] >= 100000 && stamps[i] <= 400000) << "VCD change at " << stamps[i] << " ps, outside 100:400";
+  // The waveform (docs/reports.md "Waveforms"): time in clock cycles, the
+  // activities by name, rop0's units and FIFOs in one scope, nothing outside
+  // the window.
+  const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
+  EXPECT_EQ(w.timescale, "1 ns");
+  EXPECT_NE(w.comment.find("One time unit is one clock cycle"), std::string::npos) << w.comment;
+  const int cycle = w.find("top", "cycle");
+  ASSERT_GE(cycle, 0) << "no cycle counter";
+  ASSERT_EQ(w.stamps.size(), 301u) << "one time stamp per cycle of 100:400";
+  EXPECT_EQ(w.stamps.front(), 100u);
+  EXPECT_EQ(w.stamps.back(), 400u);
+  const std::set<std::string> names = {"idle", "busy", "input_starved", "output_blocked", "pixel_hazard", "memory"};
+  std::set<std::string> seen;
+  size_t cycles_seen = 0;
+  for (const auto& c : w.changes) {
+    EXPECT_TRUE(c.time >= 100 && c.time <= 400) << "VCD change at " << c.time << ", outside the window 100:400";
+    if (int(c.var) == cycle) {
+      ++cycles_seen;
+      EXPECT_EQ(ropsim_test::Vcd::number(c.value), c.time) << "the cycle counter is not the time: one unit, one clock";
+    }
+    const auto& v = w.vars[c.var];
+    if (v.type == "string" && v.scope != "top.dram") {
+      EXPECT_TRUE(names.count(c.value)) << v.scope << "." << v.name << " = '" << c.value << "', not an activity name";
+      seen.insert(c.value);
+    }
+  }
+  EXPECT_EQ(cycles_seen, 301u);
+  EXPECT_GE(seen.size(), 3u) << "the window shows fewer than three different activities";
+  for (const char* u : {"pixel_ordering", "depth_test", "coverage_tracker", "sample_sorter", "alpha_ref_gen",
+                        "writeback", "fifo_input", "fifo_ordering_to_depth", "fifo_depth_out"})
+    EXPECT_GE(w.find("top.rop0", u), 0) << "rop0's scope lacks " << u;
   for (const auto& f : box.files()) EXPECT_NE(f[0], '.') << "temporary file " << f << " left behind";
-  EXPECT_EQ(t["host"]["decoupled"], false) << "a --vcd run must be lockstep, so traced values change at their cycles";
+  EXPECT_EQ(t["host"]["decoupled"], true) << "a --vcd run keeps its temporal decoupling";
+}
+
+// A --vcd-window run is the run without --vcd: every timing figure, and the
+// host cost (it stays decoupled before, in and after the window). Its
+// waveform has one scope per ROP holding that ROP's units and the FIFOs they
+// read; the shared units and the DRAM have their own.
+TEST(CliCycle, WaveformWindowLeavesTheRunDecoupledAndUnchanged) {
+  CliSandbox box;
+  const std::string common = "run --fidelity cycle --scene cloth --spp 4 --quiet ";
+  expect_ok(box.run(common + "--out p.exr --report p.json"), "cycle run");
+  expect_ok(box.run(common + "--out v.exr --report v.json --vcd w.vcd --vcd-window 20000:21000"), "--vcd run");
+  const auto p = nlohmann::json::parse(slurp(box.work() / "p.json"))["timing"];
+  const auto v = nlohmann::json::parse(slurp(box.work() / "v.json"))["timing"];
+  for (const char* k : {"total_cycles", "pipeline_cycles", "dram", "cache", "fifos"})
+    EXPECT_EQ(p[k], v[k]) << "timing." << k << " differs with --vcd";
+  ASSERT_EQ(p["units"].size(), v["units"].size());
+  for (size_t i = 0; i < p["units"].size(); ++i)
+    EXPECT_EQ(p["units"][i]["cycles"], v["units"][i]["cycles"]) << p["units"][i]["name"] << "'s activity cycles";
+  EXPECT_EQ(v["host"]["decoupled"], true) << "the --vcd run was not decoupled";
+  EXPECT_EQ(p["host"]["unit_runs"], v["host"]["unit_runs"]) << "the --vcd run ran its units more often (lockstep?)";
+  EXPECT_EQ(p["host"]["systemc_activations"], v["host"]["systemc_activations"]);
+
+  const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
+  ASSERT_FALSE(w.stamps.empty());
+  EXPECT_EQ(w.stamps.front(), 20000u);
+  EXPECT_EQ(w.stamps.back(), 21000u);
+  for (const auto& c : w.changes) ASSERT_TRUE(c.time >= 20000 && c.time <= 21000) << "a change at " << c.time;
+  std::set<std::string> rops;
+  for (const auto& u : v["units"]) {
+    const int rop = u["rop"].get<int>();
+    const std::string kind = u["kind"], scope = rop >= 0 ? "top.rop" + std::to_string(rop) : "top." + kind;
+    if (rop >= 0) rops.insert(scope);
+    const int var = w.find(scope, kind);
+    ASSERT_GE(var, 0) << u["name"] << " is not " << scope << "." << kind;
+    EXPECT_EQ(w.vars[size_t(var)].type, "string") << scope << "." << kind;
+  }
+  ASSERT_GE(rops.size(), 2u) << "the test needs several ROPs";
+  for (const auto& f : v["fifos"]) {
+    const std::string n = f["name"];
+    const auto dot = n.find('.');
+    if (dot == std::string::npos) continue;  // source_to_distributor: the distributor's
+    EXPECT_GE(w.find("top." + n.substr(0, dot), "fifo_" + n.substr(dot + 1)), 0) << "FIFO " << n;
+  }
+  std::set<std::string> scopes;
+  for (const auto& var : w.vars) scopes.insert(var.scope);
+  std::set<std::string> expected = rops;
+  expected.insert({"top", "top.trace_source", "top.distributor", "top.dram"});
+  EXPECT_EQ(scopes, expected) << "scopes other than the ROPs, the shared units and the DRAM";
+  EXPECT_GE(w.find("top.dram", "ch0_bus"), 0);
+  EXPECT_GE(w.find("top.dram", "ch0_row_misses"), 0);
 }
 
 // --lockstep gives the decoupled run's image and report (narrow.toml has one
@@ -970,7 +1039,12 @@ TEST(CliBlend, MethodsParseAndReportTheirPassesFormatsAndSelection) {
                    {"--hw-set", "cycle"});
   expect_cli_error(box, "run --scene testcard --spp 1 --method lk --enderton-selection sideways",
                    {"--enderton-selection"});
-  expect_cli_error(box, "run --fidelity cycle --scene testcard --spp 1 --method lk+depth --vcd w.vcd", {"--vcd"});
+  // A multi-pass method's waveform: each pass under its own scope.
+  expect_ok(box.run("run --fidelity cycle --scene testcard --spp 1 --method lk+depth --quiet --vcd w.vcd"),
+            "--vcd of a two-pass method");
+  const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.path("w.vcd")));
+  EXPECT_GE(w.find("top.stochastic.rop0", "depth_test"), 0) << "the first pass has no scope";
+  EXPECT_GE(w.find("top.accumulate.rop0", "blend"), 0) << "the second pass has no scope";
 }
 
 // --fidelity approximate writes the golden image bit for bit and the cycle

@@ -32,6 +32,8 @@
 #include "sample_sorter.h"
 #include "sim_context.h"
 #include "sort_order.h"
+#include "vcd_reader.h"
+#include "waveform.h"
 #include "writeback.h"
 
 using namespace ropsim;
@@ -1253,6 +1255,188 @@ TEST(StatsInterval, DecoupledRowsEqualLockstepRowsAndTheRunIsUnchanged) {
   const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
   expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --stats-interval");
   EXPECT_EQ(dec.stats.total_cycles, plain.stats.total_cycles);
+}
+
+// ------------------------------------------------------------ waveforms (waveform.h, --vcd)
+
+// The recorder alone: a value set before the window is the one it starts
+// with, the last set at a cycle wins, nothing after the window is kept, a
+// FIFO's occupancy comes from pushes and pops recorded out of cycle order
+// (a decoupled producer ahead of its consumer), and a signal's events going
+// back in time are a broken invariant.
+TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
+  Waveform w(10, 20);
+  const int st = w.add_state("rop0", "unit", {"idle", "busy", "memory"});
+  const int occ = w.add_occupancy("rop0", "fifo_in");
+  w.set(st, 3, 2);   // before the window: overridden by the next
+  w.set(st, 8, 1);   // the value at cycle 10
+  w.set(st, 12, 2);  // two sets at cycle 12: the last wins
+  w.set(st, 12, 0);
+  w.set(st, 15, 1);
+  w.set(st, 21, 2);                                       // after the window: dropped
+  for (uint64_t t : {5, 10, 14, 14, 16}) w.push(occ, t);  // the producer runs ahead...
+  for (uint64_t t : {9, 13, 16, 25}) w.pop(occ, t);       // ...of the consumer
+  std::string text;
+  w.write_vcd("top", "test", 100, [&](std::string_view s) { text += s; });
+  const ropsim_test::Vcd v = ropsim_test::parse_vcd(text);
+  EXPECT_EQ(v.stamps.front(), 10u);
+  EXPECT_EQ(v.stamps.back(), 20u);
+  const std::vector<std::string> unit = v.trace(size_t(v.find("top.rop0", "unit")), 10, 20);
+  EXPECT_EQ(unit, (std::vector<std::string>{"busy", "busy", "idle", "idle", "idle", "busy", "busy", "busy", "busy",
+                                            "busy", "busy"}));
+  const std::vector<std::string> fifo = v.trace(size_t(v.find("top.rop0", "fifo_in")), 10, 20);
+  // Entries in at a cycle: pushed at or before it, popped after it.
+  const uint64_t expect[] = {1, 1, 1, 0, 2, 2, 2, 2, 2, 2, 2};
+  for (size_t i = 0; i < fifo.size(); ++i)
+    EXPECT_EQ(ropsim_test::Vcd::number(fifo[i]), expect[i]) << "occupancy at cycle " << 10 + i;
+  // A run that ends inside the window: nothing after its last cycle.
+  std::string short_run;
+  w.write_vcd("top", "test", 16, [&](std::string_view s) { short_run += s; });
+  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 15u);
+  EXPECT_THROW(w.set(st, 14, 1), InternalError) << "an event before the signal's last one";
+}
+
+namespace {
+
+std::string wave_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("ropsim-wave-" + std::to_string(::getpid()) + "-" + name)).string();
+}
+
+std::string slurp_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+CycleRun run_with_vcd(const InputSpec& in, const HwConfig& hw, const std::string& path, uint64_t first, uint64_t last,
+                      bool lockstep) {
+  CycleOptions opt;
+  opt.vcd_path = path;
+  opt.vcd_first = first;
+  opt.vcd_last = last;
+  opt.lockstep = lockstep;
+  return run_cycle(in, method_config(Method::kLk), hw, opt);
+}
+
+}  // namespace
+
+// The waveform records every event at its own cycle, so a decoupled run
+// (units ahead of SystemC time) writes the lockstep run's file byte for byte,
+// and either run's timing is the run's without --vcd.
+TEST(Waveform, DecoupledAndLockstepRunsWriteTheSameFile) {
+  const HwConfig hw;
+  const InputSpec in = scene_input("cloth", 16);
+  const std::string a = wave_path("dec.vcd"), b = wave_path("lock.vcd");
+  const CycleRun dec = run_with_vcd(in, hw, a, 30000, 40000, false);
+  const CycleRun lock = run_with_vcd(in, hw, b, 30000, 40000, true);
+  const CycleRun plain = run_cycle(in, method_config(Method::kLk), hw);
+  ASSERT_TRUE(dec.stats.decoupled);
+  ASSERT_FALSE(lock.stats.decoupled);
+  const std::string da = slurp_file(a), lb = slurp_file(b);
+  std::filesystem::remove(a);
+  std::filesystem::remove(b);
+  ASSERT_GT(da.size(), 10000u) << "the waveform is nearly empty";
+  EXPECT_TRUE(da == lb) << "the decoupled run's waveform differs from the lockstep run's";
+  expect_same_timing(dec.stats, plain.stats, "cloth lk with and without --vcd");
+  EXPECT_EQ(dec.stats.unit_runs, plain.stats.unit_runs) << "--vcd changed how the units ran";
+}
+
+// A waveform of the whole run adds up to the report: each unit's cycles in
+// each named activity are its activity cycles, each FIFO's occupancy summed
+// over the cycles is its mean times the run's cycles and peaks at its
+// maximum, the DRAM channels' busy cycles and final row-miss counts are the
+// DRAM's. So the waveform shows what the statistics count, cycle by cycle.
+// A multi-pass method's passes follow each other, each in its own scope.
+TEST(Waveform, AWholeRunAddsUpToTheReport) {
+  HwConfig hw;
+  apply_hw_override(hw, "distributor.rop_units=2");
+  for (Method m : {Method::kLk, Method::kLkDepthAc}) {
+    const std::string what = to_string(m), path = wave_path("all.vcd");
+    CycleOptions opt;
+    opt.vcd_path = path;
+    const CycleRun run = run_cycle(scene_input("cloth", 4), method_config(m), hw, opt);
+    const ropsim_test::Vcd v = ropsim_test::parse_vcd(slurp_file(path));
+    std::filesystem::remove(path);
+    const CycleStats& s = run.stats;
+    ASSERT_EQ(v.stamps.size(), s.total_cycles) << what << ": one time stamp per cycle of the run";
+    // Each pass: its scope prefix and its cycles [from, to) in the run.
+    struct Pass {
+      std::string prefix;
+      uint64_t from, to;
+    };
+    std::vector<Pass> passes;
+    if (s.passes.empty()) passes.push_back(Pass{"top.", 0, s.total_cycles});
+    for (const auto& p : s.passes) {
+      const uint64_t from = passes.empty() ? 0 : passes.back().to;
+      passes.push_back(Pass{"top." + p.name + ".", from, from + p.total_cycles});
+    }
+    ASSERT_EQ(passes.back().to, s.total_cycles) << what;
+    auto pass_of = [&](const std::string& name) {  // "stochastic.rop0_depth_test", "stochastic.rop0.input"
+      if (s.passes.empty()) return passes[0];
+      for (const auto& p : passes)
+        if (name.rfind(p.prefix.substr(4), 0) == 0) return p;
+      ADD_FAILURE() << name << " belongs to no pass";
+      return passes[0];
+    };
+    // Per variable: its changes; the cycles at each value, the sum and the
+    // maximum of its numbers over [from, to).
+    std::vector<std::vector<std::pair<uint64_t, std::string>>> changes(v.vars.size());
+    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time, c.value);
+    struct Sums {
+      std::map<std::string, uint64_t> cycles;
+      uint64_t sum = 0, max = 0;
+      std::string last;
+    };
+    auto sums = [&](int var, uint64_t from, uint64_t to) {
+      Sums r;
+      const auto& ch = changes[size_t(var)];
+      for (size_t k = 0; k < ch.size(); ++k) {
+        const uint64_t a = std::max(ch[k].first, from), b = std::min(k + 1 < ch.size() ? ch[k + 1].first : to, to);
+        if (a >= b) continue;
+        r.cycles[ch[k].second] += b - a;
+        r.last = ch[k].second;
+        if (v.vars[size_t(var)].type == "integer") {
+          const uint64_t n = ropsim_test::Vcd::number(ch[k].second);
+          r.sum += n * (b - a);
+          r.max = std::max(r.max, n);
+        }
+      }
+      return r;
+    };
+    for (const auto& u : s.units) {
+      const Pass p = pass_of(u.name);
+      const std::string scope = p.prefix + (u.rop >= 0 ? "rop" + std::to_string(u.rop) : u.kind);
+      const int var = v.find(scope.substr(0, scope.size()), u.kind);
+      ASSERT_GE(var, 0) << what << ": " << u.name << " is not " << scope << "." << u.kind;
+      Sums got = sums(var, p.from, p.to);
+      for (int a = 0; a < kActivities; ++a)
+        EXPECT_EQ(got.cycles[to_string(Activity(a))], u.stats.cycles[size_t(a)])
+            << what << ": " << u.name << ": cycles " << to_string(Activity(a));
+    }
+    for (const auto& f : s.fifos) {
+      const Pass p = pass_of(f.name);
+      const std::string local = s.passes.empty() ? f.name : f.name.substr(f.name.find('.') + 1);
+      const auto dot = local.find('.');
+      const std::string scope = p.prefix + (dot == std::string::npos ? "distributor" : local.substr(0, dot));
+      const int var = v.find(scope, "fifo_" + (dot == std::string::npos ? local : local.substr(dot + 1)));
+      ASSERT_GE(var, 0) << what << ": " << f.name;
+      const Sums got = sums(var, p.from, p.to);
+      EXPECT_NEAR(double(got.sum) / double(p.to - p.from), f.mean_occupancy, 1e-9) << what << ": " << f.name;
+      EXPECT_EQ(got.max, f.max_occupancy) << what << ": " << f.name << " maximum occupancy";
+    }
+    uint64_t busy = 0, misses = 0;
+    for (const auto& p : passes)
+      for (uint32_t ch = 0; ch < hw.dram.channels; ++ch) {
+        const int bus = v.find(p.prefix + "dram", "ch" + std::to_string(ch) + "_bus");
+        const int rm = v.find(p.prefix + "dram", "ch" + std::to_string(ch) + "_row_misses");
+        ASSERT_TRUE(bus >= 0 && rm >= 0) << what << ": " << p.prefix << " channel " << ch;
+        Sums b = sums(bus, 0, s.total_cycles);
+        busy += b.cycles["read"] + b.cycles["write"];
+        misses += ropsim_test::Vcd::number(sums(rm, 0, s.total_cycles).last);
+      }
+    ASSERT_GT(s.dram.busy_cycles, 0u) << what << ": the test needs DRAM traffic";
+    EXPECT_EQ(busy, s.dram.busy_cycles) << what << ": DRAM data-bus cycles";
+    EXPECT_EQ(misses, s.dram.row_misses) << what << ": DRAM row misses";
+  }
 }
 
 // ------------------------------------------------------------ sampled simulation (livepoints.h)

@@ -1,5 +1,5 @@
-// The ROP clock: converts cycles (the config's unit) to sc_time once, and
-// knows the VCD window. All units of one pipeline share one Clock.
+// The ROP clock: converts cycles (the config's unit) to sc_time once. All
+// units of one pipeline share one Clock.
 #pragma once
 #include <cmath>
 #include <cstdint>
@@ -31,21 +31,11 @@ class Clock {
   /// The period actually simulated, in picoseconds (1000 / GHz, rounded).
   uint64_t period_ps() const { return ticks_ / sc_core::sc_time(1, sc_core::SC_PS).value(); }
 
-  void set_trace_window(uint64_t first, uint64_t last) {
-    trace_ = true;
-    first_ = first;
-    last_ = last;
-  }
-  /// True while traced variables should follow the model (--vcd-window).
-  bool tracing(uint64_t cycle) const { return trace_ && cycle >= first_ && cycle <= last_; }
-
  private:
   double ghz_;
   uint64_t ticks_;
   mutable uint64_t current_ = 0;
   Scheduler* sched_ = nullptr;
-  bool trace_ = false;
-  uint64_t first_ = 0, last_ = 0;
 };
 
 }  // namespace ropsim

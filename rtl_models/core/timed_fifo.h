@@ -137,7 +137,7 @@ class TimedFifo {
     ++size_;
     ++pushes_;
     occ_.push(t);
-    if (clk_.tracing(t)) trace_occupancy = int(size_);
+    if (wave_) wave_->push(wave_sig_, t);
     consumer_->on_input(visible);
   }
   /// The producer found no slot at cycle t: it hears (on_space) the cycle a
@@ -181,7 +181,7 @@ class TimedFifo {
     head_ = head_ + 1 == cap_ ? 0 : head_ + 1;
     --size_;
     occ_.pop(t);
-    if (clk_.tracing(t)) trace_occupancy = int(size_);
+    if (wave_) wave_->pop(wave_sig_, t);
     if (producer_waiting_) {
       producer_waiting_ = false;
       producer_->on_space(t + 1);
@@ -207,7 +207,14 @@ class TimedFifo {
     occ_.finish(end, s.mean_occupancy, s.full_cycles, s.max_occupancy);
     return s;
   }
-  int trace_occupancy = 0;  ///< for sc_trace inside --vcd-window (lockstep runs)
+  /// Also records every push and pop in `wave`'s occupancy signal `sig`
+  /// (--vcd); before the run.
+  void trace_to(Waveform* wave, int sig) {
+    wave_ = wave;
+    wave_sig_ = sig;
+  }
+  /// The unit that reads the FIFO (connect).
+  Unit* consumer() const { return consumer_; }
 
  private:
   struct Entry {
@@ -224,6 +231,8 @@ class TimedFifo {
   Unit* producer_ = nullptr;
   Unit* consumer_ = nullptr;
   OccupancyStats occ_;
+  Waveform* wave_ = nullptr;
+  int wave_sig_ = -1;
 };
 
 }  // namespace ropsim

@@ -25,6 +25,7 @@
 #include "clock.h"
 #include "interval_log.h"
 #include "scheduler.h"
+#include "waveform.h"
 
 namespace ropsim {
 
@@ -94,7 +95,12 @@ class Unit : public sc_core::sc_module {
     std::string meaning;
   };
   virtual std::vector<Extra> extras() const { return {}; }
-  int trace_activity = 0;  ///< the Activity, for sc_trace inside --vcd-window
+  /// Also records every span of cycles in `wave`'s state signal `sig`, whose
+  /// states are the Activity names (--vcd); before the run.
+  void trace_to(Waveform* wave, int sig) {
+    wave_ = wave;
+    wave_sig_ = sig;
+  }
 
  protected:
   /// One activation at cycle now: move fragments, set the activity, and arm
@@ -107,7 +113,6 @@ class Unit : public sc_core::sc_module {
       after_ = a;
     else
       act_ = a;
-    if (clk_.tracing(t)) trace_activity = int(a);
   }
   /// Busy for [t, until), then `after` until the next change, so a unit need
   /// not wake at the end of its initiation interval just to account for it.
@@ -116,7 +121,6 @@ class Unit : public sc_core::sc_module {
     act_ = Activity::kBusy;
     busy_end_ = until;
     after_ = after;
-    if (clk_.tracing(t)) trace_activity = int(Activity::kBusy);
   }
   const Clock& clk_;
   UnitStats stats_;
@@ -129,17 +133,21 @@ class Unit : public sc_core::sc_module {
       const uint64_t e = std::min(busy_end_, t);
       stats_.cycles[size_t(Activity::kBusy)] += e - since_;
       if (log_) log_->add_activity(log_kind_, int(Activity::kBusy), since_, e);
+      if (wave_) wave_->set(wave_sig_, since_, uint64_t(Activity::kBusy));
       since_ = e;
       if (since_ == busy_end_) act_ = after_;
     }
     if (t > since_) {
       stats_.cycles[size_t(act_)] += t - since_;
       if (log_) log_->add_activity(log_kind_, int(act_), since_, t);
+      if (wave_) wave_->set(wave_sig_, since_, uint64_t(act_));
       since_ = t;
     }
   }
   IntervalLog* log_ = nullptr;
   int log_kind_ = -1;
+  Waveform* wave_ = nullptr;
+  int wave_sig_ = -1;
   Scheduler& sched_;
   uint32_t index_;
   uint64_t last_request_ = ~uint64_t{0};

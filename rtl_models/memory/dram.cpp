@@ -17,10 +17,12 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
   Channel& c = ch_[ch_index];
   const uint64_t row = at.row, bank = at.bank;
   uint64_t ready = std::max(now, c.bank_free[bank]);  // the bank may still serve an earlier access
-  if (c.open_row[bank] == row) {
+  const bool row_hit = c.open_row[bank] == row;
+  if (row_hit) {
     ++s_.row_hits;
   } else {
     ++s_.row_misses;
+    ++c.row_misses;
     c.open_row[bank] = row;
     ready += cfg_.row_miss_cycles;  // precharge + activate, in the bank only
   }
@@ -29,6 +31,12 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
   c.bus_free = start + transfer;
   c.bank_free[bank] = start + transfer;
   c.busy += transfer;
+  if (wave_) {  // a channel's bursts follow each other on its bus: their cycles only grow
+    const int sig = wave_sig_ + 2 * int(ch_index);
+    wave_->set(sig, start, write ? 2 : 1);
+    wave_->set(sig, start + transfer, 0);
+    if (!row_hit) wave_->set(sig + 1, start, c.row_misses);
+  }
   const uint64_t done = start + transfer + (write ? 0 : cfg_.latency_cycles);
   if (write) {
     ++s_.writes;
@@ -41,6 +49,16 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
   }
   s_.last_completion = std::max(s_.last_completion, done);
   return done;
+}
+
+void Dram::trace_to(Waveform& wave, const std::string& scope) {
+  wave_ = &wave;
+  for (size_t i = 0; i < ch_.size(); ++i) {
+    const std::string ch = "ch" + std::to_string(i);
+    const int sig = wave.add_state(scope, ch + "_bus", {"idle", "read", "write"});
+    wave.add_count(scope, ch + "_row_misses");
+    if (i == 0) wave_sig_ = sig;
+  }
 }
 
 DramStats Dram::stats() const {

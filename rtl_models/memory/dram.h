@@ -16,6 +16,7 @@
 #include "bits.h"
 #include "hw_config.h"
 #include "interval_log.h"
+#include "waveform.h"
 
 namespace ropsim {
 
@@ -95,14 +96,21 @@ class Dram {
   DramStats stats() const;
   /// Also records every access's bytes in log's row of its cycle (--stats-interval).
   void log_to(IntervalLog* log) { log_ = log; }
+  /// Also records, per channel, what its data bus moves (chN_bus: idle, read
+  /// or write, over the burst's cycles) and its row misses so far
+  /// (chN_row_misses, counted at the burst's first cycle), as signals of
+  /// `scope` in wave (--vcd); before any access.
+  void trace_to(Waveform& wave, const std::string& scope);
 
  private:
   IntervalLog* log_ = nullptr;
+  Waveform* wave_ = nullptr;
+  int wave_sig_ = -1;  // channel i: bus state wave_sig_ + 2 i, row misses + 1
   HwConfig::Dram cfg_;
   DramAddressMap map_;
   Divisor bus_;
   struct Channel {
-    uint64_t bus_free = 0, busy = 0;
+    uint64_t bus_free = 0, busy = 0, row_misses = 0;
     std::vector<uint64_t> open_row;   // per bank, ~0 = closed
     std::vector<uint64_t> bank_free;  // per bank: cycle its last access ends
   };

@@ -513,8 +513,11 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("-j,--jobs", ro->jobs, "sampled: worker processes simulating the units (default: every core)")
       ->check(CLI::Range(1, 1024));
   add_design_options(run, ro.get());
-  run->add_option("--vcd", ro->vcd, "cycle: write a VCD waveform of unit activities and FIFO occupancies");
-  run->add_option("--vcd-window", ro->vcd_window, "cycle: cycles FIRST:LAST the waveform follows (default all)");
+  run->add_option("--vcd", ro->vcd,
+                  "cycle: write a VCD waveform in clock cycles: unit activities by name, FIFO occupancies, DRAM "
+                  "channels; one scope per ROP");
+  run->add_option("--vcd-window", ro->vcd_window,
+                  "cycle: cycles FIRST:LAST (both included) the waveform shows (default: the whole run)");
   run->add_flag("--lockstep", ro->lockstep,
                 "cycle: run every unit in lockstep with SystemC time, none decoupled (same results, slower; "
                 "for checking the decoupling)");

@@ -206,7 +206,8 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
            "SystemC process activations: cycles in which some unit ran (rtl_models/core/scheduler.h)");
   host.put("unit_runs", s.unit_runs, "-", "the units' runs summed (host cost of event-driven simulation)");
   host.put("decoupled", s.decoupled, "bool",
-           "the units without timed shared state ran ahead of SystemC time (false with --lockstep or --vcd)");
+           "the units without timed shared state ran ahead of SystemC time (false with --lockstep; a --vcd run stays "
+           "decoupled)");
   host.put("fragment_tokens", s.tokens_allocated, "-", "fragment records allocated (bounded by FIFOs and windows)");
 }
 

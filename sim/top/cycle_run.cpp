@@ -90,10 +90,9 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   auto rop = std::make_unique<FunctionalRop>(run.header, method);
   LineSet in_dram(hw.cache.line_bytes);
   const int n_passes = rop->passes();
-  if (n_passes > 1 && !opt.vcd_path.empty())
-    throw std::invalid_argument(std::string("--vcd traces single-pass methods; ") + to_string(method.method) +
-                                " makes " + std::to_string(n_passes) + " passes");
-  const bool decoupled = !opt.lockstep && opt.vcd_path.empty();
+  // The waveform records every event at its own cycle (waveform.h), so a
+  // --vcd run stays decoupled like any other.
+  const bool decoupled = !opt.lockstep;
   CycleStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
@@ -103,6 +102,14 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   uint64_t progress_base = 0;
+  // The waveform of every pass, one after the other (--vcd), opened before
+  // the run so that a path that cannot be written fails at once.
+  std::unique_ptr<OutputFile> vcd;
+  std::unique_ptr<Waveform> wave;
+  if (!opt.vcd_path.empty()) {
+    vcd = std::make_unique<OutputFile>(opt.vcd_path);
+    wave = std::make_unique<Waveform>(opt.vcd_first, opt.vcd_last);
+  }
   if (opt.stats_interval > 0) run.intervals = std::make_unique<IntervalLog>(opt.stats_interval);
   if (opt.breakdown.any())
     run.breakdown = std::make_unique<RunBreakdown>(run.header, opt.breakdown.per_draw, opt.breakdown.per_pixel);
@@ -117,10 +124,6 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) input = open_fragments(in);
-    // Declared before top: top's destructor closes SystemC's file, which the
-    // writer waits for. SystemC ignores write errors, so the VCD goes through a
-    // FIFO whose bytes OutputFile writes with every write checked.
-    std::unique_ptr<OutputFile> vcd;
     FreshSimContext sim;
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
@@ -157,21 +160,12 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
           };
     }
     top->set_decoupled(decoupled);
-    if (!opt.vcd_path.empty()) {
-      OutputFile::Options vo;
-      vo.named = vo.via_pipe = true;
-      vo.suffix = ".vcd";  // SystemC appends it to the name it is given
-      vcd = std::make_unique<OutputFile>(opt.vcd_path, vo);
-      const std::string& name = vcd->write_name();
-      top->trace_to(name.substr(0, name.size() - vo.suffix.size()), opt.vcd_first, opt.vcd_last);
+    if (wave) {
+      wave->set_base(s.total_cycles);  // this pass follows the previous ones
+      top->trace_to(*wave, n_passes > 1 ? std::string(to_string(rop->pass())) + "." : "");
     }
     const auto t1 = std::chrono::steady_clock::now();
-    try {
-      top->run();
-    } catch (...) {
-      top.reset();  // then vcd's destructor discards the waveform
-      throw;
-    }
+    top->run();  // on an error, vcd's destructor discards the file
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     progress_base += top->source().produced();
     if (RunBreakdown* b = run.breakdown.get(); b && b->per_draw()) {
@@ -215,8 +209,24 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     if (n_passes > 1) s.passes.push_back(ps);
     if (pass == 0 && n_passes == 1) s.dram = ps.dram;  // a single pass: its figures exactly
     s.tokens_allocated = std::max(s.tokens_allocated, top->tokens().allocated());
-    top.reset();  // closes the VCD file
-    if (vcd) vcd->commit();
+    top.reset();
+  }
+  if (wave) {
+    const uint64_t end = s.total_cycles, shown = wave->last_shown(end);
+    char comment[320];
+    const int n = std::snprintf(comment, sizeof comment,
+                                "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
+                                "%llu ps at %g GHz. ",
+                                (unsigned long long)s.period_ps, hw.clock.frequency_ghz);
+    if (end > 0 && shown >= wave->first())
+      std::snprintf(comment + n, sizeof comment - size_t(n), "Cycles %llu..%llu of a run of %llu.",
+                    (unsigned long long)wave->first(), (unsigned long long)shown, (unsigned long long)end);
+    else
+      std::snprintf(comment + n, sizeof comment - size_t(n),
+                    "The run ended (%llu cycles) before the window's first cycle %llu: no values.",
+                    (unsigned long long)end, (unsigned long long)wave->first());
+    wave->write_vcd("top", comment, end, [&vcd](std::string_view t) { vcd->write(t); });
+    vcd->commit();
   }
   if (run.intervals) run.intervals->finish(s.total_cycles);
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);

@@ -24,15 +24,14 @@
 namespace ropsim {
 
 struct CycleOptions {
-  std::string vcd_path;                             ///< non-empty: write a VCD waveform here
-  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycle window of the waveform
+  std::string vcd_path;                             ///< non-empty: write a VCD waveform here (waveform.h)
+  uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycles [first, last] the waveform shows
   /// Every 65536 fragments: the fragments so far (every pass) and the share
   /// of the run's input consumed (passes included), in [0, 1].
   std::function<void(uint64_t fragments, double consumed)> progress;
   std::function<void(const FragToken&, uint64_t cycle)> retire_hook;  ///< every retired fragment
   /// Runs every unit in lockstep with SystemC time, none decoupled (unit.h).
-  /// The results are identical; it is slower. A --vcd run is always lockstep,
-  /// so traced values change at their own cycles.
+  /// The results are identical, the waveform too; it is slower.
   bool lockstep = false;
   /// > 0: also record the run's statistics per interval of this many cycles
   /// (CycleRun::intervals, --stats-interval).

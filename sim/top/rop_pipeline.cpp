@@ -116,9 +116,7 @@ void RopPipeline::set_decoupled(bool on) {
     if (auto* d = dynamic_cast<DecoupledUnit*>(u.unit)) d->set_decoupled(on);
 }
 
-RopPipeline::~RopPipeline() {
-  if (vcd_) sc_core::sc_close_vcd_trace_file(vcd_);
-}
+RopPipeline::~RopPipeline() = default;
 
 TokenFifo& RopPipeline::make_fifo(const std::string& name, uint32_t depth, uint32_t producer_latency) {
   fifos_.push_back(std::make_unique<TokenFifo>(name, depth + producer_latency, clk_));
@@ -139,12 +137,22 @@ std::vector<TokenFifo*> RopPipeline::fifos() const {
   return v;
 }
 
-void RopPipeline::trace_to(const std::string& vcd_base, uint64_t first, uint64_t last) {
-  vcd_ = sc_core::sc_create_vcd_trace_file(vcd_base.c_str());
-  clk_.set_trace_window(first, last);
-  for (const auto& u : units_)
-    sc_core::sc_trace(vcd_, u.unit->trace_activity, std::string(u.unit->name()) + ".activity");
-  for (const auto& f : fifos_) sc_core::sc_trace(vcd_, f->trace_occupancy, f->name() + ".occupancy");
+void RopPipeline::trace_to(Waveform& wave, const std::string& prefix) {
+  std::vector<std::string> states;
+  for (int a = 0; a < kActivities; ++a) states.push_back(to_string(Activity(a)));
+  // Unit by unit in pipeline order, each after the FIFOs it reads, under its
+  // ROP's scope (a shared unit: its own).
+  for (const auto& u : units_) {
+    const std::string scope = prefix + (u.rop >= 0 ? "rop" + std::to_string(u.rop) : u.kind);
+    for (const auto& f : fifos_) {
+      if (f->consumer() != u.unit) continue;
+      const std::string& n = f->name();  // "rop0.ordering_to_depth", "source_to_distributor"
+      const auto dot = n.rfind('.');
+      f->trace_to(&wave, wave.add_occupancy(scope, "fifo_" + (dot == std::string::npos ? n : n.substr(dot + 1))));
+    }
+    u.unit->trace_to(&wave, wave.add_state(scope, u.kind, states));
+  }
+  dram_.trace_to(wave, prefix + "dram");
 }
 
 uint64_t RopPipeline::run() {

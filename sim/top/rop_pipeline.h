@@ -29,6 +29,7 @@
 #include "scheduler.h"
 #include "token.h"
 #include "trace_source.h"
+#include "waveform.h"
 
 namespace ropsim {
 
@@ -45,9 +46,13 @@ class RopPipeline : public sc_core::sc_module {
   /// Runs to the end of the trace, then flushes the caches; returns the
   /// total cycles. Rethrows an input error (a bad trace record).
   uint64_t run();
-  /// Writes a VCD waveform of unit activities and FIFO occupancies for the
-  /// cycles [first, last]; call before run(). SystemC appends ".vcd".
-  void trace_to(const std::string& vcd_base, uint64_t first, uint64_t last);
+  /// Records in wave every unit's activity, every FIFO's occupancy and the
+  /// DRAM channels (--vcd); call before run(). Each ROP is one scope (rop0:
+  /// its units and the FIFOs they read, in pipeline order); the shared units
+  /// (trace_source, distributor with the FIFO it reads) and the DRAM have
+  /// their own. `prefix` comes before every scope ("stochastic." for a pass
+  /// of a multi-pass method, whose cycles the caller places: Waveform::set_base).
+  void trace_to(Waveform& wave, const std::string& prefix = "");
 
   /// SystemC process activations of the run (the scheduler's).
   uint64_t activations() const { return sched_->activations(); }
@@ -97,7 +102,6 @@ class RopPipeline : public sc_core::sc_module {
   std::vector<std::unique_ptr<Unit>> owned_;
   std::vector<UnitEntry> units_;
   TraceSource* source_ = nullptr;
-  sc_core::sc_trace_file* vcd_ = nullptr;
   uint64_t pipeline_cycles_ = 0, total_cycles_ = 0;
 };
 
