@@ -27,11 +27,11 @@ module rop_alpha_ref #(
     input  logic                       clk,
     input  logic                       rst,         // synchronous, active high: clears the valid pipeline
     input  logic                       in_valid,
-    /* verilator lint_off UNUSEDSIGNAL */  // bits above HASH_BITS do not reach the hash
+    /* verilator lint_off UNUSEDSIGNAL */  // index, pixel and surface-id bits above HASH_BITS do not reach the hash
     input  logic [               31:0] first,       // sequence index of lane 0 (n + j of LK Fig. 7 line 11)
-    /* verilator lint_on UNUSEDSIGNAL */
     input  logic [     PIXEL_BITS-1:0] pixel_id,
     input  logic [       SID_BITS-1:0] surface_id,
+    /* verilator lint_on UNUSEDSIGNAL */
     output logic                       out_valid,
     output logic [LANES*HASH_BITS-1:0] ref_out      // lane j at [j*HASH_BITS +: HASH_BITS]
 );

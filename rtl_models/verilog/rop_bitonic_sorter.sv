@@ -30,63 +30,61 @@ module rop_bitonic_sorter #(
   localparam int NST = K * (K + 1) / 2;  // compare-exchange stages
   localparam int PIPE = NST > 0 ? NST : 1;  // register stages
   localparam int KW = 1 + 32 + 6;  // {not surviving, depth bits, sample id}
-  localparam int W = N * KW;
 
-  logic [(PIPE+1)*W-1:0] pipe;  // pipe[t]: the keys after register stage t
+  (* mem2reg *) logic [KW-1:0] key [(PIPE+1)*N];  // key[t*N + i]: key i after register stage t
   logic [PIPE:0] vpipe;
   for (genvar i = 0; i < N; i++) begin : g_key
     localparam logic [5:0] ID = i;
-    assign pipe[i*KW+:KW] = {~surviving[i], stored_depth[i*32+:32], ID};
+    assign key[i] = {~surviving[i], stored_depth[i*32+:32], ID};
   end
   assign vpipe[0] = in_valid;
 
   if (NST == 0) begin : g_single  // N = 1: nothing to sort, one register
-    logic [W-1:0] q;
+    logic [KW-1:0] q;
     logic v;
     always_ff @(posedge clk) begin
-      q <= pipe[0+:W];
+      q <= key[0];
       v <= rst ? 1'b0 : vpipe[0];
     end
-    assign pipe[W+:W] = q;
+    assign key[1] = q;
     assign vpipe[1] = v;
   end else begin : g_network
     for (genvar p = 1; p <= K; p++) begin : g_phase
       for (genvar r = 0; r < p; r++) begin : g_stage
         localparam int Q = p - 1 - r;
-        localparam int ST = p * (p - 1) / 2 + r;  // this stage reads pipe[ST], writes pipe[ST + 1]
+        localparam int ST = p * (p - 1) / 2 + r;  // this stage reads key[ST * N + i], writes key[(ST + 1) * N + i]
         localparam int STRIDE = 1 << Q;
         localparam int SIZE = 1 << p;
-        logic [W-1:0] d, q;
         logic v;
         for (genvar i = 0; i < N; i++) begin : g_ce
           if ((i & STRIDE) == 0) begin : g_elem  // one compare-exchange element: (i, i + STRIDE)
             localparam int J = i + STRIDE;
             localparam bit ASCENDING = (i & SIZE) == 0;
-            logic [KW-1:0] a, b;
+            logic [KW-1:0] a, b, qa, qb;
             logic gt, swap;
-            assign a = pipe[ST*W+i*KW+:KW];
-            assign b = pipe[ST*W+J*KW+:KW];
+            assign a = key[ST*N+i];
+            assign b = key[ST*N+J];
             assign gt = a > b;
             assign swap = ASCENDING ? gt : !gt;  // keys are unique: !gt is a < b
-            assign d[i*KW+:KW] = swap ? b : a;
-            assign d[J*KW+:KW] = swap ? a : b;
+            always_ff @(posedge clk) begin
+              qa <= swap ? b : a;
+              qb <= swap ? a : b;
+            end
+            assign key[(ST+1)*N+i] = qa;
+            assign key[(ST+1)*N+J] = qb;
           end
         end
-        always_ff @(posedge clk) begin
-          q <= d;
-          v <= rst ? 1'b0 : vpipe[ST];
-        end
-        assign pipe[(ST+1)*W+:W] = q;
+        always_ff @(posedge clk) v <= rst ? 1'b0 : vpipe[ST];
         assign vpipe[ST+1] = v;
       end
     end
   end
 
   for (genvar k = 0; k < N; k++) begin : g_out
-    logic [KW-1:0] key;
-    assign key = pipe[PIPE*W+k*KW+:KW];
-    assign order_id[k*6+:6] = key[5:0];
-    assign order_valid[k] = !key[KW-1];
+    logic [KW-1:0] out_key;
+    assign out_key = key[PIPE*N+k];
+    assign order_id[k*6+:6] = out_key[5:0];
+    assign order_valid[k] = !out_key[KW-1];
   end
   assign out_valid = vpipe[PIPE];
 endmodule

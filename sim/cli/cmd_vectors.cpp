@@ -51,7 +51,7 @@ VerbRunner add_vectors_command(CLI::App& app) {
   vec->add_option("--seed", o->seed, "Seed of the random cases (default 1)");
   vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
   vec->add_option("--alpha-bits", o->num.alpha_bits, "opacity: opacity precision (1..32)")->check(CLI::Range(1, 32));
-  vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker: surface id width (1..32)")
+  vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker, alpha-ref: surface id width (1..32)")
       ->check(CLI::Range(1, 32));
   return [o, vec]() { return vec->parsed() ? cmd_vectors(*o) : -1; };
 }

@@ -86,6 +86,7 @@ std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) 
                                 {0, 1ull << 26, 1, 64}, {15, 0xFFFFFFFull, 3, 16}};
   uint64_t n = 0;
   auto emit = [&](uint32_t s, uint64_t p, uint32_t sid, uint32_t spp) {
+    sid &= uint32_t(low_mask(num.surface_id_bits));  // the surface-id register's width
     const uint32_t idx = alpha_ref_index(s, p, spp, num.hash_bits);
     out += fmt::format("{},{},{},{},{},{},{}\n", s, p, sid, spp, num.hash_bits, hex32(idx),
                        hex32(calc_alpha_ref_index(idx, sid, num.hash_bits)));
