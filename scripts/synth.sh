@@ -11,12 +11,14 @@
 #   levels       `ltp -noff`: longest path in gates between flip-flops,
 #                inputs and outputs, i.e. the logic depth of the deepest stage
 # Every run fails loudly on a latch or a cell the flow did not map.
-#   scripts/synth.sh [--set small|sweep] [--out CSV] [--jobs N] [--yosys PATH] [--check]
+#   scripts/synth.sh [--set small|sweep] [--match REGEX] [--out CSV] [--jobs N] [--yosys PATH] [--check]
 # --set small is the CI check (one small parameter set per module); sweep is
 # the range of docs/results.md (spp 4-64, hash bits 8-32, lanes 1-16).
+# --match keeps the runs whose line ("TOP NAME=VALUE ...") matches REGEX.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 set_name=small
+match=""
 out=""
 jobs=1
 yosys=yosys
@@ -24,6 +26,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --set) set_name="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
+    --match) match="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
     --yosys) yosys="$2"; shift 2 ;;
     --check) shift ;;  # every run is checked; kept for the ctest command line
@@ -113,7 +116,7 @@ export -f synth_one
 export root yosys tmp
 
 t0=$(date +%s)
-runs | awk '{print NR, $0}' | xargs -P "$jobs" -L 1 bash -c 'synth_one "$@"' _
+runs | { if [ -n "$match" ]; then grep -E -- "$match" || true; else cat; fi; } | awk '{print NR, $0}' | xargs -P "$jobs" -L 1 bash -c 'synth_one "$@"' _
 {
   echo "module,params,cells,flipflops,transistors,nand2_eq,levels,seconds"
   for f in $(ls "$tmp"/*.csv | sort -V); do cat "$f"; done

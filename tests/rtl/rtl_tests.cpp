@@ -30,6 +30,26 @@ std::vector<Entry> registry() {
   return e;
 }
 
+/// The "default" sets are the default design's units (HwConfig's defaults):
+/// fails naming the parameter when the design's default moves away.
+void check_default_design(const Entry& e) {
+  if (e.set != "default") return;
+  const ropsim::HwConfig hw;
+  std::vector<std::pair<std::string, uint32_t>> want;
+  if (e.unit == "alpha_ref") want = {{"LANES", hw.alpha_ref.lanes}, {"STAGES", hw.alpha_ref.pipeline_depth}};
+  if (e.unit == "tracker") want = {{"STAGES", hw.tracker.latency_cycles}};
+  if (e.unit == "depth_compare")
+    want = {{"LANES", hw.depth_test.samples_per_clock}, {"STAGES", hw.depth_test.latency_cycles}};
+  if (e.unit == "opacity") want = {{"LANES", hw.writeback.samples_per_clock}};
+  if (e.unit == "alpha_ref" || e.unit == "opacity") want.push_back({"HASH_BITS", uint32_t(hw.numerics.hash_bits)});
+  if (e.unit == "alpha_ref" || e.unit == "tracker") want.push_back({"SID_BITS", uint32_t(hw.numerics.surface_id_bits)});
+  if (e.unit == "opacity") want.push_back({"ALPHA_BITS", uint32_t(hw.numerics.alpha_bits)});
+  for (const auto& [k, v] : want)
+    if (uint32_t(e.params[k]) != v)
+      throw rtl_tb::Failure("the default set's " + k + " is " + std::to_string(e.params[k]) +
+                            ", the default design's " + std::to_string(v) + " (tests/rtl/CMakeLists.txt)");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -73,6 +93,7 @@ int main(int argc, char** argv) {
     if (e.unit != argv[1] || e.set != argv[2]) continue;
     std::printf("%s/%s: %s\n", argv[1], argv[2], e.params.str().c_str());
     try {
+      check_default_design(e);
       const rtl_tb::Report r = e.run(e.params, o);
       if (expect_mismatch) {
         std::printf("FAIL: the mutated model passed %llu vectors and %llu random inputs\n",
