@@ -9,6 +9,7 @@ ROPSIM_PACKAGES=(
   libtomlplusplus-dev libassimp-dev libosmesa6-dev libsqlite3-dev sqlite3
   clang-format python3-numpy python3-matplotlib python3-pandas
   chromium
+  verilator yosys iverilog
 )
 missing=()
 for p in "${ROPSIM_PACKAGES[@]}"; do

@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <random>
 #include <set>
+#include <sstream>
 #include <vector>
 
 #include "alpha_ref.h"
@@ -582,6 +584,52 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
   // The tracker row for a conflict: covered 0x00ff, surviving 0x0180 -> new surface 4, n 0.
   const std::string t = make_vectors("tracker", 3, 1, Numerics{});
   EXPECT_NE(t.find("16,32,00000000000000ff,3,0000000000000180,1,0,4,0000000000000180"), std::string::npos) << t;
+}
+
+// The hex format is the CSV's rows as $readmemh words: a comment block naming
+// the fields, then one word per vector, every word as wide as the layout says.
+TEST(Vectors, HexWordsMatchTheCsvRows) {
+  for (const std::string& unit : vector_units()) {
+    VectorOptions hex;
+    hex.format = "hex";
+    const std::string h = make_vectors(unit, 50, 3, Numerics{}, hex);
+    std::istringstream in(h);
+    int words = 0, comments = 0;
+    size_t width = 0;
+    int bits = 0;
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("//", 0) == 0) {
+        ++comments;
+        if (comments == 1) {
+          ASSERT_EQ(std::sscanf(line.c_str(), "// ropsim vectors %*s one %d-bit word", &bits), 1) << line;
+        }
+        continue;
+      }
+      ASSERT_EQ(line.find_first_not_of("0123456789abcdef"), std::string::npos) << unit << ": " << line;
+      if (width == 0) width = line.size();
+      ASSERT_EQ(line.size(), width) << unit << ": every word has the same width";
+      ++words;
+    }
+    EXPECT_EQ(words, 50) << unit;
+    EXPECT_EQ(int(width) * 4, bits) << unit << ": the header's word width";
+    EXPECT_GT(comments, 1) << unit << ": the field layout";
+  }
+  // The alpha-ref word of pixel 12345, surface 678 (CSV: ref 2ed32d8e, spp 1).
+  VectorOptions hex;
+  hex.format = "hex";
+  const std::string h = make_vectors("alpha-ref", 5, 1, Numerics{}, hex);
+  // sample 0, pixel 12345 = 0x3039, surface 678 = 0x2a6, spp 1, hash bits 32
+  EXPECT_NE(h.find("00000000"
+                   "0000000000003039"
+                   "000002a6"
+                   "01"
+                   "20"),
+            std::string::npos)
+      << h;
+  EXPECT_NE(h.find("2ed32d8e\n"), std::string::npos) << h;
+  VectorOptions bad;
+  bad.spp = 3;
+  EXPECT_THROW(make_vectors("sorter", 1, 1, Numerics{}, bad), std::invalid_argument);
 }
 
 // hashed-a2c (Wyman & McGuire 2017, Eq. 9): for every power-of-two n, a

@@ -51,7 +51,7 @@ constexpr Layer kLayers[] = {
     {"sim/cli", 43, "drivers: the ropsim command"},
 };
 // Folders with sources that sit above every layer (nothing includes them).
-const std::set<std::string> kTop = {"tests", "bench", "fuzz"};
+const std::set<std::string> kTop = {"tests", "tests/rtl", "bench", "fuzz"};  // tests/rtl: the Verilator testbenches
 
 bool is_source(const fs::path& p) {
   const auto e = p.extension().string();

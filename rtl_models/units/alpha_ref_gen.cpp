@@ -1,12 +1,14 @@
 #include "alpha_ref_gen.h"
 
+#include "unit_timing.h"
+
 namespace ropsim {
 
 PipeUnit::Timing AlphaRefGen::process(FragToken* t, uint64_t) {
   const uint32_t hashes = run_stage(rop_.reference(), *t);
   stats_.samples += hashes;
-  const uint32_t interval = std::max<uint32_t>(1, ceil_div(hashes, cfg_.lanes));
-  return {interval, cfg_.pipeline_depth + interval - 1};
+  const UnitTiming tm = alpha_ref_timing(cfg_, hashes);
+  return {tm.interval, tm.latency};
 }
 
 }  // namespace ropsim
