@@ -780,15 +780,16 @@ TEST(HwConfigFile, CommittedConfigsLoadAndDifferAndDocsListEveryKey) {
 // The design's digest (default output names) is a fixed function of the
 // resolved values: the same on every machine, different for another design.
 // FNV-1a 64 of the built-in defaults (a change of any default or key changes it).
-constexpr uint64_t kDefaultDesignDigest = 0x6da74c3f16bc57e4ull;
+constexpr uint64_t kDefaultDesignDigest = 0x9a6259626389df79ull;  // [compression], [hiz] added
 
 TEST(HwConfigFile, DigestIsStableAndSeesEveryKey) {
   EXPECT_EQ(hw_digest_hex(HwConfig{}), hw_digest_hex(load_hw_config(kSource + "/configs/default.toml")));
   EXPECT_EQ(hw_config_digest(HwConfig{}), kDefaultDesignDigest) << "the digest of the defaults changed";
   std::set<std::string> seen{hw_digest_hex(HwConfig{})};
-  for (const char* a : {"numerics.hash_bits=31", "numerics.alpha_bits=31", "numerics.surface_id_bits=31",
-                        "dram.channels=3", "sorter.kind=rank", "cache.fast_clear=false", "clock.frequency_ghz=1.25",
-                        "blend.accum_format=rgba32f", "blend.samples_per_clock=8"}) {
+  for (const char* a :
+       {"numerics.hash_bits=31", "numerics.alpha_bits=31", "numerics.surface_id_bits=31", "dram.channels=3",
+        "sorter.kind=rank", "cache.fast_clear=false", "clock.frequency_ghz=1.25", "blend.accum_format=rgba32f",
+        "blend.samples_per_clock=8", "compression.depth=true", "compression.color_k=2", "hiz.enable=true"}) {
     HwConfig hw;
     apply_hw_override(hw, a);
     EXPECT_TRUE(seen.insert(hw_digest_hex(hw)).second) << a << " did not change the digest";

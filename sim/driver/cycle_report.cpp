@@ -461,6 +461,14 @@ std::vector<FieldDoc> report_field_docs() {
   ctx.input = in;
   ctx.config = m;
   const FunctionalRun f = run_functional(in, m, true);
+  {  // the compressibility fields: the same run with every surface compressed
+    MethodConfig mc = m;
+    mc.compression = HwConfig{}.compression.setup();
+    mc.compression.depth = mc.compression.color = true;
+    ReportContext cc = ctx;
+    cc.config = mc;
+    functional_report(cc, run_functional(in, mc, false), &sink);
+  }
   functional_report(ctx, f, &sink);
   const CycleRun c = run_cycle(in, m, HwConfig{});
   ctx.input.trace_path = "scene.rtr";

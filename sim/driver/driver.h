@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "compressibility.h"
 #include "fragment_source.h"
 #include "golden_model.h"
 #include "trace.h"
@@ -27,6 +28,7 @@ struct FunctionalRun {
   int threads = 1;                 ///< host threads of the model
   double wall_seconds = 0;         ///< whole run: input, model and resolve
   std::optional<Image> reference;  ///< the reference method's image, when asked for
+  CompressionStats compression;    ///< the final buffers' compressibility (cfg.compression)
 };
 
 /// Runs the functional model of cfg.method over the input; with
