@@ -104,8 +104,8 @@ struct DepthPlane {
 };
 inline constexpr int kDepthPlaneBits = 96;
 inline constexpr int kDepthHeaderBits = 8;  ///< 3 bits p - 1, 5 bits r
-/// The residual widths the encoder tries, smallest first.
-inline constexpr int kDepthResidualWidths[] = {0, 2, 4, 6, 8, 12};
+/// The residual widths the encoder tries, in order (best_depth_fit).
+inline constexpr int kDepthResidualWidths[] = {12, 4, 0};
 
 /// A depth tile to compress: n = pixels * spp samples, pixel-major then
 /// sample-major (the address map's order), pixels in rows of 8.
@@ -227,8 +227,8 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
       return best_g;
     };
     const int64_t gx = best_gradient(true);
-    // y: also from the other samples of the anchor's pixel and of its row
-    // neighbours (a tile of one row, or samples at other sub-pixel heights),
+    // y: also from the other samples of the anchor's pixel (a tile of one
+    // row, or samples at other sub-pixel heights),
     // given gx; each candidate scored over the anchor's row and column.
     auto score_plane = [&](int64_t cgx, int64_t cgy) {
       DepthPlane q;
@@ -245,11 +245,9 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
     };
     int64_t gy = best_gradient(false);
     int best_sc = score_plane(gx, gy);
-    for (int dc = -1; dc <= 1; ++dc) {
-      const int c = col + dc;
-      if (c < 0 || c > 7) continue;
+    {
       for (uint32_t ss = 0; ss < spp; ++ss) {
-        const uint32_t b = uint32_t(row * 8 + c) * spp + ss;
+        const uint32_t b = p * spp + ss;
         const int64_t dy = sample_Y(t, b) - sample_Y(t, a);
         if (f.sel[b] != 0xFF || dy == 0) continue;
         const int64_t rest = (sample_u(t, b) - sample_u(t, a)) * 65536 - gx * (sample_X(t, b) - sample_X(t, a));
@@ -299,14 +297,15 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
   return f;
 }
 
-/// The smallest fit over the residual widths kDepthResidualWidths (fewest
-/// bits; ties to the smaller r), or ok = false when none fits in `planes`.
+/// The encoder's fit: residual width 12 first (the most permissive; no fit
+/// there and the tile is stored uncompressed), then 4, then 0, each tried
+/// only while the wider one fitted; the fewest bits win (ties to the smaller r).
 inline DepthFit best_depth_fit(const DepthTileIn& t, int planes) {
   DepthFit best;
   for (int r : kDepthResidualWidths) {
     DepthFit f = fit_depth_tile(t, planes, r);
-    if (f.ok && (!best.ok || f.bits < best.bits)) best = std::move(f);
-    if (best.ok && best.r == 0) break;  // exact planes: nothing smaller with more residual bits
+    if (!f.ok) break;
+    if (!best.ok || f.bits <= best.bits) best = std::move(f);
   }
   return best;
 }

@@ -86,7 +86,7 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
       t.put("accum", to_string(ctx.config.formats.accum), "-",
             "the accumulation target's format (alpha-weighted colour and alpha per sample)");
   }
-  if (ctx.config.compression.any())
+  if (ctx.config.compression.any() && run.compression.measured)
     put_compressibility(r.obj("compressibility"), run.compression, ctx.config.compression);
   Fields host = r.obj("host");
   host.put("wall_seconds", run.wall_seconds, "s", "the whole run: input, model(s), resolve");

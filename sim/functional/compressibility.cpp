@@ -51,7 +51,7 @@ struct ClearTile {
 };
 
 TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTile& clear, Buffer b, uint32_t first,
-                   const CompressionFormat& f) {
+                   const CompressionFormat& f, bool size = true) {
   TileState st;
   const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
   const size_t off = size_t(first) * spp * bps, len = size_t(f.tile_pixels) * spp * bps;
@@ -60,6 +60,7 @@ TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTi
     const float* z = t.depth.get() + size_t(first) * spp;
     st.max_depth = *std::max_element(z, z + size_t(f.tile_pixels) * spp);
   }
+  if (!size) return st;
   if (std::memcmp(data, buffer_bytes(b, clear) + off, len) == 0) {
     st.cleared = true;
     return st;
@@ -139,7 +140,7 @@ TileCompressor::TileCompressor(const SampleStore& store, const CompressionFormat
     : store_(store), f_(f), clear_(std::make_unique<Clear>(store)) {}
 TileCompressor::~TileCompressor() = default;
 
-TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y) const {
+TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size) const {
   const SampleTile* t = store_.tile_map().find(x, y);
   if (!t) {
     TileState st;
@@ -148,7 +149,7 @@ TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y) const {
     return st;
   }
   const uint32_t first = uint32_t(pixel_in_tile(x, y)) / f_.tile_pixels * f_.tile_pixels;
-  return state_of(store_, *t, *clear_->tile, b, first, f_);
+  return state_of(store_, *t, *clear_->tile, b, first, f_, size);
 }
 
 }  // namespace ropsim

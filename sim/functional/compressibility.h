@@ -61,7 +61,8 @@ class TileCompressor {
  public:
   TileCompressor(const SampleStore& store, const CompressionFormat& f);
   ~TileCompressor();
-  TileState state(Buffer b, uint32_t x, uint32_t y) const;
+  /// size = false: only `cleared` and `max_depth`, without compressing.
+  TileState state(Buffer b, uint32_t x, uint32_t y, bool size = true) const;
   const CompressionFormat& format() const { return f_; }
 
  private:
