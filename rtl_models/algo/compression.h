@@ -167,6 +167,8 @@ inline bool plane_through(const DepthTileIn& t, uint32_t a, int64_t gx, int64_t 
 /// its row and of its column (best_gradient below), claims every unassigned sample
 /// its prediction meets within r bits, then is refitted once by least
 /// squares over the samples it claimed (kept if it claims at least as many).
+/// It gives up (no fit) as soon as the planes left could not cover the
+/// unassigned samples even claiming twice the most any plane has claimed.
 /// Deterministic; any fit it returns decodes exactly (the residuals make up
 /// the rest).
 inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
@@ -190,6 +192,7 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
     return c;
   };
   const uint32_t spp = uint32_t(t.spp);
+  uint32_t most = 0, left = n;
   for (int k = 0; k < planes; ++k) {
     while (first < n && f.sel[first] != 0xFF) ++first;
     if (first == n) break;
@@ -286,8 +289,13 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
           pl = p2;
       }
     }
-    claim(pl, uint8_t(k), true, nullptr);
+    const uint32_t claimed = claim(pl, uint8_t(k), true, nullptr);
     f.planes.push_back(pl);
+    // Give up early when the planes left could not cover the rest even
+    // claiming twice the most any plane claimed so far.
+    most = std::max(most, claimed);
+    left -= claimed;
+    if (uint64_t(left) > uint64_t(planes - k - 1) * 2 * most) return f;  // not ok
   }
   for (uint32_t i = 0; i < n; ++i)
     if (f.sel[i] == 0xFF) return f;  // not ok

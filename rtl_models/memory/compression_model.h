@@ -82,6 +82,13 @@ class CompressionModel {
     if (hiz_)
       zmax_[tile_of(line, Buffer::kDepth)] = src_->tile(Buffer::kDepth, tile_of(line, Buffer::kDepth), false).max_depth;
   }
+  /// The first line and the number of lines of the tile holding line.
+  void tile_lines(uint64_t line, Buffer b, uint64_t& first, uint64_t& count) const {
+    const uint64_t base = uint64_t(b) << 48, tb = tile_bytes_[size_t(b)];
+    const uint64_t start = base + tile_of(line, b) * tb;
+    first = start / line_bytes_ * line_bytes_;
+    count = (start + tb - 1) / line_bytes_ - first / line_bytes_ + 1;
+  }
   /// A fill of a line in DRAM: returns the cycle its (decompressed) data is there.
   uint64_t fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop);
   /// The tile's stored state was cleared at its last writeback: a fill is a clear fill.

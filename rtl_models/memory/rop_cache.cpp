@@ -45,6 +45,20 @@ void RopCache::evict(size_t way, uint64_t now) {
     if (w.dirty) {
       ++s_.dirty_evictions;
       write_back(line, w.buf, now);
+      // A compressed tile leaves as a block: the tile's other dirty lines
+      // are written back with it (and stay, clean).
+      if (comp_ && comp_->compresses(w.buf)) {
+        uint64_t first = 0, count = 0;
+        comp_->tile_lines(line, w.buf, first, count);
+        for (uint64_t k = 0; k < count; ++k) {
+          const uint64_t other = first + k * cfg_.line_bytes;
+          if (other == line) continue;
+          const size_t ow = tags_.probe(other);
+          if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != w.buf) continue;
+          write_back(other, w.buf, now);
+          ways_[ow].dirty = false;
+        }
+      }
     }
   }
   tags_.invalidate(way);
