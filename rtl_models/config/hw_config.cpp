@@ -126,6 +126,33 @@ const std::vector<Param>& params() {
       U32(dram, row_miss_cycles, "cycles", 0, 100000, false,
           "extra cycles to close and open a row on a row-buffer miss"),
       U32(dram, interleave_bytes, "bytes", 16, 1u << 20, true, "address interleave granule between channels"),
+      {"compression.depth", "-", Kind::kBool, 0, 0, false,
+       "lossless depth compression: per memory tile up to depth_planes plane equations, a per-sample selector and "
+       "residual, else uncompressed",
+       FIELD(compression, depth)},
+      {"compression.color", "-", Kind::kBool, 0, 0, false,
+       "lossless MSAA colour compression of the colour buffer and the blend targets: per pixel its k <= color_k "
+       "distinct values plus a per-sample index, else uncompressed",
+       FIELD(compression, color)},
+      U32(compression, tile_pixels, "pixels", 8, 64, true,
+          "pixels of a memory tile (whole rows of the 8 x 8 address-map tile, all samples): the unit compressed, "
+          "the unit of the state bits and of Hi-Z"),
+      U32(compression, size_classes, "classes", 1, 4, false,
+          "block sizes a tile of U bytes is stored in: U, U/2, ..., U/2^(classes-1) (3: full, 1/2, 1/4)"),
+      U32(compression, depth_planes, "planes", 1, 8, false, "most plane equations in a compressed depth tile"),
+      U32(compression, color_k, "colours", 1, 8, false,
+          "K: most distinct colours per pixel in a compressed colour tile (index ceil(log2 K) bits a sample)"),
+      U32(compression, metadata_cache_bytes, "bytes", 64, 1u << 24, true,
+          "per-ROP cache of the tiles' state bits (its lines are cache.line_bytes; misses and dirty evictions are "
+          "DRAM traffic)"),
+      U32(compression, compress_latency_cycles, "cycles", 0, 10000, false,
+          "compressor latency: a compressible line's write to DRAM leaves this much later"),
+      U32(compression, decompress_latency_cycles, "cycles", 0, 10000, false,
+          "decompressor latency, added to a fill from a compressed tile"),
+      {"hiz.enable", "-", Kind::kBool, 0, 0, false,
+       "hierarchical Z: a per-tile conservative farthest depth on chip rejects fragments wholly behind it before "
+       "their depths are read",
+       FIELD(hiz, enable)},
       I32(numerics, hash_bits, "bits", 8, 32,
           "width of the alpha-reference hash datapath (docs/numerics.md; run flag --hash-bits overrides it)"),
       I32(numerics, alpha_bits, "bits", 1, 32,

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "blend.h"
+#include "compression.h"
 #include "numerics.h"
 
 namespace ropsim {
@@ -90,6 +91,30 @@ struct HwConfig {
     uint32_t row_miss_cycles = 40;
     uint32_t interleave_bytes = 256;
   } dram;
+  /// Lossless surface compression (compression.h): depth planes, MSAA
+  /// colour (and blend-target) fragment compression, per memory tile, with
+  /// per-tile state bits held in a metadata cache of each ROP.
+  struct Compression {
+    bool depth = false;
+    bool color = false;
+    uint32_t tile_pixels = 16;
+    uint32_t size_classes = 3;
+    uint32_t depth_planes = 4;
+    uint32_t color_k = 4;
+    uint32_t metadata_cache_bytes = 4096;
+    uint32_t compress_latency_cycles = 8;
+    uint32_t decompress_latency_cycles = 8;
+    bool any() const { return depth || color; }
+    CompressionSetup setup() const {
+      return CompressionSetup{depth, color, CompressionFormat{tile_pixels, size_classes, depth_planes, color_k}};
+    }
+  } compression;
+  /// Hierarchical Z: per memory tile (compression.tile_pixels) the farthest
+  /// stored depth, on chip; a fragment whose samples all lie behind it is
+  /// rejected before its per-sample depths are read.
+  struct HiZ {
+    bool enable = false;
+  } hiz;
   /// The datapath widths ([numerics]); the same for every fidelity. A run's
   /// --hash-bits, --alpha-bits and --surface-id-bits override them.
   Numerics numerics;

@@ -45,6 +45,16 @@ class CacheTags {
     hit = false;
     return victim;
   }
+  /// The way holding line, or kNone; no LRU change (a probe).
+  static constexpr size_t kNone = ~size_t{0};
+  size_t probe(uint64_t line) const {
+    const uint64_t l = line >> set_shift_;
+    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
+    const size_t base = size_t(set) * ways_;
+    for (uint32_t i = 0; i < ways_; ++i)
+      if (tags_[base + i] == line) return base + i;
+    return kNone;
+  }
   /// Puts line in way (a miss's, its old line evicted), most recently used.
   void install(size_t way, uint64_t line) {
     tags_[way] = line;

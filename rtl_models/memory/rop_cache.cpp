@@ -44,12 +44,38 @@ void RopCache::evict(size_t way, uint64_t now) {
     ++s_.evictions;
     if (w.dirty) {
       ++s_.dirty_evictions;
-      dram_.access(line, cfg_.line_bytes, true, w.buf, now);
-      in_dram_.insert(line);
+      write_back(line, w.buf, now);
+      // A compressed tile leaves as a block: the tile's other dirty lines
+      // are written back with it (and stay, clean).
+      if (comp_ && comp_->compresses(w.buf)) {
+        uint64_t first = 0, count = 0;
+        comp_->tile_lines(line, w.buf, first, count);
+        for (uint64_t k = 0; k < count; ++k) {
+          const uint64_t other = first + k * cfg_.line_bytes;
+          if (other == line) continue;
+          const size_t ow = tags_.probe(other);
+          if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != w.buf) continue;
+          write_back(other, w.buf, now);
+          ways_[ow].dirty = false;
+        }
+      }
     }
   }
   tags_.invalidate(way);
   w.dirty = false;
+}
+
+uint64_t RopCache::write_back(uint64_t line, Buffer b, uint64_t now) {
+  if (comp_ && comp_->compresses(b)) {
+    uint64_t done = now;
+    // A tile holding only the clear value stays cleared (no data written):
+    // a later fill of the line is a clear fill.
+    if (comp_->write_back(line, b, now, rop_, done)) in_dram_.insert(line);
+    return done;
+  }
+  if (comp_ && b == Buffer::kDepth) comp_->depth_written_back(line);  // Hi-Z alone
+  in_dram_.insert(line);
+  return dram_.access(line, cfg_.line_bytes, true, b, now);
 }
 
 uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
@@ -71,6 +97,8 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   if (cfg_.fast_clear && !in_dram_.contains(line)) {
     ++s_.clear_fills;
     w.ready = now + cfg_.hit_latency_cycles;
+  } else if (comp_ && comp_->compresses(b)) {
+    w.ready = comp_->fill(line, b, now, rop_) + cfg_.hit_latency_cycles;
   } else {
     w.ready = dram_.access(line, cfg_.line_bytes, false, b, now) + cfg_.hit_latency_cycles;
   }
@@ -90,6 +118,7 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
   }
   if (!w.dirty) ++s_.dirtied;
   w.dirty = true;
+  if (comp_ && comp_->compresses(b)) comp_->touched(line, b);
 }
 
 void RopCache::warm(uint64_t line, bool write, Buffer b) {
@@ -110,8 +139,7 @@ uint64_t RopCache::flush(uint64_t now) {
   uint64_t done = now;
   for (size_t i = 0; i < ways_.size(); ++i)
     if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
-      done = std::max(done, dram_.access(tags_.tag(i), cfg_.line_bytes, true, w.buf, now));
-      in_dram_.insert(tags_.tag(i));
+      done = std::max(done, write_back(tags_.tag(i), w.buf, now));
       w.dirty = false;
     }
   return done;

@@ -14,6 +14,7 @@
 
 #include "address_map.h"
 #include "cache_tags.h"
+#include "compression_model.h"
 #include "dram.h"
 #include "hw_config.h"
 #include "line_set.h"
@@ -123,6 +124,9 @@ class RopCache {
   const CacheStats& stats() const { return s_; }
   /// Also counts every lookup's hit or miss in log's row of its cycle (--stats-interval).
   void log_to(IntervalLog* log) { log_ = log; }
+  /// Stores the compressed surfaces through comp (compression_model.h).
+  void compress_with(CompressionModel* comp) { comp_ = comp; }
+  CompressionModel* compression() const { return comp_; }
 
  private:
   IntervalLog* log_ = nullptr;
@@ -135,6 +139,9 @@ class RopCache {
   /// The way (index) holding line, allocated (after an eviction) on a miss.
   size_t lookup(uint64_t line, bool& hit, uint64_t now);
   void evict(size_t way, uint64_t now);
+  /// A dirty line to DRAM at cycle now; returns when it is written.
+  uint64_t write_back(uint64_t line, Buffer b, uint64_t now);
+  CompressionModel* comp_ = nullptr;
   bool warming_ = false;  // warm(): evictions move no data and count nothing
   HwConfig::Cache cfg_;
   Dram& dram_;

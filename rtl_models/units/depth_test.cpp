@@ -1,6 +1,9 @@
 #include "depth_test.h"
 
+#include <string>
+
 #include "blend_unit.h"
+#include "errors.h"
 
 namespace ropsim {
 
@@ -17,6 +20,22 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
     amap_.for_each_layer_line(t->f->x, t->f->y,
                               [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now)); });
     return ready;
+  }
+  // Hierarchical Z: a fragment whose tested samples all lie beyond its
+  // tile's farthest stored depth fails them all; it reads nothing and
+  // retires here (compression_model.h gives the update rule).
+  if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered) {
+    float zmin = 1.0f;
+    for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);
+    if (cm->hiz_rejects(t->f->x, t->f->y, zmin)) {
+      if (t->survivors)
+        throw InternalError("Hi-Z never rejects a fragment that passes: pixel (" + std::to_string(t->f->x) + ", " +
+                            std::to_string(t->f->y) + ") had surviving samples");
+      uint64_t lines = 0;
+      amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered, [&](uint64_t) { ++lines; });
+      cm->count_skipped(lines);
+      return ready;
+    }
   }
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered,
                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });

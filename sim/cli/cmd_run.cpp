@@ -179,6 +179,7 @@ GoldenConfig resolve_method(const RunOpts& o, const HwConfig& hw) {
   parse_method(o.method, cfg.method);
   cfg.numerics = hw.numerics;
   cfg.formats = hw.blend.formats;
+  cfg.compression = hw.compression.setup();
   cfg.seed = o.seed;
   cfg.slab_layers = o.slab_layers;
   cfg.slab_bits = o.slab_bits;
@@ -299,14 +300,14 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (!cycle && !sampled && !approximate) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
-    // A functional run takes only the design's numerics and blend-target
-    // formats (the rest is timing).
+    // A functional run takes only the design's numerics, blend-target
+    // formats and compression format (the rest is timing).
     for (const auto& a : o.hw_sets)
       if (a.rfind("numerics.", 0) != 0 && a.rfind("blend.transmittance_format=", 0) != 0 &&
-          a.rfind("blend.accum_format=", 0) != 0)
+          a.rfind("blend.accum_format=", 0) != 0 && a.rfind("compression.", 0) != 0)
         throw UserError("--hw-set " + a +
-                        " applies to --fidelity cycle (a functional run takes only the numerics.* and "
-                        "blend.*_format keys of a design)");
+                        " applies to --fidelity cycle (a functional run takes only the numerics.*, "
+                        "blend.*_format and compression.* keys of a design)");
   }
   if (sub.count("--vcd-window") && o.vcd.empty()) throw UserError("--vcd-window needs --vcd FILE");
   if (sub.count("--stats-interval") != sub.count("--stats-csv"))

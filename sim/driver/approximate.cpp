@@ -509,6 +509,10 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
   if (const char* err = validate(method.numerics)) throw UserError(err);
   validate_hw_config(hw);
+  if (hw.compression.any() || hw.hiz.enable)
+    throw UserError(hw.name +
+                    ": --fidelity approximate does not model compression.* or hiz.enable; use --fidelity "
+                    "cycle (or functional for the compressibility)");
   const auto t0 = std::chrono::steady_clock::now();
   ApproxRun run;
   std::unique_ptr<FragmentSource> src = open_fragments(in);

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "compressibility.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"

@@ -117,6 +117,48 @@ static void put_dram_traffic(Fields dram, const DramStats& d, uint32_t listed) {
   dram.put("row_misses", d.row_misses, "bursts", "bursts that opened a row");
 }
 
+/// Surface compression's traffic and Hi-Z (compression_model.h): per
+/// compressed surface, its line transfers' bytes before and after
+/// compression, the block sizes of the tiles written, and its state bits'
+/// traffic (included in the DRAM bytes of the surface).
+static void put_compression_traffic(Fields c, const CompressionTraffic& s, const HwConfig& hw) {
+  c.put("depth", hw.compression.depth, "-", "compression.depth: depth plane compression on");
+  c.put("color", hw.compression.color, "-", "compression.color: colour (and blend-target) compression on");
+  c.put("hiz", hw.hiz.enable, "-", "hiz.enable: hierarchical Z on");
+  c.put("metadata_hits", s.metadata_hits, "accesses", "state-bit lookups that hit the ROPs' metadata caches");
+  c.put("metadata_misses", s.metadata_misses, "accesses", "state-bit lookups that read a metadata line from DRAM");
+  c.put("hiz_tests", s.hiz_tests, "fragments", "fragments tested against their tile's Hi-Z bound");
+  c.put("hiz_rejected", s.hiz_rejected, "fragments",
+        "fragments rejected by Hi-Z: every tested sample beyond the tile's farthest depth, no depth read");
+  c.put("hiz_depth_lines_skipped", s.hiz_lines_skipped, "lines", "depth lines the rejected fragments did not read");
+  c.empty_array("buffers");
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!s.lines_written[size_t(b)] && !s.lines_read[size_t(b)] && !s.metadata_bytes_read[size_t(b)]) continue;
+    Fields e = c.item("buffers");
+    e.put("buffer", to_string(Buffer(b)), "-", "the compressed surface");
+    e.put("bytes_written_uncompressed", s.bytes_written_uncompressed[size_t(b)], "bytes",
+          "line writebacks to DRAM at their uncompressed size (line_bytes each)");
+    e.put("bytes_written", s.bytes_written[size_t(b)], "bytes",
+          "the same compressed: line_bytes >> the block-size class of the line's tile (0 for a cleared tile)");
+    e.put("bytes_read_uncompressed", s.bytes_read_uncompressed[size_t(b)], "bytes",
+          "line fills from DRAM at their uncompressed size");
+    e.put("bytes_read", s.bytes_read[size_t(b)], "bytes",
+          "the same compressed, as stored at the tile's last writeback");
+    const auto& wc = s.writes_per_class[size_t(b)];
+    const uint64_t n = s.lines_written[size_t(b)];
+    std::vector<uint64_t> per(wc.begin(), wc.begin() + hw.compression.size_classes);
+    std::vector<double> share;
+    for (uint64_t k : per) share.push_back(n ? double(k) / double(n) : 0.0);
+    e.put("writes_per_class", per, "lines",
+          "[j]: line writebacks whose tile was stored in U / 2^j bytes (j = 0: uncompressed)");
+    e.put("class_shares", share, "-", "the same as shares of all the surface's line writebacks");
+    e.put("writes_cleared", s.writes_cleared[size_t(b)], "lines",
+          "line writebacks of tiles holding only the clear value (state bits only)");
+    e.put("metadata_bytes_read", s.metadata_bytes_read[size_t(b)], "bytes", "state-bit lines read from DRAM");
+    e.put("metadata_bytes_written", s.metadata_bytes_written[size_t(b)], "bytes", "state-bit lines written to DRAM");
+  }
+}
+
 std::string format_bottleneck(const CycleStats& s) {
   const Bottleneck& b = s.bottleneck;
   switch (b.kind) {
@@ -177,6 +219,7 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   dram.put("achieved_gbps", s.dram_achieved_gbps, "GB/s", "bytes moved / frame time");
   dram.put("busiest_channel_utilization", s.dram_utilization, "fraction",
            "data-bus busy cycles of the busiest channel / total_cycles");
+  if (s.compression_on) put_compression_traffic(t.obj("compression"), s.compression, s.hw);
   // Multi-pass methods: each pass's cycles and traffic (single-pass methods have none).
   if (!s.passes.empty()) {
     t.empty_array("passes");
@@ -464,12 +507,29 @@ std::vector<FieldDoc> report_field_docs() {
   ctx.input = in;
   ctx.config = m;
   const FunctionalRun f = run_functional(in, m, true, 0, BreakdownRequest{true, false});
+  {  // the compressibility fields: the same run with every surface compressed
+    MethodConfig mc = m;
+    mc.compression = HwConfig{}.compression.setup();
+    mc.compression.depth = mc.compression.color = true;
+    ReportContext cc = ctx;
+    cc.config = mc;
+    functional_report(cc, run_functional(in, mc, false), &sink);
+  }
   functional_report(ctx, f, &sink);
   CycleOptions with_draws;
   with_draws.breakdown.per_draw = true;
   const CycleRun c = run_cycle(in, m, HwConfig{}, with_draws);
   ctx.input.trace_path = "scene.rtr";
   cycle_report(ctx, c, f.reference, &sink);
+  {  // compression and Hi-Z (the cycle model's traffic)
+    HwConfig hc;
+    hc.compression.depth = hc.compression.color = hc.hiz.enable = true;
+    MethodConfig mc = m;
+    mc.compression = hc.compression.setup();
+    ReportContext cc = ctx;
+    cc.config = mc;
+    cycle_report(cc, run_cycle(in, mc, hc), f.reference, &sink);
+  }
   // The fields only some methods write (the hashed coverage selection's,
   // slab's parameters and layers buffer).
   m.method = Method::kSlab;
@@ -513,6 +573,17 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
   out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
                      s.dram.total_bytes_read(), s.dram.total_bytes_written(), s.dram_achieved_gbps, s.dram_peak_gbps,
                      100 * s.dram_utilization);
+  if (s.compression_on) {
+    const CompressionTraffic& c = s.compression;
+    uint64_t before = 0, after = 0;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      before += c.bytes_written_uncompressed[b] + c.bytes_read_uncompressed[b];
+      after += c.bytes_written[b] + c.bytes_read[b];
+    }
+    out += fmt::format(
+        "  compression: {} B of compressed-surface traffic moved as {} B; Hi-Z rejected {} of {} fragments\n", before,
+        after, c.hiz_rejected, c.hiz_tests);
+  }
   for (const auto& p : s.passes)
     out += fmt::format("  pass {}: {} cycles; DRAM {} B read, {} B written\n", p.name, p.total_cycles,
                        p.dram.total_bytes_read(), p.dram.total_bytes_written());

@@ -83,6 +83,9 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   run.state_bytes = model->state_bytes();
   if (auto* sm = dynamic_cast<const StochasticModel*>(model.get())) run.threads = sm->threads();
   if (ref) run.reference = ref->resolve();
+  if (cfg.compression.any())
+    if (auto* sm = dynamic_cast<const StochasticModel*>(model.get()))
+      run.compression = measure_compressibility(sm->store(), cfg.compression);
   if (with_reference && cfg.method == Method::kReference) run.reference = run.image;
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;

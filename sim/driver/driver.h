@@ -7,6 +7,7 @@
 #include <string>
 
 #include "breakdown.h"
+#include "compressibility.h"
 #include "fragment_source.h"
 #include "golden_model.h"
 #include "trace.h"
@@ -29,6 +30,7 @@ struct FunctionalRun {
   double wall_seconds = 0;                  ///< whole run: input, model and resolve
   std::optional<Image> reference;           ///< the reference method's image, when asked for
   std::unique_ptr<RunBreakdown> breakdown;  ///< per draw and per pixel, when asked for
+  CompressionStats compression;             ///< the final buffers' compressibility (cfg.compression)
 };
 
 /// Runs the functional model of cfg.method over the input; with

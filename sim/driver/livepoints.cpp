@@ -650,6 +650,10 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
 }  // namespace
 
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
+  if (hw.compression.any() || hw.hiz.enable)
+    throw UserError(hw.name +
+                    ": --fidelity sampled does not model compression.* or hiz.enable; use --fidelity "
+                    "cycle (or functional for the compressibility)");
   SampledRun out;
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = process_cpu_seconds();

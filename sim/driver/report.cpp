@@ -86,6 +86,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
       t.put("accum", to_string(ctx.config.formats.accum), "-",
             "the accumulation target's format (alpha-weighted colour and alpha per sample)");
   }
+  if (ctx.config.compression.any() && run.compression.measured)
+    put_compressibility(r.obj("compressibility"), run.compression, ctx.config.compression);
   Fields host = r.obj("host");
   host.put("wall_seconds", run.wall_seconds, "s", "the whole run: input, model(s), resolve");
   host.put("samples_per_second", run.wall_seconds > 0 ? double(run.counters.samples_tested) / run.wall_seconds : 0.0,
@@ -153,6 +155,14 @@ std::string functional_summary(const ReportContext& ctx, const FunctionalRun& ru
     s += fmt::format("  surface-id changes {}  sorts {}\n", c.surface_id_changes, c.sorts);
   s += fmt::format("  state traffic: {} B read, {} B written; {} tiles touched\n", c.state_bytes_read(),
                    c.state_bytes_written(), c.tiles_touched);
+  for (int b = 0; b < kBuffers; ++b)
+    if (run.compression.compressed[size_t(b)]) {
+      const BufferCompression& bc = run.compression.buffers[size_t(b)];
+      s += fmt::format("  {} compressibility: {} B -> {} B ({:.2f}:1), {} of {} tiles cleared\n", to_string(Buffer(b)),
+                       bc.bytes_uncompressed, bc.bytes_compressed,
+                       bc.bytes_compressed ? double(bc.bytes_uncompressed) / double(bc.bytes_compressed) : 1.0,
+                       bc.tiles_cleared, bc.tiles);
+    }
   s += fmt::format("  wall {:.3f} s, {:.1f} M samples/s\n", run.wall_seconds,
                    run.wall_seconds > 0 ? c.samples_tested / run.wall_seconds / 1e6 : 0.0);
   if (run.reference) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "compressibility.h"
 #include "counters.h"
 
 namespace ropsim {
@@ -83,6 +84,42 @@ inline void put_counters(Fields f, const Counters& c, bool with_blend = true, bo
         "per-pixel state read: depth, tracker, render targets and slab's layers");
   f.put("state_bytes_written", c.state_bytes_written(), "bytes",
         "per-pixel state written: depth, colour, tracker, render targets and slab's layers");
+}
+
+/// The compressibility of the final buffers (compressibility.h) under the
+/// design's [compression] format: the format, then one entry per compressed
+/// surface.
+inline void put_compressibility(Fields f, const CompressionStats& cs, const CompressionSetup& setup) {
+  const CompressionFormat& fm = setup.format;
+  f.put("depth", setup.depth, "-", "compression.depth: depth plane compression on");
+  f.put("color", setup.color, "-", "compression.color: MSAA colour compression on (colour and blend targets)");
+  f.put("tile_pixels", fm.tile_pixels, "pixels", "pixels of a memory tile (all their samples)");
+  f.put("size_classes", fm.size_classes, "classes", "block sizes U, U/2, ... a tile is stored in");
+  f.put("depth_planes", fm.depth_planes, "planes", "most plane equations in a depth tile");
+  f.put("color_k", fm.color_k, "colours", "K, most distinct colours per pixel");
+  f.put("metadata_bits", metadata_bits(fm), "bits", "state bits per memory tile");
+  f.empty_array("buffers");
+  for (int b = 0; b < kBuffers; ++b) {
+    if (!cs.compressed[size_t(b)]) continue;
+    const BufferCompression& c = cs.buffers[size_t(b)];
+    Fields e = f.item("buffers");
+    e.put("buffer", to_string(Buffer(b)), "-", "the surface");
+    e.put("tiles", c.tiles, "tiles", "memory tiles of the surface over the whole screen");
+    e.put("tiles_cleared", c.tiles_cleared, "tiles",
+          "tiles holding only the clear value at the end of the frame (fast clear: state bits only)");
+    e.put("bytes_uncompressed", c.bytes_uncompressed, "bytes", "the other tiles' bytes uncompressed");
+    e.put("bytes_compressed", c.bytes_compressed, "bytes", "the same tiles in their compressed block sizes");
+    e.put("ratio", c.bytes_compressed ? double(c.bytes_uncompressed) / double(c.bytes_compressed) : 1.0, "-",
+          "bytes_uncompressed / bytes_compressed");
+    std::vector<uint64_t> n(c.tiles_per_class.begin(), c.tiles_per_class.begin() + fm.size_classes);
+    std::vector<double> share;
+    const uint64_t stored = c.tiles - c.tiles_cleared;
+    for (uint64_t k : n) share.push_back(stored ? double(k) / double(stored) : 0.0);
+    e.put("tiles_per_class", n, "tiles",
+          "[j]: written tiles stored in U / 2^j bytes (j = 0: uncompressed, 1: half, 2: quarter, 3: eighth)");
+    e.put("class_shares", share, "-", "the same as shares of the written tiles");
+    e.put("metadata_bytes", c.metadata_bytes, "bytes", "the surface's state bits, every tile of the screen");
+  }
 }
 
 /// The fields as a Markdown table (field, unit, meaning).

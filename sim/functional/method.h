@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "blend.h"
+#include "compression.h"
 #include "numerics.h"
 
 namespace ropsim {
@@ -167,6 +168,9 @@ struct MethodConfig {
   int slab_bits = 32;    ///< slab: b, bits of each layer's coverage mask (1..64; Wyman 2016's b = 32)
   BlendFormats formats;  ///< the blend targets' formats (the design's blend.*_format)
   EndertonSelection enderton_selection = EndertonSelection::kDepthFirst;  ///< enderton and its variants
+  /// Surface compression (the design's [compression]): the functional run
+  /// reports the final buffers' compressibility; it never changes the state.
+  CompressionSetup compression;
 };
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;

@@ -5,6 +5,9 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "compressibility.h"
+#include "compression_model.h"
+#include "depth.h"
 #include "line_set.h"
 #include "output_file.h"
 #include "rop_pipeline.h"
@@ -76,6 +79,28 @@ void add_dram(DramStats& a, const DramStats& b) {
 
 }  // namespace
 
+namespace {
+
+/// The compressor's view of the functional store (TileSource): a memory
+/// tile's contents compressed now (compressibility.h).
+class StoreTileSource : public TileSource {
+ public:
+  StoreTileSource(const SampleStore& store, const CompressionFormat& f)
+      : comp_(store, f), tiles_x_(ceil_div(store.header().width, 8u)), tile_pixels_(f.tile_pixels) {}
+  TileInfo tile(Buffer b, uint64_t tile, bool size) override {
+    const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
+    const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
+    const TileState st = comp_.state(b, x, y, size);
+    return TileInfo{st.cleared, st.size.size_class, st.max_depth};
+  }
+
+ private:
+  TileCompressor comp_;
+  uint64_t tiles_x_, tile_pixels_;
+};
+
+}  // namespace
+
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
   if (method.method == Method::kReference)
     throw std::invalid_argument("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
@@ -89,6 +114,22 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   run.header = input->header();
   auto rop = std::make_unique<FunctionalRop>(run.header, method);
   LineSet in_dram(hw.cache.line_bytes);
+  // Surface compression and Hi-Z: the stored state bits and Hi-Z bounds
+  // outlive the passes, like the lines DRAM holds.
+  std::unique_ptr<CompressionModel> comp;
+  std::unique_ptr<StoreTileSource> tiles;
+  if (hw.compression.any() || hw.hiz.enable) {
+    std::array<uint32_t, kBuffers> bps{};
+    bps[size_t(Buffer::kDepth)] = kDepthSampleBytes;
+    bps[size_t(Buffer::kColor)] = kColorSampleBytes;
+    if (uses_transmittance(method.method))
+      bps[size_t(Buffer::kTransmittance)] = sample_bytes(method.formats.transmittance);
+    if (uses_accum(method.method)) bps[size_t(Buffer::kAccum)] = sample_bytes(method.formats.accum);
+    comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
+                                              canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
+    tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
+    comp->set_source(tiles.get());
+  }
   const int n_passes = rop->passes();
   // The waveform records every event at its own cycle (waveform.h), so a
   // --vcd run stays decoupled like any other.
@@ -160,6 +201,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
           };
     }
     top->set_decoupled(decoupled);
+    top->compress_with(comp.get());
     if (wave) {
       wave->set_base(s.total_cycles);  // this pass follows the previous ones
       top->trace_to(*wave, n_passes > 1 ? std::string(to_string(rop->pass())) + "." : "");
@@ -229,6 +271,10 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     vcd->commit();
   }
   if (run.intervals) run.intervals->finish(s.total_cycles);
+  if (comp) {
+    s.compression_on = true;
+    s.compression = comp->stats();
+  }
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
   run.counters = rop->counters();
   const double cyc = double(std::max<uint64_t>(1, s.total_cycles));

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "breakdown.h"
+#include "compressibility.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -83,6 +84,9 @@ struct CycleStats {
   std::vector<FifoStats> fifos;
   std::vector<CacheStats> caches;  ///< per ROP
   DramStats dram;
+  /// Surface compression and Hi-Z (compression_model.h), when the design has them.
+  bool compression_on = false;
+  CompressionTraffic compression;
   double dram_peak_gbps = 0;      ///< channels x bytes/clock x GHz (GB/s = 1e9 B/s)
   double dram_achieved_gbps = 0;  ///< bytes moved / frame time
   double dram_utilization = 0;    ///< busiest channel's busy cycles / total cycles

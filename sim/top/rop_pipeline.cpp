@@ -155,6 +155,12 @@ void RopPipeline::trace_to(Waveform& wave, const std::string& prefix) {
   dram_.trace_to(wave, prefix + "dram");
 }
 
+void RopPipeline::compress_with(CompressionModel* comp) {
+  comp_ = comp;
+  if (comp) comp->set_dram(&dram_);
+  for (auto& c : caches_) c->compress_with(comp);
+}
+
 uint64_t RopPipeline::run() {
   sc_core::sc_start();
   if (source_->error()) std::rethrow_exception(source_->error());
@@ -174,6 +180,7 @@ uint64_t RopPipeline::run() {
   pipeline_cycles_ = retirement_.last_cycle();
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
+  if (comp_) end = std::max(end, comp_->flush(pipeline_cycles_));  // the state bits after the data
   total_cycles_ = std::max(end, dram_.stats().last_completion);
   for (const auto& u : units_) u.unit->close_accounting(total_cycles_);
   return total_cycles_;

@@ -62,6 +62,10 @@ class RopPipeline : public sc_core::sc_module {
   /// in log's rows (--stats-interval); call before run().
   void log_to(IntervalLog* log);
 
+  /// Stores the compressed surfaces through comp and lets the depth test
+  /// use its Hi-Z (compression_model.h); call before run().
+  void compress_with(CompressionModel* comp);
+
   FunctionalRop& functional() { return rop_; }
   Retirement& retirement() { return retirement_; }
   const TokenPool& tokens() const { return pool_; }
@@ -103,6 +107,7 @@ class RopPipeline : public sc_core::sc_module {
   std::vector<UnitEntry> units_;
   TraceSource* source_ = nullptr;
   uint64_t pipeline_cycles_ = 0, total_cycles_ = 0;
+  CompressionModel* comp_ = nullptr;
 };
 
 }  // namespace ropsim

@@ -1,0 +1,160 @@
+#include "compression_model.h"
+
+#include <algorithm>
+
+#include "bits.h"
+
+namespace ropsim {
+
+CompressionTraffic& CompressionTraffic::operator+=(const CompressionTraffic& o) {
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    lines_written[b] += o.lines_written[b];
+    lines_read[b] += o.lines_read[b];
+    bytes_written_uncompressed[b] += o.bytes_written_uncompressed[b];
+    bytes_written[b] += o.bytes_written[b];
+    bytes_read_uncompressed[b] += o.bytes_read_uncompressed[b];
+    bytes_read[b] += o.bytes_read[b];
+    for (size_t j = 0; j < 4; ++j) writes_per_class[b][j] += o.writes_per_class[b][j];
+    writes_cleared[b] += o.writes_cleared[b];
+    metadata_bytes_read[b] += o.metadata_bytes_read[b];
+    metadata_bytes_written[b] += o.metadata_bytes_written[b];
+  }
+  metadata_hits += o.metadata_hits;
+  metadata_misses += o.metadata_misses;
+  hiz_tests += o.hiz_tests;
+  hiz_rejected += o.hiz_rejected;
+  hiz_lines_skipped += o.hiz_lines_skipped;
+  return *this;
+}
+
+namespace {
+HwConfig::Cache meta_cache_shape(const HwConfig& hw) {
+  HwConfig::Cache c = hw.cache;
+  c.size_bytes = std::max(hw.compression.metadata_cache_bytes, hw.cache.line_bytes);
+  c.ways = std::min<uint32_t>(8, c.size_bytes / c.line_bytes);
+  return c;
+}
+}  // namespace
+
+CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t height, int spp,
+                                   const std::array<uint32_t, kBuffers>& bps, float clear_depth, uint32_t rops)
+    : cfg_(hw.compression),
+      fmt_(hw.compression.setup().format),
+      line_bytes_(hw.cache.line_bytes),
+      meta_bits_(metadata_bits(fmt_)),
+      hiz_(hw.hiz.enable),
+      tiles_x_(ceil_div(width, 8u)) {
+  on_[size_t(Buffer::kDepth)] = cfg_.depth;
+  for (Buffer b : {Buffer::kColor, Buffer::kTransmittance, Buffer::kAccum})
+    on_[size_t(b)] = cfg_.color && bps[size_t(b)];
+  for (size_t b = 0; b < size_t(kBuffers); ++b)
+    tile_bytes_[b] = std::max<uint64_t>(1, uint64_t(fmt_.tile_pixels) * uint64_t(spp) * bps[b]);
+  const HwConfig::Cache shape = meta_cache_shape(hw);
+  for (uint32_t r = 0; r < rops; ++r) {
+    MetaCache m{CacheTags(shape), {}, {}};
+    m.dirty.assign(m.tags.size(), 0);
+    m.ready.assign(m.tags.size(), 0);
+    meta_.push_back(std::move(m));
+  }
+  if (hiz_) zmax_.assign(size_t(tiles_x_) * ceil_div(height, 8u) * (64u / fmt_.tile_pixels), clear_depth);
+}
+
+TileInfo CompressionModel::info(Buffer b, uint64_t tile) {
+  const uint64_t k = key(b, tile);
+  if (auto it = memo_.find(k); it != memo_.end()) return it->second;
+  const TileInfo t = src_->tile(b, tile);
+  memo_.emplace(k, t);
+  return t;
+}
+
+uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop) {
+  MetaCache& m = meta_[rop];
+  // The state bits of the surface's tiles, packed, in the upper half of its
+  // address space.
+  const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile * uint64_t(meta_bits_) / 8;
+  const uint64_t line = addr / line_bytes_ * line_bytes_;
+  bool hit = false;
+  const size_t way = m.tags.find(line, hit);
+  uint64_t ready = now;
+  if (hit) {
+    ++s_.metadata_hits;
+    ready = std::max(now, m.ready[way]);
+  } else {
+    ++s_.metadata_misses;
+    const uint64_t old = m.tags.tag(way);
+    if (old != CacheTags::kInvalid && m.dirty[way]) {
+      dram_->access(old, line_bytes_, true, Buffer((old >> 48) & 7u), now);
+      s_.metadata_bytes_written[size_t((old >> 48) & 7u)] += line_bytes_;
+    }
+    m.tags.install(way, line);
+    m.dirty[way] = 0;
+    // The state bits start cleared with the surface (a clear writes them
+    // once, before the frame); a miss reads the line.
+    ready = m.ready[way] = dram_->access(line, line_bytes_, false, b, now);
+    s_.metadata_bytes_read[size_t(b)] += line_bytes_;
+  }
+  if (write) m.dirty[way] = 1;
+  return ready;
+}
+
+bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_t rop, uint64_t& done) {
+  const uint64_t tile = tile_of(line, b);
+  const TileInfo t = info(b, tile);
+  if (b == Buffer::kDepth && hiz_) zmax_[tile] = t.max_depth;
+  metadata(b, tile, true, now, rop);  // posted: the data write does not wait for it
+  ++s_.lines_written[size_t(b)];
+  s_.bytes_written_uncompressed[size_t(b)] += line_bytes_;
+  if (t.cleared) {
+    stored_[key(b, tile)] = 0;
+    ++s_.writes_cleared[size_t(b)];
+    done = now;
+    return false;
+  }
+  stored_[key(b, tile)] = uint8_t(1 + t.size_class);
+  ++s_.writes_per_class[size_t(b)][size_t(t.size_class)];
+  const uint32_t bytes = std::max<uint32_t>(1, line_bytes_ >> t.size_class);
+  s_.bytes_written[size_t(b)] += bytes;
+  done = dram_->access(line, bytes, true, b, now + (t.size_class ? cfg_.compress_latency_cycles : 0));
+  return true;
+}
+
+bool CompressionModel::stored_cleared(uint64_t line, Buffer b) const {
+  auto it = stored_.find(key(b, tile_of(line, b)));
+  return it != stored_.end() && it->second == 0;
+}
+
+uint64_t CompressionModel::fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop) {
+  const uint64_t tile = tile_of(line, b);
+  const uint64_t meta_ready = metadata(b, tile, false, now, rop);
+  auto it = stored_.find(key(b, tile));
+  if (it != stored_.end() && it->second == 0) return meta_ready;  // cleared: the clear value, no data read
+  const int c = it == stored_.end() ? 0 : it->second - 1;
+  const uint32_t bytes = std::max<uint32_t>(1, line_bytes_ >> c);
+  ++s_.lines_read[size_t(b)];
+  s_.bytes_read_uncompressed[size_t(b)] += line_bytes_;
+  s_.bytes_read[size_t(b)] += bytes;
+  return dram_->access(line, bytes, false, b, meta_ready) + (c ? cfg_.decompress_latency_cycles : 0);
+}
+
+uint64_t CompressionModel::flush(uint64_t now) {
+  uint64_t done = now;
+  for (MetaCache& m : meta_)
+    for (size_t w = 0; w < m.dirty.size(); ++w)
+      if (m.dirty[w] && m.tags.tag(w) != CacheTags::kInvalid) {
+        const Buffer b = Buffer((m.tags.tag(w) >> 48) & 7u);
+        done = std::max(done, dram_->access(m.tags.tag(w), line_bytes_, true, b, now));
+        s_.metadata_bytes_written[size_t(b)] += line_bytes_;
+        m.dirty[w] = 0;
+      }
+  return done;
+}
+
+bool CompressionModel::hiz_rejects(uint32_t x, uint32_t y, float zmin) {
+  ++s_.hiz_tests;
+  const uint64_t pix = (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
+  const bool reject = zmin > zmax_[pix / fmt_.tile_pixels];
+  s_.hiz_rejected += reject;
+  return reject;
+}
+
+}  // namespace ropsim

@@ -1,0 +1,138 @@
+// The timing side of surface compression (compression.h): what a ROP cache's
+// DRAM traffic costs when its surfaces are stored compressed, and the
+// metadata cache of each ROP holding the tiles' state bits.
+//   - A dirty line of a compressed surface written to DRAM moves its share of
+//     its memory tile's block: line_bytes >> class, the class being that of
+//     the tile's contents at the writeback (TileSource), after
+//     compress_latency_cycles; a tile holding only the clear value moves
+//     nothing (its state bits say cleared). The state bits are written
+//     through the ROP's metadata cache.
+//   - A fill of such a line reads the tile's state bits (the metadata cache;
+//     a miss reads a metadata line first), then line_bytes >> class of the
+//     class stored at the tile's last writeback, plus
+//     decompress_latency_cycles when it was compressed.
+//   - Hierarchical Z: per depth memory tile the farthest stored depth,
+//     updated when the tile is written back (the compressor sees the whole
+//     tile then). Stored depths only move nearer (a write passes
+//     LESS_EQUAL), so an older bound is never nearer than the tile's current
+//     farthest depth: rejecting a fragment whose tested samples all lie
+//     beyond it never rejects one that would pass.
+// Metadata traffic is DRAM traffic of the surface it describes.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "buffers.h"
+#include "cache_tags.h"
+#include "dram.h"
+#include "hw_config.h"
+
+namespace ropsim {
+
+/// A memory tile's contents as the compressor sees them (the cycle model
+/// implements it over the functional store).
+struct TileInfo {
+  bool cleared = false;    ///< only the clear value
+  int size_class = 0;      ///< block U >> size_class (0: uncompressed)
+  float max_depth = 1.0f;  ///< depth: its farthest stored depth
+};
+class TileSource {
+ public:
+  virtual ~TileSource() = default;
+  /// Tile `tile` (address-map pixel index / tile_pixels) of surface b now;
+  /// without `size` only `cleared` and `max_depth` (no compression).
+  virtual TileInfo tile(Buffer b, uint64_t tile, bool size = true) = 0;
+};
+
+struct CompressionTraffic {
+  /// Line transfers of the compressed surfaces, and their bytes had they been
+  /// uncompressed (line_bytes each) and as moved.
+  std::array<uint64_t, kBuffers> lines_written{}, lines_read{};
+  std::array<uint64_t, kBuffers> bytes_written_uncompressed{}, bytes_written{}, bytes_read_uncompressed{}, bytes_read{};
+  /// Line writebacks by the block size of their tile: [b][j], U >> j;
+  /// cleared tiles (no bytes) apart.
+  std::array<std::array<uint64_t, 4>, kBuffers> writes_per_class{};
+  std::array<uint64_t, kBuffers> writes_cleared{};
+  std::array<uint64_t, kBuffers> metadata_bytes_read{}, metadata_bytes_written{};
+  uint64_t metadata_hits = 0, metadata_misses = 0;
+  uint64_t hiz_tests = 0, hiz_rejected = 0;
+  uint64_t hiz_lines_skipped = 0;  ///< depth lines the rejected fragments did not read
+  CompressionTraffic& operator+=(const CompressionTraffic& o);
+};
+
+class CompressionModel {
+ public:
+  /// tiles_x: 8 x 8 tiles per screen row; bytes_per_sample[b] of each surface.
+  CompressionModel(const HwConfig& hw, uint32_t width, uint32_t height, int spp,
+                   const std::array<uint32_t, kBuffers>& bytes_per_sample, float clear_depth, uint32_t rops);
+  void set_source(TileSource* src) { src_ = src; }
+  /// The DRAM of the current pass.
+  void set_dram(Dram* d) { dram_ = d; }
+  bool compresses(Buffer b) const { return on_[size_t(b)]; }
+  /// A dirty line of a compressed surface leaves ROP `rop`'s cache at cycle
+  /// now: writes its bytes to DRAM (and the state bits to the metadata
+  /// cache); returns false when the tile was cleared (nothing written).
+  bool write_back(uint64_t line, Buffer b, uint64_t now, uint32_t rop, uint64_t& done);
+  /// A dirty depth line of an uncompressed depth surface leaves a cache:
+  /// Hi-Z takes its tile's farthest depth.
+  void depth_written_back(uint64_t line) {
+    if (hiz_)
+      zmax_[tile_of(line, Buffer::kDepth)] = src_->tile(Buffer::kDepth, tile_of(line, Buffer::kDepth), false).max_depth;
+  }
+  /// The first line and the number of lines of the tile holding line.
+  void tile_lines(uint64_t line, Buffer b, uint64_t& first, uint64_t& count) const {
+    const uint64_t base = uint64_t(b) << 48, tb = tile_bytes_[size_t(b)];
+    const uint64_t start = base + tile_of(line, b) * tb;
+    first = start / line_bytes_ * line_bytes_;
+    count = (start + tb - 1) / line_bytes_ - first / line_bytes_ + 1;
+  }
+  /// A fill of a line in DRAM: returns the cycle its (decompressed) data is there.
+  uint64_t fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop);
+  /// The tile's stored state was cleared at its last writeback: a fill is a clear fill.
+  bool stored_cleared(uint64_t line, Buffer b) const;
+  /// A write to the line (its tile's contents changed).
+  void touched(uint64_t line, Buffer b) {
+    if (!memo_.empty()) memo_.erase(key(b, tile_of(line, b)));
+  }
+  /// Writes the metadata caches' dirty lines back at cycle now; returns the last completion.
+  uint64_t flush(uint64_t now);
+  /// Hi-Z: would the fragment at pixel (x, y) whose tested samples' nearest
+  /// depth is zmin fail every sample? (Counts the test.)
+  bool hiz_rejects(uint32_t x, uint32_t y, float zmin);
+  void count_skipped(uint64_t lines) { s_.hiz_lines_skipped += lines; }
+  bool hiz() const { return hiz_; }
+  const CompressionTraffic& stats() const { return s_; }
+
+ private:
+  uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
+  static uint64_t key(Buffer b, uint64_t tile) { return uint64_t(b) << 56 | tile; }
+  TileInfo info(Buffer b, uint64_t tile);
+  /// The state bits' line of a tile through ROP rop's metadata cache; returns when they are there.
+  uint64_t metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop);
+
+  HwConfig::Compression cfg_;
+  CompressionFormat fmt_;
+  uint32_t line_bytes_;
+  std::array<bool, kBuffers> on_{};
+  std::array<uint64_t, kBuffers> tile_bytes_{};
+  int meta_bits_;
+  TileSource* src_ = nullptr;
+  Dram* dram_ = nullptr;
+  std::unordered_map<uint64_t, TileInfo> memo_;   // tiles compressed since their last write
+  std::unordered_map<uint64_t, uint8_t> stored_;  // state bits in memory: 0 cleared, 1 + class
+  struct MetaCache {
+    CacheTags tags;
+    std::vector<uint8_t> dirty;
+    std::vector<uint64_t> ready;
+  };
+  std::vector<MetaCache> meta_;  // per ROP
+  bool hiz_;
+  uint32_t tiles_x_;
+  std::vector<float> zmax_;  // per depth memory tile
+  CompressionTraffic s_;
+};
+
+}  // namespace ropsim

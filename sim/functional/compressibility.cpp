@@ -1,0 +1,155 @@
+#include "compressibility.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "bits.h"
+#include "depth.h"
+
+namespace ropsim {
+
+namespace {
+
+uint32_t bytes_per_sample(Buffer b, const SampleStore& s) {
+  switch (b) {
+    case Buffer::kDepth:
+      return kDepthSampleBytes;
+    case Buffer::kColor:
+      return kColorSampleBytes;
+    case Buffer::kTransmittance:
+      return sample_bytes(s.targets().formats.transmittance);
+    case Buffer::kAccum:
+      return sample_bytes(s.targets().formats.accum);
+    default:
+      return 0;
+  }
+}
+
+const uint8_t* buffer_bytes(Buffer b, const SampleTile& t) {
+  switch (b) {
+    case Buffer::kDepth:
+      return reinterpret_cast<const uint8_t*>(t.depth.get());
+    case Buffer::kColor:
+      return reinterpret_cast<const uint8_t*>(t.rgb.get());
+    case Buffer::kTransmittance:
+      return t.trans.get();
+    case Buffer::kAccum:
+      return t.accum.get();
+    default:
+      return nullptr;
+  }
+}
+
+/// A cleared tile of the store's buffers (to tell cleared memory tiles).
+struct ClearTile {
+  SampleStore store;
+  const SampleTile* tile;
+  explicit ClearTile(const SampleStore& s) : store(s.header(), s.has_tracker(), s.targets()) {
+    store.pixel(0, 0);
+    tile = store.tile_map().find(0, 0);
+  }
+};
+
+TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTile& clear, Buffer b, uint32_t first,
+                   const CompressionFormat& f, bool size = true) {
+  TileState st;
+  const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
+  const size_t off = size_t(first) * spp * bps, len = size_t(f.tile_pixels) * spp * bps;
+  const uint8_t* data = buffer_bytes(b, t) + off;
+  if (b == Buffer::kDepth) {
+    const float* z = t.depth.get() + size_t(first) * spp;
+    st.max_depth = *std::max_element(z, z + size_t(f.tile_pixels) * spp);
+  }
+  if (!size) return st;
+  if (std::memcmp(data, buffer_bytes(b, clear) + off, len) == 0) {
+    st.cleared = true;
+    return st;
+  }
+  if (b == Buffer::kDepth) {
+    const TraceHeader& h = store.header();
+    uint8_t px[64], py[64];
+    for (uint32_t s = 0; s < spp; ++s) {
+      px[s] = h.positions[s].x;
+      py[s] = h.positions[s].y;
+    }
+    st.size = depth_tile_size(DepthTileIn{t.depth.get() + size_t(first) * spp, f.tile_pixels, int(spp), px, py}, f);
+  } else {
+    st.size = color_tile_size(ColorTileIn{data, f.tile_pixels, int(spp), bps}, f);
+  }
+  return st;
+}
+
+}  // namespace
+
+bool compressible(Buffer b, const CompressionSetup& setup, const SampleStore& store) {
+  switch (b) {
+    case Buffer::kDepth:
+      return setup.depth;
+    case Buffer::kColor:
+      return setup.color;
+    case Buffer::kTransmittance:
+      return setup.color && store.targets().transmittance;
+    case Buffer::kAccum:
+      return setup.color && store.targets().accum;
+    default:
+      return false;
+  }
+}
+
+CompressionStats measure_compressibility(const SampleStore& store, const CompressionSetup& setup) {
+  CompressionStats cs;
+  if (!setup.any()) return cs;
+  cs.measured = true;
+  const CompressionFormat& f = setup.format;
+  const TraceHeader& h = store.header();
+  const uint64_t screen_tiles =
+      uint64_t(ceil_div(h.width, 8u)) * uint64_t(ceil_div(h.height, 8u)) * (64u / f.tile_pixels);
+  const ClearTile clear(store);
+  for (int bi = 0; bi < kBuffers; ++bi) {
+    const Buffer b = Buffer(bi);
+    if (!compressible(b, setup, store)) continue;
+    cs.compressed[size_t(bi)] = true;
+    BufferCompression& bc = cs.buffers[size_t(bi)];
+    bc.tiles = screen_tiles;
+    bc.metadata_bytes = ceil_div(screen_tiles * uint64_t(metadata_bits(f)), uint64_t{8});
+    const uint64_t U = uint64_t(f.tile_pixels) * uint64_t(h.spp) * bytes_per_sample(b, store);
+    uint64_t seen = 0;
+    store.tile_map().for_each([&](uint32_t, uint32_t, const SampleTile& t) {
+      for (uint32_t first = 0; first < 64; first += f.tile_pixels) {
+        ++seen;
+        const TileState st = state_of(store, t, *clear.tile, b, first, f);
+        if (st.cleared) {
+          ++bc.tiles_cleared;
+          continue;
+        }
+        bc.bytes_uncompressed += U;
+        bc.bytes_compressed += st.size.bytes;
+        ++bc.tiles_per_class[size_t(st.size.size_class)];
+      }
+    });
+    bc.tiles_cleared += screen_tiles - seen;  // untouched tiles
+  }
+  return cs;
+}
+
+struct TileCompressor::Clear : ClearTile {
+  using ClearTile::ClearTile;
+};
+
+TileCompressor::TileCompressor(const SampleStore& store, const CompressionFormat& f)
+    : store_(store), f_(f), clear_(std::make_unique<Clear>(store)) {}
+TileCompressor::~TileCompressor() = default;
+
+TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size) const {
+  const SampleTile* t = store_.tile_map().find(x, y);
+  if (!t) {
+    TileState st;
+    st.cleared = true;
+    st.max_depth = canonical_depth(store_.header().clear_depth);
+    return st;
+  }
+  const uint32_t first = uint32_t(pixel_in_tile(x, y)) / f_.tile_pixels * f_.tile_pixels;
+  return state_of(store_, *t, *clear_->tile, b, first, f_, size);
+}
+
+}  // namespace ropsim
