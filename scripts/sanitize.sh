@@ -36,9 +36,12 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # narrow and wide designs, SLURM, the thread-count check on the four
 # largest scenes (the four small ones still run every method and spp), and the
 # fidelity study (the full cycle model on the motor three times) and the
-# README's command block (the same verbs, each tested on its own here). The
+# README's command block (the same verbs, each tested on its own here), and
+# the two digests (value checks over every scene, method and design: the
+# plain suite runs them; the code paths they take run here in the other
+# tests). The
 # RTL testbenches (RTL.*) are Verilator's and Yosys's code, not ropsim's: the
 # sanitizer build does not build them (tests/CMakeLists.txt), and the
 # pattern keeps them out should a build-asan/ from before have them.
 ctest --output-on-failure -j "$(nproc)" \
-  -E 'RTL\.|BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"
+  -E 'RTL\.|TimingDigest|GoldenDigest|BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"
