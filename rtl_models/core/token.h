@@ -8,7 +8,6 @@
 #include <functional>
 #include <memory>
 #include <stdexcept>
-#include <type_traits>
 #include <vector>
 
 #include "counters.h"
@@ -39,19 +38,18 @@ struct FragToken : FragWork {
 template <class Stage>
 auto run_stage(Stage& stage, FragToken& t) {
   if (!t.counting) return stage.run(t);
-  const Counters before = stage.counters();
-  if constexpr (std::is_void_v<decltype(stage.run(t))>) {
-    stage.run(t);
-    Counters d = stage.counters();
-    d -= before;
-    t.counts += d;
-  } else {
-    auto r = stage.run(t);
-    Counters d = stage.counters();
-    d -= before;
-    t.counts += d;
-    return r;
-  }
+  // Charged when the stage has run (after the return value is made).
+  struct Charge {
+    Stage& stage;
+    FragToken& t;
+    Counters before;
+    ~Charge() {
+      Counters d = stage.counters();
+      d -= before;
+      t.counts += d;
+    }
+  } charge{stage, t, stage.counters()};
+  return stage.run(t);
 }
 
 /// Tokens are recycled: their number is bounded by the FIFOs and windows.

@@ -27,15 +27,14 @@ void TraceSource::advance(uint64_t limit) {
         // host's caches while the fragment waits in the FIFOs: the depth
         // test reads it many fragments later. Host speed only; no model effect.
         if (got) {
+          // A counting token starts empty; the tile the fetch allocates is
+          // its fragment's (tiles_touched).
           tok->counting = counting_;
+          const uint64_t tiles = rop_.store().tiles();
+          rop_.fetch(*tok);
           if (counting_) {
-            // The tile the fetch allocates is the fragment's (tiles_touched).
             tok->counts = Counters{};
-            const uint64_t tiles = rop_.store().tiles();
-            rop_.fetch(*tok);
             tok->counts.tiles_touched = rop_.store().tiles() - tiles;
-          } else {
-            rop_.fetch(*tok);
           }
         }
       } catch (...) {

@@ -57,13 +57,6 @@ struct Counters {
 #undef ROPSIM_X
     return *this;
   }
-  bool operator==(const Counters& o) const {
-    bool eq = true;
-#define ROPSIM_X(name, unit, meaning, scope) eq = eq && name == o.name;
-    ROPSIM_COUNTERS(ROPSIM_X)
-#undef ROPSIM_X
-    return eq;
-  }
   /// Per-pixel state bytes moved: depth, colour, tracker, render targets and
   /// slab's layers, read and written.
   uint64_t state_bytes_read() const {
