@@ -126,34 +126,61 @@ struct DepthFit {
   uint64_t bits = 0;         ///< encoded size
 };
 
+/// A depth tile's samples in the planes' domain: each sample's depth bit
+/// pattern u and position X, Y (1/256 pixel from the tile's top-left
+/// corner), computed once per tile for every fit the encoder tries.
+struct DepthSamples {
+  std::vector<int64_t> u;
+  std::vector<int64_t> u16;  ///< u 2^16 - 2^15 (fit_depth_tile's compares)
+  std::vector<int32_t> X, Y;
+  uint32_t pixels = 0;
+  uint32_t spp = 0;
+  DepthSamples() = default;
+  explicit DepthSamples(const DepthTileIn& t) { assign(t); }
+  /// Refills from t, keeping the buffers' storage.
+  void assign(const DepthTileIn& t) {
+    pixels = t.pixels;
+    spp = uint32_t(t.spp);
+    const uint32_t n = pixels * spp;
+    u.resize(n);
+    u16.resize(n);
+    X.resize(n);
+    Y.resize(n);
+    for (uint32_t p = 0, i = 0; p < pixels; ++p)
+      for (uint32_t s = 0; s < spp; ++s, ++i) {
+        uint32_t bits;
+        std::memcpy(&bits, &t.z[i], 4);
+        u[i] = int64_t(bits);
+        u16[i] = int64_t(bits) * 65536 - 32768;
+        X[i] = int32_t(256 * (p & 7u) + t.pos_x[s]);
+        Y[i] = int32_t(256 * (p >> 3) + t.pos_y[s]);
+      }
+  }
+  uint32_t size() const { return uint32_t(u.size()); }
+  /// fit_depth_tile's working buffers, kept across the fits of a tile.
+  mutable std::vector<uint8_t> hit_a, hit_b;
+  mutable std::vector<int64_t> ck;
+  mutable std::vector<int32_t> cy;
+  mutable std::vector<uint32_t> who;
+};
+
 namespace compression_detail {
 
-inline int64_t sample_u(const DepthTileIn& t, uint32_t i) {
-  uint32_t u;
-  std::memcpy(&u, &t.z[i], 4);
-  return int64_t(u);
-}
-inline int64_t sample_X(const DepthTileIn& t, uint32_t i) {
-  const uint32_t p = i / uint32_t(t.spp), s = i % uint32_t(t.spp);
-  return int64_t(256 * (p & 7u) + t.pos_x[s]);
-}
-inline int64_t sample_Y(const DepthTileIn& t, uint32_t i) {
-  const uint32_t p = i / uint32_t(t.spp), s = i % uint32_t(t.spp);
-  return int64_t(256 * (p >> 3) + t.pos_y[s]);
-}
 inline bool fits_i32(int64_t v) { return v >= INT32_MIN && v <= INT32_MAX; }
 inline bool in_range(int64_t res, int r) {
   if (r == 0) return res == 0;
   const int64_t h = int64_t{1} << (r - 1);
   return res >= -h && res < h;
 }
+/// |res| within r bits as one unsigned compare: res + h < 2h (r > 0), res == 0 (r = 0).
+inline bool in_range_fast(int64_t res, uint64_t h, uint64_t span) { return uint64_t(res + int64_t(h)) < span; }
 /// The plane through sample a with gradients gx, gy (A chosen so that a is exact).
-inline bool plane_through(const DepthTileIn& t, uint32_t a, int64_t gx, int64_t gy, DepthPlane& pl) {
+inline bool plane_through(const DepthSamples& t, uint32_t a, int64_t gx, int64_t gy, DepthPlane& pl) {
   if (!fits_i32(gx) || !fits_i32(gy)) return false;
   pl.gx = int32_t(gx);
   pl.gy = int32_t(gy);
   pl.a = 0;
-  const int64_t A = sample_u(t, a) - pl.predict(sample_X(t, a), sample_Y(t, a));
+  const int64_t A = t.u[a] - pl.predict(t.X[a], t.Y[a]);
   if (!fits_i32(A)) return false;
   pl.a = int32_t(A);
   return true;
@@ -171,32 +198,56 @@ inline bool plane_through(const DepthTileIn& t, uint32_t a, int64_t gx, int64_t 
 /// unassigned samples even claiming twice the most any plane has claimed.
 /// Deterministic; any fit it returns decodes exactly (the residuals make up
 /// the rest).
-inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
+inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
   using namespace compression_detail;
-  const uint32_t n = t.pixels * uint32_t(t.spp);
+  const uint32_t n = t.size();
+  const int64_t* U = t.u.data();
+  const int32_t* X = t.X.data();
+  const int32_t* Y = t.Y.data();
   DepthFit f;
   f.r = r;
   f.sel.assign(n, 0xFF);
+  uint8_t* sel = f.sel.data();
+  // in_range(res, r) and in_range(res, r + 1) as one unsigned compare each.
+  const uint64_t h0 = r ? uint64_t{1} << (r - 1) : 0, span0 = r ? uint64_t{1} << r : 1;
+  const uint64_t h1 = uint64_t{1} << r, span1 = uint64_t{1} << (r + 1);
   uint32_t first = 0;
-  auto claim = [&](const DepthPlane& pl, uint8_t k, bool commit, std::vector<uint32_t>* who) {
-    uint32_t c = 0;
+  // The samples from `first` on that plane pl predicts within r bits, as
+  // 0/1 per sample: with v = gx X + gy Y + 2^15, -h0 <= u - (A + floor(v /
+  // 2^16)) < span0 - h0 holds iff 0 <= v - u 2^16 + (A + span0 - h0 - 1) 2^16
+  // < span0 2^16, one unsigned compare without a shift (the loop vectorises).
+  t.hit_a.resize(n);
+  t.hit_b.resize(n);
+  uint8_t* hit_a = t.hit_a.data();
+  uint8_t* hit_b = t.hit_b.data();
+  t.who.resize(n);
+  const int64_t* U16 = t.u16.data();
+  auto hits = [&](const DepthPlane& pl, uint8_t* h) {
+    const int64_t base = (int64_t(pl.a) + int64_t(span0) - int64_t(h0) - 1) * 65536;
+    const uint64_t lim = span0 * 65536;
+    const int32_t px = pl.gx, py = pl.gy;
     for (uint32_t i = first; i < n; ++i)
-      if (f.sel[i] == 0xFF || f.sel[i] == k) {
-        const bool hit = in_range(sample_u(t, i) - pl.predict(sample_X(t, i), sample_Y(t, i)), r);
-        if (commit) f.sel[i] = hit ? k : (f.sel[i] == k ? 0xFF : f.sel[i]);
-        if (hit) {
-          ++c;
-          if (who) who->push_back(i);
-        }
-      }
+      h[i] = uint64_t(int64_t(px) * int64_t(X[i]) + int64_t(py) * int64_t(Y[i]) - U16[i] + base) < lim;
+  };
+  // The unassigned samples among them (the plane's claim).
+  auto count = [&](const uint8_t* h) {
+    uint32_t c = 0;
+    for (uint32_t i = first; i < n; ++i) c += h[i] & uint8_t(sel[i] == 0xFF);
     return c;
   };
-  const uint32_t spp = uint32_t(t.spp);
+  const uint32_t spp = t.spp;
+  // The anchor's row and column (score_plane): at most 8 + rows - 1 pixels.
+  t.ck.resize(size_t(8 + t.pixels / 8) * spp);
+  t.cy.resize(t.ck.size());
+  int64_t* ck = t.ck.data();
+  int32_t* cy = t.cy.data();
+  size_t m = 0;
   uint32_t most = 0, left = n;
   for (int k = 0; k < planes; ++k) {
-    while (first < n && f.sel[first] != 0xFF) ++first;
+    while (first < n && sel[first] != 0xFF) ++first;
     if (first == n) break;
     const uint32_t a = first, p = a / spp, s = a % spp;
+    const int64_t ua = U[a];
     // A gradient along x (y): from the same sample of another pixel in the
     // anchor's row (column), the one whose line through the anchor meets
     // the most unassigned same-index samples of that row (column) within r
@@ -211,16 +262,16 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
           const int o = at + sign * d;
           if (o < 0 || o >= lim) continue;
           const uint32_t b = uint32_t(along_x ? row * 8 + o : o * 8 + col) * spp + s;
-          if (f.sel[b] != 0xFF) continue;
-          const int64_t du = sample_u(t, b) - sample_u(t, a);
+          if (sel[b] != 0xFF) continue;
+          const int64_t du = U[b] - ua;
           // slope per 1/256 pixel with 16 fractional bits: du * 65536 / (256 * sign * d)
           const int64_t g = du * 256 / (sign * d);
           int score = 0;
           for (int q = 0; q < lim; ++q) {
             const uint32_t c = uint32_t(along_x ? row * 8 + q : q * 8 + col) * spp + s;
-            if (f.sel[c] != 0xFF) continue;
-            const int64_t pred = sample_u(t, a) + ((g * int64_t(256 * (q - at)) + (int64_t{1} << 15)) >> 16);
-            if (in_range(sample_u(t, c) - pred, r + 1)) ++score;
+            if (sel[c] != 0xFF) continue;
+            const int64_t pred = ua + ((g * int64_t(256 * (q - at)) + (int64_t{1} << 15)) >> 16);
+            if (in_range_fast(U[c] - pred, h1, span1)) ++score;
           }
           if (score > best_score) {
             best_score = score;
@@ -233,29 +284,46 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
     // y: also from the other samples of the anchor's pixel (a tile of one
     // row, or samples at other sub-pixel heights),
     // given gx; each candidate scored over the anchor's row and column.
-    auto score_plane = [&](int64_t cgx, int64_t cgy) {
-      DepthPlane q;
-      if (!plane_through(t, a, cgx, cgy, q)) return -1;
-      int sc = 0;
-      for (uint32_t pp = 0; pp < t.pixels; ++pp) {
-        if (int(pp >> 3) != row && int(pp & 7u) != col) continue;
-        for (uint32_t ss = 0; ss < spp; ++ss) {
-          const uint32_t c = pp * spp + ss;
-          if (f.sel[c] == 0xFF && in_range(sample_u(t, c) - q.predict(sample_X(t, c), sample_Y(t, c)), r + 1)) ++sc;
+    // The unassigned samples of the anchor's row and column, contiguous:
+    // ck = gx X + 2^15 - u 2^16 and Y (score_plane).
+    m = 0;
+    for (uint32_t pp = 0; pp < t.pixels; ++pp) {
+      if (int(pp >> 3) != row && int(pp & 7u) != col) continue;
+      for (uint32_t ss = 0; ss < spp; ++ss)
+        if (const uint32_t c = pp * spp + ss; sel[c] == 0xFF) {
+          ck[m] = gx * X[c] - U16[c];  // |gx| < 2^41 (or no plane): no overflow
+          cy[m++] = Y[c];
         }
-      }
-      return sc;
+    }
+    // The score of the plane (gx, cgy) through the anchor: the samples of
+    // the cross its prediction meets within r + 1 bits. With
+    // v = gx X + gy Y + 2^15, -h1 <= u - (A + floor(v / 2^16)) < h1 holds iff
+    // 0 <= v - (u - A - h1 + 1) 2^16 < 2 h1 2^16: one unsigned compare of
+    // ck + gy Y + (A + h1 - 1) 2^16, without a shift (the loop vectorises).
+    auto score_plane = [&](int64_t cgy) {
+      DepthPlane q;
+      if (!plane_through(t, a, gx, cgy, q)) return -1;
+      const int64_t base = (int64_t(q.a) + int64_t(h1) - 1) * 65536;
+      const uint64_t span = 2 * h1 * 65536;
+      const int32_t qy = q.gy;
+      int64_t sc = 0;  // as wide as the compare
+      for (size_t c = 0; c < m; ++c) sc += uint64_t(ck[c] + int64_t(qy) * cy[c] + base) < span;
+      return int(sc);
     };
     int64_t gy = best_gradient(false);
-    int best_sc = score_plane(gx, gy);
+    int best_sc = score_plane(gy);
     {
+      int64_t scored[64];  // candidates scored already (the same gradient scores the same)
+      uint32_t n_scored = 0;
       for (uint32_t ss = 0; ss < spp; ++ss) {
         const uint32_t b = p * spp + ss;
-        const int64_t dy = sample_Y(t, b) - sample_Y(t, a);
-        if (f.sel[b] != 0xFF || dy == 0) continue;
-        const int64_t rest = (sample_u(t, b) - sample_u(t, a)) * 65536 - gx * (sample_X(t, b) - sample_X(t, a));
+        const int64_t dy = int64_t(Y[b]) - Y[a];
+        if (sel[b] != 0xFF || dy == 0) continue;
+        const int64_t rest = (U[b] - ua) * 65536 - gx * (int64_t(X[b]) - X[a]);
         const int64_t cgy = rest / dy;
-        const int sc = score_plane(gx, cgy);
+        if (cgy == gy || std::find(scored, scored + n_scored, cgy) != scored + n_scored) continue;
+        scored[n_scored++] = cgy;
+        const int sc = score_plane(cgy);
         if (sc > best_sc) {
           best_sc = sc;
           gy = cgy;
@@ -264,15 +332,23 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
     }
     DepthPlane pl;
     if (!plane_through(t, a, gx, gy, pl) && !plane_through(t, a, 0, 0, pl)) break;
-    std::vector<uint32_t> who;
-    const uint32_t got = claim(pl, uint8_t(k), false, &who);
+    hits(pl, hit_a);
+    const uint8_t* chosen = hit_a;
+    // Its claim, in sample order.
+    uint32_t* who = t.who.data();
+    uint32_t got = 0;
+    for (uint32_t i = first; i < n; ++i) {
+      who[got] = i;
+      got += hit_a[i] & uint8_t(sel[i] == 0xFF);
+    }
+    uint32_t claimed = got;
     // Least-squares refit over the claimed samples (centred on the anchor).
-    if (who.size() >= 3) {
+    if (got >= 3) {
       double sxx = 0, sxy = 0, syy = 0, sxu = 0, syu = 0;
-      const double X0 = double(sample_X(t, a)), Y0 = double(sample_Y(t, a)), U0 = double(sample_u(t, a));
-      for (uint32_t i : who) {
-        const double dx = double(sample_X(t, i)) - X0, dy = double(sample_Y(t, i)) - Y0,
-                     du = double(sample_u(t, i)) - U0;
+      const double X0 = double(X[a]), Y0 = double(Y[a]), U0 = double(ua);
+      for (uint32_t j = 0; j < got; ++j) {
+        const uint32_t i = who[j];
+        const double dx = double(X[i]) - X0, dy = double(Y[i]) - Y0, du = double(U[i]) - U0;
         sxx += dx * dx;
         sxy += dx * dy;
         syy += dy * dy;
@@ -284,12 +360,18 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
         const double ggx = (sxu * syy - syu * sxy) / det, ggy = (syu * sxx - sxu * sxy) / det;
         DepthPlane p2;
         if (std::fabs(ggx) < 2e4 && std::fabs(ggy) < 2e4 &&
-            plane_through(t, a, std::llround(ggx * 65536.0), std::llround(ggy * 65536.0), p2) &&
-            claim(p2, uint8_t(k), false, nullptr) >= got)
-          pl = p2;
+            plane_through(t, a, std::llround(ggx * 65536.0), std::llround(ggy * 65536.0), p2)) {
+          hits(p2, hit_b);
+          if (const uint32_t got2 = count(hit_b); got2 >= got) {
+            pl = p2;
+            chosen = hit_b;
+            claimed = got2;
+          }
+        }
       }
     }
-    const uint32_t claimed = claim(pl, uint8_t(k), true, nullptr);
+    const uint8_t kk = uint8_t(k);
+    for (uint32_t i = first; i < n; ++i) sel[i] = (chosen[i] & uint8_t(sel[i] == 0xFF)) ? kk : sel[i];
     f.planes.push_back(pl);
     // Give up early when the planes left could not cover the rest even
     // claiming twice the most any plane claimed so far.
@@ -298,31 +380,39 @@ inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
     if (uint64_t(left) > uint64_t(planes - k - 1) * 2 * most) return f;  // not ok
   }
   for (uint32_t i = 0; i < n; ++i)
-    if (f.sel[i] == 0xFF) return f;  // not ok
+    if (sel[i] == 0xFF) return f;  // not ok
   f.ok = true;
   const uint64_t sel_bits = uint64_t(log2_ceil(uint32_t(f.planes.size())));
   f.bits = kDepthHeaderBits + kDepthPlaneBits * f.planes.size() + uint64_t(n) * (sel_bits + uint64_t(r));
   return f;
 }
+inline DepthFit fit_depth_tile(const DepthTileIn& t, int planes, int r) {
+  return fit_depth_tile(DepthSamples(t), planes, r);
+}
 
 /// The encoder's fit: residual width 12 first (the most permissive; no fit
 /// there and the tile is stored uncompressed), then 4, then 0, each tried
 /// only while the wider one fitted; the fewest bits win (ties to the smaller r).
-inline DepthFit best_depth_fit(const DepthTileIn& t, int planes) {
+/// `enough`: stop trying narrower widths once a fit takes at most this many
+/// bits (depth_tile_size: the smallest block; a narrower fit could not store
+/// the tile in less).
+inline DepthFit best_depth_fit(const DepthSamples& t, int planes, uint64_t enough = 0) {
   DepthFit best;
   for (int r : kDepthResidualWidths) {
     DepthFit f = fit_depth_tile(t, planes, r);
     if (!f.ok) break;
     if (!best.ok || f.bits <= best.bits) best = std::move(f);
+    if (best.bits <= enough) break;
   }
   return best;
 }
+inline DepthFit best_depth_fit(const DepthTileIn& t, int planes) { return best_depth_fit(DepthSamples(t), planes); }
 
 /// The encoded tile (docs/architecture.md): header (p - 1: 3 bits, r: 5
 /// bits), p planes (A, Gx, Gy as 32-bit two's complement), then per sample
 /// its selector (ceil(log2 p) bits) and residual (r bits, two's complement).
-inline std::vector<uint8_t> encode_depth_fit(const DepthTileIn& t, const DepthFit& f) {
-  using namespace compression_detail;
+inline std::vector<uint8_t> encode_depth_fit(const DepthTileIn& in, const DepthFit& f) {
+  const DepthSamples t(in);
   BitWriter w;
   w.put(f.planes.size() - 1, 3);
   w.put(uint64_t(f.r), 5);
@@ -332,10 +422,9 @@ inline std::vector<uint8_t> encode_depth_fit(const DepthTileIn& t, const DepthFi
     w.put(uint32_t(p.gy), 32);
   }
   const int sb = log2_ceil(uint32_t(f.planes.size()));
-  const uint32_t n = t.pixels * uint32_t(t.spp);
-  for (uint32_t i = 0; i < n; ++i) {
+  for (uint32_t i = 0; i < t.size(); ++i) {
     w.put(f.sel[i], sb);
-    const int64_t res = sample_u(t, i) - f.planes[f.sel[i]].predict(sample_X(t, i), sample_Y(t, i));
+    const int64_t res = t.u[i] - f.planes[f.sel[i]].predict(t.X[i], t.Y[i]);
     w.put(uint64_t(res), f.r);
   }
   return w.bytes();
@@ -465,7 +554,11 @@ struct TileSize {
 
 inline TileSize depth_tile_size(const DepthTileIn& t, const CompressionFormat& f) {
   const uint64_t U = uint64_t(t.pixels) * uint64_t(t.spp) * kDepthSampleBytes;
-  const DepthFit fit = best_depth_fit(t, int(f.depth_planes));
+  // Once a fit fits the smallest block, a narrower one cannot do better.
+  const uint64_t smallest_bits = (U >> (f.size_classes - 1)) * 8;
+  thread_local DepthSamples samples;  // its storage reused tile after tile
+  samples.assign(t);
+  const DepthFit fit = best_depth_fit(samples, int(f.depth_planes), smallest_bits);
   const int c = fit.ok ? size_class(ceil_div(fit.bits, uint64_t{8}), U, f) : 0;
   return {c, U >> c};
 }

@@ -56,14 +56,21 @@ CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t 
     m.ready.assign(m.tags.size(), 0);
     meta_.push_back(std::move(m));
   }
-  if (hiz_) zmax_.assign(size_t(tiles_x_) * ceil_div(height, 8u) * (64u / fmt_.tile_pixels), clear_depth);
+  const size_t screen_tiles = size_t(tiles_x_) * ceil_div(height, 8u) * (64u / fmt_.tile_pixels);
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    if (!on_[b] && !(hiz_ && Buffer(b) == Buffer::kDepth)) continue;
+    memo_[b].resize(screen_tiles);
+    memo_valid_[b].assign(screen_tiles, 0);
+    stored_[b].assign(screen_tiles, kNever);
+  }
+  if (hiz_) zmax_.assign(screen_tiles, clear_depth);
 }
 
 TileInfo CompressionModel::info(Buffer b, uint64_t tile) {
-  const uint64_t k = key(b, tile);
-  if (auto it = memo_.find(k); it != memo_.end()) return it->second;
+  if (memo_valid_[size_t(b)][tile]) return memo_[size_t(b)][tile];
   const TileInfo t = src_->tile(b, tile);
-  memo_.emplace(k, t);
+  memo_[size_t(b)][tile] = t;
+  memo_valid_[size_t(b)][tile] = 1;
   return t;
 }
 
@@ -105,12 +112,12 @@ bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_
   ++s_.lines_written[size_t(b)];
   s_.bytes_written_uncompressed[size_t(b)] += line_bytes_;
   if (t.cleared) {
-    stored_[key(b, tile)] = 0;
+    stored_[size_t(b)][tile] = 0;
     ++s_.writes_cleared[size_t(b)];
     done = now;
     return false;
   }
-  stored_[key(b, tile)] = uint8_t(1 + t.size_class);
+  stored_[size_t(b)][tile] = uint8_t(1 + t.size_class);
   ++s_.writes_per_class[size_t(b)][size_t(t.size_class)];
   const uint32_t bytes = std::max<uint32_t>(1, line_bytes_ >> t.size_class);
   s_.bytes_written[size_t(b)] += bytes;
@@ -119,16 +126,15 @@ bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_
 }
 
 bool CompressionModel::stored_cleared(uint64_t line, Buffer b) const {
-  auto it = stored_.find(key(b, tile_of(line, b)));
-  return it != stored_.end() && it->second == 0;
+  return stored_[size_t(b)][tile_of(line, b)] == 0;
 }
 
 uint64_t CompressionModel::fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop) {
   const uint64_t tile = tile_of(line, b);
   const uint64_t meta_ready = metadata(b, tile, false, now, rop);
-  auto it = stored_.find(key(b, tile));
-  if (it != stored_.end() && it->second == 0) return meta_ready;  // cleared: the clear value, no data read
-  const int c = it == stored_.end() ? 0 : it->second - 1;
+  const uint8_t st = stored_[size_t(b)][tile];
+  if (st == 0) return meta_ready;  // cleared: the clear value, no data read
+  const int c = st == kNever ? 0 : st - 1;
   const uint32_t bytes = std::max<uint32_t>(1, line_bytes_ >> c);
   ++s_.lines_read[size_t(b)];
   s_.bytes_read_uncompressed[size_t(b)] += line_bytes_;

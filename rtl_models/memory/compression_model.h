@@ -22,7 +22,6 @@
 #include <array>
 #include <cstdint>
 #include <memory>
-#include <unordered_map>
 #include <vector>
 
 #include "buffers.h"
@@ -94,9 +93,7 @@ class CompressionModel {
   /// The tile's stored state was cleared at its last writeback: a fill is a clear fill.
   bool stored_cleared(uint64_t line, Buffer b) const;
   /// A write to the line (its tile's contents changed).
-  void touched(uint64_t line, Buffer b) {
-    if (!memo_.empty()) memo_.erase(key(b, tile_of(line, b)));
-  }
+  void touched(uint64_t line, Buffer b) { memo_valid_[size_t(b)][tile_of(line, b)] = 0; }
   /// Writes the metadata caches' dirty lines back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);
   /// Hi-Z: would the fragment at pixel (x, y) whose tested samples' nearest
@@ -108,7 +105,6 @@ class CompressionModel {
 
  private:
   uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
-  static uint64_t key(Buffer b, uint64_t tile) { return uint64_t(b) << 56 | tile; }
   TileInfo info(Buffer b, uint64_t tile);
   /// The state bits' line of a tile through ROP rop's metadata cache; returns when they are there.
   uint64_t metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop);
@@ -121,8 +117,11 @@ class CompressionModel {
   int meta_bits_;
   TileSource* src_ = nullptr;
   Dram* dram_ = nullptr;
-  std::unordered_map<uint64_t, TileInfo> memo_;   // tiles compressed since their last write
-  std::unordered_map<uint64_t, uint8_t> stored_;  // state bits in memory: 0 cleared, 1 + class
+  // Per surface and memory tile (dense: the screen's tiles):
+  std::array<std::vector<TileInfo>, kBuffers> memo_;       // its contents compressed since its last write,
+  std::array<std::vector<uint8_t>, kBuffers> memo_valid_;  // when 1
+  std::array<std::vector<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
+  static constexpr uint8_t kNever = 0xFF;                  // never written back (stored uncompressed)
   struct MetaCache {
     CacheTags tags;
     std::vector<uint8_t> dirty;
