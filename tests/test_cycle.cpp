@@ -54,11 +54,9 @@ std::vector<std::string> config_files() {
 }
 
 /// The designs of the per-design timing tests: every committed design but
-/// current-gpu.toml (compression and Hi-Z). BitExactCompression runs that one
-/// on a smaller matrix (tile compression costs host time; CI budget); the
-/// sampled fidelity refuses it; and its decoupled and lockstep timings may
-/// differ slightly (a tile is compressed from the functional state at the
-/// host moment of its writeback; docs/architecture.md).
+/// current-gpu.toml (compression and Hi-Z). BitExactCompression and
+/// Decoupling.EqualsLockstepExactlyWithCompression run that one on smaller
+/// matrices (tile compression costs host time; CI budget).
 std::vector<std::string> timing_config_files() {
   std::vector<std::string> v;
   for (const auto& f : config_files())
@@ -1019,6 +1017,39 @@ TEST(Decoupling, EqualsLockstepExactlyWithRealMemory) {
   const CycleRun dec = run_mode(scene_input("cloth", 4), Method::kLk, hw, false);
   ASSERT_EQ(dec.stats.units.size(), 2u + 64u * 6u);
   expect_same_timing(dec.stats, lock.stats, "64 ROPs");
+}
+
+// With surface compression and Hi-Z too: a tile is compressed as the caches
+// see it (the store less the writes posted but not yet applied), so a
+// writeback unit running ahead of SystemC time changes no tile's size.
+TEST(Decoupling, EqualsLockstepExactlyWithCompression) {
+  const HwConfig hw = load_hw_config(kSource + "/configs/current-gpu.toml");
+  ASSERT_TRUE(hw.compression.depth && hw.compression.color && hw.hiz.enable);
+  for (const auto& [scene, spp] : std::vector<std::pair<std::string, int>>{{"cloth", 16}, {"smoke", 4}})
+    for (Method m : {Method::kOpaque, Method::kLk, Method::kEnderton, Method::kWboit}) {
+      const std::string what = scene + " " + std::to_string(spp) + " spp " + to_string(m) + " on current-gpu.toml";
+      GoldenConfig g = method_config(m);
+      g.compression = hw.compression.setup();
+      CycleOptions lo, de;
+      lo.lockstep = true;
+      const CycleRun lock = run_cycle(scene_input(scene, spp), g, hw, lo);
+      const CycleRun dec = run_cycle(scene_input(scene, spp), g, hw, de);
+      ASSERT_TRUE(dec.stats.compression_on) << what;
+      expect_same_timing(dec.stats, lock.stats, what);
+      const CompressionTraffic &a = dec.stats.compression, &b = lock.stats.compression;
+      for (int k = 0; k < kBuffers; ++k) {
+        EXPECT_EQ(a.bytes_written[size_t(k)], b.bytes_written[size_t(k)]) << what << ", buffer " << k;
+        EXPECT_EQ(a.bytes_read[size_t(k)], b.bytes_read[size_t(k)]) << what << ", buffer " << k;
+        EXPECT_EQ(a.writes_per_class[size_t(k)], b.writes_per_class[size_t(k)]) << what << ", buffer " << k;
+        EXPECT_EQ(a.writes_cleared[size_t(k)], b.writes_cleared[size_t(k)]) << what << ", buffer " << k;
+      }
+      EXPECT_EQ(a.hiz_rejected, b.hiz_rejected) << what;
+      EXPECT_EQ(a.metadata_misses, b.metadata_misses) << what;
+      uint64_t compressed = 0;
+      for (int k = 0; k < kBuffers; ++k)
+        compressed += a.writes_per_class[size_t(k)][1] + a.writes_per_class[size_t(k)][2];
+      EXPECT_GT(compressed, 0u) << what << ": the test needs compressed tiles";
+    }
 }
 
 // Occupancy statistics from push and pop cycles that reach the FIFO out of

@@ -545,6 +545,14 @@ inline void decode_color_tile(const std::vector<uint8_t>& in, uint32_t pixels, i
 
 // ---------------------------------------------------------------- sizes
 
+/// Bytes written over a memory tile's uncompressed bytes before it is
+/// compressed: `len` bytes at `offset` (the cycle model's pending writes,
+/// compression_model.h).
+struct TilePatch {
+  uint32_t offset, len;
+  const uint8_t* old;
+};
+
 /// A tile's compressed form: its block-size class (0 = uncompressed) and the
 /// bytes it occupies in memory (U >> class).
 struct TileSize {

@@ -31,15 +31,24 @@ class AddressMap {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
   }
   static uint64_t base(Buffer b) { return uint64_t(b) << 48; }
+  /// Bytes of a sample of the per-sample surfaces (depth, colour, render targets).
+  uint64_t bytes_per_sample(Buffer b) const {
+    return b == Buffer::kDepth           ? kDepthSampleBytes
+           : b == Buffer::kColor         ? kColorSampleBytes
+           : b == Buffer::kTransmittance ? trans_bytes_
+                                         : accum_bytes_;
+  }
+  /// The address of pixel (x, y)'s first sample in a per-sample surface, and its bytes.
+  uint64_t pixel_address(Buffer b, uint32_t x, uint32_t y) const {
+    return base(b) + pixel_index(x, y) * spp_ * bytes_per_sample(b);
+  }
+  uint32_t pixel_bytes(Buffer b) const { return uint32_t(spp_ * bytes_per_sample(b)); }
 
   /// Calls f(line_address) once for every cache line holding a sample of the
   /// mask in the depth or colour buffer, in increasing address order.
   template <class F>
   void for_each_sample_line(Buffer b, uint32_t x, uint32_t y, uint64_t mask, F&& f) const {
-    const uint64_t bps = b == Buffer::kDepth           ? kDepthSampleBytes
-                         : b == Buffer::kColor         ? kColorSampleBytes
-                         : b == Buffer::kTransmittance ? trans_bytes_
-                                                       : accum_bytes_;
+    const uint64_t bps = bytes_per_sample(b);
     const uint64_t start = base(b) + pixel_index(x, y) * spp_ * bps;
     uint64_t last = ~uint64_t{0};
     while (mask) {

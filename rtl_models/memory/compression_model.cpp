@@ -62,16 +62,59 @@ CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t 
     memo_[b].resize(screen_tiles);
     memo_valid_[b].assign(screen_tiles, 0);
     stored_[b].assign(screen_tiles, kNever);
+    pending_count_[b].assign(screen_tiles, 0);
   }
   if (hiz_) zmax_.assign(screen_tiles, clear_depth);
 }
 
 TileInfo CompressionModel::info(Buffer b, uint64_t tile) {
   if (memo_valid_[size_t(b)][tile]) return memo_[size_t(b)][tile];
-  const TileInfo t = src_->tile(b, tile);
+  const TileInfo t = view(b, tile, true);
   memo_[size_t(b)][tile] = t;
   memo_valid_[size_t(b)][tile] = 1;
   return t;
+}
+
+TileInfo CompressionModel::view(Buffer b, uint64_t tile, bool size) {
+  patches_.clear();
+  if (pending_count_[size_t(b)][tile])  // newest first
+    for (size_t i = pending_.size(); i-- > 0;) {
+      const Pending& p = pending_[i];
+      if (!p.applied && p.b == b && p.tile == tile) patches_.push_back(TilePatch{p.offset, p.len, &bytes_[p.at]});
+    }
+  return src_->tile(b, tile, size, patches_.data(), patches_.size());
+}
+
+uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes,
+                                const uint8_t* old) {
+  // The pixel's bytes in the line, and their tile (a pixel lies in one memory tile).
+  const uint64_t lo = std::max(line, pixel_addr), hi = std::min(line + line_bytes_, pixel_addr + pixel_bytes);
+  const uint64_t tile = tile_of(pixel_addr, b);
+  const uint64_t tile_start = (uint64_t(b) << 48) + tile * tile_bytes_[size_t(b)];
+  if (hi <= lo) return kNoPatch;
+  if (bytes_head_ > (size_t{1} << 20) && bytes_head_ * 2 > bytes_.size()) {  // drop the applied front
+    bytes_.erase(bytes_.begin(), bytes_.begin() + std::ptrdiff_t(bytes_head_));
+    for (Pending& p : pending_) p.at -= bytes_head_;
+    bytes_head_ = 0;
+  }
+  const size_t at = bytes_.size();
+  bytes_.insert(bytes_.end(), old + (lo - pixel_addr), old + (hi - pixel_addr));
+  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), uint32_t(hi - lo), tile, at});
+  ++pending_count_[size_t(b)][tile];
+  return uint32_t(first_id_ + pending_.size() - 1);
+}
+
+void CompressionModel::applied(uint32_t id) {
+  if (id == kNoPatch) return;
+  Pending& p = pending_[size_t(id - uint32_t(first_id_))];  // ids wrap modulo 2^32
+  p.applied = true;
+  --pending_count_[size_t(p.b)][p.tile];
+  while (!pending_.empty() && pending_.front().applied) {
+    bytes_head_ = pending_.front().at + pending_.front().len;
+    pending_.pop_front();
+    ++first_id_;
+  }
+  if (pending_.empty()) bytes_.clear(), bytes_head_ = 0;
 }
 
 uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop) {

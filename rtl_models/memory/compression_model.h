@@ -18,9 +18,17 @@
 //     farthest depth: rejecting a fragment whose tested samples all lie
 //     beyond it never rejects one that would pass.
 // Metadata traffic is DRAM traffic of the surface it describes.
+// The compressor sees a tile as the caches do: the functional store less the
+// functional writes whose posted cache writes have not been applied yet
+// (PostedWrites). A unit records what each posted write replaced (pend); the
+// cache marks it applied. So a tile's contents at a writeback depend only on
+// the order of the applied writes, (cycle, ROP, post order), and a decoupled
+// run, whose writeback units run ahead of SystemC time, compresses every
+// tile exactly as a lockstep run does.
 #pragma once
 #include <array>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <vector>
 
@@ -41,9 +49,11 @@ struct TileInfo {
 class TileSource {
  public:
   virtual ~TileSource() = default;
-  /// Tile `tile` (address-map pixel index / tile_pixels) of surface b now;
-  /// without `size` only `cleared` and `max_depth` (no compression).
-  virtual TileInfo tile(Buffer b, uint64_t tile, bool size = true) = 0;
+  /// Tile `tile` (address-map pixel index / tile_pixels) of surface b now,
+  /// with the n patches written over its bytes in order (each restores what
+  /// a pending write replaced; newest first); without `size` only `cleared`
+  /// and `max_depth` (no compression).
+  virtual TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) = 0;
 };
 
 struct CompressionTraffic {
@@ -79,8 +89,19 @@ class CompressionModel {
   /// Hi-Z takes its tile's farthest depth.
   void depth_written_back(uint64_t line) {
     if (hiz_)
-      zmax_[tile_of(line, Buffer::kDepth)] = src_->tile(Buffer::kDepth, tile_of(line, Buffer::kDepth), false).max_depth;
+      zmax_[tile_of(line, Buffer::kDepth)] = view(Buffer::kDepth, tile_of(line, Buffer::kDepth), false).max_depth;
   }
+  /// Surface b's tiles are compressed, or (depth) bound by Hi-Z: a unit's
+  /// functional write to it is recorded with pend.
+  bool tracks(Buffer b) const { return on_[size_t(b)] || (hiz_ && b == Buffer::kDepth); }
+  static constexpr uint32_t kNoPatch = ~uint32_t{0};
+  /// A write of `line` posted to a cache (not yet applied), whose functional
+  /// write replaced the pixel's bytes [pixel_addr, pixel_addr + pixel_bytes)
+  /// (addresses of the address map) that were `old`: records the part in the
+  /// line; returns its id for applied().
+  uint32_t pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes, const uint8_t* old);
+  /// The cache applied the posted write `id` (its bytes are now the cache's).
+  void applied(uint32_t id);
   /// The first line and the number of lines of the tile holding line.
   void tile_lines(uint64_t line, Buffer b, uint64_t& first, uint64_t& count) const {
     const uint64_t base = uint64_t(b) << 48, tb = tile_bytes_[size_t(b)];
@@ -106,6 +127,8 @@ class CompressionModel {
  private:
   uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
   TileInfo info(Buffer b, uint64_t tile);
+  /// The tile as the caches see it (the store less the pending writes).
+  TileInfo view(Buffer b, uint64_t tile, bool size);
   /// The state bits' line of a tile through ROP rop's metadata cache; returns when they are there.
   uint64_t metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop);
 
@@ -122,6 +145,21 @@ class CompressionModel {
   std::array<std::vector<uint8_t>, kBuffers> memo_valid_;  // when 1
   std::array<std::vector<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
   static constexpr uint8_t kNever = 0xFF;                  // never written back (stored uncompressed)
+  // Pending writes, in post order: record id - first_id_ indexes pending_;
+  // their replaced bytes in bytes_ from bytes_head_ on.
+  struct Pending {
+    Buffer b;
+    bool applied;
+    uint32_t offset, len;  // in the memory tile
+    uint64_t tile;
+    size_t at;  // in bytes_
+  };
+  std::deque<Pending> pending_;
+  uint64_t first_id_ = 0;
+  std::vector<uint8_t> bytes_;
+  size_t bytes_head_ = 0;
+  std::array<std::vector<uint32_t>, kBuffers> pending_count_;  // per tile, not yet applied
+  std::vector<TilePatch> patches_;                             // view's scratch
   struct MetaCache {
     CacheTags tags;
     std::vector<uint8_t> dirty;

@@ -19,6 +19,7 @@ void PostedWrites::apply(uint64_t before) {
     const Write w = next->front();
     next->pop_front();
     w.cache->write(w.line, w.buf, w.cycle);
+    w.cache->applied(w.patch);
   }
 }
 

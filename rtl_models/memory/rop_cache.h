@@ -70,9 +70,9 @@ class RopCache;
 class PostedWrites {
  public:
   /// Each ROP posts in non-decreasing cycle order (its writeback is in order).
-  void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b) {
+  void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b, uint32_t patch) {
     if (rop >= q_.size()) q_.resize(rop + 1);
-    q_[rop].push(Write{cycle, cache, line, b});
+    q_[rop].push(Write{cycle, cache, line, b, patch});
     earliest_ = std::min(earliest_, cycle);
   }
   /// Applies every write posted for a cycle before `cycle`.
@@ -87,6 +87,7 @@ class PostedWrites {
     RopCache* cache;
     uint64_t line;
     Buffer buf;
+    uint32_t patch;  // CompressionModel::pend's id, or kNoPatch
   };
   struct Earlier {
     bool operator()(const Write& a, const Write& b) const { return a.cycle < b.cycle; }
@@ -108,12 +109,19 @@ class RopCache {
   uint64_t read(uint64_t line_addr, Buffer b, uint64_t now);
   /// Writes (part of) a line at cycle now; never stalls the writer.
   void write(uint64_t line_addr, Buffer b, uint64_t now);
-  /// Posts a write for cycle `cycle` (see PostedWrites).
-  void post_write(uint64_t line_addr, Buffer b, uint64_t cycle) {
-    if (posted_)
-      posted_->post(cycle, rop_, this, line_addr, b);
-    else
+  /// Posts a write for cycle `cycle` (see PostedWrites); `patch`: what its
+  /// functional write replaced (CompressionModel::pend), released once applied.
+  void post_write(uint64_t line_addr, Buffer b, uint64_t cycle, uint32_t patch = CompressionModel::kNoPatch) {
+    if (posted_) {
+      posted_->post(cycle, rop_, this, line_addr, b, patch);
+    } else {
       write(line_addr, b, cycle);
+      applied(patch);
+    }
+  }
+  /// A posted write was applied: its patch is released.
+  void applied(uint32_t patch) {
+    if (patch != CompressionModel::kNoPatch) comp_->applied(patch);
   }
   /// Tag-only warming before a run (sampled simulation): the access's effect
   /// on the tags, the LRU order and the dirty bits, without time, DRAM

@@ -1,5 +1,7 @@
 #include "blend_unit.h"
 
+#include "pixel_snapshot.h"
+
 namespace ropsim {
 
 BlendUnit::BlendUnit(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
@@ -7,15 +9,22 @@ BlendUnit::BlendUnit(const sc_core::sc_module_name& name, const Clock& clk, Func
     : DecoupledUnit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
+  const PassKind p = rop_.pass();
+  // What the blend replaces in the targets the compressor tracks (pixel_snapshot.h).
+  PixelSnapshot trans, accum;
+  if (CompressionModel* cm = cache_.compression()) {
+    if (pass_blends_transmittance(p)) trans.take(cm, amap_, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
+    if (pass_blends_accum(p)) accum.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
+  }
   const uint32_t n = run_stage(rop_.blend(), *t);
   blended_ += n;
-  const PassKind p = rop_.pass();
   if (pass_blends_transmittance(p))
-    amap_.for_each_sample_line(Buffer::kTransmittance, t->f->x, t->f->y, t->survivors,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kTransmittance, now); });
+    amap_.for_each_sample_line(Buffer::kTransmittance, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
+      cache_.post_write(line, Buffer::kTransmittance, now, trans.patch(line));
+    });
   if (pass_blends_accum(p))
     amap_.for_each_sample_line(Buffer::kAccum, t->f->x, t->f->y, t->survivors,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kAccum, now); });
+                               [&](uint64_t line) { cache_.post_write(line, Buffer::kAccum, now, accum.patch(line)); });
   return n;
 }
 

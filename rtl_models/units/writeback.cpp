@@ -1,5 +1,7 @@
 #include "writeback.h"
 
+#include "pixel_snapshot.h"
+
 namespace ropsim {
 
 Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, FunctionalRop& rop, Retirement& retirement,
@@ -7,13 +9,20 @@ Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, Func
     : DecoupledUnit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in) {}
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
+  // What the write replaces in the surfaces the compressor tracks (pixel_snapshot.h).
+  const bool color = stochastic_writes_color(rop_.setup().cfg.method);  // depth-based methods store depth only
+  PixelSnapshot depth, rgb;
+  if (CompressionModel* cm = cache_.compression()) {
+    depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
+    if (color) rgb.take(cm, amap_, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
+  }
   const uint32_t examined = run_stage(rop_.write(), *t);
   written_ += uint64_t(__builtin_popcountll(t->written));
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written,
-                             [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now); });
-  if (stochastic_writes_color(rop_.setup().cfg.method))  // depth-based methods store depth only
+                             [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now, depth.patch(line)); });
+  if (color)
     amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now); });
+                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now, rgb.patch(line)); });
   // lk: the tracker's updated state (written whatever the opacity test said).
   if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(t->f->x, t->f->y,

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
+#include <vector>
 
 #include "bits.h"
 #include "depth.h"
@@ -50,14 +52,15 @@ struct ClearTile {
   }
 };
 
-TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTile& clear, Buffer b, uint32_t first,
+/// The memory tile of pixels [first, first + tile_pixels) of t in surface
+/// b, whose bytes are `data` (t's own, or a patched copy).
+TileState state_of(const SampleStore& store, const uint8_t* data, const SampleTile& clear, Buffer b, uint32_t first,
                    const CompressionFormat& f, bool size = true) {
   TileState st;
   const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
   const size_t off = size_t(first) * spp * bps, len = size_t(f.tile_pixels) * spp * bps;
-  const uint8_t* data = buffer_bytes(b, t) + off;
   if (b == Buffer::kDepth) {
-    const float* z = t.depth.get() + size_t(first) * spp;
+    const float* z = reinterpret_cast<const float*>(data);
     st.max_depth = *std::max_element(z, z + size_t(f.tile_pixels) * spp);
   }
   if (!size) return st;
@@ -72,11 +75,16 @@ TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTi
       px[s] = h.positions[s].x;
       py[s] = h.positions[s].y;
     }
-    st.size = depth_tile_size(DepthTileIn{t.depth.get() + size_t(first) * spp, f.tile_pixels, int(spp), px, py}, f);
+    st.size = depth_tile_size(DepthTileIn{reinterpret_cast<const float*>(data), f.tile_pixels, int(spp), px, py}, f);
   } else {
     st.size = color_tile_size(ColorTileIn{data, f.tile_pixels, int(spp), bps}, f);
   }
   return st;
+}
+TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTile& clear, Buffer b, uint32_t first,
+                   const CompressionFormat& f, bool size = true) {
+  const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
+  return state_of(store, buffer_bytes(b, t) + size_t(first) * spp * bps, clear, b, first, f, size);
 }
 
 }  // namespace
@@ -140,7 +148,7 @@ TileCompressor::TileCompressor(const SampleStore& store, const CompressionFormat
     : store_(store), f_(f), clear_(std::make_unique<Clear>(store)) {}
 TileCompressor::~TileCompressor() = default;
 
-TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size) const {
+TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size, const TilePatch* patches, size_t n) const {
   const SampleTile* t = store_.tile_map().find(x, y);
   if (!t) {
     TileState st;
@@ -149,7 +157,19 @@ TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size) con
     return st;
   }
   const uint32_t first = uint32_t(pixel_in_tile(x, y)) / f_.tile_pixels * f_.tile_pixels;
-  return state_of(store_, *t, *clear_->tile, b, first, f_, size);
+  if (n == 0) return state_of(store_, *t, *clear_->tile, b, first, f_, size);
+  // The tile's bytes with the patches over them (as floats: depth reads them so).
+  const uint32_t spp = uint32_t(store_.header().spp), bps = bytes_per_sample(b, store_);
+  const size_t len = size_t(f_.tile_pixels) * spp * bps;
+  thread_local std::vector<float> copy;
+  copy.resize((len + 3) / 4);
+  uint8_t* bytes = reinterpret_cast<uint8_t*>(copy.data());
+  std::memcpy(bytes, buffer_bytes(b, *t) + size_t(first) * spp * bps, len);
+  for (size_t i = 0; i < n; ++i) {
+    if (size_t(patches[i].offset) + patches[i].len > len) throw std::logic_error("a tile patch lies outside its tile");
+    std::memcpy(bytes + patches[i].offset, patches[i].old, patches[i].len);
+  }
+  return state_of(store_, bytes, *clear_->tile, b, first, f_, size);
 }
 
 }  // namespace ropsim

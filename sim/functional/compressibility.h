@@ -62,7 +62,9 @@ class TileCompressor {
   TileCompressor(const SampleStore& store, const CompressionFormat& f);
   ~TileCompressor();
   /// size = false: only `cleared` and `max_depth`, without compressing.
-  TileState state(Buffer b, uint32_t x, uint32_t y, bool size = true) const;
+  /// The n patches are written over the tile's bytes first, in order.
+  TileState state(Buffer b, uint32_t x, uint32_t y, bool size = true, const TilePatch* patches = nullptr,
+                  size_t n = 0) const;
   const CompressionFormat& format() const { return f_; }
 
  private:

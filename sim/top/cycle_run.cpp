@@ -87,10 +87,10 @@ class StoreTileSource : public TileSource {
  public:
   StoreTileSource(const SampleStore& store, const CompressionFormat& f)
       : comp_(store, f), tiles_x_(ceil_div(store.header().width, 8u)), tile_pixels_(f.tile_pixels) {}
-  TileInfo tile(Buffer b, uint64_t tile, bool size) override {
+  TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) override {
     const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
     const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
-    const TileState st = comp_.state(b, x, y, size);
+    const TileState st = comp_.state(b, x, y, size, undo, n);
     return TileInfo{st.cleared, st.size.size_class, st.max_depth};
   }
 

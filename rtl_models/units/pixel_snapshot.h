@@ -1,0 +1,39 @@
+// What a unit's functional write replaces in a surface the compressor tracks
+// (compression_model.h): the pixel's bytes, taken before the write, and the
+// part of them each posted line write carries as its patch.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <cstring>
+
+#include "address_map.h"
+#include "compression_model.h"
+
+namespace ropsim {
+
+class PixelSnapshot {
+ public:
+  /// Takes the pixel's bytes of surface b when cm tracks it (ptr: the
+  /// functional store's bytes of the pixel in b).
+  void take(CompressionModel* cm, const AddressMap& amap, Buffer b, uint32_t x, uint32_t y, const void* ptr) {
+    cm_ = cm && cm->tracks(b) ? cm : nullptr;
+    if (!cm_) return;
+    b_ = b;
+    addr_ = amap.pixel_address(b, x, y);
+    bytes_ = amap.pixel_bytes(b);
+    std::memcpy(old_.data(), ptr, bytes_);
+  }
+  /// The patch of a posted write of `line` (CompressionModel::kNoPatch when untracked).
+  uint32_t patch(uint64_t line) const {
+    return cm_ ? cm_->pend(line, b_, addr_, bytes_, old_.data()) : CompressionModel::kNoPatch;
+  }
+
+ private:
+  CompressionModel* cm_ = nullptr;
+  Buffer b_ = Buffer::kDepth;
+  uint64_t addr_ = 0;
+  uint32_t bytes_ = 0;
+  std::array<uint8_t, 64 * 16> old_;  // 64 samples of at most 16 bytes (RGBA32F)
+};
+
+}  // namespace ropsim
