@@ -63,17 +63,25 @@ def cost_frame(df, param, spp=None, method=None):
     keys = [k for k in ("input", "spp") if k in ok.columns] + ["_x"]
     agg = ok.groupby(keys, dropna=False).agg(
         rmse=("_rmse", "mean"), rmse_sd=("_rmse", "std"), n=("_rmse", "size"), bias=(BIAS, "mean"),
-        alpha=(ALPHA, "first"), alpha_est=(ALPHA_EST, "first"), alpha_bound=(ALPHA_BOUND, "first"),
-        alpha_levels=(ALPHA_LEVELS, "first"), rop=(ROP, "first"), total=(TOTAL, "first"),
-        rops=(ROPS, "first")).reset_index()
+        alpha=(ALPHA, "min"), alpha_hi=(ALPHA, "max"), alpha_est=(ALPHA_EST, lambda v: "/".join(sorted({str(x) for x in v.dropna()}))),
+        alpha_bound=(ALPHA_BOUND, "first"), alpha_levels=(ALPHA_LEVELS, "min"), alpha_levels_hi=(ALPHA_LEVELS, "max"), rop=(ROP, "min"),
+        rop_hi=(ROP, "max"), total=(TOTAL, "min"), total_hi=(TOTAL, "max"), rops=(ROPS, "first")).reset_index()
     return agg, reasons
 
 
 def markdown(agg, param):
     """One row per value of the parameter: each input's RMSE (and bias), then
     the gates (the same for every input)."""
+    head, rows = table(agg, param)
+    lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def table(agg, param):
+    """The table's header and rows (strings)."""
     inputs = list(pd.unique(agg["input"])) if "input" in agg.columns else [None]
-    spps = sorted(pd.unique(agg["spp"])) if "spp" in agg.columns else [None]
+    spps = sorted(pd.unique(agg["spp"])) if "spp" in agg.columns and param != "spp" else [None]
     head = [param]
     for inp in inputs:
         for s in spps:
@@ -82,8 +90,8 @@ def markdown(agg, param):
     rops = agg["rops"].dropna()
     nrop = int(rops.iloc[0]) if len(rops) else None
     head += ["alpha-ref NAND2 eq.", "alpha-ref levels", "LK units, one ROP",
-             f"design ({nrop} ROPs)" if nrop else "design", "estimate"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
+             f"design ({nrop} ROPs)" if nrop else "design", "alpha-ref estimate"]
+    rows = []
     for x in sorted(pd.unique(agg["_x"])):
         a = agg[agg["_x"] == x]
         row = [f"{x:g}"]
@@ -101,24 +109,33 @@ def markdown(agg, param):
                 sd = f" ± {r['rmse_sd']:.3f}" if r["n"] > 1 and not np.isnan(r["rmse_sd"]) else ""
                 row += [f"{r['rmse']:.3f}{sd}", "—" if np.isnan(r["bias"]) else f"{r['bias']:+.3f}"]
         r = a.iloc[0]
-        est = r["alpha_est"] if isinstance(r["alpha_est"], str) else "none"
+        ests = {e for v in a["alpha_est"] for e in str(v).split("/") if e}
+        est = "mixed" if len(ests) > 1 else (ests.pop() if ests else "none")
         if est == "model" and not np.isnan(r["alpha_bound"]):
             est = f"model (±{100 * r['alpha_bound']:.0f} %)"
-        lv = "—" if np.isnan(r["alpha_levels"]) else f"{r['alpha_levels']:.0f}"
-        row += [kgates(r["alpha"]), lv, kgates(r["rop"]), kgates(r["total"]), est]
-        lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines) + "\n"
+        lo, hi = a["alpha_levels"].min(), a["alpha_levels_hi"].max()
+        lv = "—" if np.isnan(lo) else f"{lo:.0f}" if lo == hi else f"{lo:.0f}–{hi:.0f}"
+        def span(col):
+            # One figure unless the cost differs within the row: the inputs' screens (the Hilbert index's
+            # order) or another swept parameter that changes it (then its range).
+            lo, hi = a[col].min(), a[col + "_hi"].max()
+            return kgates(lo) if lo == hi or np.isnan(lo) else f"{kgates(lo)}–{kgates(hi)}"
+
+        row += [span("alpha"), lv, span("rop"), span("total"), est]
+        rows.append(row)
+    return head, rows
 
 
-def plot(agg, param, out, title=""):
+def plot(agg, param, out=None, title=""):
+    """The three panels; written to out (and closed), else returned."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (a, b, c) = plt.subplots(1, 3, figsize=(15, 4.3))
-    keys = [k for k in ("input", "spp") if k in agg.columns]
-    groups = agg.groupby(keys, sort=False) if keys else [((), agg)]
+    keys = [k for k in ("input", "spp") if k in agg.columns and k != param]
+    groups = agg.groupby(keys if len(keys) > 1 else keys[0], sort=False) if keys else [((), agg)]
     for gk, g in groups:
         g = g.sort_values("_x")
         gk = gk if isinstance(gk, tuple) else (gk,)
@@ -137,10 +154,14 @@ def plot(agg, param, out, title=""):
     a.legend(fontsize=7)
     g = agg.drop_duplicates("_x").sort_values("_x")
     sweep = g["alpha_est"] == "sweep"
-    for col, lab, mk in (("alpha", "alpha-ref generator", "o"), ("rop", "LK units of one ROP", "s")):
-        b.plot(g["_x"], g[col], "-", color="0.6", lw=1)
-        b.plot(g["_x"][sweep], g[col][sweep], mk, ms=6, label=f"{lab} (sweep row)")
-        b.plot(g["_x"][~sweep], g[col][~sweep], mk, ms=6, mfc="none", label=f"{lab} (model)")
+    bound = g["alpha_bound"].fillna(0)
+    for col, lab, mk, colour in (("alpha", "alpha-ref generator", "o", "C0"), ("rop", "LK units of one ROP", "s", "C3")):
+        b.plot(g["_x"], g[col], "-", color=colour, lw=1, alpha=.5)
+        b.plot(g["_x"][sweep], g[col][sweep], mk, ms=6, color=colour, label=f"{lab} (sweep row)")
+        # model points with the alpha-ref model's bound (the rest of the ROP is sweep rows)
+        err = bound[~sweep] * g["alpha"][~sweep]
+        b.errorbar(g["_x"][~sweep], g[col][~sweep], yerr=err, fmt=mk, ms=6, mfc="none", color=colour, capsize=2,
+                   label=f"{lab} (model, ± its bound)")
     b.set_yscale("log")
     b.set_xlabel(param)
     b.set_ylabel("NAND2 equivalents")
@@ -155,8 +176,11 @@ def plot(agg, param, out, title=""):
     c.legend(fontsize=7)
     fig.suptitle(title or f"quality against {param} against gates", fontsize=11)
     fig.tight_layout()
+    if out is None:
+        return fig
     fig.savefig(out, dpi=100)
     plt.close(fig)
+    return None
 
 
 def main(argv):

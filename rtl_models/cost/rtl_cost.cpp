@@ -386,6 +386,21 @@ RtlCost rtl_cost(const std::string& module, const RtlParams& params, const std::
   return rtl_cost_model(module, params, table);
 }
 
+std::vector<HeldOutError> rtl_model_check(const std::vector<RtlSynthRow>& table) {
+  std::vector<HeldOutError> out;
+  for (size_t i = 0; i < table.size(); ++i) {
+    std::vector<RtlSynthRow> rest = table;
+    rest.erase(rest.begin() + long(i));
+    const RtlSynthRow& r = table[i];
+    const RtlCost m = rtl_cost_model(r.module, r.params, rest);
+    HeldOutError e{r.module, r.params_text, std::nullopt, std::nullopt, m.reason};
+    if (m.nand2_eq) e.nand2_error = (*m.nand2_eq - double(r.nand2_eq)) / double(r.nand2_eq);
+    if (m.levels) e.levels_error = (*m.levels - double(r.levels)) / double(r.levels);
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
 DesignCost design_cost(const RtlDesign& d) {
   DesignCost out;
   if (!d.lk_selection) {

@@ -68,6 +68,16 @@ inline RtlCost rtl_cost(const std::string& module, const RtlParams& params) {
 /// The model alone (no lookup), fitted to `table`: what the tests hold out.
 RtlCost rtl_cost_model(const std::string& module, const RtlParams& params, const std::vector<RtlSynthRow>& table);
 
+/// One sweep row held out: the module's model refitted to the other rows
+/// predicts it (`ropsim config --silicon-check`, the SiliconCost tests).
+struct HeldOutError {
+  std::string module, params;
+  std::optional<double> nand2_error;   ///< (model - synthesis) / synthesis; none outside the model's range
+  std::optional<double> levels_error;  ///< the same for the levels; none when too few rows remain to fit
+  std::string reason;                  ///< why an error is absent
+};
+std::vector<HeldOutError> rtl_model_check(const std::vector<RtlSynthRow>& table);
+
 /// A design as the cost sees it: the instances of each LK unit per ROP and
 /// their parameters (the driver fills it from the hardware design and the run).
 struct RtlDesign {
