@@ -18,11 +18,21 @@ namespace {
 
 const std::string kCsv = std::string(ROPSIM_SOURCE_DIR) + "/docs/data/rtl_synth_sweep.csv";
 
+/// The built-in design's units (HwConfig's defaults, which
+/// ConfigSilicon... checks through `ropsim config --silicon`), 16 spp, 1024 x 1024.
 RtlDesign default_design() {
-  RtlDesign d;  // the built-in design's units (HwConfig defaults), spp 16, 1024 x 1024
+  RtlDesign d;
   d.name = "test";
   d.rop_units = 4;
+  d.spp = 16;
   d.width = d.height = 1024;
+  d.alpha_ref_lanes = 16;
+  d.alpha_ref_stages = 4;
+  d.depth_lanes = 16;
+  d.depth_stages = 2;
+  d.tracker_stages = 1;
+  d.opacity_lanes = 16;
+  d.sorter_kind = "bitonic";
   return d;
 }
 
@@ -223,4 +233,29 @@ hash_bits = [8, 16, 32]
   const auto j = nlohmann::json::parse(e.out);
   EXPECT_TRUE(j["silicon"]["total"]["nand2_eq"].is_null());
   EXPECT_NE(j["silicon"]["reason"].get<std::string>().find("only lk's units"), std::string::npos);
+}
+
+// `ropsim config --silicon` costs a design file with its overrides (the
+// built-in design: its units are these sweep rows, the sums those of
+// design_cost), refuses a bad spp in one line, and --silicon-check lists
+// every module's held-out errors within their bounds.
+TEST(SiliconCost, ConfigSiliconCostsTheBuiltInDesignAndChecksTheModels) {
+  Scratch s;
+  const Ran r = ropsim_test::ropsim(s.dir, "config --silicon");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const DesignCost d = design_cost(default_design());
+  ASSERT_TRUE(d.total_nand2_eq);
+  EXPECT_NE(r.out.find(" 252754 "), std::string::npos) << "the 16-lane 32-bit generator's row:\n" << r.out;
+  EXPECT_NE(r.out.find(" " + std::to_string(int64_t(*d.total_nand2_eq)) + " "), std::string::npos)
+      << "the built-in design's total must be design_cost's of HwConfig's defaults:\n"
+      << r.out;
+  const Ran rank = ropsim_test::ropsim(s.dir, "config --silicon --hw-set sorter.kind=rank --spp 8");
+  ASSERT_EQ(rank.status, 0) << rank.err;
+  EXPECT_NE(rank.out.find("# no sums: sorter: sorter.kind rank"), std::string::npos) << rank.out;
+  const Ran bad = ropsim_test::ropsim(s.dir, "config --silicon --spp 3");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("--spp 3"), std::string::npos) << bad.err;
+  const Ran check = ropsim_test::ropsim(s.dir, "config --silicon-check");
+  ASSERT_EQ(check.status, 0) << check.err;
+  for (const std::string& m : rtl_cost_modules()) EXPECT_NE(check.out.find("| " + m + " |"), std::string::npos) << m;
 }

@@ -79,20 +79,22 @@ struct HeldOutError {
 std::vector<HeldOutError> rtl_model_check(const std::vector<RtlSynthRow>& table);
 
 /// A design as the cost sees it: the instances of each LK unit per ROP and
-/// their parameters (the driver fills it from the hardware design and the run).
+/// their parameters. The driver fills it from the hardware design and the
+/// run (rtl_design_of, cycle_report.h); the design's defaults live in
+/// HwConfig only, so a field left 0 here is outside every model (null).
 struct RtlDesign {
   std::string name;           ///< the design (file or "built-in defaults")
   std::string method = "lk";  ///< the run's method
   bool lk_selection = true;   ///< the method selects samples as lk does (tracker, sorter, alpha refs)
   bool blend_pass = false;    ///< the method has blend passes (a unit without reference RTL)
-  int rop_units = 1;
-  int spp = 16;
+  int rop_units = 0;
+  int spp = 0;
   int width = 0, height = 0;  ///< pixels (the Hilbert index's order)
-  int alpha_ref_lanes = 16, alpha_ref_stages = 4;
-  int depth_lanes = 16, depth_stages = 2;
-  int tracker_stages = 1;
-  int opacity_lanes = 16;
-  std::string sorter_kind = "bitonic";
+  int alpha_ref_lanes = 0, alpha_ref_stages = 0;
+  int depth_lanes = 0, depth_stages = 0;
+  int tracker_stages = 0;
+  int opacity_lanes = 0;
+  std::string sorter_kind;
   Numerics numerics;
 };
 
