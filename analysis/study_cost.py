@@ -185,9 +185,16 @@ def plot(agg, param, out=None, title=""):
 
 def main(argv):
     args = argv[1:]
-    if not args or args[0] in ("-h", "--help") or "--param" not in args:
+    if not args or args[0] in ("-h", "--help"):
         print(__doc__.strip(), file=sys.stderr)
-        return 2
+        return 0 if args else 2
+    for name in ("--param", "--spp", "--method", "--markdown", "--plot"):
+        if name in args and args.index(name) + 1 >= len(args):
+            print(f"study_cost: error: {name} needs a value", file=sys.stderr)
+            return 1
+    if "--param" not in args:
+        print("study_cost: error: --param P is required (a swept numeric parameter, e.g. hash_bits)", file=sys.stderr)
+        return 1
 
     def opt(name):
         return args[args.index(name) + 1] if name in args else None
@@ -196,7 +203,11 @@ def main(argv):
     import study_report
 
     study_dir, param = args[0], opt("--param")
-    spp = int(opt("--spp")) if opt("--spp") else None
+    try:
+        spp = int(opt("--spp")) if opt("--spp") else None
+    except ValueError:
+        print(f"study_cost: error: --spp {opt('--spp')}: not an integer", file=sys.stderr)
+        return 1
     try:
         name, _, df, _ = study_report.load(study_dir)
     except study_report.StudyError as e:

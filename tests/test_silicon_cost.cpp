@@ -43,7 +43,7 @@ RtlDesign default_design() {
 TEST(SiliconCost, TheBuiltInTableIsTheCommittedSweepAndASweepPointIsItsRow) {
   const auto file = parse_rtl_synth_csv(slurp(kCsv), kCsv);
   const auto& built = rtl_synth_table();
-  ASSERT_EQ(file.size(), built.size()) << "rebuild: the CSV changed after the build (CMake reconfigures on a change)";
+  ASSERT_EQ(file.size(), built.size()) << "rebuild: the CSV changed after the build (the build embeds it again)";
   for (size_t i = 0; i < file.size(); ++i) {
     const RtlSynthRow& r = file[i];
     EXPECT_EQ(r.module, built[i].module);

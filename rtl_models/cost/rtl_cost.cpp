@@ -9,7 +9,7 @@
 
 #include "bits.h"
 #include "hilbert.h"
-#include "rtl_synth_sweep_csv.h"  // generated from docs/data/rtl_synth_sweep.csv (CMakeLists.txt)
+#include "rtl_synth_sweep_csv.h"  // docs/data/rtl_synth_sweep.csv, embedded by cmake/embed_csv.cmake
 
 namespace ropsim {
 
@@ -115,7 +115,7 @@ const std::vector<ModuleModel>& models() {
          return std::vector<double>{double(at(p, "HASH_BITS")), log2d(at(p, "LANES")), 1.0};
        },
        "STAGES",
-       {0.08, 0.40}},
+       {0.08, 0.55}},
       {"rop_opacity_test",
        {{"LANES", 1, 64}, {"ALPHA_BITS", 1, 32}, {"HASH_BITS", 8, 32}, {"STAGES", 1, 64}},
        {},
@@ -141,11 +141,11 @@ const ModuleModel* find_model(const std::string& module) {
   return nullptr;
 }
 
-/// Solves the least-squares problem min sum ((x_i . c - y_i) / w_i)^2 through
-/// the normal equations (a handful of terms; Gaussian elimination with
-/// partial pivoting). Returns nothing when the rows do not determine c.
-std::optional<std::vector<double>> fit(const std::vector<std::vector<double>>& x, const std::vector<double>& y,
-                                       const std::vector<double>& w) {
+/// Least squares on the terms given, min sum ((x_i . c - y_i) / w_i)^2, through
+/// the normal equations (Gaussian elimination with partial pivoting);
+/// nothing when the rows do not determine c.
+std::optional<std::vector<double>> solve(const std::vector<std::vector<double>>& x, const std::vector<double>& y,
+                                         const std::vector<double>& w) {
   if (x.empty()) return std::nullopt;
   const size_t n = x[0].size();
   if (n == 0 || n > 16 || x.size() < n) return std::nullopt;  // a model has a handful of terms
@@ -174,6 +174,32 @@ std::optional<std::vector<double>> fit(const std::vector<std::vector<double>>& x
   std::vector<double> c(n);
   for (size_t r = 0; r < n; ++r) c[r] = a[r][n] / a[r][r];
   return c;
+}
+
+/// The same, but a term that is zero on every row (log2 LANES where
+/// only one lane was synthesised) gets coefficient 0. Returns nothing when
+/// the rows do not determine the other terms.
+std::optional<std::vector<double>> fit(const std::vector<std::vector<double>>& x_all, const std::vector<double>& y,
+                                       const std::vector<double>& w) {
+  if (x_all.empty()) return std::nullopt;
+  std::vector<size_t> used;
+  for (size_t c = 0; c < x_all[0].size(); ++c)
+    for (const auto& row : x_all)
+      if (row[c] != 0) {
+        used.push_back(c);
+        break;
+      }
+  std::vector<std::vector<double>> x;
+  for (const auto& row : x_all) {
+    std::vector<double> r;
+    for (size_t c : used) r.push_back(row[c]);
+    x.push_back(std::move(r));
+  }
+  const auto c = solve(x, y, w);
+  if (!c) return std::nullopt;
+  std::vector<double> full(x_all[0].size(), 0.0);
+  for (size_t i = 0; i < used.size(); ++i) full[used[i]] = (*c)[i];
+  return full;
 }
 
 double dot(const std::vector<double>& a, const std::vector<double>& b) {
