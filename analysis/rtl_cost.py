@@ -50,11 +50,14 @@ def plot(df, out):
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    # The sweep also holds other widths and stage counts (the cost model's
+    # checks, docs/rtl.md): each curve keeps the runs of its fixed parameters.
     by_spp = [
         ("rop_bitonic_sorter", "N", {}, "bitonic sorter (N = spp)"),
-        ("rop_tracker_update", "SPP", {}, "tracker update"),
-        ("rop_depth_compare", "LANES", {}, "depth compare (spp lanes)"),
-        ("rop_opacity_test", "LANES", {"HASH_BITS": 32}, "opacity test (spp lanes, 32-bit ref)"),
+        ("rop_tracker_update", "SPP", {"SID_BITS": 32, "STAGES": 1}, "tracker update"),
+        ("rop_depth_compare", "LANES", {"STAGES": 2}, "depth compare (spp lanes)"),
+        ("rop_opacity_test", "LANES", {"HASH_BITS": 32, "ALPHA_BITS": 32, "STAGES": 1},
+         "opacity test (spp lanes, 32-bit ref)"),
     ]
     for module, x, fixed, label in by_spp:
         d = df[df["module"] == module]
@@ -71,12 +74,12 @@ def plot(df, out):
     a.legend(fontsize=8)
     a.grid(True, which="both", alpha=0.3)
     for lanes in sorted(df[df["module"] == "rop_alpha_ref"]["LANES"].dropna().unique()):
-        d = df[(df["module"] == "rop_alpha_ref") & (df["LANES"] == lanes) & (df["STAGES"] == 4)].sort_values(
-            "HASH_BITS"
-        )
+        d = df[(df["module"] == "rop_alpha_ref") & (df["LANES"] == lanes) & (df["STAGES"] == 4)
+               & (df["SID_BITS"] == 32)].sort_values("HASH_BITS")
         if len(d) > 1:
             b.plot(d["HASH_BITS"], d["nand2_eq"], "o-", label=f"alpha-ref, {int(lanes)} lane(s), 4 stages")
-    d = df[(df["module"] == "rop_opacity_test") & (df["LANES"] == 16)].sort_values("HASH_BITS")
+    d = df[(df["module"] == "rop_opacity_test") & (df["LANES"] == 16) & (df["ALPHA_BITS"] == 32)
+           & (df["STAGES"] == 1)].sort_values("HASH_BITS")
     if len(d):
         b.plot(d["HASH_BITS"], d["nand2_eq"], "s--", label="opacity test, 16 lanes")
     b.set_yscale("log")

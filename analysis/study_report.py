@@ -402,8 +402,55 @@ def section_equal_quality(rep, df, params):
                       f"other parameters); \"not reached\" gives the curve's best RMSE.")
 
 
+SILICON_ROP = "silicon.per_rop.nand2_eq"
 KEY_METRICS = [(RMSE, "RMSE (8-bit)"), ("vs_reference.bias_8bit", "bias (8-bit, signed)"), (CYCLES, "total cycles"),
-               ("_dram", "DRAM bytes"), (SAMPLES, "samples written")]
+               ("_dram", "DRAM bytes"), (SAMPLES, "samples written"), (SILICON_ROP, "NAND2 eq., LK units of a ROP")]
+
+
+def section_silicon(rep, df, params):
+    """RMSE beside the silicon cost (silicon.*, docs/rtl.md): for each swept
+    numeric parameter the cost changes with, a table and three panels
+    (analysis/study_cost.py)."""
+    rep.heading(2, "Quality against silicon", "silicon")
+    ok = df[df["status"] == "ok"]
+    cost = num(ok, SILICON_ROP)
+    if not ok.empty and cost.notna().any() and cost.isna().any():
+        rep.para(f"{int(cost.isna().sum())} of {len(ok)} points have no silicon cost (their methods' units have no "
+                 "reference RTL, or a unit lies outside the models: silicon.reason); the tables hold the others.")
+    if ok.empty or cost.notna().sum() == 0:
+        reasons = sorted({str(r) for r in ok.get("silicon.reason", pd.Series(dtype=str)).dropna() if str(r)})
+        rep.para("No point has a silicon cost" + (": " + "; ".join(reasons[:3]) if reasons else "") + ".")
+        return
+    if num(ok, RMSE).notna().sum() == 0:
+        rep.para("No point has an RMSE against a reference (reference = false), so the cost has nothing to stand "
+                 "beside; the parameters-against-metrics plots show it.")
+        return
+    import study_cost
+
+    ok, cost = ok[cost.notna()], cost[cost.notna()]
+    shown = 0
+    for p in params:
+        if p == "input" or pd.to_numeric(ok[p], errors="coerce").isna().any() or ok[p].nunique() < 2:
+            continue
+        # a parameter the cost changes with: more than one cost among points that differ only in it
+        if ok.assign(_c=cost).groupby(p)["_c"].mean().nunique() < 2:
+            continue
+        spps = sorted(pd.unique(num(ok, "spp").dropna())) if "spp" in ok.columns and p != "spp" else [None]
+        for spp in spps:
+            agg, _ = study_cost.cost_frame(ok, p, spp)
+            if agg.empty or agg["rop"].isna().all():
+                continue
+            head, rows = study_cost.table(agg, p)
+            tag = f" at {int(spp)} spp" if spp is not None else ""
+            rep.table(head, rows, caption=f"RMSE (mean ± sd over the other parameters) and bias against {p}{tag}, "
+                                          "beside the silicon cost of each value: NAND2 equivalents of the "
+                                          "alpha-reference generator, of the LK units of one ROP and of the "
+                                          "design, a sweep row or a model estimate within its bound")
+            rep.figure(study_cost.plot(agg, p, None, f"quality against {p} against gates{tag}"),
+                       f"RMSE against {p}, gates against {p}, RMSE against gates{tag}")
+            shown += 1
+    if not shown:
+        rep.para("The silicon cost is the same at every point: no swept parameter changes it.")
 
 
 def section_axes(rep, df, params):
@@ -623,6 +670,7 @@ def build(study_dir):
     section_points(rep, name, declared, df, params)
     section_quality(rep, df, params)
     section_equal_quality(rep, df, params)
+    section_silicon(rep, df, params)
     section_axes(rep, df, params)
     section_bottlenecks(rep, df, params)
     section_images(rep, study_dir, df, params)

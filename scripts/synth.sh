@@ -13,7 +13,9 @@
 # Every run fails loudly on a latch or a cell the flow did not map.
 #   scripts/synth.sh [--set small|sweep] [--match REGEX] [--out CSV] [--jobs N] [--yosys PATH]
 # --set small is the CI check (one small parameter set per module); sweep is
-# the range of docs/results.md (spp 4-64, hash bits 8-32, lanes 1-16).
+# the range of docs/results.md (spp 1-64, hash bits 8-32, lanes 1-16, and the
+# widths and stage counts the cost model of rtl_models/cost is checked on);
+# docs/data/rtl_synth_sweep.csv holds its rows.
 # --match keeps the runs whose line ("TOP NAME=VALUE ...") matches REGEX.
 # --set latch synthesises tests/rtl/rop_latch_selftest.sv, which holds a
 # latch: it must fail (RTL.synth_latch_check shows the check can fail).
@@ -60,6 +62,23 @@ runs() {
       echo "rop_bitonic_sorter N=$s"
     done
     for o in 8 12 16; do echo "rop_hilbert_index ORDER=$o STAGES=1"; done
+    # The other widths and stage counts a design sets (the cost model of
+    # rtl_models/cost: surface-id and alpha widths, pipeline stages, hash
+    # widths between the ones above).
+    for st in 2 3 5 8; do echo "rop_alpha_ref LANES=1 STAGES=$st HASH_BITS=16 SPP=16 SID_BITS=32 PIXEL_BITS=32"; done
+    for h in 16 32; do echo "rop_alpha_ref LANES=1 STAGES=4 HASH_BITS=$h SPP=16 SID_BITS=4 PIXEL_BITS=32"; done
+    for h in 12 20; do echo "rop_alpha_ref LANES=1 STAGES=4 HASH_BITS=$h SPP=16 SID_BITS=32 PIXEL_BITS=32"; done
+    for a in 4 8 16; do
+      for h in 8 16 32; do echo "rop_opacity_test LANES=16 ALPHA_BITS=$a HASH_BITS=$h STAGES=1"; done
+    done
+    echo "rop_opacity_test LANES=16 ALPHA_BITS=32 HASH_BITS=16 STAGES=2"
+    for b in 1 4 8 16; do echo "rop_tracker_update SPP=16 SID_BITS=$b STAGES=1"; done
+    echo "rop_tracker_update SPP=16 SID_BITS=32 STAGES=3"
+    for st in 1 4; do echo "rop_depth_compare LANES=16 STAGES=$st"; done
+    for s in 1 2; do
+      echo "rop_tracker_update SPP=$s SID_BITS=32 STAGES=1"
+      echo "rop_bitonic_sorter N=$s"
+    done
   else
     echo "synth.sh: unknown set $set_name (small, sweep or latch)" >&2
     exit 1

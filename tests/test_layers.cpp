@@ -33,6 +33,7 @@ constexpr Layer kLayers[] = {
     {"util/containers", 0, "base: generic containers"},
     {"util/codec", 0, "base: image decoding and encoding (OpenImageIO, loaded on first use)"},
     {"rtl_models/algo", 0, "base: bit-level algorithms"},
+    {"rtl_models/cost", 0, "base: silicon cost of the reference RTL (synthesis sweep, models)"},
     {"traces/format", 10, "input: trace format v1"},
     {"traces/raster", 11, "input: rasterizer, sample patterns"},
     {"traces/scenes", 12, "input: built-in scenes"},

@@ -138,17 +138,21 @@ height = 32
   ASSERT_EQ(rep.status, 0) << rep.err << rep.out;
   EXPECT_NE(rep.out.find("index.html"), std::string::npos) << rep.out;
   // Figures: RMSE against DRAM bytes, against cycles, against the functional
-  // state bytes; the key metrics against spp (the one numeric axis with more
-  // than one value); bottleneck classes; cycles by activity; one image strip
-  // per input.
-  const std::string page =
-      check_report(s.dir, s.dir / "st", 3 + 1 + 2 + 2,
-                   {"Study report-small", "Points", "Failures", "Quality against cost", "Equal quality",
-                    "Parameters against metrics", "Bottlenecks and stall reasons", "Image strips"});
+  // state bytes; lk's RMSE and silicon cost against spp; the key metrics
+  // against spp (the one numeric axis with more than one value); bottleneck
+  // classes; cycles by activity; one image strip per input.
+  const std::string page = check_report(
+      s.dir, s.dir / "st", 3 + 1 + 1 + 2 + 2,
+      {"Study report-small", "Points", "Failures", "Quality against cost", "Equal quality", "Quality against silicon",
+       "Parameters against metrics", "Bottlenecks and stall reasons", "Image strips"});
   EXPECT_NE(page.find("24 points: 24 ok, 0 failed"), std::string::npos);
   EXPECT_NE(page.find("Pareto front"), std::string::npos);
   const std::string summary = slurp(s.dir / "st" / "report" / "summary.md");
   EXPECT_NE(summary.find("| unit kind | busy |"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("| spp | cloth RMSE | cloth bias | eight-layers RMSE |"), std::string::npos)
+      << "the quality-against-silicon table (lk's points; enderton and opaque have no reference RTL):\n"
+      << summary;
+  EXPECT_NE(summary.find("16 of 24 points have no silicon cost"), std::string::npos) << summary;
   EXPECT_NE(summary.find("| input | target RMSE | curve | spp | RMSE there | cycles | DRAM bytes |"), std::string::npos)
       << "the equal-quality table:\n"
       << summary;

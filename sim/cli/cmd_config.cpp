@@ -1,14 +1,19 @@
 // `ropsim config [FILE] [--hw-set K=V]... [--json]`: print the hardware design
 // resolved (as TOML, or --json as section -> key -> value), or --markdown the
-// parameter table (docs/config.md).
+// parameter table (docs/config.md); --silicon the design's silicon cost and
+// --silicon-check its models' held-out errors (docs/rtl.md).
 #include <fmt/format.h>
 
+#include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 
 #include "cli_common.h"
 #include "cycle_report.h"
+#include "errors.h"
 #include "hw_config.h"
+#include "rtl_cost.h"
 
 namespace ropsim {
 
@@ -18,14 +23,80 @@ struct ConfigOpts {
   std::string file;
   std::vector<std::string> hw_sets;
   bool markdown = false, json = false;
+  bool silicon = false, silicon_check = false;
+  int spp = 16, width = 1024, height = 1024;
 };
+
+std::string figure(const std::optional<double>& v) { return v ? fmt::format("{:.0f}", *v) : "null"; }
+
+/// --silicon: the design's LK units, each a sweep row or a model estimate.
+int print_silicon(const HwConfig& c, const ConfigOpts& o) {
+  if (!is_valid_spp(o.spp)) throw UserError("--spp " + std::to_string(o.spp) + ": expected 1, 2, 4, ..., 64");
+  RtlDesign d = rtl_design_of(c);
+  d.spp = o.spp;
+  d.width = o.width;
+  d.height = o.height;
+  const DesignCost cost = design_cost(d);
+  fmt::print("# silicon cost of {} (lk, {} spp, {}x{}; docs/rtl.md \"Cost of a design\")\n", c.name, o.spp, o.width,
+             o.height);
+  fmt::print("{:<15} {:<62} {:>10} {:>10} {:>7}  {}\n", "unit", "parameters", "NAND2 eq.", "flip-flops", "levels",
+             "estimate");
+  for (const UnitCost& u : cost.units) {
+    std::string est = to_string(u.cost.source);
+    if (u.cost.source == CostSource::kModel) est += fmt::format(" (+-{:.0f} %)", 100 * u.cost.nand2_error_bound);
+    if (!u.cost.reason.empty()) est += ": " + u.cost.reason;
+    fmt::print("{:<15} {:<62} {:>10} {:>10} {:>7}  {}\n", u.unit, u.params, figure(u.cost.nand2_eq),
+               u.cost.flipflops ? std::to_string(*u.cost.flipflops) : "null", figure(u.cost.levels), est);
+  }
+  fmt::print("{:<15} {:<62} {:>10} {:>10} {:>7}\n", "one ROP", "", figure(cost.rop_nand2_eq),
+             cost.rop_flipflops ? std::to_string(*cost.rop_flipflops) : "null", figure(cost.rop_levels));
+  fmt::print("{:<15} {:<62} {:>10} {:>10}\n", fmt::format("{} ROPs", d.rop_units), "", figure(cost.total_nand2_eq),
+             cost.total_flipflops ? std::to_string(*cost.total_flipflops) : "null");
+  if (!cost.reason.empty()) fmt::print("# no sums: {}\n", cost.reason);
+  return 0;
+}
+
+/// --silicon-check: each module's model against the sweep rows it was not fitted to.
+int print_silicon_check() {
+  struct Worst {
+    int rows = 0, held = 0, levels = 0;
+    double nand2 = 0, lv = 0;
+  };
+  std::map<std::string, Worst> w;
+  for (const HeldOutError& e : rtl_model_check(rtl_synth_table())) {
+    Worst& x = w[e.module];
+    ++x.rows;
+    if (e.nand2_error) {
+      ++x.held;
+      x.nand2 = std::max(x.nand2, std::fabs(*e.nand2_error));
+    }
+    if (e.levels_error) {
+      ++x.levels;
+      x.lv = std::max(x.lv, std::fabs(*e.levels_error));
+    }
+  }
+  fmt::print("# leave-one-out: each sweep row predicted by its module's model fitted to the other rows\n");
+  fmt::print(
+      "| module | rows | predicted | largest NAND2 error | bound | levels predicted | largest levels error | bound "
+      "|\n");
+  fmt::print("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const std::string& m : rtl_cost_modules()) {
+    const Worst& x = w[m];
+    const RtlModelBounds b = rtl_model_bounds(m);
+    fmt::print("| {} | {} | {} | {:.1f} % | {:.0f} % | {} | {:.1f} % | {:.0f} % |\n", m, x.rows, x.held, 100 * x.nand2,
+               100 * b.nand2, x.levels, 100 * x.lv, 100 * b.levels);
+  }
+  return 0;
+}
 
 int cmd_config(const ConfigOpts& o) {
   if (o.markdown) {
     std::fputs(hw_params_markdown().c_str(), stdout);
     return 0;
   }
+  if (o.silicon_check) return print_silicon_check();
   const HwConfig c = resolve_hw_config(o.file, o.hw_sets);
+  if (o.silicon) return print_silicon(c, o);
   if (o.json) {
     fmt::print("{}\n", hw_config_to_json(c).dump(2));
     return 0;
@@ -50,6 +121,21 @@ VerbRunner add_config_command(CLI::App& app) {
                             "Print every parameter with unit, default, range and meaning (docs/config.md)");
   md->excludes(cfgc->get_option("--json"));
   md->excludes(cfgc->get_option("--hw-set"));
+  auto* si = cfgc->add_flag("--silicon", o->silicon,
+                            "Print the silicon cost of the design's LK units (docs/rtl.md \"Cost of a design\")");
+  cfgc->add_option("--spp", o->spp, "With --silicon: samples per pixel (default 16)")->needs(si);
+  cfgc->add_option("--width", o->width, "With --silicon: screen width in pixels (default 1024)")
+      ->needs(si)
+      ->check(CLI::Range(1, 32768));
+  cfgc->add_option("--height", o->height, "With --silicon: screen height in pixels (default 1024)")
+      ->needs(si)
+      ->check(CLI::Range(1, 32768));
+  auto* sc = cfgc->add_flag("--silicon-check", o->silicon_check,
+                            "Print each cost model's largest error on the sweep rows held out from its fit");
+  si->excludes(cfgc->get_option("--json"));
+  si->excludes(md);
+  sc->excludes(si);
+  sc->excludes(md);
   return [o, cfgc]() { return cfgc->parsed() ? cmd_config(*o) : -1; };
 }
 

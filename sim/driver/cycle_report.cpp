@@ -159,6 +159,27 @@ static void put_compression_traffic(Fields c, const CompressionTraffic& s, const
   }
 }
 
+RtlDesign rtl_design_of(const HwConfig& hw) {
+  RtlDesign d;
+  d.name = hw.name;
+  d.rop_units = int(hw.distributor.rop_units);
+  d.alpha_ref_lanes = int(hw.alpha_ref.lanes);
+  d.alpha_ref_stages = int(hw.alpha_ref.pipeline_depth);
+  d.depth_lanes = int(hw.depth_test.samples_per_clock);
+  d.depth_stages = int(hw.depth_test.latency_cycles);
+  d.tracker_stages = int(hw.tracker.latency_cycles);
+  d.opacity_lanes = int(hw.writeback.samples_per_clock);
+  d.sorter_kind = to_string(hw.sorter.kind);
+  d.numerics = hw.numerics;
+  return d;
+}
+
+ReportContext with_design(const ReportContext& ctx, const HwConfig& hw) {
+  ReportContext c = ctx;
+  c.design = rtl_design_of(hw);
+  return c;
+}
+
 std::string format_bottleneck(const CycleStats& s) {
   const Bottleneck& b = s.bottleneck;
   switch (b.kind) {
@@ -350,7 +371,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
 
 nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& run,
                                     const std::optional<Image>& reference, FieldSink* sink) {
-  nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
+  nlohmann::ordered_json j = functional_report(with_design(ctx, run.stats.hw), as_functional(run, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "cycle", "-", kFidelityMeaning);
   put_hardware(r.obj("hardware"), run.stats.hw);
@@ -368,7 +389,7 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
 nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints& lib, const SampledRun& s,
                                       const HwConfig& hw, double wall_seconds, const LibrarySource& from,
                                       const std::optional<Image>& reference, FieldSink* sink) {
-  nlohmann::ordered_json j = functional_report(ctx, as_functional(lib, wall_seconds, reference), sink);
+  nlohmann::ordered_json j = functional_report(with_design(ctx, hw), as_functional(lib, wall_seconds, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "sampled", "-", kFidelityMeaning);
   put_hardware(r.obj("hardware"), hw);
@@ -465,7 +486,7 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
 
 nlohmann::ordered_json approximate_report(const ReportContext& ctx, const ApproxRun& run,
                                           const std::optional<Image>& reference, FieldSink* sink) {
-  nlohmann::ordered_json j = functional_report(ctx, as_functional(run, reference), sink);
+  nlohmann::ordered_json j = functional_report(with_design(ctx, run.stats.hw), as_functional(run, reference), sink);
   Fields r(j, sink);
   r.put("fidelity", "approximate", "-", kFidelityMeaning);
   const ApproxStats& s = run.stats;
@@ -506,6 +527,7 @@ std::vector<FieldDoc> report_field_docs() {
   ctx.command_line = "ropsim run ...";
   ctx.input = in;
   ctx.config = m;
+  ctx.design = rtl_design_of(HwConfig{});
   const FunctionalRun f = run_functional(in, m, true, 0, BreakdownRequest{true, false});
   {  // the compressibility fields: the same run with every surface compressed
     MethodConfig mc = m;

@@ -13,6 +13,12 @@
 
 namespace ropsim {
 
+/// The design as the silicon cost sees it (rtl_cost.h): the unit instances'
+/// lanes and stages, the sorter, the ROPs and the numerics of `hw`.
+RtlDesign rtl_design_of(const HwConfig& hw);
+/// ctx with `design` set to hw's (the reports of the timed fidelities).
+ReportContext with_design(const ReportContext& ctx, const HwConfig& hw);
+
 /// The "timing" section: every timing figure with its unit and meaning.
 void put_cycle_stats(Fields t, const CycleStats& s);
 nlohmann::ordered_json cycle_stats_to_json(const CycleStats& s);

@@ -34,6 +34,64 @@ nlohmann::ordered_json numerics_to_json(const Numerics& n) {
   return j;
 }
 
+namespace {
+/// A figure or null (JSON).
+template <class T>
+nlohmann::ordered_json or_null(const std::optional<T>& v) {
+  return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json(nullptr);
+}
+}  // namespace
+
+void put_silicon(Fields s, const ReportContext& ctx, const TraceHeader& header) {
+  s.put("source", "docs/data/rtl_synth_sweep.csv", "-",
+        "the synthesis the estimates come from: Yosys 0.23 generic flow (abc -g cmos2) of rtl_models/verilog, "
+        "scripts/synth.sh (docs/rtl.md)");
+  DesignCost cost;
+  if (ctx.design) {
+    RtlDesign d = *ctx.design;
+    d.method = to_string(ctx.config.method);
+    d.lk_selection = selection_of(ctx.config.method) == Method::kLk;
+    d.blend_pass = has_blend_pass(ctx.config.method);
+    d.spp = int(header.spp);
+    d.width = int(header.width);
+    d.height = int(header.height);
+    d.numerics = ctx.config.numerics;
+    cost = design_cost(d);
+    s.put("design", d.name, "-",
+          "the hardware design costed (a functional run: its --hw design, else the built-in one) with the run's spp, "
+          "screen and numerics");
+    s.put("rop_units", d.rop_units, "units", "distributor.rop_units: ROPs, each with one instance of every unit");
+  } else {
+    cost.reason = "no hardware design given to the report";
+  }
+  Fields units = s.obj("units");
+  for (const UnitCost& u : cost.units) {
+    Fields f = units.obj(u.unit);
+    const std::string w = u.unit + ": ";
+    f.put("module", u.module, "-", w + "its reference RTL module (rtl_models/verilog)");
+    f.put("params", u.params, "-", w + "the module's parameters for this design");
+    f.put("estimate", to_string(u.cost.source), "-",
+          w + "sweep (a row of the synthesis sweep), model (the module's model fitted to the sweep, within "
+              "error_bound) or none (the figures are null: see reason)");
+    f.put("nand2_eq", or_null(u.cost.nand2_eq), "NAND2 eq.",
+          w + "area of one instance: transistors / 4 of the NAND2/NOR2/inverter/D flip-flop netlist");
+    f.put("flipflops", or_null(u.cost.flipflops), "flip-flops", w + "D flip-flops of one instance");
+    f.put("levels", or_null(u.cost.levels), "gate levels",
+          w + "longest gate path of its deepest pipeline stage (Yosys ltp -noff)");
+    f.put("error_bound", u.cost.nand2_error_bound, "fraction",
+          w + "model: the documented bound on the relative error of nand2_eq (0: a sweep row)");
+    f.put("reason", u.cost.reason, "-", w + "why a figure is null, or the sweep row that stands for these parameters");
+  }
+  Fields rop = s.obj("per_rop");
+  rop.put("nand2_eq", or_null(cost.rop_nand2_eq), "NAND2 eq.", "the LK units of one ROP, summed (null: see reason)");
+  rop.put("flipflops", or_null(cost.rop_flipflops), "flip-flops", "their flip-flops, summed");
+  rop.put("levels", or_null(cost.rop_levels), "gate levels", "the deepest stage of any of them");
+  Fields total = s.obj("total");
+  total.put("nand2_eq", or_null(cost.total_nand2_eq), "NAND2 eq.", "per_rop.nand2_eq x rop_units");
+  total.put("flipflops", or_null(cost.total_flipflops), "flip-flops", "per_rop.flipflops x rop_units");
+  s.put("reason", cost.reason, "-", "why the sums are null (\"\" when every unit has figures)");
+}
+
 nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run, FieldSink* sink) {
   nlohmann::ordered_json j;
   Fields r(j, sink);
@@ -70,6 +128,7 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
              "slab: one pixel's layers in memory, k (4 + 6 + ceil(b / 8)) + 1");
   }
   put_numerics(r.obj("numerics"), ctx.config.numerics);
+  put_silicon(r.obj("silicon"), ctx, run.header);
   put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
   if (has_blend_pass(ctx.config.method)) {
     const PassList pl = passes_of(ctx.config.method);

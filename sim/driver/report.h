@@ -7,6 +7,7 @@
 
 #include "driver.h"
 #include "report_fields.h"
+#include "rtl_cost.h"
 
 namespace ropsim {
 
@@ -23,7 +24,16 @@ struct ReportContext {
   InputSpec input;
   GoldenConfig config;
   std::vector<std::string> outputs;
+  /// The hardware design the run stands for, as the silicon cost sees it
+  /// (rtl_design_of in cycle_report.h; the run's spp, screen, method and
+  /// numerics are filled in by the report). Absent: `silicon` says so.
+  std::optional<RtlDesign> design;
 };
+
+/// The "silicon" section: the NAND2-equivalent estimate, flip-flops and
+/// logic levels of each LK unit of one ROP of the design, per ROP and for
+/// the whole design (rtl_cost.h); null figures come with the reason.
+void put_silicon(Fields s, const ReportContext& ctx, const TraceHeader& header);
 
 /// The functional report; with a sink, also each field's description.
 nlohmann::ordered_json functional_report(const ReportContext& ctx, const FunctionalRun& run, FieldSink* sink = nullptr);

@@ -160,7 +160,7 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
     reference = read_image(ref_path(dir, r.reference_key).string());
     write_text_output((pd / "reference.txt").string(), r.reference_key + "\n");
   }
-  ReportContext ctx{"ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}};
+  ReportContext ctx{"ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}, {}};
   nlohmann::ordered_json report;
   std::string summary;
   Image image;
@@ -190,6 +190,7 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   } else {
     FunctionalRun run = run_functional(r.input, r.method);
     run.reference = reference;
+    ctx.design = rtl_design_of(r.hw);  // a functional point's silicon cost: the built-in design
     report = functional_report(ctx, run);
     summary = functional_summary(ctx, run);
     image = std::move(run.image);
@@ -255,7 +256,12 @@ class Db {
     exec("BEGIN IMMEDIATE");
     for (const auto& [name, v] : row)
       if (!columns_.count(name)) {
-        const char* type = v.is_number_integer() || v.is_boolean() ? "INTEGER" : v.is_number() ? "REAL" : "TEXT";
+        // A column first seen null (e.g. silicon.total.nand2_eq of a method without reference RTL) has no
+        // type, so that the numbers of later points stay numbers (a TEXT column would store them as text).
+        const char* type = v.is_null()                               ? ""
+                           : v.is_number_integer() || v.is_boolean() ? "INTEGER"
+                           : v.is_number()                           ? "REAL"
+                                                                     : "TEXT";
         exec(fmt::format("ALTER TABLE results ADD COLUMN {} {}", quote(name), type));
         columns_.insert(name);
       }
