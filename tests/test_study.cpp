@@ -406,9 +406,11 @@ design = [")") + ROPSIM_SOURCE_DIR +
     EXPECT_EQ(rep["timing"]["bottleneck"].get<std::string>(), row.at("timing.bottleneck")) << row.at("design");
   }
   EXPECT_EQ(sampled, 3u);
-  for (const auto& e : fs::directory_iterator(s.dir / "st" / "points"))
-    if (slurp(e.path() / "params.json").find("sampled") != std::string::npos)
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "points")) {
+    if (slurp(e.path() / "params.json").find("sampled") != std::string::npos) {
       EXPECT_EQ(slurp(e.path() / "image.png"), functional_image) << "a sampled point writes the golden image";
+    }
+  }
 }
 
 // The fidelity study (studies/fidelity.toml, analysis/fidelity.py): the
