@@ -47,6 +47,7 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
     s_.bytes_read[size_t(b)] += bytes;
     if (log_) log_->row(now).dram_bytes_read[size_t(b)] += bytes;
   }
+  if (attr_) attr_->dram(draw_, write, b, bytes);
   s_.last_completion = std::max(s_.last_completion, done);
   return done;
 }

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "address_map.h"
+#include "attribution.h"
 #include "bits.h"
 #include "hw_config.h"
 #include "interval_log.h"
@@ -101,8 +102,16 @@ class Dram {
   /// (chN_row_misses, counted at the burst's first cycle), as signals of
   /// `scope` in wave (--vcd); before any access.
   void trace_to(Waveform& wave, const std::string& scope);
+  /// Also charges every access's bytes to a draw in attr (attribution.h):
+  /// the draw set last by charge_to, which the callers set before they call.
+  void attribute_to(Attribution* attr) { attr_ = attr; }
+  bool attributing() const { return attr_ != nullptr; }
+  void charge_to(uint32_t draw) { draw_ = draw; }
+  uint32_t charged() const { return draw_; }
 
  private:
+  Attribution* attr_ = nullptr;
+  uint32_t draw_ = 0;
   IntervalLog* log_ = nullptr;
   Waveform* wave_ = nullptr;
   int wave_sig_ = -1;  // channel i: bus state wave_sig_ + 2 i, row misses + 1

@@ -18,7 +18,7 @@ void PostedWrites::apply(uint64_t before) {
     }
     const Write w = next->front();
     next->pop_front();
-    w.cache->write(w.line, w.buf, w.cycle);
+    w.cache->write(w.line, w.buf, w.cycle, w.owner);
   }
 }
 
@@ -44,6 +44,7 @@ void RopCache::evict(size_t way, uint64_t now) {
     ++s_.evictions;
     if (w.dirty) {
       ++s_.dirty_evictions;
+      if (attr_) dram_.charge_to(w.draw);  // the data's draw, whoever evicts it
       write_back(line, w.buf, now);
       // A compressed tile leaves as a block: the tile's other dirty lines
       // are written back with it (and stay, clean).
@@ -55,6 +56,7 @@ void RopCache::evict(size_t way, uint64_t now) {
           if (other == line) continue;
           const size_t ow = tags_.probe(other);
           if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != w.buf) continue;
+          if (attr_) dram_.charge_to(ways_[ow].draw);
           write_back(other, w.buf, now);
           ways_[ow].dirty = false;
         }
@@ -78,7 +80,7 @@ uint64_t RopCache::write_back(uint64_t line, Buffer b, uint64_t now) {
   return dram_.access(line, cfg_.line_bytes, true, b, now);
 }
 
-uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
+uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now, Owner o) {
   if (posted_) posted_->apply_before(now);  // earlier cycles' writes first, in a fixed order
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
@@ -92,6 +94,10 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
     return now + cfg_.hit_latency_cycles;
   }
   ++s_.read_misses[size_t(b)];
+  if (attr_) {
+    attr_->cache_miss(o.tile);
+    dram_.charge_to(o.draw);  // the fill (and its state bits) is the missing fragment's
+  }
   w.buf = b;
   w.dirty = false;
   if (cfg_.fast_clear && !in_dram_.contains(line)) {
@@ -105,7 +111,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   return w.ready;
 }
 
-void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
+void RopCache::write(uint64_t line, Buffer b, uint64_t now, Owner o) {
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
   if (log_) ++(hit ? log_->row(now).cache_hits : log_->row(now).cache_misses);
@@ -113,11 +119,13 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
     ++s_.write_hits[size_t(b)];
   } else {
     ++s_.write_misses[size_t(b)];
+    if (attr_) attr_->cache_miss(o.tile);
     w.buf = b;
     w.ready = now;
   }
   if (!w.dirty) ++s_.dirtied;
   w.dirty = true;
+  w.draw = o.draw;
   if (comp_ && comp_->compresses(b)) comp_->touched(line, b);
 }
 
@@ -139,6 +147,7 @@ uint64_t RopCache::flush(uint64_t now) {
   uint64_t done = now;
   for (size_t i = 0; i < ways_.size(); ++i)
     if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
+      if (attr_) dram_.charge_to(w.draw);  // the last writer's, like an eviction
       done = std::max(done, write_back(tags_.tag(i), w.buf, now));
       w.dirty = false;
     }

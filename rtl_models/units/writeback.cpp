@@ -8,19 +8,21 @@ Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, Func
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
   const uint32_t examined = run_stage(rop_.write(), *t);
+  const Owner o = t->owner();
   written_ += uint64_t(__builtin_popcountll(t->written));
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written,
-                             [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now); });
+                             [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now, o); });
   if (stochastic_writes_color(rop_.setup().cfg.method))  // depth-based methods store depth only
     amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now); });
+                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now, o); });
   // lk: the tracker's updated state (written whatever the opacity test said).
   if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(t->f->x, t->f->y,
-                                [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now); });
+                                [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now, o); });
   // slab: the pixel's layers, rewritten when the fragment was inserted.
   if (rop_.setup().cfg.method == Method::kSlab && t->slab.kept)
-    amap_.for_each_layer_line(t->f->x, t->f->y, [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now); });
+    amap_.for_each_layer_line(t->f->x, t->f->y,
+                              [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now, o); });
   return examined;
 }
 
@@ -39,6 +41,7 @@ void Writeback::advance(uint64_t limit) {
     const uint64_t t = std::max(busy_until_, in_.head_visible());
     if (t > limit) return wake_at(t);
     FragToken* tok = in_.pop(t);
+    took(tok->tile, t);
     ++stats_.fragments;
     const uint32_t examined = process(tok, t);
     stats_.samples += examined;
