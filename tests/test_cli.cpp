@@ -677,30 +677,30 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
   // activities by name, rop0's units and FIFOs in one scope, nothing outside
   // the window.
   const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
-  // A cycle is two 500 ps time units (1 ns: GTKWave's ns are cycles), the
-  // clock high in the first.
-  EXPECT_EQ(w.timescale, "500 ps");
-  EXPECT_NE(w.comment.find("One clock cycle is two time units of 500 ps"), std::string::npos) << w.comment;
+  // A cycle is ten 100 ps time units (1 ns: GTKWave's ns are cycles), the
+  // clock high in its first half.
+  EXPECT_EQ(w.timescale, "100 ps");
+  EXPECT_NE(w.comment.find("One clock cycle is ten time units of 100 ps"), std::string::npos) << w.comment;
   const int cycle = w.find("top", "cycle"), clk = w.find("top", "clk");
   ASSERT_GE(cycle, 0) << "no cycle counter";
   ASSERT_GE(clk, 0) << "no clock";
   ASSERT_EQ(w.stamps.size(), 602u) << "two time stamps per cycle of 100:400";
-  EXPECT_EQ(w.stamps.front(), 200u);
-  EXPECT_EQ(w.stamps.back(), 801u);
+  EXPECT_EQ(w.stamps.front(), 1000u);
+  EXPECT_EQ(w.stamps.back(), 4005u);
   const std::set<std::string> names = {"idle", "busy", "input_starved", "output_blocked", "pixel_hazard", "memory"};
   std::set<std::string> seen;
   size_t cycles_seen = 0;
   for (const auto& c : w.changes) {
-    EXPECT_TRUE(c.time >= 200 && c.time <= 801) << "VCD change at " << c.time << ", outside the window 100:400";
+    EXPECT_TRUE(c.time >= 1000 && c.time <= 4005) << "VCD change at " << c.time << ", outside the window 100:400";
     if (int(c.var) == clk) {
-      EXPECT_EQ(c.value, c.time % 2 ? "0" : "1") << "clk at time " << c.time;
+      EXPECT_EQ(c.value, c.time % 10 == 5 ? "0" : "1") << "clk at time " << c.time;
       continue;
     }
-    EXPECT_EQ(c.time % 2, 0u) << "a change off the rising clock edge, at time " << c.time;
+    EXPECT_EQ(c.time % 10, 0u) << "a change off the rising clock edge, at time " << c.time;
     if (int(c.var) == cycle) {
       ++cycles_seen;
-      EXPECT_EQ(ropsim_test::Vcd::number(c.value), c.time / 2)
-          << "the cycle counter is not the time: two units, one clock";
+      EXPECT_EQ(ropsim_test::Vcd::number(c.value), c.time / 10)
+          << "the cycle counter is not the time: ten units, one clock";
     }
     const auto& v = w.vars[c.var];
     if (v.type == "string" && v.scope != "top.dram") {
@@ -758,9 +758,9 @@ TEST(CliCycle, WaveformWindowLeavesTheRunDecoupledAndUnchanged) {
 
   const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
   ASSERT_FALSE(w.stamps.empty());
-  EXPECT_EQ(w.stamps.front(), 40000u) << "cycle 20000's rising edge";
-  EXPECT_EQ(w.stamps.back(), 42001u) << "cycle 21000's falling edge";
-  for (const auto& c : w.changes) ASSERT_TRUE(c.time >= 40000 && c.time <= 42001) << "a change at " << c.time;
+  EXPECT_EQ(w.stamps.front(), 200000u) << "cycle 20000's rising edge";
+  EXPECT_EQ(w.stamps.back(), 210005u) << "cycle 21000's falling edge";
+  for (const auto& c : w.changes) ASSERT_TRUE(c.time >= 200000 && c.time <= 210005) << "a change at " << c.time;
   std::set<std::string> rops;
   for (const auto& u : v["units"]) {
     const int rop = u["rop"].get<int>();

@@ -1296,20 +1296,20 @@ TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
   std::string text;
   w.write_vcd("top", "test", 100, [&](std::string_view s) { text += s; });
   const ropsim_test::Vcd v = ropsim_test::parse_vcd(text);
-  // Two time units per cycle: the clock rises at 2c and falls at 2c + 1.
-  EXPECT_EQ(v.timescale, "500 ps");
-  EXPECT_EQ(v.stamps.front(), 20u);
-  EXPECT_EQ(v.stamps.back(), 41u);
+  // Ten 100 ps time units per cycle: the clock rises at 10c and falls at 10c + 5.
+  EXPECT_EQ(v.timescale, "100 ps");
+  EXPECT_EQ(v.stamps.front(), 100u);
+  EXPECT_EQ(v.stamps.back(), 205u);
   EXPECT_EQ(v.stamps.size(), 22u);
   const int clk = v.find("top", "clk");
   ASSERT_GE(clk, 0) << "no clock";
   EXPECT_EQ(v.vars[size_t(clk)].type, "wire");
   EXPECT_EQ(v.vars[size_t(clk)].width, 1);
-  const std::vector<std::string> clock = v.trace(size_t(clk), 20, 41);
-  for (size_t i = 0; i < clock.size(); ++i) EXPECT_EQ(clock[i], i % 2 ? "0" : "1") << "clk at time " << 20 + i;
+  const std::vector<std::string> clock = v.trace(size_t(clk), 100, 209);
+  for (size_t i = 0; i < clock.size(); ++i) EXPECT_EQ(clock[i], i % 10 < 5 ? "1" : "0") << "clk at time " << 100 + i;
   for (const auto& c : v.changes) {
     if (int(c.var) == clk) continue;
-    EXPECT_EQ(c.time % 2, 0u) << "a signal changes off the rising edge, at time " << c.time;
+    EXPECT_EQ(c.time % 10, 0u) << "a signal changes off the rising edge, at time " << c.time;
   }
   const std::vector<std::string> unit = v.trace_cycles(size_t(v.find("top.rop0", "unit")), 10, 20);
   EXPECT_EQ(unit, (std::vector<std::string>{"busy", "busy", "idle", "idle", "idle", "busy", "busy", "busy", "busy",
@@ -1322,7 +1322,7 @@ TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
   // A run that ends inside the window: nothing after its last cycle.
   std::string short_run;
   w.write_vcd("top", "test", 16, [&](std::string_view s) { short_run += s; });
-  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 31u) << "the falling edge of cycle 15";
+  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 155u) << "the falling edge of cycle 15";
   EXPECT_THROW(w.set(st, 14, 1), InternalError) << "an event before the signal's last one";
 }
 
@@ -1410,7 +1410,7 @@ TEST(Waveform, AWholeRunAddsUpToTheReport) {
     // Per variable: its changes; the cycles at each value, the sum and the
     // maximum of its numbers over [from, to).
     std::vector<std::vector<std::pair<uint64_t, std::string>>> changes(v.vars.size());
-    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time / 2, c.value);  // cycle c at time 2c
+    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time / 10, c.value);  // cycle c at time 10c
     struct Sums {
       std::map<std::string, uint64_t> cycles;
       uint64_t sum = 0, max = 0;
@@ -1499,7 +1499,7 @@ TEST(Attribution, DrawsAndTilesAddUpToTheReportAndChangeNothing) {
   };
   for (const Case& c : {Case{Method::kLk, plain_hw, "lk"}, Case{Method::kLk, comp_hw, "lk, compressed, Hi-Z"},
                         Case{Method::kLkDepthAc, plain_hw, "lk+depth+ac (three passes)"}}) {
-    const InputSpec in = scene_input("smoke", 4);
+    const InputSpec in = scene_input("testcard", 4);
     CycleOptions opt;
     opt.breakdown = BreakdownRequest{true, true};
     const CycleRun run = run_cycle(in, method_config(c.m), c.hw, opt);
@@ -1545,9 +1545,9 @@ TEST(Attribution, DecoupledAndLockstepChargeTheSame) {
   const HwConfig hw = load_hw_config(ROPSIM_SOURCE_DIR "/configs/narrow.toml");
   CycleOptions opt;
   opt.breakdown = BreakdownRequest{true, true};
-  const CycleRun dec = run_cycle(scene_input("smoke", 4), method_config(Method::kLk), hw, opt);
+  const CycleRun dec = run_cycle(scene_input("testcard", 4), method_config(Method::kLk), hw, opt);
   opt.lockstep = true;
-  const CycleRun lock = run_cycle(scene_input("smoke", 4), method_config(Method::kLk), hw, opt);
+  const CycleRun lock = run_cycle(scene_input("testcard", 4), method_config(Method::kLk), hw, opt);
   ASSERT_TRUE(dec.stats.decoupled && !lock.stats.decoupled);
   for (size_t i = 0; i < tile_map_descs().size(); ++i)
     EXPECT_EQ(tile_map(*dec.tiles, i), tile_map(*lock.tiles, i)) << tile_map_descs()[i].name;

@@ -14,6 +14,9 @@ namespace {
 constexpr size_t kChargeStep = size_t{1} << 20;  // the memory budget is charged per MiB of streams
 // The VCD identifiers: the clock, the cycle counter, then the signals.
 constexpr size_t kClk = 0, kCycle = 1, kFirstSignal = 2;
+// Time units of 100 ps (VCD allows 1, 10 or 100 of a power-of-ten unit):
+// ten per cycle, so a cycle is 1 ns; the clock falls half-way.
+constexpr uint64_t kUnitsPerCycle = 10, kFall = 5;
 
 // A VCD identifier: base 94 over the printable characters '!'..'~'.
 std::string vcd_id(size_t i) {
@@ -171,7 +174,7 @@ std::vector<std::string> Waveform::ordered_scopes() const {
 std::string Waveform::write_gtkw(const std::string& vcd_path, const std::string& top, uint64_t end) const {
   std::string o = "[*] ropsim: a GTKWave save file for " + vcd_path + "\n";
   o += "[dumpfile] \"" + vcd_path + "\"\n";
-  // The window: cycles first..last, 1000 ps each (two 500 ps time units).
+  // The window: cycles first..last, 1000 ps each (ten 100 ps time units).
   const uint64_t last = std::max(first_, last_shown(end));
   const double span_ps = double(last - first_ + 1) * 1000.0 * 1.02;  // a margin after the last cycle
   // GTKWave shows about kZoomScale x 2^-zoom ps across the wave pane of a
@@ -215,10 +218,10 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
     }
   };
   o += "$comment\n  " + comment + "\n$end\n";
-  // Two time units per clock cycle: the clock rises at 2c (every signal
-  // changes there) and falls at 2c + 1. With 500 ps units a cycle is 1 ns,
-  // so GTKWave's ns are cycle numbers (the comment says so).
-  o += "$timescale 500 ps $end\n";
+  // Ten 100 ps time units per clock cycle: the clock rises at 10c (every
+  // signal changes there) and falls at 10c + 5. A cycle is 1 ns, so GTKWave's
+  // ns are cycle numbers (the comment says so).
+  o += "$timescale 100 ps $end\n";
   o += "$scope module " + top + " $end\n";
   o += "$var wire 1 " + vcd_id(kClk) + " clk $end\n";
   o += "$var integer 64 " + vcd_id(kCycle) + " cycle $end\n";
@@ -271,8 +274,8 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
   };
   // The window's first cycle: every signal's value.
   const std::string clk = vcd_id(kClk), cycle = " " + vcd_id(kCycle) + "\n";
-  auto falling = [&](uint64_t c) { o += "#" + std::to_string(2 * c + 1) + "\n0" + clk + "\n"; };
-  o += "#" + std::to_string(2 * first_) + "\n$dumpvars\n1" + clk + "\n";
+  auto falling = [&](uint64_t c) { o += "#" + std::to_string(kUnitsPerCycle * c + kFall) + "\n0" + clk + "\n"; };
+  o += "#" + std::to_string(kUnitsPerCycle * first_) + "\n$dumpvars\n1" + clk + "\n";
   put_binary(o, first_);
   o += cycle;
   for (size_t i = 0; i < cur.size(); ++i) put(i);
@@ -284,7 +287,7 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
   for (size_t i = 0; i < cur.size(); ++i)
     if (cur[i].next_t() <= last) heap.emplace(cur[i].next_t(), i);
   for (uint64_t c = first_ + 1; c <= last; ++c) {
-    o += "#" + std::to_string(2 * c) + "\n1" + clk + "\n";
+    o += "#" + std::to_string(kUnitsPerCycle * c) + "\n1" + clk + "\n";
     put_binary(o, c);
     o += cycle;
     while (!heap.empty() && heap.top().first == c) {

@@ -1,9 +1,10 @@
 // The waveform of a cycle run (--vcd FILE --vcd-window A:B): what every unit
 // did, how full every FIFO was and what every DRAM channel's data bus moved,
-// cycle by cycle, for the cycles A..B, written as a VCD with a clock: two
-// 500 ps time units per cycle (so GTKWave's ns are cycle numbers), the clock
-// rising at 2c, where every signal of cycle c changes, and falling at 2c + 1;
-// and a GTKWave save file that shows it (docs/reports.md "Waveforms").
+// cycle by cycle, for the cycles A..B, written as a VCD with a clock: ten
+// 100 ps time units per cycle (so GTKWave's ns are cycle numbers), the clock
+// rising at 10c, where every signal of cycle c changes, and falling at
+// 10c + 5; and a GTKWave save file that shows it (docs/reports.md
+// "Waveforms").
 //
 // Like the IntervalLog, every source records an event under the cycle it
 // happens at, never at the host's time: a unit's activity over the span of

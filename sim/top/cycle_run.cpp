@@ -301,7 +301,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     const uint64_t end = s.total_cycles, shown = wave->last_shown(end);
     char comment[448];
     const int n = std::snprintf(comment, sizeof comment,
-                                "ropsim cycle model. One clock cycle is two time units of 500 ps, 1 ns (read "
+                                "ropsim cycle model. One clock cycle is ten time units of 100 ps, 1 ns (read "
                                 "GTKWave's ns as cycles); clk rises at each cycle's start, where every signal "
                                 "changes, and falls at its middle. The clock period is %llu ps at %g GHz. ",
                                 (unsigned long long)s.period_ps, hw.clock.frequency_ghz);
