@@ -99,25 +99,15 @@ class Unit : public sc_core::sc_module {
   /// Also charges every span of cycles to a tile in attr (attribution.h:
   /// the tile of the fragment it took last, took()); before the run.
   void attribute_to(Attribution* attr) { attr_ = attr; }
+  bool attributing() const { return attr_ != nullptr; }
   /// The unit takes a fragment of tile `tile` at cycle t: its cycles from t
   /// on are that tile's (those before its first fragment too).
   void took(uint32_t tile, uint64_t t) {
-    if (!attr_) return;
-    if (has_tile_) {
-      charge_to(t);  // the cycles before t are the previous fragment's tile's
-      tile_ = tile;
-      return;
-    }
-    has_tile_ = true;
-    tile_ = tile;
-    for (int a = 0; a < kActivities; ++a) attr_->unit_cycles(tile, a, before_first_[size_t(a)]);
+    if (__builtin_expect(attr_ != nullptr, 0)) took_tile(tile, t);
   }
   /// Ends the attribution: a unit that took no fragment charges its cycles
   /// to no tile (after close_accounting).
-  void close_attribution() {
-    if (attr_ && !has_tile_)
-      for (int a = 0; a < kActivities; ++a) attr_->unowned_cycles(a, before_first_[size_t(a)]);
-  }
+  void close_attribution();
   /// Also records every span of cycles in `wave`'s state signal `sig`, whose
   /// states are the Activity names (--vcd); before the run.
   void trace_to(Waveform* wave, int sig) {
@@ -155,7 +145,6 @@ class Unit : public sc_core::sc_module {
     if (busy_end_ > since_) {
       const uint64_t e = std::min(busy_end_, t);
       stats_.cycles[size_t(Activity::kBusy)] += e - since_;
-      if (attr_) attribute(Activity::kBusy, e - since_);
       if (log_) log_->add_activity(log_kind_, int(Activity::kBusy), since_, e);
       if (wave_) wave_->set(wave_sig_, since_, uint64_t(Activity::kBusy));
       since_ = e;
@@ -163,22 +152,20 @@ class Unit : public sc_core::sc_module {
     }
     if (t > since_) {
       stats_.cycles[size_t(act_)] += t - since_;
-      if (attr_) attribute(act_, t - since_);
       if (log_) log_->add_activity(log_kind_, int(act_), since_, t);
       if (wave_) wave_->set(wave_sig_, since_, uint64_t(act_));
       since_ = t;
     }
   }
-  void attribute(Activity a, uint64_t n) {
-    if (has_tile_)
-      attr_->unit_cycles(tile_, int(a), n);
-    else
-      before_first_[size_t(a)] += n;
-  }
+  // The tile attribution (attribution.h) adds nothing to the accounting
+  // above: at each switch of tile it charges the cycles accounted since the
+  // previous switch (stats_.cycles now minus then) to the tile it leaves.
+  void took_tile(uint32_t tile, uint64_t t);
+  void charge_tile(bool owned);
   Attribution* attr_ = nullptr;
   bool has_tile_ = false;
   uint32_t tile_ = 0;
-  std::array<uint64_t, kActivities> before_first_{};
+  std::array<uint64_t, kActivities> charged_{};  // stats_.cycles at the last switch
   IntervalLog* log_ = nullptr;
   int log_kind_ = -1;
   Waveform* wave_ = nullptr;

@@ -56,14 +56,8 @@ class Attribution {
   bool per_draw() const { return per_draw_; }
   uint32_t tiles() const { return tiles_; }
 
-  void dram(uint32_t draw, bool write, Buffer b, uint64_t bytes) {
-    if (!per_draw_) return;
-    if (!last_ || last_draw_ != draw) {
-      last_ = &by_draw_[draw];  // std::map: references stay valid
-      last_draw_ = draw;
-    }
-    (write ? last_->written : last_->read)[size_t(b)] += bytes;
-  }
+  /// (Out of line, attribution.cpp: the DRAM's access stays small.)
+  void dram(uint32_t draw, bool write, Buffer b, uint64_t bytes);
   void cache_miss(uint32_t tile) {
     if (tiles_) ++misses_[tile];
   }

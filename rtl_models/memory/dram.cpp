@@ -47,9 +47,16 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
     s_.bytes_read[size_t(b)] += bytes;
     if (log_) log_->row(now).dram_bytes_read[size_t(b)] += bytes;
   }
-  if (attr_) attr_->dram(draw_, write, b, bytes);
   s_.last_completion = std::max(s_.last_completion, done);
   return done;
+}
+
+void Dram::settle_attribution() {
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    if (const uint64_t n = s_.bytes_read[b] - charged_.bytes_read[b]) attr_->dram(draw_, false, Buffer(b), n);
+    if (const uint64_t n = s_.bytes_written[b] - charged_.bytes_written[b]) attr_->dram(draw_, true, Buffer(b), n);
+  }
+  charged_ = s_;
 }
 
 void Dram::trace_to(Waveform& wave, const std::string& scope) {

@@ -9,16 +9,16 @@ namespace ropsim {
 void PostedWrites::apply(uint64_t before) {
   // Merge the ROPs' queues in (cycle, ROP) order.
   for (;;) {
-    Queue* next = nullptr;
-    for (auto& q : q_)
-      if (!q.empty() && (!next || q.front().cycle < next->front().cycle)) next = &q;
-    if (!next || next->front().cycle >= before) {
-      earliest_ = next ? next->front().cycle : ~uint64_t{0};
+    PerRop* next = nullptr;
+    for (auto& r : q_)
+      if (!r.writes.empty() && (!next || r.writes.front().cycle < next->writes.front().cycle)) next = &r;
+    if (!next || next->writes.front().cycle >= before) {
+      earliest_ = next ? next->writes.front().cycle : ~uint64_t{0};
       return;
     }
-    const Write w = next->front();
-    next->pop_front();
-    w.cache->write(w.line, w.buf, w.cycle, w.owner);
+    const Write w = next->writes.front();
+    next->writes.pop_front();
+    next->cache->write(w.line, w.buf, w.cycle, w.owner);
   }
 }
 

@@ -72,7 +72,8 @@ class PostedWrites {
   /// Each ROP posts in non-decreasing cycle order (its writeback is in order).
   void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b, Owner o = {}) {
     if (rop >= q_.size()) q_.resize(rop + 1);
-    q_[rop].push(Write{cycle, cache, line, o, b});
+    q_[rop].cache = cache;  // one per ROP: the writes need not carry it
+    q_[rop].writes.push(Write{cycle, line, o, b});
     earliest_ = std::min(earliest_, cycle);
   }
   /// Applies every write posted for a cycle before `cycle`.
@@ -84,7 +85,6 @@ class PostedWrites {
  private:
   struct Write {
     uint64_t cycle;
-    RopCache* cache;
     uint64_t line;
     Owner owner;
     Buffer buf;
@@ -96,7 +96,11 @@ class PostedWrites {
   // the back; equal cycles keep their order).
   using Queue = SortedRing<Write, Earlier>;
   void apply(uint64_t before);
-  std::vector<Queue> q_;  // per ROP
+  struct PerRop {
+    Queue writes;
+    RopCache* cache = nullptr;
+  };
+  std::vector<PerRop> q_;
   uint64_t earliest_ = ~uint64_t{0};
 };
 

@@ -51,8 +51,10 @@ void TraceSource::advance(uint64_t limit) {
       }
       tok->seq = seq_++;
       tok->pixel_key = uint64_t(tok->fragment.y) * rop_.header().width + tok->fragment.x;
-      tok->tile = tiles_.tile_of(tok->fragment.x, tok->fragment.y);
-      took(tok->tile, t);
+      if (attributing()) {  // the units' tile maps (attribution.h)
+        tok->tile = tiles_.tile_of(tok->fragment.x, tok->fragment.y);
+        took(tok->tile, t);
+      }
       const int spp = rop_.header().spp;
       __builtin_prefetch(tok->px.depth);
       __builtin_prefetch(tok->px.depth + spp - 1);

@@ -579,12 +579,13 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--per-draw", ro->per_draw,
                 "Split the counters by the trace's draw ids: the report's draws[] (functional, cycle: also the cycles "
-                "attributed to each draw)");
+                "and the DRAM bytes per buffer attributed to each draw)");
   run->add_option("--draw-csv", ro->draw_csv, "The per-draw table as CSV (implies --per-draw)")->type_name("FILE");
   run->add_option("--maps", ro->maps,
                   "Write per-pixel heat maps into DIR, each as EXR (values) and PNG (colour scale): fragments (depth "
                   "complexity), samples tested, depth-passed and written, surface-id changes, and with --vs-reference "
-                  "the error")
+                  "the error; cycle: also per distributor tile the cycles, the units' busy and stall cycles and the "
+                  "cache misses")
       ->type_name("DIR");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
   run->add_flag("--progress", ro->progress,

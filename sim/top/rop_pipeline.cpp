@@ -188,6 +188,7 @@ uint64_t RopPipeline::run() {
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
   if (comp_) end = std::max(end, comp_->flush(pipeline_cycles_));  // the state bits after the data
+  if (dram_.attributing()) dram_.settle_attribution();
   total_cycles_ = std::max(end, dram_.stats().last_completion);
   for (const auto& u : units_) {
     u.unit->close_accounting(total_cycles_);
