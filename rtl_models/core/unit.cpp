@@ -45,7 +45,8 @@ void Unit::charge_tile(bool owned) {
 
 void Unit::took_tile(uint32_t tile, uint64_t t) {
   if (has_tile_) {
-    charge_to(t);  // the cycles before t are the previous fragment's tile's
+    if (tile == tile_) return;  // the same tile's cycles keep adding up
+    charge_to(t);               // the cycles before t are the previous fragment's tile's
     charge_tile(true);
   }
   // The first fragment's tile also gets the cycles before it (charged at the next switch).

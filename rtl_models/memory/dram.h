@@ -108,6 +108,7 @@ class Dram {
   void attribute_to(Attribution* attr) { attr_ = attr; }
   bool attributing() const { return attr_ != nullptr; }
   void charge_to(uint32_t draw) {
+    if (draw == draw_) return;  // the same draw's bytes keep adding up
     if (attr_) settle_attribution();
     draw_ = draw;
   }
@@ -119,7 +120,7 @@ class Dram {
  private:
   Attribution* attr_ = nullptr;
   uint32_t draw_ = 0;
-  DramStats charged_;  // s_ at the last settle_attribution
+  std::array<uint64_t, kBuffers> read_charged_{}, written_charged_{};  // s_'s bytes at the last settle
   IntervalLog* log_ = nullptr;
   Waveform* wave_ = nullptr;
   int wave_sig_ = -1;  // channel i: bus state wave_sig_ + 2 i, row misses + 1
