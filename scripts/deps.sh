@@ -10,6 +10,7 @@ ROPSIM_PACKAGES=(
   clang-format python3-numpy python3-matplotlib python3-pandas
   chromium
   verilator yosys iverilog
+  gtkwave xvfb xauth
 )
 missing=()
 for p in "${ROPSIM_PACKAGES[@]}"; do

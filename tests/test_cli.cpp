@@ -5,6 +5,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -417,15 +419,56 @@ TEST(CliCycle, PerDrawCountersAreTheFunctionalOnesAndCyclesAddUp) {
     const auto f = lines_of(slurp(box.path("f-" + m + ".csv"))), c = lines_of(slurp(box.path("c-" + m + ".csv")));
     ASSERT_EQ(f.size(), c.size());
     ASSERT_EQ(c[0].rfind("draw,cycles,fragments,", 0), 0u) << c[0];
+    const auto j = nlohmann::ordered_json::parse(slurp(box.path("c-" + m + ".json")));  // the report's key order
+    // The cycle table ends with the DRAM bytes per buffer the report lists, read then written.
+    std::string dram_cols;
+    for (const char* dir : {"read", "written"})
+      for (const auto& [buf, v] : j["timing"]["dram"].items())
+        if (v.is_object()) dram_cols += std::string(",dram_bytes_") + dir + "." + buf;
+    ASSERT_GE(c[0].size(), dram_cols.size());
+    EXPECT_EQ(c[0].substr(c[0].size() - dram_cols.size()), dram_cols) << c[0];
+    const size_t n_dram = size_t(std::count(dram_cols.begin(), dram_cols.end(), ','));
     for (size_t i = 0; i < f.size(); ++i) {
-      // Drop the cycle table's `cycles` column.
+      // Drop the cycle table's `cycles` column and its DRAM columns.
       const size_t a = c[i].find(','), b = c[i].find(',', a + 1);
-      EXPECT_EQ(c[i].substr(0, a) + c[i].substr(b), f[i]) << "draw row " << i << " differs from the functional run's";
+      std::string row = c[i].substr(0, a) + c[i].substr(b);
+      for (size_t k = 0; k < n_dram; ++k) row.erase(row.rfind(','));
+      EXPECT_EQ(row, f[i]) << "draw row " << i << " differs from the functional run's";
     }
-    const auto j = nlohmann::json::parse(slurp(box.path("c-" + m + ".json")));
     uint64_t cycles = 0;
     for (const auto& d : j["draws"]) cycles += d["cycles"].get<uint64_t>();
     EXPECT_EQ(cycles, j["timing"]["pipeline_cycles"].get<uint64_t>()) << "the draws' cycles do not add up";
+    // Each buffer's DRAM bytes over the draws are the run's (attribution.h).
+    for (const auto& [buf, v] : j["timing"]["dram"].items()) {
+      if (!v.is_object()) continue;
+      for (const char* k : {"bytes_read", "bytes_written"}) {
+        uint64_t sum = 0;
+        for (const auto& d : j["draws"]) sum += d["dram"][buf][k].get<uint64_t>();
+        EXPECT_EQ(sum, v[k].get<uint64_t>()) << "draws' DRAM " << buf << "." << k;
+      }
+    }
+    // The per-tile maps: one EXR pixel per distributor tile, each map adding
+    // up to its report figure.
+    const auto& t = j["timing"];
+    std::map<std::string, uint64_t> want = {{"tile_cycles", t["pipeline_cycles"].get<uint64_t>()},
+                                            {"tile_cache_misses", t["cache"]["misses"].get<uint64_t>()}};
+    for (const char* a : {"busy", "input_starved", "output_blocked", "pixel_hazard", "memory"}) {
+      uint64_t sum = 0;
+      for (const auto& u : t["units"]) sum += u["cycles"][a].get<uint64_t>();
+      want[std::string("tile_") + a] = sum;
+    }
+    const uint32_t tp = j["hardware"]["resolved"]["distributor"]["tile_pixels"].get<uint32_t>();
+    for (const auto& [map, total] : want) {
+      const ropsim::DecodedImage e = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".exr"));
+      EXPECT_EQ(uint32_t(e.width), (j["input"]["width"].get<uint32_t>() + tp - 1) / tp) << map;
+      EXPECT_EQ(uint32_t(e.height), (j["input"]["height"].get<uint32_t>() + tp - 1) / tp) << map;
+      double sum = 0;
+      for (size_t i = 0; i < e.px.size(); i += size_t(e.channels)) sum += e.px[i];
+      EXPECT_EQ(uint64_t(sum), total) << map << " does not add up to its report figure";
+      const ropsim::DecodedImage p = ropsim::decode_image_file(box.path("maps-" + m + "/" + map + ".png"));
+      EXPECT_EQ(uint32_t(p.width), j["input"]["width"].get<uint32_t>()) << map << ".png covers the screen";
+    }
+    EXPECT_GT(want["tile_memory"] + want["tile_pixel_hazard"], 0u) << "the test needs stalls";
     const ropsim::DecodedImage e = ropsim::decode_image_file(box.path("maps-" + m + "/samples_written.exr"));
     double sum = 0;
     for (size_t i = 0; i < e.px.size(); i += size_t(e.channels)) sum += e.px[i];
@@ -558,6 +601,54 @@ TEST(Cli, AlphaRefVectors) {
 
 }  // namespace
 
+namespace {
+
+// A GTKWave save file ropsim wrote beside waveform w of cycles first..last
+// (docs/reports.md "Waveforms"): it names the VCD by its absolute path,
+// starts the view at the window's first cycle zoomed to show the window,
+// shows the clock and the cycle counter first, then every scope under a
+// comment line naming it, each signal a variable of the VCD, every variable
+// of the VCD shown. Returns the number of lines GTKWave shows.
+size_t check_gtkw(const std::string& g, const ropsim_test::Vcd& w, const fs::path& vcd, uint64_t first, uint64_t last) {
+  std::istringstream in(g);
+  std::vector<std::string> signals, comments;
+  std::string dumpfile;
+  double zoom = 0;
+  uint64_t start = ~uint64_t{0};
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("[dumpfile] ", 0) == 0)
+      dumpfile = line.substr(11);
+    else if (line.rfind("[timestart] ", 0) == 0)
+      start = std::stoull(line.substr(12));
+    else if (line[0] == '*')
+      zoom = std::stod(line.substr(1));
+    else if (line[0] == '-')
+      comments.push_back(line.substr(1));
+    else if (line[0] != '[' && line[0] != '@')
+      signals.push_back(line);
+  }
+  EXPECT_EQ(dumpfile, "\"" + fs::absolute(vcd).lexically_normal().string() + "\"");
+  EXPECT_EQ(start, first * 1000) << "[timestart] in ps: the window's first cycle (1000 ps per cycle)";
+  const double shown = 3.30 * std::pow(2.0, -zoom), window = double(last - first + 1) * 1000;
+  EXPECT_TRUE(shown >= window && shown <= 1.1 * window)
+      << "the zoom shows " << shown << " ps of a " << window << " ps window";
+  EXPECT_GE(signals.size(), 2u);
+  if (signals.size() >= 2) {
+    EXPECT_EQ(signals[0], "top.clk");
+    EXPECT_EQ(signals[1], "top.cycle");
+  }
+  std::set<std::string> vars, shown_signals(signals.begin(), signals.end());
+  for (const auto& v : w.vars) vars.insert(v.scope + "." + v.name);
+  EXPECT_EQ(shown_signals, vars) << "the save file shows exactly the VCD's variables";
+  EXPECT_EQ(shown_signals.size(), signals.size()) << "a signal shown twice";
+  for (const auto& c : comments)
+    EXPECT_TRUE(std::any_of(w.vars.begin(), w.vars.end(), [&](const auto& v) { return v.scope == "top." + c; }))
+        << "a group for scope " << c << ", which has no variable";
+  EXPECT_NE(std::find(comments.begin(), comments.end(), "rop0"), comments.end()) << "no rop0 group";
+  return signals.size() + comments.size();
+}
+}  // namespace
+
 // ------------------------------------------------------------------ cycle fidelity
 
 TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
@@ -586,21 +677,30 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
   // activities by name, rop0's units and FIFOs in one scope, nothing outside
   // the window.
   const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
-  EXPECT_EQ(w.timescale, "1 ns");
-  EXPECT_NE(w.comment.find("One time unit is one clock cycle"), std::string::npos) << w.comment;
-  const int cycle = w.find("top", "cycle");
+  // A cycle is ten 100 ps time units (1 ns: GTKWave's ns are cycles), the
+  // clock high in its first half.
+  EXPECT_EQ(w.timescale, "100 ps");
+  EXPECT_NE(w.comment.find("One clock cycle is ten time units of 100 ps"), std::string::npos) << w.comment;
+  const int cycle = w.find("top", "cycle"), clk = w.find("top", "clk");
   ASSERT_GE(cycle, 0) << "no cycle counter";
-  ASSERT_EQ(w.stamps.size(), 301u) << "one time stamp per cycle of 100:400";
-  EXPECT_EQ(w.stamps.front(), 100u);
-  EXPECT_EQ(w.stamps.back(), 400u);
+  ASSERT_GE(clk, 0) << "no clock";
+  ASSERT_EQ(w.stamps.size(), 602u) << "two time stamps per cycle of 100:400";
+  EXPECT_EQ(w.stamps.front(), 1000u);
+  EXPECT_EQ(w.stamps.back(), 4005u);
   const std::set<std::string> names = {"idle", "busy", "input_starved", "output_blocked", "pixel_hazard", "memory"};
   std::set<std::string> seen;
   size_t cycles_seen = 0;
   for (const auto& c : w.changes) {
-    EXPECT_TRUE(c.time >= 100 && c.time <= 400) << "VCD change at " << c.time << ", outside the window 100:400";
+    EXPECT_TRUE(c.time >= 1000 && c.time <= 4005) << "VCD change at " << c.time << ", outside the window 100:400";
+    if (int(c.var) == clk) {
+      EXPECT_EQ(c.value, c.time % 10 == 5 ? "0" : "1") << "clk at time " << c.time;
+      continue;
+    }
+    EXPECT_EQ(c.time % 10, 0u) << "a change off the rising clock edge, at time " << c.time;
     if (int(c.var) == cycle) {
       ++cycles_seen;
-      EXPECT_EQ(ropsim_test::Vcd::number(c.value), c.time) << "the cycle counter is not the time: one unit, one clock";
+      EXPECT_EQ(ropsim_test::Vcd::number(c.value), c.time / 10)
+          << "the cycle counter is not the time: ten units, one clock";
     }
     const auto& v = w.vars[c.var];
     if (v.type == "string" && v.scope != "top.dram") {
@@ -615,6 +715,25 @@ TEST(CliCycle, CycleRunWritesTheFunctionalImageAndATimingReport) {
     EXPECT_GE(w.find("top.rop0", u), 0) << "rop0's scope lacks " << u;
   for (const auto& f : box.files()) EXPECT_NE(f[0], '.') << "temporary file " << f << " left behind";
   EXPECT_EQ(t["host"]["decoupled"], true) << "a --vcd run keeps its temporal decoupling";
+  check_gtkw(slurp(box.work() / "w.gtkw"), w, box.work() / "w.vcd", 100, 400);
+  EXPECT_NE(std::find(j["outputs"].begin(), j["outputs"].end(), "w.gtkw"), j["outputs"].end()) << "w.gtkw not listed";
+  // GTKWave itself opens the save file (headless, when it and xvfb-run are
+  // installed): it finds the VCD, shows every line and the window.
+  if (!fs::exists("/usr/bin/gtkwave") || !fs::exists("/usr/bin/xvfb-run")) return;
+  std::ofstream(box.work() / "q.tcl") << "puts \"VIEW [gtkwave::getWindowStartTime] [gtkwave::getWindowEndTime] "
+                                         "[gtkwave::getTotalNumTraces]\"\ngtkwave::/File/Quit\n";
+  const std::string cmd = "cd '" + box.work().string() + "' && timeout 60 xvfb-run -a gtkwave -S q.tcl '" +
+                          (box.work() / "w.gtkw").string() + "' > gtkwave.log 2>&1";
+  const int rc = std::system(cmd.c_str());
+  const std::string log = slurp(box.work() / "gtkwave.log");
+  const auto at = log.find("VIEW ");
+  ASSERT_NE(at, std::string::npos) << "GTKWave did not open w.gtkw (exit " << rc << "):\n" << log;
+  std::istringstream view(log.substr(at + 5));
+  uint64_t from = 0, to = 0, lines = 0;
+  view >> from >> to >> lines;
+  EXPECT_EQ(from, 100000u) << "the view starts at cycle 100 (ps)";
+  EXPECT_TRUE(to >= 401000 && to <= 440000) << "the view ends at " << to << " ps, not just after cycle 400";
+  EXPECT_EQ(lines, check_gtkw(slurp(box.work() / "w.gtkw"), w, box.work() / "w.vcd", 100, 400));
 }
 
 // A --vcd-window run is the run without --vcd: every timing figure, and the
@@ -639,9 +758,9 @@ TEST(CliCycle, WaveformWindowLeavesTheRunDecoupledAndUnchanged) {
 
   const ropsim_test::Vcd w = ropsim_test::parse_vcd(slurp(box.work() / "w.vcd"));
   ASSERT_FALSE(w.stamps.empty());
-  EXPECT_EQ(w.stamps.front(), 20000u);
-  EXPECT_EQ(w.stamps.back(), 21000u);
-  for (const auto& c : w.changes) ASSERT_TRUE(c.time >= 20000 && c.time <= 21000) << "a change at " << c.time;
+  EXPECT_EQ(w.stamps.front(), 200000u) << "cycle 20000's rising edge";
+  EXPECT_EQ(w.stamps.back(), 210005u) << "cycle 21000's falling edge";
+  for (const auto& c : w.changes) ASSERT_TRUE(c.time >= 200000 && c.time <= 210005) << "a change at " << c.time;
   std::set<std::string> rops;
   for (const auto& u : v["units"]) {
     const int rop = u["rop"].get<int>();

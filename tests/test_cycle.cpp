@@ -1327,12 +1327,25 @@ TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
   std::string text;
   w.write_vcd("top", "test", 100, [&](std::string_view s) { text += s; });
   const ropsim_test::Vcd v = ropsim_test::parse_vcd(text);
-  EXPECT_EQ(v.stamps.front(), 10u);
-  EXPECT_EQ(v.stamps.back(), 20u);
-  const std::vector<std::string> unit = v.trace(size_t(v.find("top.rop0", "unit")), 10, 20);
+  // Ten 100 ps time units per cycle: the clock rises at 10c and falls at 10c + 5.
+  EXPECT_EQ(v.timescale, "100 ps");
+  EXPECT_EQ(v.stamps.front(), 100u);
+  EXPECT_EQ(v.stamps.back(), 205u);
+  EXPECT_EQ(v.stamps.size(), 22u);
+  const int clk = v.find("top", "clk");
+  ASSERT_GE(clk, 0) << "no clock";
+  EXPECT_EQ(v.vars[size_t(clk)].type, "wire");
+  EXPECT_EQ(v.vars[size_t(clk)].width, 1);
+  const std::vector<std::string> clock = v.trace(size_t(clk), 100, 209);
+  for (size_t i = 0; i < clock.size(); ++i) EXPECT_EQ(clock[i], i % 10 < 5 ? "1" : "0") << "clk at time " << 100 + i;
+  for (const auto& c : v.changes) {
+    if (int(c.var) == clk) continue;
+    EXPECT_EQ(c.time % 10, 0u) << "a signal changes off the rising edge, at time " << c.time;
+  }
+  const std::vector<std::string> unit = v.trace_cycles(size_t(v.find("top.rop0", "unit")), 10, 20);
   EXPECT_EQ(unit, (std::vector<std::string>{"busy", "busy", "idle", "idle", "idle", "busy", "busy", "busy", "busy",
                                             "busy", "busy"}));
-  const std::vector<std::string> fifo = v.trace(size_t(v.find("top.rop0", "fifo_in")), 10, 20);
+  const std::vector<std::string> fifo = v.trace_cycles(size_t(v.find("top.rop0", "fifo_in")), 10, 20);
   // Entries in at a cycle: pushed at or before it, popped after it.
   const uint64_t expect[] = {1, 1, 1, 0, 2, 2, 2, 2, 2, 2, 2};
   for (size_t i = 0; i < fifo.size(); ++i)
@@ -1340,7 +1353,7 @@ TEST(Waveform, RecordsEachSignalAtItsOwnCycle) {
   // A run that ends inside the window: nothing after its last cycle.
   std::string short_run;
   w.write_vcd("top", "test", 16, [&](std::string_view s) { short_run += s; });
-  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 15u);
+  EXPECT_EQ(ropsim_test::parse_vcd(short_run).stamps.back(), 155u) << "the falling edge of cycle 15";
   EXPECT_THROW(w.set(st, 14, 1), InternalError) << "an event before the signal's last one";
 }
 
@@ -1405,7 +1418,7 @@ TEST(Waveform, AWholeRunAddsUpToTheReport) {
     const ropsim_test::Vcd v = ropsim_test::parse_vcd(slurp_file(path));
     std::filesystem::remove(path);
     const CycleStats& s = run.stats;
-    ASSERT_EQ(v.stamps.size(), s.total_cycles) << what << ": one time stamp per cycle of the run";
+    ASSERT_EQ(v.stamps.size(), 2 * s.total_cycles) << what << ": two time stamps per cycle of the run";
     // Each pass: its scope prefix and its cycles [from, to) in the run.
     struct Pass {
       std::string prefix;
@@ -1428,7 +1441,7 @@ TEST(Waveform, AWholeRunAddsUpToTheReport) {
     // Per variable: its changes; the cycles at each value, the sum and the
     // maximum of its numbers over [from, to).
     std::vector<std::vector<std::pair<uint64_t, std::string>>> changes(v.vars.size());
-    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time, c.value);
+    for (const auto& c : v.changes) changes[c.var].emplace_back(c.time / 10, c.value);  // cycle c at time 10c
     struct Sums {
       std::map<std::string, uint64_t> cycles;
       uint64_t sum = 0, max = 0;
@@ -1484,6 +1497,98 @@ TEST(Waveform, AWholeRunAddsUpToTheReport) {
     ASSERT_GT(s.dram.busy_cycles, 0u) << what << ": the test needs DRAM traffic";
     EXPECT_EQ(busy, s.dram.busy_cycles) << what << ": DRAM data-bus cycles";
     EXPECT_EQ(misses, s.dram.row_misses) << what << ": DRAM row misses";
+  }
+}
+
+// ------------------------------------------------------------ attribution (attribution.h: --per-draw, --maps)
+
+namespace {
+
+uint64_t sum_of(const std::vector<uint64_t>& v) {
+  uint64_t s = 0;
+  for (uint64_t x : v) s += x;
+  return s;
+}
+
+}  // namespace
+
+// Every cost the cycle model charges to a draw or a screen tile adds up to
+// the report's figure: per buffer, the draws' DRAM bytes read and written
+// are the run's (compressed surfaces with their metadata traffic too, and
+// the passes of a multi-pass method); per tile, the retirement cycles are
+// pipeline_cycles, the units' cycles in each activity their counters (plus
+// the cycles of units that never took a fragment), the cache misses the
+// caches'. It observes only: every timing figure is the run's without it.
+TEST(Attribution, DrawsAndTilesAddUpToTheReportAndChangeNothing) {
+  HwConfig plain_hw, comp_hw;
+  for (const char* o : {"compression.depth=true", "compression.color=true", "hiz.enable=true"})
+    apply_hw_override(comp_hw, o);
+  struct Case {
+    Method m;
+    HwConfig hw;
+    const char* what;
+  };
+  for (const Case& c : {Case{Method::kLk, plain_hw, "lk"}, Case{Method::kLk, comp_hw, "lk, compressed, Hi-Z"},
+                        Case{Method::kLkDepthAc, plain_hw, "lk+depth+ac (three passes)"}}) {
+    const InputSpec in = scene_input("testcard", 4);
+    CycleOptions opt;
+    opt.breakdown = BreakdownRequest{true, true};
+    const CycleRun run = run_cycle(in, method_config(c.m), c.hw, opt);
+    const CycleRun plain = run_cycle(in, method_config(c.m), c.hw);
+    const CycleStats& s = run.stats;
+    expect_same_timing(s, plain.stats, c.what);
+    EXPECT_EQ(s.dram.bytes_read, plain.stats.dram.bytes_read) << c.what;
+    EXPECT_EQ(s.dram.bytes_written, plain.stats.dram.bytes_written) << c.what;
+    ASSERT_TRUE(run.breakdown && run.tiles) << c.what;
+    ASSERT_GT(run.breakdown->draws().size(), 1u) << c.what << ": the test needs several draws";
+    const RunBreakdown::Draw total = run.breakdown->total();
+    for (int b = 0; b < kBuffers; ++b) {
+      EXPECT_EQ(total.dram_read[size_t(b)], s.dram.bytes_read[size_t(b)]) << c.what << ": " << to_string(Buffer(b));
+      EXPECT_EQ(total.dram_written[size_t(b)], s.dram.bytes_written[size_t(b)])
+          << c.what << ": " << to_string(Buffer(b));
+    }
+    EXPECT_GT(s.dram.total_bytes_written(), 0u) << c.what << ": the test needs write-backs";
+    if (c.hw.compression.depth) {
+      EXPECT_GT(s.compression.metadata_bytes_written[0], 0u) << c.what << ": the test needs metadata write-backs";
+    }
+    const Attribution& a = *run.tiles;
+    EXPECT_EQ(a.tiles(), run.tiles_x * run.tiles_y);
+    EXPECT_EQ(sum_of(a.retire_cycles()), s.pipeline_cycles) << c.what;
+    for (int k = 0; k < kActivities; ++k) {
+      uint64_t units = 0;
+      for (const auto& u : s.units) units += u.stats.cycles[size_t(k)];
+      EXPECT_EQ(sum_of(a.unit_cycles(k)) + a.unowned(k), units) << c.what << ": " << to_string(Activity(k));
+    }
+    CacheStats caches;
+    for (const auto& cs : s.caches) caches += cs;
+    EXPECT_EQ(sum_of(a.cache_misses()), caches.misses()) << c.what;
+    uint64_t stalls = 0;
+    for (Activity k : {Activity::kMemory, Activity::kHazard, Activity::kBlocked})
+      stalls += sum_of(a.unit_cycles(int(k)));
+    EXPECT_GT(stalls, 0u) << c.what << ": the test needs stalls";
+  }
+}
+
+// The charges are made at the cycles of the events, so a decoupled run
+// charges exactly what the lockstep run does (one ROP, where the two agree
+// in every timing figure).
+TEST(Attribution, DecoupledAndLockstepChargeTheSame) {
+  const HwConfig hw = load_hw_config(ROPSIM_SOURCE_DIR "/configs/narrow.toml");
+  CycleOptions opt;
+  opt.breakdown = BreakdownRequest{true, true};
+  const CycleRun dec = run_cycle(scene_input("testcard", 4), method_config(Method::kLk), hw, opt);
+  opt.lockstep = true;
+  const CycleRun lock = run_cycle(scene_input("testcard", 4), method_config(Method::kLk), hw, opt);
+  ASSERT_TRUE(dec.stats.decoupled && !lock.stats.decoupled);
+  for (size_t i = 0; i < tile_map_descs().size(); ++i)
+    EXPECT_EQ(tile_map(*dec.tiles, i), tile_map(*lock.tiles, i)) << tile_map_descs()[i].name;
+  for (int k = 0; k < kActivities; ++k) EXPECT_EQ(dec.tiles->unowned(k), lock.tiles->unowned(k));
+  ASSERT_EQ(dec.breakdown->draws().size(), lock.breakdown->draws().size());
+  for (const auto& [id, d] : dec.breakdown->draws()) {
+    const auto& l = lock.breakdown->draws().at(id);
+    EXPECT_EQ(d.dram_read, l.dram_read) << "draw " << id;
+    EXPECT_EQ(d.dram_written, l.dram_written) << "draw " << id;
+    EXPECT_EQ(d.cycles, l.cycles) << "draw " << id;
   }
 }
 

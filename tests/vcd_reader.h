@@ -24,7 +24,7 @@ struct Vcd {
     size_t var;         ///< index in vars
     std::string value;  ///< a string's text, or a vector's bits ("101")
   };
-  std::string comment, timescale;  ///< timescale as written: "1 ns"
+  std::string comment, timescale;  ///< timescale as written: "100 ps"
   std::vector<Var> vars;
   std::vector<Change> changes;   ///< in file order
   std::vector<uint64_t> stamps;  ///< every "#t" line, in file order
@@ -55,6 +55,15 @@ struct Vcd {
         if (changes[k].var == var) now = changes[k].value;
       v[size_t(t - first)] = now;
     }
+    return v;
+  }
+  /// The same at the rising clock edge of every cycle first..last: ropsim's
+  /// waveforms have ten time units per cycle, cycle c at time 10c.
+  static constexpr uint64_t kUnitsPerCycle = 10;
+  std::vector<std::string> trace_cycles(size_t var, uint64_t first, uint64_t last) const {
+    const std::vector<std::string> all = trace(var, kUnitsPerCycle * first, kUnitsPerCycle * last);
+    std::vector<std::string> v;
+    for (size_t i = 0; i < all.size(); i += kUnitsPerCycle) v.push_back(all[i]);
     return v;
   }
 };

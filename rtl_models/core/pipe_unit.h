@@ -53,6 +53,7 @@ class PipeUnit : public DecoupledUnit {
         if (t > limit) return wake_at(t);
       }
       FragToken* tok = in_.pop(t);
+      took(tok->tile, t);
       ++stats_.fragments;
       const Timing tm = process(tok, t);
       out_.push(tok, t, t + tm.latency);

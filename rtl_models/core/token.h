@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "attribution.h"
 #include "counters.h"
 #include "errors.h"
 #include "frag_work.h"
@@ -25,6 +26,11 @@ struct FragToken : FragWork {
   uint64_t seq = 0;        ///< position in the input (API order)
   uint32_t rop = 0;        ///< the ROP unit that owns its pixel
   uint64_t pixel_key = 0;  ///< y * width + x
+  /// The distributor tile of its pixel, ty * tiles_x + tx (rop_ownership.h),
+  /// set by the source when the run attributes per tile (attribution.h).
+  uint32_t tile = 0;
+  /// Whom its accesses are charged to (attribution.h).
+  Owner owner() const { return Owner{fragment.draw_id, tile}; }
   /// With a breakdown (--per-draw, --maps): what the fragment's stages added
   /// to the counters (run_stage), reset when the source issues it.
   bool counting = false;

@@ -22,6 +22,7 @@
 #include <systemc>
 #include <vector>
 
+#include "attribution.h"
 #include "clock.h"
 #include "interval_log.h"
 #include "scheduler.h"
@@ -95,6 +96,18 @@ class Unit : public sc_core::sc_module {
     std::string meaning;
   };
   virtual std::vector<Extra> extras() const { return {}; }
+  /// Also charges every span of cycles to a tile in attr (attribution.h:
+  /// the tile of the fragment it took last, took()); before the run.
+  void attribute_to(Attribution* attr) { attr_ = attr; }
+  bool attributing() const { return attr_ != nullptr; }
+  /// The unit takes a fragment of tile `tile` at cycle t: its cycles from t
+  /// on are that tile's (those before its first fragment too).
+  void took(uint32_t tile, uint64_t t) {
+    if (__builtin_expect(attr_ != nullptr, 0)) took_tile(tile, t);
+  }
+  /// Ends the attribution: a unit that took no fragment charges its cycles
+  /// to no tile (after close_accounting).
+  void close_attribution();
   /// Also records every span of cycles in `wave`'s state signal `sig`, whose
   /// states are the Activity names (--vcd); before the run.
   void trace_to(Waveform* wave, int sig) {
@@ -144,6 +157,15 @@ class Unit : public sc_core::sc_module {
       since_ = t;
     }
   }
+  // The tile attribution (attribution.h) adds nothing to the accounting
+  // above: at each switch of tile it charges the cycles accounted since the
+  // previous switch (stats_.cycles now minus then) to the tile it leaves.
+  void took_tile(uint32_t tile, uint64_t t);
+  void charge_tile(bool owned);
+  Attribution* attr_ = nullptr;
+  bool has_tile_ = false;
+  uint32_t tile_ = 0;
+  std::array<uint64_t, kActivities> charged_{};  // stats_.cycles at the last switch
   IntervalLog* log_ = nullptr;
   int log_kind_ = -1;
   Waveform* wave_ = nullptr;

@@ -51,9 +51,10 @@ CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t 
     tile_bytes_[b] = std::max<uint64_t>(1, uint64_t(fmt_.tile_pixels) * uint64_t(spp) * bps[b]);
   const HwConfig::Cache shape = meta_cache_shape(hw);
   for (uint32_t r = 0; r < rops; ++r) {
-    MetaCache m{CacheTags(shape), {}, {}};
+    MetaCache m{CacheTags(shape), {}, {}, {}};
     m.dirty.assign(m.tags.size(), 0);
     m.ready.assign(m.tags.size(), 0);
+    m.draw.assign(m.tags.size(), 0);
     meta_.push_back(std::move(m));
   }
   const size_t screen_tiles = size_t(tiles_x_) * ceil_div(height, 8u) * (64u / fmt_.tile_pixels);
@@ -133,7 +134,10 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
     ++s_.metadata_misses;
     const uint64_t old = m.tags.tag(way);
     if (old != CacheTags::kInvalid && m.dirty[way]) {
+      const uint32_t draw = dram_->charged();
+      dram_->charge_to(m.draw[way]);  // its last writer's (attribution.h)
       dram_->access(old, line_bytes_, true, Buffer((old >> 48) & 7u), now);
+      dram_->charge_to(draw);
       s_.metadata_bytes_written[size_t((old >> 48) & 7u)] += line_bytes_;
     }
     m.tags.install(way, line);
@@ -143,7 +147,10 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
     ready = m.ready[way] = dram_->access(line, line_bytes_, false, b, now);
     s_.metadata_bytes_read[size_t(b)] += line_bytes_;
   }
-  if (write) m.dirty[way] = 1;
+  if (write) {
+    m.dirty[way] = 1;
+    m.draw[way] = dram_->charged();
+  }
   return ready;
 }
 
@@ -191,6 +198,7 @@ uint64_t CompressionModel::flush(uint64_t now) {
     for (size_t w = 0; w < m.dirty.size(); ++w)
       if (m.dirty[w] && m.tags.tag(w) != CacheTags::kInvalid) {
         const Buffer b = Buffer((m.tags.tag(w) >> 48) & 7u);
+        dram_->charge_to(m.draw[w]);
         done = std::max(done, dram_->access(m.tags.tag(w), line_bytes_, true, b, now));
         s_.metadata_bytes_written[size_t(b)] += line_bytes_;
         m.dirty[w] = 0;

@@ -164,6 +164,7 @@ class CompressionModel {
     CacheTags tags;
     std::vector<uint8_t> dirty;
     std::vector<uint64_t> ready;
+    std::vector<uint32_t> draw;  // the draw that wrote the line last (attribution.h)
   };
   std::vector<MetaCache> meta_;  // per ROP
   bool hiz_;

@@ -51,6 +51,15 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
   return done;
 }
 
+void Dram::settle_attribution() {
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    if (const uint64_t n = s_.bytes_read[b] - read_charged_[b]) attr_->dram(draw_, false, Buffer(b), n);
+    if (const uint64_t n = s_.bytes_written[b] - written_charged_[b]) attr_->dram(draw_, true, Buffer(b), n);
+  }
+  read_charged_ = s_.bytes_read;
+  written_charged_ = s_.bytes_written;
+}
+
 void Dram::trace_to(Waveform& wave, const std::string& scope) {
   wave_ = &wave;
   for (size_t i = 0; i < ch_.size(); ++i) {

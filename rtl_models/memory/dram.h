@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "address_map.h"
+#include "attribution.h"
 #include "bits.h"
 #include "hw_config.h"
 #include "interval_log.h"
@@ -101,8 +102,25 @@ class Dram {
   /// (chN_row_misses, counted at the burst's first cycle), as signals of
   /// `scope` in wave (--vcd); before any access.
   void trace_to(Waveform& wave, const std::string& scope);
+  /// Also charges every access's bytes to a draw in attr (attribution.h):
+  /// the draw set last by charge_to, which the callers set before they
+  /// call; settle_attribution() charges the last ones (end of the pass).
+  void attribute_to(Attribution* attr) { attr_ = attr; }
+  bool attributing() const { return attr_ != nullptr; }
+  void charge_to(uint32_t draw) {
+    if (draw == draw_) return;  // the same draw's bytes keep adding up
+    if (attr_) settle_attribution();
+    draw_ = draw;
+  }
+  uint32_t charged() const { return draw_; }
+  /// Charges the bytes moved since the last charge_to to its draw: access()
+  /// itself does no attribution work (the bytes are its statistics' growth).
+  void settle_attribution();
 
  private:
+  Attribution* attr_ = nullptr;
+  uint32_t draw_ = 0;
+  std::array<uint64_t, kBuffers> read_charged_{}, written_charged_{};  // s_'s bytes at the last settle
   IntervalLog* log_ = nullptr;
   Waveform* wave_ = nullptr;
   int wave_sig_ = -1;  // channel i: bus state wave_sig_ + 2 i, row misses + 1

@@ -9,17 +9,17 @@ namespace ropsim {
 void PostedWrites::apply(uint64_t before) {
   // Merge the ROPs' queues in (cycle, ROP) order.
   for (;;) {
-    Queue* next = nullptr;
-    for (auto& q : q_)
-      if (!q.empty() && (!next || q.front().cycle < next->front().cycle)) next = &q;
-    if (!next || next->front().cycle >= before) {
-      earliest_ = next ? next->front().cycle : ~uint64_t{0};
+    PerRop* next = nullptr;
+    for (auto& r : q_)
+      if (!r.writes.empty() && (!next || r.writes.front().cycle < next->writes.front().cycle)) next = &r;
+    if (!next || next->writes.front().cycle >= before) {
+      earliest_ = next ? next->writes.front().cycle : ~uint64_t{0};
       return;
     }
-    const Write w = next->front();
-    next->pop_front();
-    w.cache->write(w.line, w.buf, w.cycle);
-    w.cache->applied(w.patch);
+    const Write w = next->writes.front();
+    next->writes.pop_front();
+    next->cache->write(w.line, w.buf, w.cycle, w.owner);
+    next->cache->applied(w.patch);
   }
 }
 
@@ -45,6 +45,7 @@ void RopCache::evict(size_t way, uint64_t now) {
     ++s_.evictions;
     if (w.dirty) {
       ++s_.dirty_evictions;
+      if (attr_) dram_.charge_to(w.draw);  // the data's draw, whoever evicts it
       write_back(line, w.buf, now);
       // A compressed tile leaves as a block: the tile's other dirty lines
       // are written back with it (and stay, clean).
@@ -56,6 +57,7 @@ void RopCache::evict(size_t way, uint64_t now) {
           if (other == line) continue;
           const size_t ow = tags_.probe(other);
           if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != w.buf) continue;
+          if (attr_) dram_.charge_to(ways_[ow].draw);
           write_back(other, w.buf, now);
           ways_[ow].dirty = false;
         }
@@ -79,7 +81,7 @@ uint64_t RopCache::write_back(uint64_t line, Buffer b, uint64_t now) {
   return dram_.access(line, cfg_.line_bytes, true, b, now);
 }
 
-uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
+uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now, Owner o) {
   if (posted_) posted_->apply_before(now);  // earlier cycles' writes first, in a fixed order
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
@@ -93,6 +95,10 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
     return now + cfg_.hit_latency_cycles;
   }
   ++s_.read_misses[size_t(b)];
+  if (attr_) {
+    attr_->cache_miss(o.tile);
+    dram_.charge_to(o.draw);  // the fill (and its state bits) is the missing fragment's
+  }
   w.buf = b;
   w.dirty = false;
   if (cfg_.fast_clear && !in_dram_.contains(line)) {
@@ -106,7 +112,7 @@ uint64_t RopCache::read(uint64_t line, Buffer b, uint64_t now) {
   return w.ready;
 }
 
-void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
+void RopCache::write(uint64_t line, Buffer b, uint64_t now, Owner o) {
   bool hit = false;
   Way& w = ways_[lookup(line, hit, now)];
   if (log_) ++(hit ? log_->row(now).cache_hits : log_->row(now).cache_misses);
@@ -114,11 +120,13 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now) {
     ++s_.write_hits[size_t(b)];
   } else {
     ++s_.write_misses[size_t(b)];
+    if (attr_) attr_->cache_miss(o.tile);
     w.buf = b;
     w.ready = now;
   }
   if (!w.dirty) ++s_.dirtied;
   w.dirty = true;
+  w.draw = o.draw;
   if (comp_ && comp_->compresses(b)) comp_->touched(line, b);
 }
 
@@ -140,6 +148,7 @@ uint64_t RopCache::flush(uint64_t now) {
   uint64_t done = now;
   for (size_t i = 0; i < ways_.size(); ++i)
     if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
+      if (attr_) dram_.charge_to(w.draw);  // the last writer's, like an eviction
       done = std::max(done, write_back(tags_.tag(i), w.buf, now));
       w.dirty = false;
     }

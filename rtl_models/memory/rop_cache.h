@@ -70,9 +70,11 @@ class RopCache;
 class PostedWrites {
  public:
   /// Each ROP posts in non-decreasing cycle order (its writeback is in order).
-  void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b, uint32_t patch) {
+  void post(uint64_t cycle, uint32_t rop, RopCache* cache, uint64_t line, Buffer b, Owner o = {},
+            uint32_t patch = CompressionModel::kNoPatch) {
     if (rop >= q_.size()) q_.resize(rop + 1);
-    q_[rop].push(Write{cycle, cache, line, b, patch});
+    q_[rop].cache = cache;  // one per ROP: the writes need not carry it
+    q_[rop].writes.push(Write{cycle, line, o, b, patch});
     earliest_ = std::min(earliest_, cycle);
   }
   /// Applies every write posted for a cycle before `cycle`.
@@ -84,8 +86,8 @@ class PostedWrites {
  private:
   struct Write {
     uint64_t cycle;
-    RopCache* cache;
     uint64_t line;
+    Owner owner;
     Buffer buf;
     uint32_t patch;  // CompressionModel::pend's id, or kNoPatch
   };
@@ -96,7 +98,11 @@ class PostedWrites {
   // the back; equal cycles keep their order).
   using Queue = SortedRing<Write, Earlier>;
   void apply(uint64_t before);
-  std::vector<Queue> q_;  // per ROP
+  struct PerRop {
+    Queue writes;
+    RopCache* cache = nullptr;
+  };
+  std::vector<PerRop> q_;
   uint64_t earliest_ = ~uint64_t{0};
 };
 
@@ -105,17 +111,19 @@ class RopCache {
   /// `posted` (shared by the ROPs) delays writes as PostedWrites says; without
   /// it a posted write is applied at once.
   RopCache(const HwConfig::Cache& cfg, Dram& dram, LineSet& in_dram, PostedWrites* posted = nullptr, uint32_t rop = 0);
-  /// Reads a line at cycle now; returns the cycle its data is available.
-  uint64_t read(uint64_t line_addr, Buffer b, uint64_t now);
+  /// Reads a line at cycle now for a fragment of `o`; returns the cycle its
+  /// data is available.
+  uint64_t read(uint64_t line_addr, Buffer b, uint64_t now, Owner o = {});
   /// Writes (part of) a line at cycle now; never stalls the writer.
-  void write(uint64_t line_addr, Buffer b, uint64_t now);
+  void write(uint64_t line_addr, Buffer b, uint64_t now, Owner o = {});
   /// Posts a write for cycle `cycle` (see PostedWrites); `patch`: what its
   /// functional write replaced (CompressionModel::pend), released once applied.
-  void post_write(uint64_t line_addr, Buffer b, uint64_t cycle, uint32_t patch = CompressionModel::kNoPatch) {
+  void post_write(uint64_t line_addr, Buffer b, uint64_t cycle, Owner o = {},
+                  uint32_t patch = CompressionModel::kNoPatch) {
     if (posted_) {
-      posted_->post(cycle, rop_, this, line_addr, b, patch);
+      posted_->post(cycle, rop_, this, line_addr, b, o, patch);
     } else {
-      write(line_addr, b, cycle);
+      write(line_addr, b, cycle, o);
       applied(patch);
     }
   }
@@ -123,6 +131,9 @@ class RopCache {
   void applied(uint32_t patch) {
     if (patch != CompressionModel::kNoPatch) comp_->applied(patch);
   }
+  /// Also charges its misses and its DRAM traffic in attr (attribution.h's
+  /// rules); the DRAM must attribute to the same.
+  void attribute_to(Attribution* attr) { attr_ = attr; }
   /// Tag-only warming before a run (sampled simulation): the access's effect
   /// on the tags, the LRU order and the dirty bits, without time, DRAM
   /// traffic or statistics; a dirty line it evicts is recorded as in DRAM.
@@ -141,9 +152,11 @@ class RopCache {
   // A way's state apart from its tag (CacheTags), so a set's tags share one host cache line.
   struct Way {
     uint64_t ready = 0;
+    uint32_t draw = 0;  // the draw that wrote the line last (its write-back's, attribution.h)
     Buffer buf = Buffer::kDepth;
     bool dirty = false;
   };
+  Attribution* attr_ = nullptr;
   /// The way (index) holding line, allocated (after an eviction) on a miss.
   size_t lookup(uint64_t line, bool& hit, uint64_t now);
   void evict(size_t way, uint64_t now);

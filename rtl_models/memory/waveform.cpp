@@ -1,6 +1,8 @@
 #include "waveform.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <queue>
 
 #include "errors.h"
@@ -10,6 +12,11 @@ namespace ropsim {
 namespace {
 
 constexpr size_t kChargeStep = size_t{1} << 20;  // the memory budget is charged per MiB of streams
+// The VCD identifiers: the clock, the cycle counter, then the signals.
+constexpr size_t kClk = 0, kCycle = 1, kFirstSignal = 2;
+// Time units of 100 ps (VCD allows 1, 10 or 100 of a power-of-ten unit):
+// ten per cycle, so a cycle is 1 ns; the clock falls half-way.
+constexpr uint64_t kUnitsPerCycle = 10, kFall = 5;
 
 // A VCD identifier: base 94 over the printable characters '!'..'~'.
 std::string vcd_id(size_t i) {
@@ -146,6 +153,59 @@ void Waveform::count_edge(int sig, uint64_t t, int which) {
   append(s, which, t - prev);
 }
 
+std::vector<std::string> Waveform::ordered_scopes() const {
+  // Scopes in the order of their first signal, each scope's signals
+  // together; "a.b" is scope b inside scope a.
+  std::vector<std::string> scopes;
+  for (const auto& s : signals_)
+    if (std::find(scopes.begin(), scopes.end(), s.scope) == scopes.end()) scopes.push_back(s.scope);
+  // A nested scope's parents are listed once: group the scopes by their
+  // first part in first-appearance order.
+  std::vector<std::string> heads;  // first parts, in first-appearance order
+  auto head = [](const std::string& x) { return x.substr(0, x.find('.')); };
+  for (const auto& sc : scopes)
+    if (std::find(heads.begin(), heads.end(), head(sc)) == heads.end()) heads.push_back(head(sc));
+  auto rank = [&](const std::string& x) { return std::find(heads.begin(), heads.end(), head(x)) - heads.begin(); };
+  std::stable_sort(scopes.begin(), scopes.end(),
+                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
+  return scopes;
+}
+
+std::string Waveform::write_gtkw(const std::string& vcd_path, const std::string& top, uint64_t end) const {
+  std::string o = "[*] ropsim: a GTKWave save file for " + vcd_path + "\n";
+  o += "[dumpfile] \"" + vcd_path + "\"\n";
+  // The window: cycles first..last, 1000 ps each (ten 100 ps time units).
+  const uint64_t last = std::max(first_, last_shown(end));
+  const double span_ps = double(last - first_ + 1) * 1000.0 * 1.02;  // a margin after the last cycle
+  // GTKWave shows about kZoomScale x 2^-zoom ps across the wave pane of a
+  // window of this [size] with these pane widths (measured with GTKWave
+  // 3.3.118: Zoom Best Fit keeps the same relation).
+  constexpr double kZoomScale = 3.30;
+  char zoom[64];
+  std::snprintf(zoom, sizeof zoom, "*%.6f -1", -std::log2(std::max(1.0, span_ps / kZoomScale)));
+  o += "[timestart] " + std::to_string(first_ * 1000) + "\n";
+  o += "[size] 1200 800\n[pos] -1 -1\n";
+  o += std::string(zoom) + "\n";
+  const std::vector<std::string> scopes = ordered_scopes();
+  o += "[treeopen] " + top + ".\n";
+  for (const auto& sc : scopes) {  // every scope and its parents, expanded in the tree
+    for (size_t dot = sc.find('.'); dot != std::string::npos; dot = sc.find('.', dot + 1))
+      o += "[treeopen] " + top + "." + sc.substr(0, dot) + ".\n";
+    o += "[treeopen] " + top + "." + sc + ".\n";
+  }
+  o += "[sst_width] 240\n[signals_width] 240\n[sst_expanded] 1\n[sst_vpaned_height] 200\n";
+  // Trace flags (GTKWave's, hex): 28 a bit or a string as text, 420 an
+  // integer in decimal, 200 a comment line naming the scope below it.
+  o += "@28\n" + top + ".clk\n@420\n" + top + ".cycle\n";
+  for (const auto& sc : scopes) {
+    o += "@200\n-" + sc + "\n";
+    for (const auto& s : signals_)
+      if (s.scope == sc)
+        o += std::string(s.kind == Signal::Kind::kState ? "@28\n" : "@420\n") + top + "." + sc + "." + s.name + "\n";
+  }
+  return o;
+}
+
 uint64_t Waveform::last_shown(uint64_t end) const { return end == 0 ? first_ - 1 : std::min(last_, end - 1); }
 
 void Waveform::write_vcd(const std::string& top, const std::string& comment, uint64_t end,
@@ -158,14 +218,14 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
     }
   };
   o += "$comment\n  " + comment + "\n$end\n";
-  o += "$timescale 1 ns $end\n";  // one time unit = one clock cycle (the comment says so)
+  // Ten 100 ps time units per clock cycle: the clock rises at 10c (every
+  // signal changes there) and falls at 10c + 5. A cycle is 1 ns, so GTKWave's
+  // ns are cycle numbers (the comment says so).
+  o += "$timescale 100 ps $end\n";
   o += "$scope module " + top + " $end\n";
-  o += "$var integer 64 " + vcd_id(0) + " cycle $end\n";
-  // Scopes in the order of their first signal, each scope's signals
-  // together; "a.b" is scope b inside scope a.
-  std::vector<std::string> scopes;
-  for (const auto& s : signals_)
-    if (std::find(scopes.begin(), scopes.end(), s.scope) == scopes.end()) scopes.push_back(s.scope);
+  o += "$var wire 1 " + vcd_id(kClk) + " clk $end\n";
+  o += "$var integer 64 " + vcd_id(kCycle) + " cycle $end\n";
+  const std::vector<std::string> scopes = ordered_scopes();
   std::vector<std::string> open;  // the scopes open now, outermost first
   auto enter = [&](const std::string& scope) {
     std::vector<std::string> path;
@@ -179,22 +239,13 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
     for (; open.size() < path.size(); open.push_back(path[open.size()]))
       o += "$scope module " + path[open.size()] + " $end\n";
   };
-  // A nested scope's parents are listed once: group the scopes by their
-  // first part in first-appearance order.
-  std::vector<std::string> heads;  // first parts, in first-appearance order
-  auto head = [](const std::string& x) { return x.substr(0, x.find('.')); };
-  for (const auto& sc : scopes)
-    if (std::find(heads.begin(), heads.end(), head(sc)) == heads.end()) heads.push_back(head(sc));
-  auto rank = [&](const std::string& x) { return std::find(heads.begin(), heads.end(), head(x)) - heads.begin(); };
-  std::stable_sort(scopes.begin(), scopes.end(),
-                   [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
   for (const auto& sc : scopes) {
     enter(sc);
     for (size_t i = 0; i < signals_.size(); ++i) {
       const Signal& s = signals_[i];
       if (s.scope != sc) continue;
       const char* type = s.kind == Signal::Kind::kState ? "string 1 " : "integer 64 ";
-      o += std::string("$var ") + type + vcd_id(i + 1) + " " + s.name + " $end\n";
+      o += std::string("$var ") + type + vcd_id(i + kFirstSignal) + " " + s.name + " $end\n";
     }
   }
   for (; !open.empty(); open.pop_back()) o += "$upscope $end\n";
@@ -218,24 +269,27 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
       put_binary(o, v);
     }
     o += ' ';
-    o += vcd_id(i + 1);
+    o += vcd_id(i + kFirstSignal);
     o += '\n';
   };
   // The window's first cycle: every signal's value.
-  o += "#" + std::to_string(first_) + "\n$dumpvars\n";
+  const std::string clk = vcd_id(kClk), cycle = " " + vcd_id(kCycle) + "\n";
+  auto falling = [&](uint64_t c) { o += "#" + std::to_string(kUnitsPerCycle * c + kFall) + "\n0" + clk + "\n"; };
+  o += "#" + std::to_string(kUnitsPerCycle * first_) + "\n$dumpvars\n1" + clk + "\n";
   put_binary(o, first_);
-  o += " " + vcd_id(0) + "\n";
+  o += cycle;
   for (size_t i = 0; i < cur.size(); ++i) put(i);
   o += "$end\n";
+  falling(first_);
   // Then every cycle (the counter changes at each), with the signals that change.
   using Next = std::pair<uint64_t, size_t>;  // (cycle of the next event, signal)
   std::priority_queue<Next, std::vector<Next>, std::greater<Next>> heap;
   for (size_t i = 0; i < cur.size(); ++i)
     if (cur[i].next_t() <= last) heap.emplace(cur[i].next_t(), i);
   for (uint64_t c = first_ + 1; c <= last; ++c) {
-    o += "#" + std::to_string(c) + "\n";
+    o += "#" + std::to_string(kUnitsPerCycle * c) + "\n1" + clk + "\n";
     put_binary(o, c);
-    o += " " + vcd_id(0) + "\n";
+    o += cycle;
     while (!heap.empty() && heap.top().first == c) {
       const size_t i = heap.top().second;
       heap.pop();
@@ -244,6 +298,7 @@ void Waveform::write_vcd(const std::string& top, const std::string& comment, uin
       if (cur[i].value != was) put(i);
       if (cur[i].next_t() <= last) heap.emplace(cur[i].next_t(), i);
     }
+    falling(c);
     flush(false);
   }
   flush(true);

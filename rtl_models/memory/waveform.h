@@ -1,7 +1,10 @@
 // The waveform of a cycle run (--vcd FILE --vcd-window A:B): what every unit
 // did, how full every FIFO was and what every DRAM channel's data bus moved,
-// cycle by cycle, for the cycles A..B, written as a VCD whose time unit is one
-// clock cycle (docs/reports.md "Waveforms").
+// cycle by cycle, for the cycles A..B, written as a VCD with a clock: ten
+// 100 ps time units per cycle (so GTKWave's ns are cycle numbers), the clock
+// rising at 10c, where every signal of cycle c changes, and falling at
+// 10c + 5; and a GTKWave save file that shows it (docs/reports.md
+// "Waveforms").
 //
 // Like the IntervalLog, every source records an event under the cycle it
 // happens at, never at the host's time: a unit's activity over the span of
@@ -72,6 +75,12 @@ class Waveform {
   /// Passes it to `out` in pieces of about 1 MiB.
   void write_vcd(const std::string& top, const std::string& comment, uint64_t end,
                  const std::function<void(std::string_view)>& out) const;
+  /// A GTKWave save file (.gtkw) for that VCD at vcd_path (write_vcd's top
+  /// and end): the clock and the cycle counter, then every scope's signals in
+  /// the file's order under a comment line naming the scope (each ROP, the
+  /// shared units, the DRAM), the scope tree expanded, the view starting at
+  /// the window's first cycle and zoomed to show the whole window.
+  std::string write_gtkw(const std::string& vcd_path, const std::string& top, uint64_t end) const;
   /// The last cycle the file shows (write_vcd's end), or first - 1 if none.
   uint64_t last_shown(uint64_t end) const;
 
@@ -93,6 +102,7 @@ class Waveform {
   const std::vector<Signal>& signals() const { return signals_; }
 
  private:
+  std::vector<std::string> ordered_scopes() const;
   void record(int sig, uint64_t t, uint64_t v);
   void count_edge(int sig, uint64_t t, int which);
   void append(Signal& s, int which, uint64_t v);

@@ -17,14 +17,16 @@ uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
     if (pass_blends_accum(p)) accum.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
   }
   const uint32_t n = run_stage(rop_.blend(), *t);
+  const Owner o = t->owner();
   blended_ += n;
   if (pass_blends_transmittance(p))
     amap_.for_each_sample_line(Buffer::kTransmittance, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
-      cache_.post_write(line, Buffer::kTransmittance, now, trans.patch(line));
+      cache_.post_write(line, Buffer::kTransmittance, now, o, trans.patch(line));
     });
   if (pass_blends_accum(p))
-    amap_.for_each_sample_line(Buffer::kAccum, t->f->x, t->f->y, t->survivors,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kAccum, now, accum.patch(line)); });
+    amap_.for_each_sample_line(Buffer::kAccum, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
+      cache_.post_write(line, Buffer::kAccum, now, o, accum.patch(line));
+    });
   return n;
 }
 
@@ -42,6 +44,7 @@ void BlendUnit::advance(uint64_t limit) {
     const uint64_t t = std::max(busy_until_, in_.head_visible());
     if (t > limit) return wake_at(t);
     FragToken* tok = in_.pop(t);
+    took(tok->tile, t);
     ++stats_.fragments;
     const uint32_t n = process(tok, t);
     stats_.samples += n;

@@ -16,9 +16,10 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   stats_.samples += run_stage(rop_.depth(), *t);
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
+  const Owner o = t->owner();
   if (rop_.setup().cfg.method == Method::kSlab) {  // slab: the pixel's layers, no per-sample depth
-    amap_.for_each_layer_line(t->f->x, t->f->y,
-                              [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now)); });
+    amap_.for_each_layer_line(
+        t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now, o)); });
     return ready;
   }
   // Hierarchical Z: a fragment whose tested samples all lie beyond its
@@ -37,18 +38,19 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
       return ready;
     }
   }
-  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered,
-                             [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kDepth, now)); });
+  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered, [&](uint64_t line) {
+    ready = std::max(ready, cache_.read(line, Buffer::kDepth, now, o));
+  });
   if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(
-        t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now)); });
+        t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now, o)); });
   // Blend passes: the destination of the blend (read-modify-write), the
   // render-target lines of the surviving samples, fetched with the depth.
   const PassKind p = rop_.pass();
   for (Buffer b : {Buffer::kTransmittance, Buffer::kAccum})
     if (b == Buffer::kTransmittance ? pass_blends_transmittance(p) : pass_blends_accum(p))
       amap_.for_each_sample_line(b, t->f->x, t->f->y, t->survivors,
-                                 [&](uint64_t line) { ready = std::max(ready, cache_.read(line, b, now)); });
+                                 [&](uint64_t line) { ready = std::max(ready, cache_.read(line, b, now, o)); });
   return ready;
 }
 
@@ -80,6 +82,7 @@ void DepthTest::step(uint64_t now) {
       full = true;
     } else {
       FragToken* t = in_.pop(now);
+      took(t->tile, now);
       seen_ = true;
       ++stats_.fragments;
       const uint64_t ready = evaluate(t, now);

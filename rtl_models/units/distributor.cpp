@@ -25,6 +25,7 @@ void Distributor::advance(uint64_t limit) {
         break;
       }
       in_.pop(t);
+      took(tok->tile, t);
       tok->rop = r;
       o.push(tok, t, t + cfg_.latency_cycles);
       ++n_;

@@ -24,7 +24,10 @@ void PixelOrdering::step(uint64_t now) {
     in_flight_.erase(releases_.front().second);
     releases_.pop_front();
   }
-  while (window_.size() < cfg_.window && in_.can_pop(now)) window_.push_back(in_.pop(now));
+  while (window_.size() < cfg_.window && in_.can_pop(now)) {
+    window_.push_back(in_.pop(now));
+    took(window_.back()->tile, now);
+  }
   if (now < busy_until_) {
     wake_at(busy_until_);
     return;

@@ -18,6 +18,9 @@ class RopOwnership {
         units_(cfg.rop_units),
         tile_shift_(uint32_t(log2_ceil(cfg.tile_pixels))),
         tiles_x_(ceil_div(screen_width, cfg.tile_pixels)) {}
+  /// The screen tile holding pixel (x, y): ty * tiles_x + tx.
+  uint32_t tile_of(uint32_t x, uint32_t y) const { return (y >> tile_shift_) * tiles_x_ + (x >> tile_shift_); }
+  uint32_t tiles_x() const { return tiles_x_; }
   uint32_t rop_of(uint32_t x, uint32_t y) const {
     const uint32_t tx = x >> tile_shift_, ty = y >> tile_shift_;
     return interleave_ == Interleave::kDiagonal ? (tx + ty) % units_

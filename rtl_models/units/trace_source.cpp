@@ -3,8 +3,9 @@
 namespace ropsim {
 
 TraceSource::TraceSource(const sc_core::sc_module_name& name, const Clock& clk, FragmentSource& input,
-                         FunctionalRop& rop, TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out)
-    : DecoupledUnit(name, clk), input_(input), rop_(rop), pool_(pool), cfg_(cfg), out_(out) {}
+                         FunctionalRop& rop, TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out,
+                         const RopOwnership& tiles)
+    : DecoupledUnit(name, clk), input_(input), rop_(rop), pool_(pool), cfg_(cfg), out_(out), tiles_(tiles) {}
 
 void TraceSource::advance(uint64_t limit) {
   while (!done_) {
@@ -50,6 +51,10 @@ void TraceSource::advance(uint64_t limit) {
       }
       tok->seq = seq_++;
       tok->pixel_key = uint64_t(tok->fragment.y) * rop_.header().width + tok->fragment.x;
+      if (attributing()) {  // the units' tile maps (attribution.h)
+        tok->tile = tiles_.tile_of(tok->fragment.x, tok->fragment.y);
+        took(tok->tile, t);
+      }
       const int spp = rop_.header().spp;
       __builtin_prefetch(tok->px.depth);
       __builtin_prefetch(tok->px.depth + spp - 1);

@@ -10,13 +10,14 @@
 #include "fragment_source.h"
 #include "hw_config.h"
 #include "pipe_unit.h"
+#include "rop_ownership.h"
 
 namespace ropsim {
 
 class TraceSource : public DecoupledUnit {
  public:
   TraceSource(const sc_core::sc_module_name& name, const Clock& clk, FragmentSource& input, FunctionalRop& rop,
-              TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out);
+              TokenPool& pool, const HwConfig::Source& cfg, TokenFifo& out, const RopOwnership& tiles);
   void start_of_simulation() override { wake_at(0); }
   /// An exception the input threw (bad record), rethrown after sc_start.
   std::exception_ptr error() const { return error_; }
@@ -39,6 +40,7 @@ class TraceSource : public DecoupledUnit {
   TokenPool& pool_;
   HwConfig::Source cfg_;
   TokenFifo& out_;
+  RopOwnership tiles_;  // the distributor's screen tiles (FragToken::tile)
   uint64_t seq_ = 0;
   bool counting_ = false;
   uint64_t t_ = 0;  // the clock being decided

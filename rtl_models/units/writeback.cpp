@@ -17,19 +17,23 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
     if (color) rgb.take(cm, amap_, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
   }
   const uint32_t examined = run_stage(rop_.write(), *t);
+  const Owner o = t->owner();
   written_ += uint64_t(__builtin_popcountll(t->written));
-  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written,
-                             [&](uint64_t line) { cache_.post_write(line, Buffer::kDepth, now, depth.patch(line)); });
+  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written, [&](uint64_t line) {
+    cache_.post_write(line, Buffer::kDepth, now, o, depth.patch(line));
+  });
   if (color)
-    amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written,
-                               [&](uint64_t line) { cache_.post_write(line, Buffer::kColor, now, rgb.patch(line)); });
+    amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written, [&](uint64_t line) {
+      cache_.post_write(line, Buffer::kColor, now, o, rgb.patch(line));
+    });
   // lk: the tracker's updated state (written whatever the opacity test said).
   if (rop_.pass_uses_tracker())
     amap_.for_each_tracker_line(t->f->x, t->f->y,
-                                [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now); });
+                                [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now, o); });
   // slab: the pixel's layers, rewritten when the fragment was inserted.
   if (rop_.setup().cfg.method == Method::kSlab && t->slab.kept)
-    amap_.for_each_layer_line(t->f->x, t->f->y, [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now); });
+    amap_.for_each_layer_line(t->f->x, t->f->y,
+                              [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now, o); });
   return examined;
 }
 
@@ -48,6 +52,7 @@ void Writeback::advance(uint64_t limit) {
     const uint64_t t = std::max(busy_until_, in_.head_visible());
     if (t > limit) return wake_at(t);
     FragToken* tok = in_.pop(t);
+    took(tok->tile, t);
     ++stats_.fragments;
     const uint32_t examined = process(tok, t);
     stats_.samples += examined;

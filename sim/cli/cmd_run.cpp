@@ -66,9 +66,10 @@ struct TextOutput {
 /// in the --maps folder (the error against the reference too, when there is
 /// one: per-pixel RMSE over R, G, B in 8-bit units).
 void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cycles, const Image& image,
-                           const std::optional<Image>& reference, std::vector<TextOutput>& texts) {
+                           const std::optional<Image>& reference, std::vector<TextOutput>& texts,
+                           uint32_t dram_listed = 0) {
   if (!b) return;
-  if (!o.draw_csv.empty()) texts.push_back(TextOutput{o.draw_csv, draws_csv(*b, with_cycles)});
+  if (!o.draw_csv.empty()) texts.push_back(TextOutput{o.draw_csv, draws_csv(*b, with_cycles, dram_listed)});
   if (o.maps.empty()) return;
   const uint32_t w = b->width(), h = b->height();
   auto add = [&](const std::string& name, const MapRows& rows, double max) {
@@ -104,6 +105,38 @@ void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cy
       for (float v : row) max = std::max(max, v);
     }
     add("error", rows, double(max));
+  }
+}
+
+/// The cycle model's per-tile maps (--maps; attribution.h): per distributor
+/// tile, an EXR with one pixel per tile (so each sums to its report counter)
+/// and a screen-sized PNG (each tile's value over its pixels, to lay over the
+/// frame).
+void add_tile_maps(const RunOpts& o, const CycleRun& run, std::vector<TextOutput>& texts) {
+  const Attribution* a = run.tiles.get();
+  if (!a || o.maps.empty()) return;
+  const uint32_t tx = run.tiles_x, ty = run.tiles_y, tp = run.stats.hw.distributor.tile_pixels;
+  const uint32_t w = run.header.width, h = run.header.height;
+  for (size_t i = 0; i < tile_map_descs().size(); ++i) {
+    const StatDesc& m = tile_map_descs()[i];
+    const std::vector<uint64_t>& v = tile_map(*a, i);
+    uint64_t max = 0;
+    for (uint64_t x : v) max = std::max(max, x);
+    const std::string base = (std::filesystem::path(o.maps) / m.name).string();
+    const auto exr = encode_heat_exr(
+        tx, ty,
+        [&](uint32_t y, float* out) {
+          for (uint32_t x = 0; x < tx; ++x) out[x] = float(v[size_t(y) * tx + x]);
+        },
+        base + ".exr");
+    const auto png = encode_heat_png(
+        w, h,
+        [&](uint32_t y, float* out) {
+          for (uint32_t x = 0; x < w; ++x) out[x] = float(v[size_t(y / tp) * tx + x / tp]);
+        },
+        double(max), base + ".png");
+    texts.push_back(TextOutput{base + ".exr", std::string(exr.begin(), exr.end())});
+    texts.push_back(TextOutput{base + ".png", std::string(png.begin(), png.end())});
   }
 }
 
@@ -192,6 +225,13 @@ GoldenConfig resolve_method(const RunOpts& o, const HwConfig& hw) {
   return cfg;
 }
 
+/// The GTKWave save file beside the waveform: its name with .gtkw for its extension.
+std::string gtkw_path(const std::string& vcd) {
+  std::filesystem::path p(vcd);
+  if (p.extension() == ".gtkw") return vcd + ".gtkw";
+  return p.replace_extension(".gtkw").string();
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                   uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
                   const std::string& report, const std::string& cmdline) {
@@ -206,6 +246,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   if (!o.vcd.empty()) {
     ensure_parent_dir(o.vcd);
     opt.vcd_path = o.vcd;
+    opt.gtkw_path = gtkw_path(o.vcd);
   }
   std::optional<Image> reference;
   if (o.vs_reference) {
@@ -217,10 +258,14 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   progress->update(1.0, run.counters.fragments);
   progress->finish();
   ReportContext ctx{cmdline, in, cfg, {}, {}};
-  if (!o.vcd.empty()) ctx.outputs.push_back(o.vcd);
+  if (!o.vcd.empty()) {
+    ctx.outputs.push_back(o.vcd);
+    ctx.outputs.push_back(opt.gtkw_path);
+  }
   std::vector<TextOutput> texts;
   if (run.intervals) texts.push_back(TextOutput{o.stats_csv, interval_csv(run)});
-  add_breakdown_outputs(o, run.breakdown.get(), true, run.image, reference, texts);
+  add_breakdown_outputs(o, run.breakdown.get(), true, run.image, reference, texts, run.stats.listed);
+  add_tile_maps(o, run, texts);
   write_outputs(
       ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); }, texts);
   if (!o.quiet && report != "-") std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
@@ -516,8 +561,9 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::Range(1, 1024));
   add_design_options(run, ro.get());
   run->add_option("--vcd", ro->vcd,
-                  "cycle: write a VCD waveform in clock cycles: unit activities by name, FIFO occupancies, DRAM "
-                  "channels; one scope per ROP");
+                  "cycle: write a VCD waveform in clock cycles (with a clock): unit activities by name, FIFO "
+                  "occupancies, DRAM channels; one scope per ROP; and beside it FILE.gtkw, a GTKWave save file "
+                  "showing them");
   run->add_option("--vcd-window", ro->vcd_window,
                   "cycle: cycles FIRST:LAST (both included) the waveform shows (default: the whole run)");
   run->add_flag("--lockstep", ro->lockstep,
@@ -534,12 +580,13 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--per-draw", ro->per_draw,
                 "Split the counters by the trace's draw ids: the report's draws[] (functional, cycle: also the cycles "
-                "attributed to each draw)");
+                "and the DRAM bytes per buffer attributed to each draw)");
   run->add_option("--draw-csv", ro->draw_csv, "The per-draw table as CSV (implies --per-draw)")->type_name("FILE");
   run->add_option("--maps", ro->maps,
                   "Write per-pixel heat maps into DIR, each as EXR (values) and PNG (colour scale): fragments (depth "
                   "complexity), samples tested, depth-passed and written, surface-id changes, and with --vs-reference "
-                  "the error")
+                  "the error; cycle: also per distributor tile the cycles, the units' busy and stall cycles and the "
+                  "cache misses")
       ->type_name("DIR");
   run->add_flag("--quiet", ro->quiet, "Print nothing on success");
   run->add_flag("--progress", ro->progress,

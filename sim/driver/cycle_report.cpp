@@ -382,7 +382,8 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
            run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0, "1/s",
            "cycle: fragments over sim_seconds");
   if (run.breakdown && run.breakdown->per_draw())
-    put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
+    put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab,
+              run.stats.listed);
   return j;
 }
 
@@ -556,7 +557,7 @@ std::vector<FieldDoc> report_field_docs() {
   // slab's parameters and layers buffer).
   m.method = Method::kSlab;
   ctx.config = m;
-  cycle_report(ctx, run_cycle(in, m, HwConfig{}), f.reference, &sink);
+  cycle_report(ctx, run_cycle(in, m, HwConfig{}, with_draws), f.reference, &sink);  // and its per-draw DRAM
   // A method with every kind of blend pass and render target: passes, targets,
   // the blend counters and unit.
   ctx.input.trace_path.clear();
@@ -564,7 +565,7 @@ std::vector<FieldDoc> report_field_docs() {
     ctx.config.method = m.method = bm;
     const FunctionalRun fb = run_functional(in, m, false);
     functional_report(ctx, fb, &sink);
-    const CycleRun cb = run_cycle(in, m, HwConfig{});
+    const CycleRun cb = run_cycle(in, m, HwConfig{}, with_draws);
     cycle_report(ctx, cb, std::nullopt, &sink);
   }
   // A sampled run's fields.

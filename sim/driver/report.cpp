@@ -177,7 +177,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   return j;
 }
 
-void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab) {
+void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab,
+               uint32_t dram_listed) {
   r.empty_array("draws");
   for (const auto& [id, d] : b.draws()) {
     Fields f = r.item("draws");
@@ -187,18 +188,48 @@ void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blen
             "cycle model, --per-draw: the cycles attributed to the draw, from each of its fragments' retirement back "
             "to the previous retirement (the draws' cycles add up to timing.pipeline_cycles)");
     put_counters(f.obj("counters"), d.counters, with_blend, with_slab);
+    if (!dram_listed) continue;
+    Fields dram = f.obj("dram");
+    uint64_t read = 0, written = 0;
+    for (int k = 0; k < kBuffers; ++k) {
+      if (!((dram_listed >> k) & 1u)) continue;
+      const std::string buf = to_string(Buffer(k));
+      Fields x = dram.obj(buf);
+      x.put("bytes_read", d.dram_read[size_t(k)], "bytes",
+            "cycle model, --per-draw: DRAM bytes read for the " + buf +
+                " buffer by the draw's cache misses (fills, and a compressed surface's state bits); the draws add up "
+                "to timing.dram." +
+                buf + ".bytes_read");
+      x.put("bytes_written", d.dram_written[size_t(k)], "bytes",
+            "cycle model, --per-draw: DRAM bytes written for the " + buf +
+                " buffer from lines the draw wrote last (evictions and the final flush, state bits likewise); the "
+                "draws add up to timing.dram." +
+                buf + ".bytes_written");
+      read += d.dram_read[size_t(k)];
+      written += d.dram_written[size_t(k)];
+    }
+    dram.put("bytes_read", read, "bytes", "cycle model, --per-draw: the draw's DRAM bytes read, every buffer");
+    dram.put("bytes_written", written, "bytes", "cycle model, --per-draw: the draw's DRAM bytes written, every buffer");
   }
 }
 
-std::string draws_csv(const RunBreakdown& b, bool with_cycles) {
+std::string draws_csv(const RunBreakdown& b, bool with_cycles, uint32_t dram_listed) {
   std::string s = "draw";
   if (with_cycles) s += ",cycles";
   for (const StatDesc& d : counter_descs()) s += std::string(",") + d.name;
+  for (int k = 0; k < kBuffers; ++k)
+    if ((dram_listed >> k) & 1u) s += std::string(",dram_bytes_read.") + to_string(Buffer(k));
+  for (int k = 0; k < kBuffers; ++k)
+    if ((dram_listed >> k) & 1u) s += std::string(",dram_bytes_written.") + to_string(Buffer(k));
   s += "\n";
   for (const auto& [id, d] : b.draws()) {
     s += std::to_string(id);
     if (with_cycles) s += "," + std::to_string(d.cycles);
     d.counters.for_each([&](const char*, uint64_t v) { s += "," + std::to_string(v); });
+    for (int k = 0; k < kBuffers; ++k)
+      if ((dram_listed >> k) & 1u) s += "," + std::to_string(d.dram_read[size_t(k)]);
+    for (int k = 0; k < kBuffers; ++k)
+      if ((dram_listed >> k) & 1u) s += "," + std::to_string(d.dram_written[size_t(k)]);
     s += "\n";
   }
   return s;

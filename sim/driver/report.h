@@ -40,11 +40,14 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
 
 /// The run's counters split by the trace's draw ids (--per-draw): the
 /// report's `draws[]`, each draw's counters (and, from the cycle model, the
-/// cycles attributed to it); they add up to the run's counters.
-void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab);
-/// The same as CSV (--draw-csv): draw, [cycles,] then every counter, one row
-/// per draw, ascending.
-std::string draws_csv(const RunBreakdown& b, bool with_cycles);
+/// cycles attributed to it, and with dram_listed its DRAM bytes of each buffer
+/// b whose bit is set); they add up to the run's counters (and timing).
+void put_draws(Fields r, const RunBreakdown& b, bool with_cycles, bool with_blend, bool with_slab,
+               uint32_t dram_listed = 0);
+/// The same as CSV (--draw-csv): draw, [cycles,] then every counter, then
+/// dram_bytes_read.BUFFER and dram_bytes_written.BUFFER per listed buffer,
+/// one row per draw, ascending.
+std::string draws_csv(const RunBreakdown& b, bool with_cycles, uint32_t dram_listed = 0);
 
 /// A short human summary of a functional run (a few lines).
 std::string functional_summary(const ReportContext& ctx, const FunctionalRun& run);

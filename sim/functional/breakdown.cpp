@@ -37,11 +37,25 @@ void RunBreakdown::add_cycles(uint32_t draw, uint64_t cycles) {
   if (per_draw_) draws_[draw].cycles += cycles;
 }
 
+void RunBreakdown::add_dram(uint32_t draw, const std::array<uint64_t, kBuffers>& read,
+                            const std::array<uint64_t, kBuffers>& written) {
+  if (!per_draw_) return;
+  Draw& d = draws_[draw];
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    d.dram_read[b] += read[b];
+    d.dram_written[b] += written[b];
+  }
+}
+
 RunBreakdown::Draw RunBreakdown::total() const {
   Draw t;
   for (const auto& [id, d] : draws_) {
     t.counters += d.counters;
     t.cycles += d.cycles;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      t.dram_read[b] += d.dram_read[b];
+      t.dram_written[b] += d.dram_written[b];
+    }
   }
   return t;
 }

@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "buffers.h"
 #include "counters.h"
 #include "tile_map.h"
 #include "trace.h"
@@ -57,9 +58,16 @@ class RunBreakdown {
   /// retirement of each of its fragments since the previous retirement).
   void add_cycles(uint32_t draw, uint64_t cycles);
 
+  /// DRAM bytes charged to a draw per buffer (the cycle model).
+  void add_dram(uint32_t draw, const std::array<uint64_t, kBuffers>& read,
+                const std::array<uint64_t, kBuffers>& written);
+
   struct Draw {
     Counters counters;
     uint64_t cycles = 0;
+    /// The cycle model: DRAM bytes per buffer charged to the draw (its
+    /// fills, the write-backs of lines it wrote last: attribution.h).
+    std::array<uint64_t, kBuffers> dram_read{}, dram_written{};
   };
   /// Every draw id that had a fragment, ascending.
   const std::map<uint32_t, Draw>& draws() const { return draws_; }

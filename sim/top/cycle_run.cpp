@@ -62,6 +62,37 @@ Bottleneck classify_bottleneck(const CycleStats& s) {
   return b;
 }
 
+const std::vector<StatDesc>& tile_map_descs() {
+  static const std::vector<StatDesc> d = {
+      {"tile_cycles", "cycles",
+       "the cycles charged to the tile: each retirement charges the cycles since the previous one to its fragment's "
+       "tile (sum: timing.pipeline_cycles)"},
+      {"tile_busy", "cycles",
+       "cycles the units spent busy on the tile's fragments (each unit charges its cycles to the tile of the fragment "
+       "it took last; sum: timing.units[].cycles.busy, every unit)"},
+      {"tile_input_starved", "cycles",
+       "the same, waiting for input (sum: timing.units[].cycles.input_starved, every unit)"},
+      {"tile_output_blocked", "cycles",
+       "the same, waiting for space in the FIFO behind (sum: timing.units[].cycles.output_blocked, every unit)"},
+      {"tile_pixel_hazard", "cycles",
+       "the same, pixel ordering waiting on pixels in flight (sum: timing.units[].cycles.pixel_hazard)"},
+      {"tile_memory", "cycles",
+       "the same, waiting for the ROP cache or DRAM (sum: timing.units[].cycles.memory, every unit)"},
+      {"tile_cache_misses", "accesses",
+       "ROP cache read and write misses of the tile's fragments (sum: timing.cache.misses)"},
+  };
+  return d;
+}
+
+const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i) {
+  static constexpr Activity kByMap[] = {Activity::kBusy, Activity::kStarved, Activity::kBlocked, Activity::kHazard,
+                                        Activity::kMemory};
+  if (i == 0) return a.retire_cycles();
+  if (i <= 5) return a.unit_cycles(int(kByMap[i - 1]));
+  invariant(i == 6, "a tile map index is below tile_map_descs().size()");
+  return a.cache_misses();
+}
+
 namespace {
 
 void add_dram(DramStats& a, const DramStats& b) {
@@ -147,19 +178,30 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   // the run so that a path that cannot be written fails at once.
   std::unique_ptr<OutputFile> vcd;
   std::unique_ptr<Waveform> wave;
+  std::unique_ptr<OutputFile> gtkw;
   if (!opt.vcd_path.empty()) {
     vcd = std::make_unique<OutputFile>(opt.vcd_path);
+    if (!opt.gtkw_path.empty()) gtkw = std::make_unique<OutputFile>(opt.gtkw_path);
     wave = std::make_unique<Waveform>(opt.vcd_first, opt.vcd_last);
   }
   if (opt.stats_interval > 0) run.intervals = std::make_unique<IntervalLog>(opt.stats_interval);
-  if (opt.breakdown.any())
+  // The DRAM bytes by draw and the per-tile figures (attribution.h): one
+  // ledger for every pass.
+  std::unique_ptr<Attribution> attr;
+  if (opt.breakdown.any()) {
     run.breakdown = std::make_unique<RunBreakdown>(run.header, opt.breakdown.per_draw, opt.breakdown.per_pixel);
+    const uint32_t tp = hw.distributor.tile_pixels;
+    run.tiles_x = ceil_div(run.header.width, tp);
+    run.tiles_y = ceil_div(run.header.height, tp);
+    attr =
+        std::make_unique<Attribution>(opt.breakdown.per_draw, opt.breakdown.per_pixel ? run.tiles_x * run.tiles_y : 0);
+  }
   // A pass's retirements by (cycle, input order) and draw: the cycles from
   // one retirement to the next are the later one's draw's. Sorted at the end
   // of the pass: decoupled units may retire out of cycle order.
   struct Retired {
     uint64_t cycle, seq;
-    uint32_t draw;
+    uint32_t draw, tile;
   };
   std::vector<Retired> retired;
   for (int pass = 0; pass < n_passes; ++pass) {
@@ -177,7 +219,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
       top->source().set_counting(true);
       top->retirement().hook = [b, &retired, user = opt.retire_hook](const FragToken& t, uint64_t cycle) {
         b->add(t.fragment, t.counts);
-        if (b->per_draw()) retired.push_back(Retired{cycle, t.seq, t.fragment.draw_id});
+        retired.push_back(Retired{cycle, t.seq, t.fragment.draw_id, t.tile});
         if (user) user(t, cycle);
       };
     }
@@ -202,6 +244,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     }
     top->set_decoupled(decoupled);
     top->compress_with(comp.get());
+    top->attribute_to(attr.get());
     if (wave) {
       wave->set_base(s.total_cycles);  // this pass follows the previous ones
       top->trace_to(*wave, n_passes > 1 ? std::string(to_string(rop->pass())) + "." : "");
@@ -210,13 +253,14 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     top->run();  // on an error, vcd's destructor discards the file
     run.sim_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     progress_base += top->source().produced();
-    if (RunBreakdown* b = run.breakdown.get(); b && b->per_draw()) {
+    if (RunBreakdown* b = run.breakdown.get()) {
       std::sort(retired.begin(), retired.end(), [](const Retired& a, const Retired& c) {
         return a.cycle != c.cycle ? a.cycle < c.cycle : a.seq < c.seq;
       });
       uint64_t prev = 0;
       for (const Retired& r : retired) {
         b->add_cycles(r.draw, r.cycle - prev);
+        attr->retire_cycles(r.tile, r.cycle - prev);
         prev = r.cycle;
       }
       retired.clear();
@@ -255,10 +299,11 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   }
   if (wave) {
     const uint64_t end = s.total_cycles, shown = wave->last_shown(end);
-    char comment[320];
+    char comment[448];
     const int n = std::snprintf(comment, sizeof comment,
-                                "ropsim cycle model. One time unit is one clock cycle (read GTKWave's ns as cycles): "
-                                "%llu ps at %g GHz. ",
+                                "ropsim cycle model. One clock cycle is ten time units of 100 ps, 1 ns (read "
+                                "GTKWave's ns as cycles); clk rises at each cycle's start, where every signal "
+                                "changes, and falls at its middle. The clock period is %llu ps at %g GHz. ",
                                 (unsigned long long)s.period_ps, hw.clock.frequency_ghz);
     if (end > 0 && shown >= wave->first())
       std::snprintf(comment + n, sizeof comment - size_t(n), "Cycles %llu..%llu of a run of %llu.",
@@ -269,8 +314,16 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
                     (unsigned long long)end, (unsigned long long)wave->first());
     wave->write_vcd("top", comment, end, [&vcd](std::string_view t) { vcd->write(t); });
     vcd->commit();
+    if (gtkw) {  // the save file names the VCD by its absolute path: it opens from any folder
+      gtkw->write(wave->write_gtkw(std::filesystem::absolute(opt.vcd_path).lexically_normal().string(), "top", end));
+      gtkw->commit();
+    }
   }
   if (run.intervals) run.intervals->finish(s.total_cycles);
+  if (attr) {
+    for (const auto& [draw, d] : attr->dram_by_draw()) run.breakdown->add_dram(draw, d.read, d.written);
+    if (attr->tiles()) run.tiles = std::move(attr);
+  }
   if (comp) {
     s.compression_on = true;
     s.compression = comp->stats();

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "attribution.h"
 #include "breakdown.h"
 #include "compressibility.h"
 #include "counters.h"
@@ -26,6 +27,7 @@ namespace ropsim {
 
 struct CycleOptions {
   std::string vcd_path;                             ///< non-empty: write a VCD waveform here (waveform.h)
+  std::string gtkw_path;                            ///< with vcd_path, non-empty: its GTKWave save file here
   uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};  ///< cycles [first, last] the waveform shows
   /// Every 65536 fragments: the fragments so far (every pass) and the share
   /// of the run's input consumed (passes included), in [0, 1].
@@ -120,9 +122,21 @@ struct CycleRun {
   /// With CycleOptions::stats_interval: the statistics per interval; each
   /// column adds up to the run's total.
   std::unique_ptr<IntervalLog> intervals;
-  /// With CycleOptions::breakdown: per draw (counters, cycles) and per pixel.
+  /// With CycleOptions::breakdown: per draw (counters, cycles, DRAM bytes) and per pixel.
   std::unique_ptr<RunBreakdown> breakdown;
+  /// With CycleOptions::breakdown.per_pixel: the per-tile figures
+  /// (attribution.h) over the distributor's tiles_x x tiles_y screen tiles.
+  std::unique_ptr<Attribution> tiles;
+  uint32_t tiles_x = 0, tiles_y = 0;
 };
+
+/// The cycle model's per-tile maps (--maps; attribution.h), declared once:
+/// the map's (file) name, unit and meaning. Each sums over the tiles to a
+/// report figure (the meaning names it).
+const std::vector<StatDesc>& tile_map_descs();
+/// Map i of tile_map_descs(): its value per distributor tile, row by row
+/// (CycleRun::tiles_x per row).
+const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
 
 /// Throws std::invalid_argument for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.

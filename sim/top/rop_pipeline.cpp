@@ -32,7 +32,8 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
 
   TokenFifo& src_out = make_fifo("source_to_distributor", hw.source.fifo_depth, 1);
   source_ = &add("trace_source", -1,
-                 std::make_unique<TraceSource>("trace_source", clk_, *input_, rop_, pool_, hw.source, src_out));
+                 std::make_unique<TraceSource>("trace_source", clk_, *input_, rop_, pool_, hw.source, src_out,
+                                               RopOwnership(hw.distributor, header.width)));
   std::vector<TokenFifo*> rop_in;
   for (uint32_t r = 0; r < n_rops; ++r)
     rop_in.push_back(
@@ -111,6 +112,12 @@ void RopPipeline::log_to(IntervalLog* log) {
   for (auto& u : units_) u.unit->log_to(log, log ? log->kind(u.kind) : -1);
 }
 
+void RopPipeline::attribute_to(Attribution* attr) {
+  dram_.attribute_to(attr);
+  for (auto& c : caches_) c->attribute_to(attr);
+  for (auto& u : units_) u.unit->attribute_to(attr && attr->tiles() ? attr : nullptr);
+}
+
 void RopPipeline::set_decoupled(bool on) {
   for (const auto& u : units_)
     if (auto* d = dynamic_cast<DecoupledUnit*>(u.unit)) d->set_decoupled(on);
@@ -181,8 +188,12 @@ uint64_t RopPipeline::run() {
   uint64_t end = pipeline_cycles_;
   for (auto& c : caches_) end = std::max(end, c->flush(pipeline_cycles_));
   if (comp_) end = std::max(end, comp_->flush(pipeline_cycles_));  // the state bits after the data
+  if (dram_.attributing()) dram_.settle_attribution();
   total_cycles_ = std::max(end, dram_.stats().last_completion);
-  for (const auto& u : units_) u.unit->close_accounting(total_cycles_);
+  for (const auto& u : units_) {
+    u.unit->close_accounting(total_cycles_);
+    u.unit->close_attribution();
+  }
   return total_cycles_;
 }
 

@@ -62,6 +62,10 @@ class RopPipeline : public sc_core::sc_module {
   /// in log's rows (--stats-interval); call before run().
   void log_to(IntervalLog* log);
 
+  /// Charges the DRAM's bytes, the caches' misses and the units' cycles to
+  /// draws and tiles in attr (attribution.h); call before run().
+  void attribute_to(Attribution* attr);
+
   /// Stores the compressed surfaces through comp and lets the depth test
   /// use its Hi-Z (compression_model.h); call before run().
   void compress_with(CompressionModel* comp);
