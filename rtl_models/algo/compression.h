@@ -167,13 +167,9 @@ struct DepthSamples {
 namespace compression_detail {
 
 inline bool fits_i32(int64_t v) { return v >= INT32_MIN && v <= INT32_MAX; }
-inline bool in_range(int64_t res, int r) {
-  if (r == 0) return res == 0;
-  const int64_t h = int64_t{1} << (r - 1);
-  return res >= -h && res < h;
-}
-/// |res| within r bits as one unsigned compare: res + h < 2h (r > 0), res == 0 (r = 0).
-inline bool in_range_fast(int64_t res, uint64_t h, uint64_t span) { return uint64_t(res + int64_t(h)) < span; }
+/// A residual within a width as one unsigned compare: -h <= res < span - h
+/// (r bits: h = 2^(r-1), span = 2^r; r = 0: h = 0, span = 1, res == 0).
+inline bool in_range(int64_t res, uint64_t h, uint64_t span) { return uint64_t(res + int64_t(h)) < span; }
 /// The plane through sample a with gradients gx, gy (A chosen so that a is exact).
 inline bool plane_through(const DepthSamples& t, uint32_t a, int64_t gx, int64_t gy, DepthPlane& pl) {
   if (!fits_i32(gx) || !fits_i32(gy)) return false;
@@ -208,7 +204,7 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
   f.r = r;
   f.sel.assign(n, 0xFF);
   uint8_t* sel = f.sel.data();
-  // in_range(res, r) and in_range(res, r + 1) as one unsigned compare each.
+  // The residual ranges of r bits (a plane's claim) and r + 1 bits (scoring a candidate).
   const uint64_t h0 = r ? uint64_t{1} << (r - 1) : 0, span0 = r ? uint64_t{1} << r : 1;
   const uint64_t h1 = uint64_t{1} << r, span1 = uint64_t{1} << (r + 1);
   uint32_t first = 0;
@@ -271,7 +267,7 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
             const uint32_t c = uint32_t(along_x ? row * 8 + q : q * 8 + col) * spp + s;
             if (sel[c] != 0xFF) continue;
             const int64_t pred = ua + ((g * int64_t(256 * (q - at)) + (int64_t{1} << 15)) >> 16);
-            if (in_range_fast(U[c] - pred, h1, span1)) ++score;
+            if (in_range(U[c] - pred, h1, span1)) ++score;
           }
           if (score > best_score) {
             best_score = score;

@@ -102,12 +102,14 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
   bytes_.insert(bytes_.end(), old + (lo - pixel_addr), old + (hi - pixel_addr));
   pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), uint32_t(hi - lo), tile, at});
   ++pending_count_[size_t(b)][tile];
-  return uint32_t(first_id_ + pending_.size() - 1);
+  // Ids count modulo 2^32 - 1, so that none is kNoPatch.
+  return uint32_t((first_id_ + pending_.size() - 1) % kNoPatch);
 }
 
 void CompressionModel::applied(uint32_t id) {
   if (id == kNoPatch) return;
-  Pending& p = pending_[size_t(id - uint32_t(first_id_))];  // ids wrap modulo 2^32
+  const uint64_t first = first_id_ % kNoPatch;  // ids count modulo 2^32 - 1 (pend)
+  Pending& p = pending_[size_t(id >= first ? id - first : uint64_t(id) + kNoPatch - first)];
   p.applied = true;
   --pending_count_[size_t(p.b)][p.tile];
   while (!pending_.empty() && pending_.front().applied) {
