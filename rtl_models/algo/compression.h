@@ -133,6 +133,7 @@ struct DepthSamples {
   std::vector<int64_t> u;
   std::vector<int64_t> u16;  ///< u 2^16 - 2^15 (fit_depth_tile's compares)
   std::vector<int32_t> X, Y;
+  std::vector<int32_t> sx, sy;  ///< [spp] the sample positions (X = 256 column + sx[s], Y = 256 row + sy[s])
   uint32_t pixels = 0;
   uint32_t spp = 0;
   DepthSamples() = default;
@@ -146,22 +147,28 @@ struct DepthSamples {
     u16.resize(n);
     X.resize(n);
     Y.resize(n);
+    sx.resize(spp);
+    sy.resize(spp);
+    for (uint32_t s = 0; s < spp; ++s) {
+      sx[s] = t.pos_x[s];
+      sy[s] = t.pos_y[s];
+    }
     for (uint32_t p = 0, i = 0; p < pixels; ++p)
       for (uint32_t s = 0; s < spp; ++s, ++i) {
         uint32_t bits;
         std::memcpy(&bits, &t.z[i], 4);
         u[i] = int64_t(bits);
         u16[i] = int64_t(bits) * 65536 - 32768;
-        X[i] = int32_t(256 * (p & 7u) + t.pos_x[s]);
-        Y[i] = int32_t(256 * (p >> 3) + t.pos_y[s]);
+        X[i] = int32_t(256 * (p & 7u)) + sx[s];
+        Y[i] = int32_t(256 * (p >> 3)) + sy[s];
       }
   }
   uint32_t size() const { return uint32_t(u.size()); }
   /// fit_depth_tile's working buffers, kept across the fits of a tile.
-  mutable std::vector<uint8_t> hit_a, hit_b;
-  mutable std::vector<int64_t> ck;
-  mutable std::vector<int32_t> cy;
-  mutable std::vector<uint32_t> who;
+  mutable std::vector<uint8_t> un, hit_a, hit_b;
+  mutable std::vector<int64_t> ck, st;
+  mutable std::vector<int32_t> cy, wx, wy;
+  mutable std::vector<int64_t> wu;
 };
 
 namespace compression_detail {
@@ -196,7 +203,7 @@ inline bool plane_through(const DepthSamples& t, uint32_t a, int64_t gx, int64_t
 /// the rest).
 inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
   using namespace compression_detail;
-  const uint32_t n = t.size();
+  const uint32_t n = t.size(), spp = t.spp;
   const int64_t* U = t.u.data();
   const int32_t* X = t.X.data();
   const int32_t* Y = t.Y.data();
@@ -204,34 +211,51 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
   f.r = r;
   f.sel.assign(n, 0xFF);
   uint8_t* sel = f.sel.data();
+  // un[i] = 1 while sample i is unassigned.
+  t.un.assign(n, 1);
+  uint8_t* un = t.un.data();
   // The residual ranges of r bits (a plane's claim) and r + 1 bits (scoring a candidate).
   const uint64_t h0 = r ? uint64_t{1} << (r - 1) : 0, span0 = r ? uint64_t{1} << r : 1;
   const uint64_t h1 = uint64_t{1} << r, span1 = uint64_t{1} << (r + 1);
   uint32_t first = 0;
-  // The samples from `first` on that plane pl predicts within r bits, as
-  // 0/1 per sample: with v = gx X + gy Y + 2^15, -h0 <= u - (A + floor(v /
-  // 2^16)) < span0 - h0 holds iff 0 <= v - u 2^16 + (A + span0 - h0 - 1) 2^16
-  // < span0 2^16, one unsigned compare without a shift (the loop vectorises).
   t.hit_a.resize(n);
   t.hit_b.resize(n);
   uint8_t* hit_a = t.hit_a.data();
   uint8_t* hit_b = t.hit_b.data();
-  t.who.resize(n);
+  t.st.resize(spp);
+  t.wx.resize(n);
+  t.wy.resize(n);
+  t.wu.resize(n);
+  int64_t* st = t.st.data();
   const int64_t* U16 = t.u16.data();
-  auto hits = [&](const DepthPlane& pl, uint8_t* h) {
+  const int32_t* SX = t.sx.data();
+  const int32_t* SY = t.sy.data();
+  // The unassigned samples that plane pl predicts within r bits (its
+  // claim), as 0/1 per sample into h; returns their number. With v = gx X +
+  // gy Y + 2^15, -h0 <= u - (A + floor(v / 2^16)) < span0 - h0 holds iff
+  // 0 <= v - u 2^16 + (A + span0 - h0 - 1) 2^16 < span0 2^16: one unsigned
+  // compare without a shift; gx X + gy Y split into a per-pixel and a
+  // per-sample-index term, so the loop is additions (and vectorises).
+  auto claim = [&](const DepthPlane& pl, uint8_t* h) {
     const int64_t base = (int64_t(pl.a) + int64_t(span0) - int64_t(h0) - 1) * 65536;
     const uint64_t lim = span0 * 65536;
-    const int32_t px = pl.gx, py = pl.gy;
-    for (uint32_t i = first; i < n; ++i)
-      h[i] = uint64_t(int64_t(px) * int64_t(X[i]) + int64_t(py) * int64_t(Y[i]) - U16[i] + base) < lim;
-  };
-  // The unassigned samples among them (the plane's claim).
-  auto count = [&](const uint8_t* h) {
+    for (uint32_t s = 0; s < spp; ++s) st[s] = int64_t(pl.gx) * SX[s] + int64_t(pl.gy) * SY[s] + base;
     uint32_t c = 0;
-    for (uint32_t i = first; i < n; ++i) c += h[i] & uint8_t(sel[i] == 0xFF);
+    for (uint32_t p = first / spp; p < t.pixels; ++p) {
+      const int64_t pt = int64_t(pl.gx) * (256 * int64_t(p & 7u)) + int64_t(pl.gy) * (256 * int64_t(p >> 3));
+      const int64_t* u16 = U16 + size_t(p) * spp;
+      const uint8_t* up = un + size_t(p) * spp;
+      uint8_t* hp = h + size_t(p) * spp;
+      uint8_t cp = 0;
+      for (uint32_t s = 0; s < spp; ++s) {
+        const uint8_t v = uint8_t(uint64_t(pt + st[s] - u16[s]) < lim) & up[s];
+        hp[s] = v;
+        cp = uint8_t(cp + v);
+      }
+      c += cp;
+    }
     return c;
   };
-  const uint32_t spp = t.spp;
   // The anchor's row and column (score_plane): at most 8 + rows - 1 pixels.
   t.ck.resize(size_t(8 + t.pixels / 8) * spp);
   t.cy.resize(t.ck.size());
@@ -240,14 +264,14 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
   size_t m = 0;
   uint32_t most = 0, left = n;
   for (int k = 0; k < planes; ++k) {
-    while (first < n && sel[first] != 0xFF) ++first;
+    while (first < n && !un[first]) ++first;
     if (first == n) break;
     const uint32_t a = first, p = a / spp, s = a % spp;
     const int64_t ua = U[a];
     // A gradient along x (y): from the same sample of another pixel in the
     // anchor's row (column), the one whose line through the anchor meets
     // the most unassigned same-index samples of that row (column) within r
-    // bits; ties to the nearest, then right (below). None: 0.
+    // + 1 bits; ties to the nearest, then right (below). None: 0.
     const int col = int(p & 7u), row = int(p >> 3), rows = int(t.pixels / 8);
     auto best_gradient = [&](bool along_x) -> int64_t {
       int64_t best_g = 0;
@@ -258,16 +282,15 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
           const int o = at + sign * d;
           if (o < 0 || o >= lim) continue;
           const uint32_t b = uint32_t(along_x ? row * 8 + o : o * 8 + col) * spp + s;
-          if (sel[b] != 0xFF) continue;
+          if (!un[b]) continue;
           const int64_t du = U[b] - ua;
           // slope per 1/256 pixel with 16 fractional bits: du * 65536 / (256 * sign * d)
           const int64_t g = du * 256 / (sign * d);
           int score = 0;
           for (int q = 0; q < lim; ++q) {
             const uint32_t c = uint32_t(along_x ? row * 8 + q : q * 8 + col) * spp + s;
-            if (sel[c] != 0xFF) continue;
             const int64_t pred = ua + ((g * int64_t(256 * (q - at)) + (int64_t{1} << 15)) >> 16);
-            if (in_range(U[c] - pred, h1, span1)) ++score;
+            score += un[c] & int(in_range(U[c] - pred, h1, span1));
           }
           if (score > best_score) {
             best_score = score;
@@ -283,14 +306,17 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
     // The unassigned samples of the anchor's row and column, contiguous:
     // ck = gx X + 2^15 - u 2^16 and Y (score_plane).
     m = 0;
-    for (uint32_t pp = 0; pp < t.pixels; ++pp) {
-      if (int(pp >> 3) != row && int(pp & 7u) != col) continue;
-      for (uint32_t ss = 0; ss < spp; ++ss)
-        if (const uint32_t c = pp * spp + ss; sel[c] == 0xFF) {
-          ck[m] = gx * X[c] - U16[c];  // |gx| < 2^41 (or no plane): no overflow
-          cy[m++] = Y[c];
-        }
-    }
+    auto add_pixel = [&](uint32_t pp) {
+      for (uint32_t ss = 0; ss < spp; ++ss) {
+        const uint32_t c = pp * spp + ss;
+        ck[m] = gx * X[c] - U16[c];  // |gx| < 2^41 (or no plane): no overflow
+        cy[m] = Y[c];
+        m += un[c];
+      }
+    };
+    for (int q = 0; q < 8; ++q) add_pixel(uint32_t(row * 8 + q));
+    for (int q = 0; q < rows; ++q)
+      if (q != row) add_pixel(uint32_t(q * 8 + col));
     // The score of the plane (gx, cgy) through the anchor: the samples of
     // the cross its prediction meets within r + 1 bits. With
     // v = gx X + gy Y + 2^15, -h1 <= u - (A + floor(v / 2^16)) < h1 holds iff
@@ -314,7 +340,7 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
       for (uint32_t ss = 0; ss < spp; ++ss) {
         const uint32_t b = p * spp + ss;
         const int64_t dy = int64_t(Y[b]) - Y[a];
-        if (sel[b] != 0xFF || dy == 0) continue;
+        if (!un[b] || dy == 0) continue;
         const int64_t rest = (U[b] - ua) * 65536 - gx * (int64_t(X[b]) - X[a]);
         const int64_t cgy = rest / dy;
         if (cgy == gy || std::find(scored, scored + n_scored, cgy) != scored + n_scored) continue;
@@ -328,37 +354,42 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
     }
     DepthPlane pl;
     if (!plane_through(t, a, gx, gy, pl) && !plane_through(t, a, 0, 0, pl)) break;
-    hits(pl, hit_a);
+    const uint32_t got = claim(pl, hit_a);
     const uint8_t* chosen = hit_a;
-    // Its claim, in sample order.
-    uint32_t* who = t.who.data();
-    uint32_t got = 0;
-    for (uint32_t i = first; i < n; ++i) {
-      who[got] = i;
-      got += hit_a[i] & uint8_t(sel[i] == 0xFF);
-    }
     uint32_t claimed = got;
-    // Least-squares refit over the claimed samples (centred on the anchor).
+    // Least-squares refit over the claimed samples (centred on the anchor);
+    // the sums are exact (integers).
     if (got >= 3) {
-      double sxx = 0, sxy = 0, syy = 0, sxu = 0, syu = 0;
-      const double X0 = double(X[a]), Y0 = double(Y[a]), U0 = double(ua);
-      for (uint32_t j = 0; j < got; ++j) {
-        const uint32_t i = who[j];
-        const double dx = double(X[i]) - X0, dy = double(Y[i]) - Y0, du = double(U[i]) - U0;
+      // The claimed samples' offsets from the anchor, contiguous.
+      int32_t* wx = t.wx.data();
+      int32_t* wy = t.wy.data();
+      int64_t* wu = t.wu.data();
+      uint32_t j = 0;
+      for (uint32_t i = first; i < n; ++i) {
+        wx[j] = X[i] - X[a];
+        wy[j] = Y[i] - Y[a];
+        wu[j] = U[i] - ua;
+        j += hit_a[i];
+      }
+      int64_t sxx = 0, sxy = 0, syy = 0, sxu = 0, syu = 0;
+      for (uint32_t q = 0; q < j; ++q) {
+        const int64_t dx = wx[q], dy = wy[q];
         sxx += dx * dx;
         sxy += dx * dy;
         syy += dy * dy;
-        sxu += dx * du;
-        syu += dy * du;
       }
-      const double det = sxx * syy - sxy * sxy;
+      for (uint32_t q = 0; q < j; ++q) {
+        sxu += wx[q] * wu[q];
+        syu += wy[q] * wu[q];
+      }
+      const double dxx = double(sxx), dxy = double(sxy), dyy = double(syy), dxu = double(sxu), dyu = double(syu);
+      const double det = dxx * dyy - dxy * dxy;
       if (det > 0) {
-        const double ggx = (sxu * syy - syu * sxy) / det, ggy = (syu * sxx - sxu * sxy) / det;
+        const double ggx = (dxu * dyy - dyu * dxy) / det, ggy = (dyu * dxx - dxu * dxy) / det;
         DepthPlane p2;
         if (std::fabs(ggx) < 2e4 && std::fabs(ggy) < 2e4 &&
             plane_through(t, a, std::llround(ggx * 65536.0), std::llround(ggy * 65536.0), p2)) {
-          hits(p2, hit_b);
-          if (const uint32_t got2 = count(hit_b); got2 >= got) {
+          if (const uint32_t got2 = claim(p2, hit_b); got2 >= got) {
             pl = p2;
             chosen = hit_b;
             claimed = got2;
@@ -367,7 +398,10 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
       }
     }
     const uint8_t kk = uint8_t(k);
-    for (uint32_t i = first; i < n; ++i) sel[i] = (chosen[i] & uint8_t(sel[i] == 0xFF)) ? kk : sel[i];
+    for (uint32_t i = first; i < n; ++i) {
+      sel[i] = chosen[i] ? kk : sel[i];
+      un[i] = uint8_t(un[i] ^ chosen[i]);  // chosen is within un
+    }
     f.planes.push_back(pl);
     // Give up early when the planes left could not cover the rest even
     // claiming twice the most any plane claimed so far.
@@ -375,8 +409,7 @@ inline DepthFit fit_depth_tile(const DepthSamples& t, int planes, int r) {
     left -= claimed;
     if (uint64_t(left) > uint64_t(planes - k - 1) * 2 * most) return f;  // not ok
   }
-  for (uint32_t i = 0; i < n; ++i)
-    if (sel[i] == 0xFF) return f;  // not ok
+  if (left) return f;  // not ok
   f.ok = true;
   const uint64_t sel_bits = uint64_t(log2_ceil(uint32_t(f.planes.size())));
   f.bits = kDepthHeaderBits + kDepthPlaneBits * f.planes.size() + uint64_t(n) * (sel_bits + uint64_t(r));
@@ -462,6 +495,27 @@ struct ColorTileIn {
 };
 
 namespace compression_detail {
+/// A sample's bytes (bps <= 8) as one integer: equal keys, equal bytes.
+inline uint64_t sample_key(const uint8_t* q, uint32_t bps) {
+  uint32_t lo = 0;
+  uint16_t mid = 0;
+  uint64_t v = 0;
+  switch (bps) {
+    case 6:  // the colour buffer's RGB binary16
+      std::memcpy(&lo, q, 4);
+      std::memcpy(&mid, q + 4, 2);
+      return uint64_t(lo) | uint64_t(mid) << 32;
+    case 8:
+      std::memcpy(&v, q, 8);
+      return v;
+    case 4:
+      std::memcpy(&lo, q, 4);
+      return lo;
+    default:
+      std::memcpy(&v, q, bps);
+      return v;
+  }
+}
 /// Collects one pixel's distinct sample values (first appearance order) and
 /// each sample's index; false when there are more than K.
 inline bool pixel_palette(const ColorTileIn& t, uint32_t p, uint32_t K, uint32_t& k, uint32_t* first, uint8_t* idx) {
@@ -489,9 +543,31 @@ inline uint64_t color_tile_bits(const ColorTileIn& t, uint32_t K, uint32_t* max_
   const int ib = log2_ceil(K);
   uint64_t bits = 0;
   uint32_t mk = 0, first[8];
+  const uint32_t spp = uint32_t(t.spp), bps = t.bps;
   for (uint32_t p = 0; p < t.pixels; ++p) {
     uint32_t k = 0;
-    if (!compression_detail::pixel_palette(t, p, K, k, first, nullptr)) {
+    bool fits = true;
+    if (bps <= 8) {
+      // The same count as pixel_palette, with each sample's bytes as one
+      // integer key (the colour buffer's 6 bytes, most blend targets').
+      const uint8_t* c = t.bytes + size_t(p) * spp * bps;
+      uint64_t keys[8];
+      const uint32_t kmax = std::min(K, 8u);
+      for (uint32_t s = 0; s < spp && fits; ++s) {
+        const uint64_t v = compression_detail::sample_key(c + size_t(s) * bps, bps);
+        uint32_t j = 0;
+        while (j < k && keys[j] != v) ++j;
+        if (j == k) {
+          if (k == kmax)
+            fits = false;
+          else
+            keys[k++] = v;
+        }
+      }
+    } else {
+      fits = compression_detail::pixel_palette(t, p, K, k, first, nullptr);
+    }
+    if (!fits) {
       if (max_k) *max_k = K + 1;
       return ~uint64_t{0};
     }
