@@ -208,33 +208,67 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
     t.written = t.reached_write ? w.written : 0;
     t.slab_kept = t.reached_write && slab && w.slab.kept;
   });
-  auto draw = [&](const Fragment* f, size_t m) {
+  auto draw = [&](const Fragment* f, size_t m, const std::function<void()>& beside) {
     seen.assign(m, Touch{});
-    model.draw_batch(f, m);
+    model.draw_batch(f, m, beside);
     for (size_t j = 0; j < m && ring_size > 0; ++j) {
       ring[ring_at] = seen[j];
       ring_at = (ring_at + 1) % ring_size;
       ring_fill = std::min(ring_fill + 1, ring_size);
     }
   };
+  // The input as segments in order: batches of at most kBatch fragments
+  // between live-points, each ending where the next live-point begins, and
+  // the live-points' fragments. While the model draws one segment (on its
+  // threads), this thread reads the next.
   constexpr size_t kBatch = 4096;
-  std::vector<Fragment> batch;
-  batch.reserve(kBatch);
+  struct Segment {
+    uint64_t first, count;
+    size_t point;  // k of the live-point, or kPlain
+  };
+  constexpr size_t kPlain = ~size_t{0};
+  std::vector<Segment> segments;
+  for (uint64_t at = 0, kk = 0; at < n || kk < k_units;) {
+    const uint64_t stop = kk < k_units ? firsts[kk] : n;
+    if (at < stop) {
+      const uint64_t m = std::min<uint64_t>(kBatch, stop - at);
+      segments.push_back(Segment{at, m, kPlain});
+      at += m;
+      continue;
+    }
+    if (kk == k_units) break;
+    segments.push_back(Segment{firsts[kk], ends[kk] - firsts[kk], size_t(kk)});
+    at = ends[kk];
+    ++kk;
+  }
   uint64_t i = 0;
   size_t k = 0;
   Fragment f;
+  auto read_segment = [&](const Segment& sg, std::vector<Fragment>& out) {
+    out.clear();
+    out.reserve(sg.count);
+    while (out.size() < sg.count && src->next(f)) out.push_back(f);
+    invariant(out.size() == sg.count, "the input delivers the fragments it was counted with");
+  };
+  std::vector<Fragment> cur, next;
+  if (!segments.empty()) read_segment(segments[0], cur);
   Progress progress("live-points: recording", "fragments");
-  for (;;) {
+  for (size_t si = 0; si < segments.size(); ++si) {
     progress.update(n ? double(i) / double(n) : 1.0, i);
-    if (k < k_units && i == firsts[k]) {
+    const Segment& sg = segments[si];
+    invariant(sg.first == i, "the segments cover the input in order");
+    const std::function<void()> read_next = [&] {
+      if (si + 1 < segments.size()) read_segment(segments[si + 1], next);
+    };
+    if (sg.point == kPlain) {
+      draw(cur.data(), cur.size(), read_next);
+    } else {
+      const size_t kk = sg.point;
       LivePoint lp;
-      lp.first = firsts[k];
-      lp.warmup = starts[k] - firsts[k];
+      lp.first = firsts[kk];
+      lp.warmup = starts[kk] - firsts[kk];
       lp.window = u;
-      const uint64_t count = ends[k] - firsts[k];
-      lp.fragments.reserve(count);
-      while (lp.fragments.size() < count && src->next(f)) lp.fragments.push_back(f);
-      invariant(lp.fragments.size() == count, "the input delivers the fragments it was counted with");
+      lp.fragments = std::move(cur);
       lp.pre.tracker = st0.has_tracker();
       lp.pre.slab_bits = st0.targets().slab_bits;
       std::vector<uint64_t> pixels;
@@ -255,24 +289,15 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       for (size_t j = 0; j < ring_fill; ++j)
         lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
       for (size_t j = 0; j < lp.fragments.size(); j += kBatch)
-        draw(&lp.fragments[j], std::min<size_t>(kBatch, lp.fragments.size() - j));
-      i += count;
-      ++k;
+        draw(&lp.fragments[j], std::min<size_t>(kBatch, lp.fragments.size() - j),
+             j == 0 ? read_next : std::function<void()>{});
+      k = kk + 1;
       lib.charge(lp);
       lib.points.push_back(std::move(lp));
-      continue;
+      cur.clear();
     }
-    // A batch of the fragments between live-points, ending at the next one.
-    const uint64_t stop = k < k_units ? firsts[k] : n;
-    batch.clear();
-    while (batch.size() < kBatch && i + batch.size() < stop && src->next(f)) batch.push_back(f);
-    if (batch.empty()) {
-      invariant(i == stop, "the input delivers the fragments it was counted with");
-      if (k >= k_units) break;
-      continue;
-    }
-    draw(batch.data(), batch.size());
-    i += batch.size();
+    i += sg.count;
+    cur.swap(next);
   }
   invariant(k == k_units && i == n && !src->next(f), "every live-point is recorded in one pass over the input");
   progress.update(1.0, n);
