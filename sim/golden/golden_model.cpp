@@ -19,7 +19,12 @@ struct StochasticModel::Lane {
   Lane(const TraceHeader& h, const GoldenConfig& cfg) : rop(h, cfg) {}
   FunctionalRop rop;
   FragWork work;
-  std::vector<uint32_t> batch;  // indices into the batch being drawn, in API order
+  /// Its fragments of the batch being drawn: indices into the batch, per
+  /// chunk of the batch (each chunk partitioned by one thread), in API order.
+  struct alignas(64) Part {
+    std::vector<uint32_t> index;
+  };
+  std::vector<Part> parts;
 };
 
 struct StochasticModel::Pool {
@@ -88,19 +93,32 @@ void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::functio
     draw_lane(0, f, n);
     return;
   }
-  for (auto& l : lanes_) l->batch.clear();
-  for (size_t i = 0; i < n; ++i) lanes_[lane_of(f[i].x, f[i].y)]->batch.push_back(uint32_t(i));
+  // The batch in one chunk per thread, each partitioned among the lanes by
+  // one thread; then each lane draws its fragments of chunk 0, 1, ... (API
+  // order). Both steps run on every thread: no serial partition.
+  const size_t chunks = size_t(threads_);
+  for (auto& l : lanes_) l->parts.resize(chunks);
   auto run_lanes = [&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, chunks, 1), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t c = r.begin(); c != r.end(); ++c) {
+        for (auto& l : lanes_) l->parts[c].index.clear();
+        const size_t lo = n * c / chunks, hi = n * (c + 1) / chunks;
+        for (size_t i = lo; i < hi; ++i) lanes_[lane_of(f[i].x, f[i].y)]->parts[c].index.push_back(uint32_t(i));
+      }
+    });
     tbb::parallel_for(tbb::blocked_range<size_t>(0, lanes_.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t li = r.begin(); li != r.end(); ++li) {
         Lane& l = *lanes_[li];
-        const size_t m = l.batch.size();
-        for (size_t j = 0; j < m; ++j) {
-          // The lane's fragments are scattered over the batch: fetch the
-          // next one's header line and its plane while this one runs.
-          if (j + 1 < m) __builtin_prefetch(&f[l.batch[j + 1]]);
-          l.work.f = &f[l.batch[j]];
-          process_on(l, l.batch[j]);
+        for (const Lane::Part& part : l.parts) {
+          const uint32_t* idx = part.index.data();
+          const size_t m = part.index.size();
+          for (size_t j = 0; j < m; ++j) {
+            // The lane's fragments are scattered over the batch: fetch the
+            // next one's header line and its plane while this one runs.
+            if (j + 1 < m) __builtin_prefetch(&f[idx[j + 1]]);
+            l.work.f = &f[idx[j]];
+            process_on(l, idx[j]);
+          }
         }
       }
     });
