@@ -526,7 +526,18 @@ TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
     ASSERT_GT(before.size(), 48u) << file;
     ASSERT_EQ(before[10], 0) << file << " should be a trace without the checksum flag";
     expect_ok(box.run(args + " --no-checksum -o plain.trace"), args + " --no-checksum");
-    EXPECT_TRUE(slurp(box.path("plain.trace")) == before) << args << " --no-checksum differs from " << file;
+    // The same bytes but 42..47, where the writer now records the fragment
+    // count (count + 1; the kept traces hold 0, "not recorded").
+    const std::string plain = slurp(box.path("plain.trace"));
+    ASSERT_EQ(plain.size(), before.size()) << args << " --no-checksum differs in size from " << file;
+    EXPECT_TRUE(plain.substr(0, 42) == before.substr(0, 42) && plain.substr(48) == before.substr(48))
+        << args << " --no-checksum differs from " << file << " outside bytes 42..47";
+    EXPECT_EQ(before.substr(42, 6), std::string(6, '\0')) << file;
+    uint64_t field = 0;
+    for (int i = 0; i < 6; ++i) field |= uint64_t(uint8_t(plain[size_t(42 + i)])) << (8 * i);
+    const auto info = nlohmann::json::parse(box.run("trace info plain.trace --json").out);
+    EXPECT_EQ(field, info["fragments"].get<uint64_t>() + 1) << "bytes 42..47 hold the fragment count + 1";
+    EXPECT_EQ(info["header_fragment_count"], info["fragments"]);
     expect_ok(box.run(args + " -o ck.trace"), args);
     const std::string ck = slurp(box.path("ck.trace"));
     ASSERT_GT(ck.size(), 48u);

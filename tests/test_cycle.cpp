@@ -27,6 +27,7 @@
 #include "depth_test.h"
 #include "driver.h"
 #include "errors.h"
+#include "fragment_source.h"
 #include "golden_model.h"
 #include "hw_config.h"
 #include "livepoint_file.h"
@@ -1809,6 +1810,48 @@ TEST(LivePointLibrary, RoundTripIsExactAndDeterministic) {
     std::filesystem::remove(a);
     std::filesystem::remove(b);
   }
+}
+
+// A trace whose header records its fragment count gives the same library as
+// the same trace without it (counted in a first pass), and a header count
+// that disagrees with the records is refused as bad input.
+TEST(LivePointLibrary, TheHeaderCountPlacesTheUnitsAsCountingDoes) {
+  SceneParams sp;
+  sp.name = "smoke";
+  sp.spp = 8;
+  const std::string counted = ::testing::TempDir() + "/lp_counted.rtr", plain = ::testing::TempDir() + "/lp_plain.rtr",
+                    lying = ::testing::TempDir() + "/lp_lying.rtr";
+  write_scene_trace(sp, counted);
+  std::string bytes = read_bytes(counted);
+  ASSERT_NE(bytes.substr(42, 6), std::string(6, '\0')) << "the writer records the count";
+  std::ofstream(plain, std::ios::binary) << bytes.substr(0, 42) + std::string(6, '\0') + bytes.substr(48);
+  std::string more = bytes;  // one fragment more than the records
+  uint64_t field = 0;
+  for (int i = 0; i < 6; ++i) field |= uint64_t(uint8_t(more[size_t(42 + i)])) << (8 * i);
+  ++field;
+  for (int i = 0; i < 6; ++i) more[size_t(42 + i)] = char(uint8_t(field >> (8 * i)));
+  std::ofstream(lying, std::ios::binary) << more;
+  SamplingParams p;
+  p.units = 4;
+  p.unit_fragments = 500;
+  p.warmup_fragments = 800;
+  InputSpec a, b, c;
+  a.trace_path = counted;
+  b.trace_path = plain;
+  c.trace_path = lying;
+  ASSERT_TRUE(open_fragments(a)->fragments_known().has_value());
+  ASSERT_FALSE(open_fragments(b)->fragments_known().has_value());
+  const LivePoints la = record_livepoints(a, GoldenConfig{}, p);
+  LivePoints lb = record_livepoints(b, GoldenConfig{}, p);
+  lb.input = la.input;  // the files differ in bytes 42..47 only
+  EXPECT_EQ(libraries_differ(la, lb), "");
+  try {
+    record_livepoints(c, GoldenConfig{}, p);
+    ADD_FAILURE() << "a header claiming one fragment more than the trace holds was accepted";
+  } catch (const TraceError& e) {
+    EXPECT_NE(std::string(e.what()).find("but the header records"), std::string::npos) << e.what();
+  }
+  for (const std::string& f : {counted, plain, lying}) std::filesystem::remove(f);
 }
 
 // One library, read once, serves every design: its estimates equal those of a

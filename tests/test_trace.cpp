@@ -17,6 +17,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <random>
 #include <regex>
 #include <set>
@@ -119,22 +120,23 @@ void put64(std::vector<uint8_t>& o, uint64_t v) {
 }
 void putf(std::vector<uint8_t>& o, float f) { put32(o, bits(f)); }
 
-/// Header bytes (fixed 48-byte part, 2 * spp position bytes, scene name).
-std::vector<uint8_t> encode_header(const TraceHeader& h) {
+/// Header bytes (fixed 48-byte part, 2 * spp position bytes, scene name);
+/// with `count`, the fragment count recorded in bytes 42..47 (count + 1).
+std::vector<uint8_t> encode_header(const TraceHeader& h, std::optional<uint64_t> count = std::nullopt) {
   std::vector<uint8_t> o;
-  for (char c : kTraceMagic) o.push_back(uint8_t(c));  // 0: magic
-  put16(o, kTraceVersion);                             // 8: version
-  put16(o, h.checksummed ? 1 : 0);                     // 10: flags (bit 0: checksummed)
-  put32(o, h.width);                                   // 12
-  put32(o, h.height);                                  // 16
-  put8(o, uint8_t(h.spp));                             // 20
-  put8(o, uint8_t(h.depth_mode));                      // 21
-  put8(o, uint8_t(h.color_format));                    // 22
-  put8(o, uint8_t(h.compression));                     // 23
-  for (float c : h.clear_color) putf(o, c);            // 24, 28, 32
-  putf(o, h.clear_depth);                              // 36
-  put16(o, uint16_t(h.scene_name.size()));             // 40
-  for (int i = 0; i < 6; ++i) put8(o, 0);              // 42: reserved
+  for (char c : kTraceMagic) o.push_back(uint8_t(c));                                 // 0: magic
+  put16(o, kTraceVersion);                                                            // 8: version
+  put16(o, h.checksummed ? 1 : 0);                                                    // 10: flags (bit 0: checksummed)
+  put32(o, h.width);                                                                  // 12
+  put32(o, h.height);                                                                 // 16
+  put8(o, uint8_t(h.spp));                                                            // 20
+  put8(o, uint8_t(h.depth_mode));                                                     // 21
+  put8(o, uint8_t(h.color_format));                                                   // 22
+  put8(o, uint8_t(h.compression));                                                    // 23
+  for (float c : h.clear_color) putf(o, c);                                           // 24, 28, 32
+  putf(o, h.clear_depth);                                                             // 36
+  put16(o, uint16_t(h.scene_name.size()));                                            // 40
+  for (int i = 0; i < 6; ++i) put8(o, count ? uint8_t((*count + 1) >> (8 * i)) : 0);  // 42: fragments + 1, or 0
   EXPECT_EQ(o.size(), 48u);
   for (int i = 0; i < h.spp; ++i) {
     put8(o, h.positions[i].x);
@@ -182,8 +184,9 @@ std::vector<uint8_t> zstd_compress(const std::vector<uint8_t>& payload) {
 }
 
 /// header + (compressed) payload, as the header's compression field says.
-std::vector<uint8_t> assemble(const TraceHeader& h, const std::vector<uint8_t>& payload) {
-  std::vector<uint8_t> o = encode_header(h);
+std::vector<uint8_t> assemble(const TraceHeader& h, const std::vector<uint8_t>& payload,
+                              std::optional<uint64_t> count = std::nullopt) {
+  std::vector<uint8_t> o = encode_header(h, count);
   std::vector<uint8_t> p = h.compression == Compression::kZstd ? zstd_compress(payload) : payload;
   o.insert(o.end(), p.begin(), p.end());
   return o;
@@ -425,7 +428,7 @@ TEST(TraceFormat, WriterBytesMatchTheSpecification) {
           w.finish();
         }
         encode_end(payload, frags.size());
-        const std::vector<uint8_t> want = assemble(h, payload);
+        const std::vector<uint8_t> want = assemble(h, payload, frags.size());
         const std::vector<uint8_t> got = read_file(path);
         ASSERT_EQ(got.size(), want.size()) << to_string(d) << "/" << to_string(c) << "/" << spp << " spp: file size";
         size_t first_diff = 0;
@@ -466,6 +469,72 @@ TEST(TraceFormat, FragmentRecordBytesMatchesThePayload) {
           ASSERT_TRUE(r.next(g));
           EXPECT_EQ(r.payload_bytes(), record) << "payload_bytes after one record";
         }
+}
+
+TEST(TraceFormat, TheHeaderRecordsTheFragmentCount) {
+  // The writer records the count in bytes 42..47 (count + 1) once the
+  // payload is written; a reader reports it before reading a record. Bytes
+  // 42..47 of 0 (older writers, an output that cannot seek) record nothing.
+  TempDir tmp;
+  for (Compression z : {Compression::kNone, Compression::kZstd})
+    for (size_t n : {size_t(0), size_t(1), size_t(3000)}) {
+      SCOPED_TRACE(std::string(to_string(z)) + ", " + std::to_string(n) + " fragments");
+      const TraceHeader h = make_header(4, DepthMode::kPerSample, ColorFormat::kRgbF32, z);
+      const std::string path = tmp.path("counted.trace");
+      {
+        TraceWriter w(path, h);
+        for (const auto& f : make_fragments(h, n, 4)) w.write(f);
+        w.finish();
+      }
+      const std::vector<uint8_t> bytes = read_file(path);
+      uint64_t field = 0;
+      for (int i = 0; i < 6; ++i) field |= uint64_t(bytes[size_t(42 + i)]) << (8 * i);
+      EXPECT_EQ(field, n + 1) << "bytes 42..47 hold the count + 1";
+      TraceReader r(path);
+      ASSERT_TRUE(r.recorded_fragments().has_value());
+      EXPECT_EQ(*r.recorded_fragments(), n);
+      Fragment f;
+      size_t got = 0;
+      while (r.next(f)) ++got;
+      EXPECT_EQ(got, n);
+    }
+  const TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  std::vector<uint8_t> payload;
+  encode_end(payload, 0);
+  const std::string old = tmp.path("unrecorded.trace");
+  write_file(old, assemble(h, payload));
+  EXPECT_FALSE(TraceReader(old).recorded_fragments().has_value()) << "0 in bytes 42..47 records no count";
+}
+
+TEST(TraceFormat, AHeaderCountThatDisagreesWithTheRecordsIsRefused) {
+  // Three fragments; the header claims two (the third record is refused,
+  // naming it) or four (the end record is refused).
+  TempDir tmp;
+  const TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  std::vector<uint8_t> payload;
+  for (const auto& f : make_fragments(h, 3, 4)) encode_fragment(payload, h, f);
+  encode_end(payload, 3);
+  for (uint64_t claimed : {uint64_t(2), uint64_t(4)}) {
+    const std::string path = tmp.path("claims-" + std::to_string(claimed) + ".trace");
+    write_file(path, assemble(h, payload, claimed));
+    TraceReader r(path);
+    EXPECT_EQ(r.recorded_fragments(), std::optional<uint64_t>(claimed));
+    Fragment f;
+    try {
+      while (r.next(f)) {
+      }
+      ADD_FAILURE() << "a header claiming " << claimed << " of 3 fragments was accepted";
+    } catch (const TraceError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(path), std::string::npos) << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << "one line: " << msg;
+      if (claimed == 2) {
+        EXPECT_NE(msg.find("record 2: a fragment record beyond the 2 the header records"), std::string::npos) << msg;
+      } else {
+        EXPECT_NE(msg.find("end record counts 3 fragments but the header records 4"), std::string::npos) << msg;
+      }
+    }
+  }
 }
 
 TEST(TraceFormat, EmptyTraceIsValid) {
@@ -1300,7 +1369,8 @@ TEST(ChecksumFormat, WriterBytesMatchTheSpecification) {
           ASSERT_GE(got.size(), b.header.size());
           EXPECT_EQ(got[10], 1) << "header flags (offset 10) must be 1: the payload is checksummed";
           EXPECT_EQ(got[11], 0);
-          EXPECT_TRUE(std::equal(b.header.begin(), b.header.end(), got.begin())) << "header bytes differ";
+          const std::vector<uint8_t> header = encode_header(h, frags.size());
+          EXPECT_TRUE(std::equal(header.begin(), header.end(), got.begin())) << "header bytes differ";
           const std::vector<uint8_t> payload =
               z == Compression::kNone ? std::vector<uint8_t>(got.begin() + long(b.header.size()), got.end())
                                       : zstd_decompress(got.data() + b.header.size(), got.size() - b.header.size());
@@ -1369,7 +1439,7 @@ TEST(ChecksumFormat, EmptyTraceHasNoBlock) {
     EXPECT_EQ(b.payload.size(), 9u) << "header + end record only";
     const std::vector<uint8_t> got = read_file(path);
     if (z == Compression::kNone) {
-      EXPECT_EQ(got, assemble(b.h, b.payload));
+      EXPECT_EQ(got, assemble(b.h, b.payload, 0)) << "header (recording 0 fragments) + end record";
     }
     TraceReader r(path);
     EXPECT_TRUE(r.header().checksummed);

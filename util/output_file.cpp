@@ -285,6 +285,20 @@ void OutputFile::discard() noexcept {
   }
 }
 
+bool OutputFile::patch(uint64_t offset, const void* data, size_t n) {
+  if (mode_ != Mode::kReplace || !f_ || (opt_.named && !opt_.via_pipe)) return false;
+  errno = 0;
+  if (std::fflush(f_) != 0) fail_errno(errno ? errno : EIO);
+  const auto* b = static_cast<const uint8_t*>(data);
+  for (size_t done = 0; done < n;) {
+    const ssize_t w = ::pwrite(fileno(f_), b + done, n - done, off_t(offset + done));
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) fail_errno(w < 0 ? errno : EIO);
+    done += size_t(w);
+  }
+  return true;
+}
+
 void OutputFile::commit() {
   if (committed_) return;
   if (pipe_) {

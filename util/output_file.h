@@ -61,6 +61,11 @@ class OutputFile {
   /// Throws UserError "PATH: <what>", discarding the output.
   [[noreturn]] void fail(const std::string& what);
 
+  /// Overwrites n bytes at offset of what was written so far, when the
+  /// output is a temporary file (the usual case); returns false, writing
+  /// nothing, for stdout and an in-place target (a FIFO or a device cannot
+  /// seek). Throws UserError on a write error.
+  bool patch(uint64_t offset, const void* data, size_t n);
   /// Finishes the output: flush, fsync, close, all checked; then rename onto
   /// the target (or copy into an in-place target). Throws UserError.
   void commit();

@@ -74,6 +74,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     j["file"] = path;
     j["header"] = nlohmann::ordered_json::parse(header_to_json(h));
     j["fragments"] = n;
+    // The count the header records (null: not recorded); the reader held
+    // the records to it.
+    j["header_fragment_count"] =
+        r.recorded_fragments() ? nlohmann::ordered_json(*r.recorded_fragments()) : nlohmann::ordered_json(nullptr);
     j["covered_samples"] = covered;
     j["covered_samples_per_fragment"] = per_frag;
     j["draws"] = n ? uint64_t(max_draw) + 1 : 0;
@@ -100,8 +104,8 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     fmt::print("  checksum xxh3-64, {} blocks verified\n", r.blocks_read());
   else
     fmt::print("  checksum none\n");
-  fmt::print("  fragments {}  covered samples {} ({:.2f} per fragment)  draws {}\n", n, covered, per_frag,
-             n ? max_draw + 1 : 0);
+  fmt::print("  fragments {} ({} in the header)  covered samples {} ({:.2f} per fragment)  draws {}\n", n,
+             r.recorded_fragments() ? "recorded" : "not recorded", covered, per_frag, n ? max_draw + 1 : 0);
   fmt::print("  bytes: file {}, records {} ({:.2f} per fragment uncompressed, {:.2f} on disk)\n", file_bytes,
              r.payload_bytes(), rec_per_frag, disk_per_frag);
   fmt::print("  pixels touched {} ({:.1f}% of the screen), fragments per touched pixel: mean {:.2f}, max {}\n", touched,

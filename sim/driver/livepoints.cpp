@@ -144,15 +144,17 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   LivePoints lib;
   lib.method = method;
   lib.params = p;
-  {  // N: the sampling design needs the input's length
-    auto src = open_fragments(in);
+  auto src = open_fragments(in);
+  if (const std::optional<uint64_t> known = src->fragments_known()) {
+    lib.fragments = *known;  // N from the trace's header (the reader holds the trace to it)
+  } else {                   // N: the sampling design needs the input's length
+    auto counting = open_fragments(in);
     Progress progress("live-points: counting the input", "fragments");
-    for (Fragment f; src->next(f);)
-      if (++lib.fragments % 65536 == 0) progress.update(src->consumed(), lib.fragments);
+    for (Fragment f; counting->next(f);)
+      if (++lib.fragments % 65536 == 0) progress.update(counting->consumed(), lib.fragments);
     progress.update(1.0, lib.fragments);
     progress.finish();
   }
-  auto src = open_fragments(in);
   lib.header = src->header();
   lib.input = input_identity(in);
   const uint64_t n = lib.fragments;

@@ -41,6 +41,11 @@ class TraceFragments : public FragmentSource {
     // more than the fragments, so take 1/1000 off.
     return bytes / fragment_record_bytes(header_, header_.spp) / 1000 * 999 * repeat_;
   }
+  std::optional<uint64_t> fragments_known() const override {
+    const std::optional<uint64_t> n = reader_->recorded_fragments();
+    if (!n) return std::nullopt;
+    return *n * repeat_;
+  }
   double consumed() const override { return (double(pass_ - 1) + reader_->file_fraction()) / double(repeat_); }
 
  private:
@@ -94,6 +99,7 @@ class VectorFragments : public FragmentSource {
     return true;
   }
   uint64_t fragments_at_least() const override { return v_.size(); }
+  std::optional<uint64_t> fragments_known() const override { return v_.size(); }
   double consumed() const override { return v_.empty() ? 1.0 : double(at_) / double(v_.size()); }
 
  private:

@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,9 @@ class FragmentSource {
   /// bytes over the largest record's); 0 where nothing is known. For the
   /// up-front memory estimate (--memory-limit).
   virtual uint64_t fragments_at_least() const { return 0; }
+  /// The exact number of fragments the input holds (repeats included), when
+  /// known before reading it: a trace whose header records its count.
+  virtual std::optional<uint64_t> fragments_known() const { return std::nullopt; }
   /// The share of the input consumed so far, in [0, 1], repeats included: a
   /// trace's file bytes read, a scene's triangles rasterized; for progress.
   virtual double consumed() const = 0;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -110,6 +111,11 @@ class TraceReader {
   uint64_t payload_bytes() const;
   /// Checksummed blocks read and verified so far.
   uint64_t blocks_read() const { return blocks_; }
+  /// The number of fragments the header records (reserved bytes 42..47:
+  /// count + 1), or none when they are 0 (not recorded). The reader holds
+  /// the payload to it: more records, or an end record counting otherwise,
+  /// is an error.
+  std::optional<uint64_t> recorded_fragments() const { return recorded_fragments_; }
   /// The share of the file's bytes read so far, in [0, 1] (read-ahead
   /// included: for progress, not for positions).
   double file_fraction() const;
@@ -140,6 +146,7 @@ class TraceReader {
   uint64_t block_first_record_ = 0;  ///< record number of the block's first record
   uint64_t block_offset_ = 0;        ///< payload byte offset of the block's checksum record
   bool at_end_record_ = false;       ///< reading the end record (errors name its position)
+  std::optional<uint64_t> recorded_fragments_;
 };
 
 /// Writes a trace through an OutputFile (util/output_file.h): a unique

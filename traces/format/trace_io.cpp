@@ -26,6 +26,7 @@ const char* to_string(Compression c) { return c == Compression::kZstd ? "zstd" :
 namespace {
 
 constexpr size_t kFixedHeaderBytes = 48;
+constexpr size_t kHeaderCountOffset = 42;  ///< reserved bytes 42..47: fragment count + 1 (0: not recorded)
 constexpr size_t kIoChunk = 1 << 17;
 
 void put_u16(uint8_t* p, uint16_t v) {
@@ -293,6 +294,9 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   for (int i = 0; i < 3; ++i) h.clear_color[i] = get_f32(fixed + 24 + 4 * i);
   h.clear_depth = get_f32(fixed + 36);
   uint16_t name_len = get_u16(fixed + 40);
+  uint64_t recorded = 0;
+  for (int i = 0; i < 6; ++i) recorded |= uint64_t(fixed[kHeaderCountOffset + i]) << (8 * i);
+  if (recorded) recorded_fragments_ = recorded - 1;
   std::string err = validate_header(h);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
   uint8_t pos[128];
@@ -398,6 +402,9 @@ void TraceReader::read_end() {
   uint64_t count = get_u64(b);
   if (count != records_)
     fail("end record counts " + std::to_string(count) + " fragments but " + std::to_string(records_) + " were read");
+  if (recorded_fragments_ && *recorded_fragments_ != count)
+    fail("end record counts " + std::to_string(count) + " fragments but the header records " +
+         std::to_string(*recorded_fragments_));
   uint8_t extra;
   if (src_->read(&extra, 1) != 0) fail("data after the end record");
   if (!src_->complete()) fail("truncated: the compressed frame is incomplete");
@@ -433,6 +440,8 @@ bool TraceReader::next(Fragment& f) {
     }
     if (tag == kTagChecksum) fail("checksum record (tag 2) in a trace whose header does not flag checksums");
     if (tag != kTagFragment) fail("unknown record tag " + std::to_string(tag));
+    if (recorded_fragments_ && records_ >= *recorded_fragments_)
+      fail("a fragment record beyond the " + std::to_string(*recorded_fragments_) + " the header records");
     const TraceHeader& h = header_;
     uint8_t b[16 + 8 + 256 + 12 + 4];
     const int cb = coverage_bytes(h.spp);
@@ -601,6 +610,12 @@ void TraceWriter::finish() {
   raw_bytes_ += 9;
   sink_->close();
   sink_.reset();
+  // The fragment count in the header's reserved bytes (count + 1; 0 =
+  // not recorded), so a reader knows it without reading the payload. An
+  // output that cannot seek (a FIFO, a device, stdout) keeps 0.
+  uint8_t c[6];
+  for (int i = 0; i < 6; ++i) c[i] = uint8_t((count_ + 1) >> (8 * i));
+  if (count_ + 1 < (uint64_t{1} << 48)) out_->patch(kHeaderCountOffset, c, sizeof c);
   out_->commit();  // flush, fsync, close, rename: UserError on any failure
   finished_ = true;
 }
