@@ -576,6 +576,10 @@ void write_livepoints(const std::string& path, const LivePoints& lib) {
   std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
   invariant(cctx != nullptr, "zstd context allocated");
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_compressionLevel, 3);
+  // Two compression workers, whatever the host's cores: zstd's output
+  // depends on the worker count (not on timing), so the file is the same on
+  // every machine. A library without threads support compresses in this one.
+  ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_nbWorkers, 2);
   std::vector<uint8_t> obuf(ZSTD_CStreamOutSize());
   ZSTD_inBuffer in{payload.data(), payload.size(), 0};
   for (;;) {
