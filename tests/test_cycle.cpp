@@ -4,8 +4,10 @@
 // pixel-ordering guarantee, the hardware config, and timing that behaves like
 // hardware (ROP scaling, memory-bound runs, linear cost in the work).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -15,6 +17,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "address_map.h"
 #include "alpha_ref_gen.h"
@@ -1810,6 +1813,29 @@ TEST(LivePointLibrary, RoundTripIsExactAndDeterministic) {
     std::filesystem::remove(a);
     std::filesystem::remove(b);
   }
+}
+
+// A library is written as it is encoded (its size and hash patched into the
+// header last); a FIFO, which cannot take them afterwards, gets the payload
+// encoded whole first. Both read back as the library.
+TEST(LivePointLibrary, AFileAndAFifoBothTakeTheLibrary) {
+  SamplingParams p;
+  p.units = 3;
+  p.unit_fragments = 300;
+  const LivePoints lib = record_livepoints(scene_input("testcard", 4), GoldenConfig{}, p);
+  const std::string file = temp_path("streamed.rlp"), fifo = temp_path("pipe.rlp"), copy = temp_path("piped.rlp");
+  write_livepoints(file, lib);
+  EXPECT_EQ(libraries_differ(read_livepoints(file), lib), "") << "the library written to a file";
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  std::thread reader([&] {
+    std::ifstream in(fifo, std::ios::binary);
+    std::ofstream(copy, std::ios::binary) << in.rdbuf();
+  });
+  write_livepoints(fifo, lib);
+  reader.join();
+  EXPECT_EQ(libraries_differ(read_livepoints(copy), lib), "") << "the library written through a FIFO";
+  for (const std::string& f : {file, fifo, copy}) std::filesystem::remove(f);
 }
 
 // A trace whose header records its fragment count gives the same library as

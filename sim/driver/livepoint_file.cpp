@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <string_view>
 
@@ -30,6 +31,20 @@ constexpr uint64_t kMaxCount = uint64_t{1} << 40;       // any count read beyond
 /// The payload, little-endian, field by field.
 class Put {
  public:
+  Put() = default;
+  /// With a drain, piece() hands the bytes gathered so far to it once there
+  /// are kPiece of them, and flush() hands over the rest (a file written as
+  /// it is encoded); without, the bytes stay in bytes().
+  explicit Put(std::function<void(const uint8_t*, size_t)> drain) : drain_(std::move(drain)) {}
+  static constexpr size_t kPiece = size_t(1) << 20;
+  void piece() {
+    if (drain_ && b_.size() >= kPiece) flush();
+  }
+  void flush() {
+    if (!drain_ || b_.empty()) return;
+    drain_(b_.data(), b_.size());
+    b_.clear();
+  }
   void u8(uint8_t v) { b_.push_back(v); }
   void u16(uint16_t v) { raw(v, 2); }
   void u32(uint32_t v) { raw(v, 4); }
@@ -57,6 +72,7 @@ class Put {
     b_.insert(b_.end(), p, p + n);
   }
   std::vector<uint8_t> b_;
+  std::function<void(const uint8_t*, size_t)> drain_;
 };
 
 /// Reads the payload back; every read is bounds-checked and a failure names
@@ -349,8 +365,8 @@ Image get_image(Get& g, const TraceHeader& h) {
 
 // ------------------------------------------------------------------ the file
 
-std::vector<uint8_t> encode(const LivePoints& lib) {
-  Put p;
+/// The library's payload into p (in pieces, when p drains).
+void encode(const LivePoints& lib, Put& p) {
   const TraceHeader& h = lib.header;
   const InputSpec& in = lib.input.spec;
   p.str(in.trace_path);
@@ -386,8 +402,12 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
     p.u64(lp.warmup);
     p.u64(lp.window);
     p.u64(lp.fragments.size());
-    for (const Fragment& f : lp.fragments) put_fragment(p, h, f);
+    for (const Fragment& f : lp.fragments) {
+      put_fragment(p, h, f);
+      p.piece();
+    }
     put_pre(p, lp.pre, h.spp);
+    p.piece();
     p.u64(lp.resident.size());
     for (const Resident& r : lp.resident) {
       p.u64(r.written);
@@ -396,9 +416,12 @@ std::vector<uint8_t> encode(const LivePoints& lib) {
       p.u8(uint8_t(r.tracker) | uint8_t(r.layers) << 1);
     }
     p.u64(lp.warming.size());
-    for (const Touch& t : lp.warming) put_touch(p, t);
+    for (const Touch& t : lp.warming) {
+      put_touch(p, t);
+      p.piece();
+    }
   }
-  return std::move(p.bytes());
+  p.flush();
 }
 
 LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
@@ -563,16 +586,8 @@ std::vector<uint8_t> wrap_livepoint_payload(const uint8_t* payload, size_t size)
 }
 
 void write_livepoints(const std::string& path, const LivePoints& lib) {
-  const std::vector<uint8_t> payload = encode(lib);
   ensure_parent_dir(path);
   OutputFile out(path);
-  uint8_t head[kFileHeaderBytes];
-  std::memcpy(head, kMagic, 8);
-  put_le(head + 8, kLivePointFileVersion, 4);
-  put_le(head + 12, 0, 4);
-  put_le(head + 16, payload.size(), 8);
-  put_le(head + 24, XXH3_64bits(payload.data(), payload.size()), 8);
-  out.write(head, sizeof head);
   std::unique_ptr<ZSTD_CCtx, decltype(&ZSTD_freeCCtx)> cctx(ZSTD_createCCtx(), ZSTD_freeCCtx);
   invariant(cctx != nullptr, "zstd context allocated");
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_compressionLevel, 3);
@@ -581,14 +596,49 @@ void write_livepoints(const std::string& path, const LivePoints& lib) {
   // every machine. A library without threads support compresses in this one.
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_nbWorkers, 2);
   std::vector<uint8_t> obuf(ZSTD_CStreamOutSize());
-  ZSTD_inBuffer in{payload.data(), payload.size(), 0};
-  for (;;) {
-    ZSTD_outBuffer ob{obuf.data(), obuf.size(), 0};
-    const size_t left = ZSTD_compressStream2(cctx.get(), &ob, &in, ZSTD_e_end);
-    if (ZSTD_isError(left)) out.fail(std::string("compression failed: ") + ZSTD_getErrorName(left));
-    out.write(obuf.data(), ob.pos);
-    if (left == 0) break;
+  auto compress = [&](const uint8_t* data, size_t n, ZSTD_EndDirective mode) {
+    ZSTD_inBuffer in{data, n, 0};
+    for (;;) {
+      ZSTD_outBuffer ob{obuf.data(), obuf.size(), 0};
+      const size_t left = ZSTD_compressStream2(cctx.get(), &ob, &in, mode);
+      if (ZSTD_isError(left)) out.fail(std::string("compression failed: ") + ZSTD_getErrorName(left));
+      out.write(obuf.data(), ob.pos);
+      if (mode == ZSTD_e_end ? left == 0 : in.pos == in.size) break;
+    }
+  };
+  uint8_t head[kFileHeaderBytes];
+  std::memcpy(head, kMagic, 8);
+  put_le(head + 8, kLivePointFileVersion, 4);
+  put_le(head + 12, 0, 4);
+  if (out.in_place()) {
+    // A FIFO or a device cannot take the payload's size and hash afterwards:
+    // the payload whole first.
+    Put p;
+    encode(lib, p);
+    put_le(head + 16, p.bytes().size(), 8);
+    put_le(head + 24, XXH3_64bits(p.bytes().data(), p.bytes().size()), 8);
+    out.write(head, sizeof head);
+    compress(p.bytes().data(), p.bytes().size(), ZSTD_e_end);
+    out.commit();
+    return;
   }
+  // Encoded, hashed and compressed a piece at a time (the workers compress
+  // while this thread encodes); the size and hash go into the header last.
+  out.write(head, sizeof head);
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> hash(XXH3_createState(), XXH3_freeState);
+  invariant(hash != nullptr, "XXH3 state allocated");
+  XXH3_64bits_reset(hash.get());
+  uint64_t size = 0;
+  Put p([&](const uint8_t* data, size_t n) {
+    XXH3_64bits_update(hash.get(), data, n);
+    size += n;
+    compress(data, n, ZSTD_e_continue);
+  });
+  encode(lib, p);
+  compress(nullptr, 0, ZSTD_e_end);
+  put_le(head + 16, size, 8);
+  put_le(head + 24, XXH3_64bits_digest(hash.get()), 8);
+  invariant(out.patch(16, head + 16, 16), "a library written to a temporary file can take its header last");
   out.commit();
 }
 
