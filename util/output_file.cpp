@@ -286,7 +286,7 @@ void OutputFile::discard() noexcept {
 }
 
 bool OutputFile::patch(uint64_t offset, const void* data, size_t n) {
-  if (mode_ != Mode::kReplace || !f_ || (opt_.named && !opt_.via_pipe)) return false;
+  if (!can_patch()) return false;
   errno = 0;
   if (std::fflush(f_) != 0) fail_errno(errno ? errno : EIO);
   const auto* b = static_cast<const uint8_t*>(data);

@@ -61,10 +61,13 @@ class OutputFile {
   /// Throws UserError "PATH: <what>", discarding the output.
   [[noreturn]] void fail(const std::string& what);
 
-  /// Overwrites n bytes at offset of what was written so far, when the
-  /// output is a temporary file (the usual case); returns false, writing
-  /// nothing, for stdout and an in-place target (a FIFO or a device cannot
-  /// seek). Throws UserError on a write error.
+  /// The stream is a temporary file, so patch() can rewrite what was
+  /// written (not stdout, an in-place target such as a FIFO or a device, or
+  /// a by-name output).
+  bool can_patch() const { return mode_ == Mode::kReplace && f_ && !opt_.named; }
+  /// Overwrites n bytes at offset of what was written so far when
+  /// can_patch(); otherwise returns false, writing nothing. Throws UserError
+  /// on a write error.
   bool patch(uint64_t offset, const void* data, size_t n);
   /// Finishes the output: flush, fsync, close, all checked; then rename onto
   /// the target (or copy into an in-place target). Throws UserError.

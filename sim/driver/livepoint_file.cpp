@@ -610,7 +610,7 @@ void write_livepoints(const std::string& path, const LivePoints& lib) {
   std::memcpy(head, kMagic, 8);
   put_le(head + 8, kLivePointFileVersion, 4);
   put_le(head + 12, 0, 4);
-  if (out.in_place()) {
+  if (!out.can_patch()) {
     // A FIFO or a device cannot take the payload's size and hash afterwards:
     // the payload whole first.
     Put p;

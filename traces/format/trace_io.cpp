@@ -39,6 +39,9 @@ void put_u32(uint8_t* p, uint32_t v) {
 void put_u64(uint8_t* p, uint64_t v) {
   for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i));
 }
+void put_u48(uint8_t* p, uint64_t v) {
+  for (int i = 0; i < 6; ++i) p[i] = uint8_t(v >> (8 * i));
+}
 void put_f32(uint8_t* p, float f) {
   uint32_t v;
   std::memcpy(&v, &f, 4);
@@ -49,6 +52,7 @@ uint32_t get_u32(const uint8_t* p) {
   return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
 }
 uint64_t get_u64(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u32(p + 4)) << 32; }
+uint64_t get_u48(const uint8_t* p) { return uint64_t(get_u32(p)) | uint64_t(get_u16(p + 4)) << 32; }
 float get_f32(const uint8_t* p) {
   uint32_t v = get_u32(p);
   float f;
@@ -294,9 +298,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   for (int i = 0; i < 3; ++i) h.clear_color[i] = get_f32(fixed + 24 + 4 * i);
   h.clear_depth = get_f32(fixed + 36);
   uint16_t name_len = get_u16(fixed + 40);
-  uint64_t recorded = 0;
-  for (int i = 0; i < 6; ++i) recorded |= uint64_t(fixed[kHeaderCountOffset + i]) << (8 * i);
-  if (recorded) recorded_fragments_ = recorded - 1;
+  if (const uint64_t recorded = get_u48(fixed + kHeaderCountOffset)) recorded_fragments_ = recorded - 1;
   std::string err = validate_header(h);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
   uint8_t pos[128];
@@ -614,7 +616,7 @@ void TraceWriter::finish() {
   // not recorded), so a reader knows it without reading the payload. An
   // output that cannot seek (a FIFO, a device, stdout) keeps 0.
   uint8_t c[6];
-  for (int i = 0; i < 6; ++i) c[i] = uint8_t((count_ + 1) >> (8 * i));
+  put_u48(c, count_ + 1);
   if (count_ + 1 < (uint64_t{1} << 48)) out_->patch(kHeaderCountOffset, c, sizeof c);
   out_->commit();  // flush, fsync, close, rename: UserError on any failure
   finished_ = true;
