@@ -1841,6 +1841,80 @@ TEST(LivePointLibrary, AFileAndAFifoBothTakeTheLibrary) {
 // A trace whose header records its fragment count gives the same library as
 // the same trace without it (counted in a first pass), and a header count
 // that disagrees with the records is refused as bad input.
+// The recording observes only the T fragments before each live-point (and
+// the live-points' own): each live-point's warming must still be exactly the
+// touches of the T fragments before it, as one thread drawing the whole input
+// with every fragment observed sees them, whether the warmings leave gaps
+// between them (small T), overlap the previous live-point (T beyond the
+// period) or are empty (T = 0). Its fragments are the input's, with what the
+// record does not carry zeroed (a per-sample trace's uncovered depths too).
+TEST(LivePointLibrary, TheWarmingIsTheTouchesBeforeEachPoint) {
+  SceneParams sp;
+  sp.name = "eight-layers";
+  sp.spp = 8;
+  sp.depth_mode = DepthMode::kPerSample;
+  const std::string path = temp_path("warming_persample.rtr");
+  write_scene_trace(sp, path);
+  InputSpec per_sample;
+  per_sample.trace_path = path;
+  for (const InputSpec& in : {scene_input("cloth", 16), per_sample}) {
+    for (Method m : {Method::kLk, Method::kSlab}) {
+      const GoldenConfig cfg = method_config(m);
+      // Every fragment's touch, one thread, every fragment observed.
+      std::vector<Fragment> all;
+      auto src = open_fragments(in);
+      const TraceHeader h = src->header();
+      for (Fragment f; src->next(f);) all.push_back(f);
+      std::vector<Touch> touches(all.size());
+      StochasticModel model(h, cfg, 1);
+      size_t base = 0;
+      model.set_observer([&](size_t i, const FragWork& w) {
+        Touch& t = touches[base + i];
+        t.x = w.f->x;
+        t.y = w.f->y;
+        t.covered = w.covered;
+        t.reached_write = !w.killed();
+        t.written = t.reached_write ? w.written : 0;
+        t.slab_kept = t.reached_write && m == Method::kSlab && w.slab.kept;
+      });
+      for (; base < all.size(); base += 1000) model.draw_batch(&all[base], std::min<size_t>(1000, all.size() - base));
+      for (uint64_t T : {uint64_t{0}, uint64_t{700}, uint64_t{9000}, uint64_t{5000000}}) {
+        SamplingParams p;
+        p.units = 6;
+        p.unit_fragments = 400;
+        p.warmup_fragments = 600;
+        p.cooldown_fragments = 300;
+        p.warming_fragments = T;
+        const LivePoints lib = record_livepoints(in, cfg, p, 2);
+        const std::string what = in.describe() + " " + to_string(m) + " T=" + std::to_string(T) + ": ";
+        ASSERT_EQ(lib.fragments, all.size()) << what;
+        ASSERT_EQ(lib.points.size(), 6u) << what;
+        for (size_t k = 0; k < lib.points.size(); ++k) {
+          const LivePoint& lp = lib.points[k];
+          const std::string unit = what + "unit " + std::to_string(k) + ": ";
+          const uint64_t from = lp.first - std::min<uint64_t>(lp.first, T);
+          ASSERT_EQ(lp.warming.size(), lp.first - from) << unit << "the warming holds the T fragments before it";
+          for (size_t i = 0; i < lp.warming.size(); ++i) {
+            const Touch &a = lp.warming[i], &b = touches[from + i];
+            ASSERT_TRUE(a.x == b.x && a.y == b.y && a.covered == b.covered && a.written == b.written &&
+                        a.reached_write == b.reached_write && a.slab_kept == b.slab_kept)
+                << unit << "warming touch " << i << " is not fragment " << from + i << "'s";
+          }
+          for (size_t i = 0; i < lp.fragments.size(); ++i) {
+            Fragment want = all[lp.first + i];
+            const bool per = h.depth_mode == DepthMode::kPerSample;
+            for (size_t s = 0; s < want.z.size(); ++s)
+              if (!per || s >= size_t(h.spp) || !(want.coverage >> s & 1)) want.z[s] = 0.0f;
+            ASSERT_TRUE(same_fragment(lp.fragments[i], want))
+                << unit << "fragment " << i << " is not the input's, canonicalised";
+          }
+        }
+      }
+    }
+  }
+  std::filesystem::remove(path);
+}
+
 TEST(LivePointLibrary, TheHeaderCountPlacesTheUnitsAsCountingDoes) {
   SceneParams sp;
   sp.name = "smoke";

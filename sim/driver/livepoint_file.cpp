@@ -528,8 +528,14 @@ uint64_t get_le(const uint8_t* p, int n) {
 }  // namespace
 
 void canonicalise(const TraceHeader& h, Fragment& f) {
-  const size_t keep = h.depth_mode == DepthMode::kPerSample ? size_t(h.spp) : 0;
-  std::fill(f.z.begin() + std::ptrdiff_t(keep), f.z.end(), 0.0f);
+  if (h.depth_mode != DepthMode::kPerSample) {
+    f.z.fill(0.0f);
+    return;
+  }
+  // A per-sample record carries the covered samples' depths only: whatever
+  // the reader's slot held before stands in the others.
+  for (size_t i = 0; i < f.z.size(); ++i)
+    if (!(i < size_t(h.spp) && (f.coverage >> i & 1))) f.z[i] = 0.0f;
 }
 
 InputIdentity input_identity(const InputSpec& in) {

@@ -21,8 +21,9 @@ namespace ropsim {
 inline constexpr uint32_t kLivePointFileVersion = 1;
 
 /// Zeroes what a fragment's trace record does not carry (the per-sample
-/// depths of a plane-mode trace, those past spp), so that a fragment read back
-/// from a library equals the one recorded, bit for bit.
+/// depths of a plane-mode trace, those of uncovered samples and past spp), so
+/// that a fragment read back from a library equals the one recorded, bit for
+/// bit, however the reader reused its slots.
 void canonicalise(const TraceHeader& h, Fragment& f);
 
 /// What identifies the input: a trace file by the XXH3-64 of its bytes, a

@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <set>
 #include <utility>
 
 #include "address_map.h"
@@ -33,6 +32,8 @@ namespace {
 /// The pixels of tile (x0, y0) of st that hold written values, appended to out.
 void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uint32_t y0, std::vector<Resident>& out) {
   const TraceHeader& h = st.header();
+  uint32_t clear_z;
+  std::memcpy(&clear_z, &clear.depth[0], sizeof clear_z);
   for (int p = 0; p < 64; ++p) {
     const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
     if (x >= h.width || y >= h.height) continue;
@@ -41,10 +42,13 @@ void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uin
     Resident r;
     r.x = uint16_t(x);
     r.y = uint16_t(y);
-    for (int i = 0; i < h.spp; ++i)
-      if (std::memcmp(&v.depth[i], &clear.depth[0], sizeof(float)) != 0 ||
-          std::memcmp(&v.rgb[3 * i], &clear.rgb[0], 3 * sizeof(uint16_t)) != 0)
+    for (int i = 0; i < h.spp; ++i) {
+      uint32_t z;
+      std::memcpy(&z, &v.depth[i], sizeof z);
+      const uint16_t* c = &v.rgb[3 * i];
+      if (z != clear_z || c[0] != clear.rgb[0] || c[1] != clear.rgb[1] || c[2] != clear.rgb[2])
         r.written |= uint64_t{1} << i;
+    }
     r.tracker = v.tracker && !(*v.tracker == TrackerState{});
     r.layers = v.slab && v.slab->count > 0;
     if (r.written || r.tracker || r.layers) out.push_back(r);
@@ -99,16 +103,25 @@ size_t warming_start(const LivePoint& lp, const AddressMap& amap, const HwConfig
 
 }  // namespace
 
-void PrePixels::add(const SampleStore& st, const PixelView& clear, uint32_t px, uint32_t py) {
-  const int spp = st.header().spp;
-  x.push_back(uint16_t(px));
-  y.push_back(uint16_t(py));
+void PrePixels::resize(size_t n, int spp) {
+  x.resize(n);
+  y.resize(n);
+  depth.resize(n * size_t(spp));
+  rgb.resize(3 * n * size_t(spp));
+  if (tracker) trackers.resize(n);
+  if (slab_bits > 0) slabs.resize(n);
+}
+
+void PrePixels::set(size_t i, const SampleStore& st, const PixelView& clear, uint32_t px, uint32_t py) {
+  const size_t spp = size_t(st.header().spp);
+  x[i] = uint16_t(px);
+  y[i] = uint16_t(py);
   PixelView v = st.view(px, py);
   if (!v.depth) v = clear;  // never touched: the clear values
-  depth.insert(depth.end(), v.depth, v.depth + spp);
-  rgb.insert(rgb.end(), v.rgb, v.rgb + 3 * spp);
-  if (tracker) trackers.push_back(*v.tracker);
-  if (slab_bits > 0) slabs.push_back(*v.slab);
+  std::memcpy(&depth[i * spp], v.depth, spp * sizeof(float));
+  std::memcpy(&rgb[3 * i * spp], v.rgb, 3 * spp * sizeof(uint16_t));
+  if (tracker) trackers[i] = *v.tracker;
+  if (slab_bits > 0) slabs[i] = *v.slab;
 }
 
 void PrePixels::apply(SampleStore& st) const {
@@ -196,61 +209,82 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   SampleStore cleared(lib.header, st0.has_tracker(), st0.targets());
   const PixelRef clear = cleared.pixel(0, 0);
   const PixelView clear_view = cleared.view(0, 0);
-  // The last T fragments' touches, a ring; the batch's, by index.
+  // The last T fragments' touches, a ring, written in place by the observer:
+  // of a batch of m, fragment i >= m - T goes to slot ring_at + i - skip
+  // (distinct slots, so the lanes' threads never write one twice).
   const size_t ring_size = size_t(std::min<uint64_t>(p.warming_fragments, n));
-  std::vector<Touch> ring(ring_size), seen;
-  size_t ring_at = 0, ring_fill = 0;
+  std::vector<Touch> ring(ring_size);
+  size_t ring_at = 0, ring_fill = 0, skip = 0;
   const bool slab = method.method == Method::kSlab;
-  model.set_observer([&seen, slab](size_t i, const FragWork& w) {
-    Touch& t = seen[i];
+  const auto observe = [&ring, &ring_at, &skip, ring_size, slab](size_t i, const FragWork& w) {
+    if (i < skip) return;
+    size_t at = ring_at + i - skip;
+    if (at >= ring_size) at -= ring_size;
+    Touch& t = ring[at];
     t.x = w.f->x;
     t.y = w.f->y;
     t.covered = w.covered;
     t.reached_write = !w.killed();
     t.written = t.reached_write ? w.written : 0;
     t.slab_kept = t.reached_write && slab && w.slab.kept;
-  });
-  auto draw = [&](const Fragment* f, size_t m, const std::function<void()>& beside) {
-    seen.assign(m, Touch{});
-    model.draw_batch(f, m, beside);
-    for (size_t j = 0; j < m && ring_size > 0; ++j) {
-      ring[ring_at] = seen[j];
-      ring_at = (ring_at + 1) % ring_size;
-      ring_fill = std::min(ring_fill + 1, ring_size);
+  };
+  bool observing = false;
+  // Only the T fragments before each live-point (and the live-points' own,
+  // which the next one's T may reach back into) are observed: a batch that
+  // no live-point's warming reaches is drawn without the observer, and
+  // empties the ring (nothing before it is within T of a later live-point).
+  auto draw = [&](const Fragment* f, size_t m, const std::function<void()>& beside, bool observed) {
+    observed = observed && ring_size > 0;
+    if (observed != observing) {
+      model.set_observer(observed ? std::function<void(size_t, const FragWork&)>(observe) : nullptr);
+      observing = observed;
     }
+    if (!observed) {
+      model.draw_batch(f, m, beside);
+      ring_at = ring_fill = 0;
+      return;
+    }
+    skip = m > ring_size ? m - ring_size : 0;
+    model.draw_batch(f, m, beside);
+    ring_at = (ring_at + (m - skip)) % ring_size;
+    ring_fill = std::min(ring_fill + (m - skip), ring_size);
   };
   // The input as segments in order: batches of at most kBatch fragments
-  // between live-points, each ending where the next live-point begins, and
-  // the live-points' fragments. While the model draws one segment (on its
-  // threads), this thread reads the next.
+  // between live-points, each ending where the next live-point begins or its
+  // warming (T fragments before it) does, and the live-points' fragments.
+  // While the model draws one segment (on its threads), this thread reads the
+  // next.
   constexpr size_t kBatch = 4096;
   struct Segment {
     uint64_t first, count;
-    size_t point;  // k of the live-point, or kPlain
+    size_t point;   // k of the live-point, or kPlain
+    bool observed;  // within a live-point's warming (or one)
   };
   constexpr size_t kPlain = ~size_t{0};
   std::vector<Segment> segments;
   for (uint64_t at = 0, kk = 0; at < n || kk < k_units;) {
     const uint64_t stop = kk < k_units ? firsts[kk] : n;
+    const uint64_t warm = kk < k_units ? stop - std::min<uint64_t>(stop, ring_size) : n;
     if (at < stop) {
-      const uint64_t m = std::min<uint64_t>(kBatch, stop - at);
-      segments.push_back(Segment{at, m, kPlain});
+      const uint64_t m = std::min<uint64_t>(kBatch, (at < warm ? warm : stop) - at);
+      segments.push_back(Segment{at, m, kPlain, at >= warm});
       at += m;
       continue;
     }
     if (kk == k_units) break;
-    segments.push_back(Segment{firsts[kk], ends[kk] - firsts[kk], size_t(kk)});
+    segments.push_back(Segment{firsts[kk], ends[kk] - firsts[kk], size_t(kk), true});
     at = ends[kk];
     ++kk;
   }
   uint64_t i = 0;
   size_t k = 0;
   Fragment f;
+  // Read in place: a buffer keeps its fragments' storage from batch to batch.
   auto read_segment = [&](const Segment& sg, std::vector<Fragment>& out) {
-    out.clear();
-    out.reserve(sg.count);
-    while (out.size() < sg.count && src->next(f)) out.push_back(f);
-    invariant(out.size() == sg.count, "the input delivers the fragments it was counted with");
+    out.resize(size_t(sg.count));
+    size_t got = 0;
+    while (got < out.size() && src->next(out[got])) ++got;
+    invariant(got == sg.count, "the input delivers the fragments it was counted with");
   };
   std::vector<Fragment> cur, next;
   if (!segments.empty()) read_segment(segments[0], cur);
@@ -263,7 +297,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       if (si + 1 < segments.size()) read_segment(segments[si + 1], next);
     };
     if (sg.point == kPlain) {
-      draw(cur.data(), cur.size(), read_next);
+      draw(cur.data(), cur.size(), read_next, sg.observed);
     } else {
       const size_t kk = sg.point;
       LivePoint lp;
@@ -273,26 +307,41 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       lp.fragments = std::move(cur);
       lp.pre.tracker = st0.has_tracker();
       lp.pre.slab_bits = st0.targets().slab_bits;
-      std::vector<uint64_t> pixels;
-      std::set<std::pair<uint32_t, uint32_t>> tiles;
+      // The pixels and the 8x8 tiles they touch, each sorted by (y, x) and
+      // (x0, y0); their pre-state read on the model's threads.
+      std::vector<uint64_t> pixels, tiles;
+      pixels.reserve(lp.fragments.size());
+      tiles.reserve(lp.fragments.size());
       for (Fragment& x : lp.fragments) {
         canonicalise(lib.header, x);
         pixels.push_back(uint64_t(x.y) << 16 | x.x);
-        tiles.emplace(x.x & ~7u, x.y & ~7u);
+        tiles.push_back(uint64_t(x.x & ~7u) << 16 | (x.y & ~7u));
       }
-      std::sort(pixels.begin(), pixels.end());
-      pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
-      for (uint64_t xy : pixels) {
-        const uint32_t x = uint32_t(xy & 0xffff), y = uint32_t(xy >> 16);
-        lp.pre.add(model.store_of(x, y), clear_view, x, y);
+      for (auto* v : {&pixels, &tiles}) {
+        std::sort(v->begin(), v->end());
+        v->erase(std::unique(v->begin(), v->end()), v->end());
       }
-      for (const auto& [x0, y0] : tiles) add_resident(model.store_of(x0, y0), clear, x0, y0, lp.resident);
+      lp.pre.resize(pixels.size(), lib.header.spp);
+      std::vector<std::vector<Resident>> resident(tiles.size());
+      model.parallel_for(pixels.size() + tiles.size(), [&](size_t lo, size_t hi) {
+        for (size_t j = lo; j < hi; ++j) {
+          if (j < pixels.size()) {
+            const uint32_t x = uint32_t(pixels[j] & 0xffff), y = uint32_t(pixels[j] >> 16);
+            lp.pre.set(j, model.store_of(x, y), clear_view, x, y);
+          } else {
+            const uint64_t t = tiles[j - pixels.size()];
+            const uint32_t x0 = uint32_t(t >> 16), y0 = uint32_t(t & 0xffff);
+            add_resident(model.store_of(x0, y0), clear, x0, y0, resident[j - pixels.size()]);
+          }
+        }
+      });
+      for (const auto& r : resident) lp.resident.insert(lp.resident.end(), r.begin(), r.end());
       lp.warming.reserve(ring_fill);
       for (size_t j = 0; j < ring_fill; ++j)
         lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
       for (size_t j = 0; j < lp.fragments.size(); j += kBatch)
         draw(&lp.fragments[j], std::min<size_t>(kBatch, lp.fragments.size() - j),
-             j == 0 ? read_next : std::function<void()>{});
+             j == 0 ? read_next : std::function<void()>{}, true);
       k = kk + 1;
       lib.charge(lp);
       lib.points.push_back(std::move(lp));

@@ -97,8 +97,11 @@ struct PrePixels {
   std::vector<TrackerState> trackers;  ///< one per pixel when tracking
   std::vector<SlabPixel> slabs;        ///< one per pixel with SLAB layers
   size_t size() const { return x.size(); }
-  /// Appends pixel (x, y) of st; clear's values if st never touched it.
-  void add(const SampleStore& st, const PixelView& clear, uint32_t x, uint32_t y);
+  /// Room for n pixels of spp samples (each then given by set).
+  void resize(size_t n, int spp);
+  /// Pixel i: (x, y) of st, clear's values if st never touched it. Distinct
+  /// i may be set concurrently.
+  void set(size_t i, const SampleStore& st, const PixelView& clear, uint32_t x, uint32_t y);
   /// Writes every pixel into st (a store of the same screen and buffers).
   void apply(SampleStore& st) const;
   size_t bytes() const;

@@ -142,6 +142,17 @@ void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::functio
   });
 }
 
+void StochasticModel::parallel_for(size_t n, const std::function<void(size_t, size_t)>& f) const {
+  if (!pool_ || n < 2) {
+    if (n > 0) f(0, n);
+    return;
+  }
+  pool_->arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n),
+                      [&](const tbb::blocked_range<size_t>& r) { f(r.begin(), r.end()); });
+  });
+}
+
 void StochasticModel::begin_pass(int i) {
   for (auto& l : lanes_) l->rop.begin_pass(i);
 }

@@ -81,6 +81,10 @@ class StochasticModel : public FunctionalModel {
   /// The store holding pixel (x, y)'s tile -- its lane's, without merging
   /// the lanes (between batches: the state after every fragment drawn).
   const SampleStore& store_of(uint32_t x, uint32_t y) const;
+  /// Calls f(lo, hi) over [0, n) in chunks on the model's threads (in the
+  /// calling one when it has one). Between batches, f may read the lanes'
+  /// stores (store_of) concurrently.
+  void parallel_for(size_t n, const std::function<void(size_t, size_t)>& f) const;
   /// Called for every fragment of draw_batch, with its index in the batch
   /// and its work record after the ROP processed it; on a lane's thread, so
   /// concurrently for fragments of different lanes (never for one index
