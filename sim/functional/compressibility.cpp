@@ -30,13 +30,13 @@ uint32_t bytes_per_sample(Buffer b, const SampleStore& s) {
 const uint8_t* buffer_bytes(Buffer b, const SampleTile& t) {
   switch (b) {
     case Buffer::kDepth:
-      return reinterpret_cast<const uint8_t*>(t.depth.get());
+      return reinterpret_cast<const uint8_t*>(t.depth);
     case Buffer::kColor:
-      return reinterpret_cast<const uint8_t*>(t.rgb.get());
+      return reinterpret_cast<const uint8_t*>(t.rgb);
     case Buffer::kTransmittance:
-      return t.trans.get();
+      return t.trans;
     case Buffer::kAccum:
-      return t.accum.get();
+      return t.accum;
     default:
       return nullptr;
   }

@@ -19,42 +19,70 @@ SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, const StoreTar
       tiles_(h.width, h.height),
       clear_depth_(canonical_depth(h.clear_depth)) {
   for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+  // The block: the header, then each buffer from a cache line.
+  const size_t n = size_t(64) * size_t(h.spp);
+  size_t at = sizeof(SampleTile);
+  auto place = [&at](size_t bytes) {
+    const size_t here = (at + 63) / 64 * 64;
+    at = here + bytes;
+    return here;
+  };
+  layout_.depth = place(n * sizeof(float));
+  layout_.rgb = place(3 * n * sizeof(uint16_t));
+  if (with_tracker_) layout_.tracker = place(64 * sizeof(TrackerState));
+  if (slab_bits_ > 0) layout_.slab = place(64 * sizeof(SlabPixel));
+  if (targets_.transmittance) layout_.trans = place(n * sample_bytes(targets_.formats.transmittance));
+  if (targets_.accum) layout_.accum = place(n * sample_bytes(targets_.formats.accum));
+  layout_.bytes = (at + 63) / 64 * 64;
   mem_.add(tiles_.directory_bytes(), "the tile directory of the screen");
+}
+
+std::unique_ptr<SampleTile> SampleTile::make(const SampleTileLayout& l) {
+  void* block = ::operator new (l.bytes, std::align_val_t{alignof(SampleTile)});
+  std::unique_ptr<SampleTile> t(new (block) SampleTile);
+  uint8_t* b = t->base();
+  t->depth = reinterpret_cast<float*>(b + l.depth);
+  t->rgb = reinterpret_cast<uint16_t*>(b + l.rgb);
+  t->tracker = l.tracker ? reinterpret_cast<TrackerState*>(b + l.tracker) : nullptr;
+  t->slab = l.slab ? reinterpret_cast<SlabPixel*>(b + l.slab) : nullptr;
+  t->trans = l.trans ? b + l.trans : nullptr;
+  t->accum = l.accum ? b + l.accum : nullptr;
+  return t;
 }
 
 PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
   const int spp = header_.spp;
   SampleTile& t = tiles_.get(x, y, [&](uint32_t, uint32_t) {
-    mem_.add(tile_bytes() + sizeof(SampleTile), "the per-sample buffers of the touched tiles");
-    auto tile = std::make_unique<SampleTile>();
+    mem_.add(layout_.bytes, "the per-sample buffers of the touched tiles");
+    auto tile = SampleTile::make(layout_);
     const size_t n = size_t(64) * spp;
-    tile->depth.reset(new float[n]);
-    tile->rgb.reset(new uint16_t[3 * n]);
-    std::fill_n(tile->depth.get(), n, clear_depth_);
+    std::fill_n(tile->depth, n, clear_depth_);
     for (size_t i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
-    if (with_tracker_) tile->tracker.reset(new TrackerState[64]());
-    if (slab_bits_ > 0) tile->slab.reset(new SlabPixel[64]());
+    if (tile->tracker) std::uninitialized_value_construct_n(tile->tracker, 64);
+    if (tile->slab) std::uninitialized_value_construct_n(tile->slab, 64);
     // The clear value encoded once, then copied to every sample.
-    auto clear_target = [n](std::unique_ptr<uint8_t[]>& buf, TargetFormat f, float v) {
+    auto clear_target = [n](uint8_t* buf, TargetFormat f, float v) {
       const uint32_t b = sample_bytes(f);
       uint8_t one[16];
       target_clear(f, one, v);
-      buf.reset(new uint8_t[n * b]);
-      for (size_t i = 0; i < n; ++i) std::memcpy(buf.get() + i * b, one, b);
+      for (size_t i = 0; i < n; ++i) std::memcpy(buf + i * b, one, b);
     };
-    if (targets_.transmittance) clear_target(tile->trans, targets_.formats.transmittance, 1.0f);
-    if (targets_.accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
+    if (tile->trans) clear_target(tile->trans, targets_.formats.transmittance, 1.0f);
+    if (tile->accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
     return tile;
   });
+  // From the tile's address and the layout: no load of the tile's header.
   const int p = pixel_in_tile(x, y);
   const size_t ps = size_t(p) * spp;
-  return PixelRef{t.depth.get() + ps,
-                  t.rgb.get() + ps * 3,
-                  t.tracker ? t.tracker.get() + p : nullptr,
-                  t.slab ? t.slab.get() + p : nullptr,
-                  t.trans ? t.trans.get() + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
-                  t.accum ? t.accum.get() + ps * sample_bytes(targets_.formats.accum) : nullptr};
+  uint8_t* b = t.base();
+  const SampleTileLayout& l = layout_;
+  return PixelRef{reinterpret_cast<float*>(b + l.depth) + ps,
+                  reinterpret_cast<uint16_t*>(b + l.rgb) + ps * 3,
+                  l.tracker ? reinterpret_cast<TrackerState*>(b + l.tracker) + p : nullptr,
+                  l.slab ? reinterpret_cast<SlabPixel*>(b + l.slab) + p : nullptr,
+                  l.trans ? b + l.trans + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
+                  l.accum ? b + l.accum + ps * sample_bytes(targets_.formats.accum) : nullptr};
 }
 
 void SampleStore::absorb(SampleStore& o) {
@@ -77,12 +105,12 @@ void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y)
   pixel(x0, y0);  // allocates the tile
   SampleTile& to = *tiles_.find(x0, y0);
   const size_t n = size_t(64) * header_.spp;
-  std::memcpy(to.depth.get(), from->depth.get(), n * sizeof(float));
-  std::memcpy(to.rgb.get(), from->rgb.get(), 3 * n * sizeof(uint16_t));
-  if (to.tracker) std::copy_n(from->tracker.get(), 64, to.tracker.get());
-  if (to.slab) std::copy_n(from->slab.get(), 64, to.slab.get());
-  if (to.trans) std::memcpy(to.trans.get(), from->trans.get(), n * sample_bytes(targets_.formats.transmittance));
-  if (to.accum) std::memcpy(to.accum.get(), from->accum.get(), n * sample_bytes(targets_.formats.accum));
+  std::memcpy(to.depth, from->depth, n * sizeof(float));
+  std::memcpy(to.rgb, from->rgb, 3 * n * sizeof(uint16_t));
+  if (to.tracker) std::copy_n(from->tracker, 64, to.tracker);
+  if (to.slab) std::copy_n(from->slab, 64, to.slab);
+  if (to.trans) std::memcpy(to.trans, from->trans, n * sample_bytes(targets_.formats.transmittance));
+  if (to.accum) std::memcpy(to.accum, from->accum, n * sample_bytes(targets_.formats.accum));
 }
 
 void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y) {
@@ -107,12 +135,14 @@ PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   if (!t) return {};
   const int p = pixel_in_tile(x, y), spp = header_.spp;
   const size_t ps = size_t(p) * spp;
-  return PixelView{t->depth.get() + ps,
-                   t->rgb.get() + ps * 3,
-                   t->tracker ? t->tracker.get() + p : nullptr,
-                   t->slab ? t->slab.get() + p : nullptr,
-                   t->trans ? t->trans.get() + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
-                   t->accum ? t->accum.get() + ps * sample_bytes(targets_.formats.accum) : nullptr};
+  const uint8_t* b = t->base();
+  const SampleTileLayout& l = layout_;
+  return PixelView{reinterpret_cast<const float*>(b + l.depth) + ps,
+                   reinterpret_cast<const uint16_t*>(b + l.rgb) + ps * 3,
+                   l.tracker ? reinterpret_cast<const TrackerState*>(b + l.tracker) + p : nullptr,
+                   l.slab ? reinterpret_cast<const SlabPixel*>(b + l.slab) + p : nullptr,
+                   l.trans ? b + l.trans + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
+                   l.accum ? b + l.accum + ps * sample_bytes(targets_.formats.accum) : nullptr};
 }
 
 Image SampleStore::resolve() const {
@@ -126,7 +156,7 @@ Image SampleStore::resolve() const {
     for (int p = 0; p < 64; ++p) {
       const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
       if (x >= img.width || y >= img.height) continue;
-      const uint16_t* c = t.rgb.get() + size_t(p) * spp * 3;
+      const uint16_t* c = t.rgb + size_t(p) * spp * 3;
       float sum[3] = {0, 0, 0};
       for (int s = 0; s < spp; ++s)  // summed in sample order: deterministic
         for (int ch = 0; ch < 3; ++ch) sum[ch] += half_to_float(c[3 * s + ch]);

@@ -5,7 +5,9 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <new>
 #include <string>
+#include <type_traits>
 
 #include "blend.h"
 #include "image.h"
@@ -17,15 +19,35 @@
 
 namespace ropsim {
 
-/// The buffers of one 8 x 8 tile.
-struct SampleTile {
-  std::unique_ptr<float[]> depth;           ///< [pixel * spp + sample]
-  std::unique_ptr<uint16_t[]> rgb;          ///< [(pixel * spp + sample) * 3 + channel]
-  std::unique_ptr<TrackerState[]> tracker;  ///< [pixel], nullptr unless tracking
-  std::unique_ptr<SlabPixel[]> slab;        ///< [pixel], nullptr unless slab
-  std::unique_ptr<uint8_t[]> trans;         ///< transmittance target, [(pixel * spp + sample) * bytes]; or nullptr
-  std::unique_ptr<uint8_t[]> accum;         ///< accumulation target, the same; or nullptr
+/// Where a tile's buffers lie in its block (SampleTileLayout), in bytes from
+/// the block's start; 0: the store has no such buffer.
+struct SampleTileLayout {
+  size_t depth = 0, rgb = 0, tracker = 0, slab = 0, trans = 0, accum = 0;
+  size_t bytes = 0;  ///< the whole block, the header included
 };
+
+/// The buffers of one 8 x 8 tile, in one block with the tile: the header,
+/// then each buffer on a cache line of its own (at 16 spp a pixel's depths
+/// fill one line). A pixel's state is found from the tile's address and the
+/// store's layout, without reading the header first.
+struct alignas(64) SampleTile {
+  float* depth;           ///< [pixel * spp + sample]
+  uint16_t* rgb;          ///< [(pixel * spp + sample) * 3 + channel]
+  TrackerState* tracker;  ///< [pixel], nullptr unless tracking
+  SlabPixel* slab;        ///< [pixel], nullptr unless slab
+  uint8_t* trans;         ///< transmittance target, [(pixel * spp + sample) * bytes]; or nullptr
+  uint8_t* accum;         ///< accumulation target, the same; or nullptr
+  /// A tile in a block of l.bytes, its pointers set from l (buffers uninitialised).
+  static std::unique_ptr<SampleTile> make(const SampleTileLayout& l);
+  uint8_t* base() { return reinterpret_cast<uint8_t*>(this); }
+  const uint8_t* base() const { return reinterpret_cast<const uint8_t*>(this); }
+  static void operator delete(void* p) { ::operator delete (p, std::align_val_t{alignof(SampleTile)}); }
+
+ private:
+  SampleTile() = default;
+};
+static_assert(std::is_trivially_destructible_v<TrackerState> && std::is_trivially_destructible_v<SlabPixel>,
+              "a tile's buffers are freed with its block, without destructors");
 
 /// The per-pixel state beyond depth, colour and the tracker that a method
 /// needs: the render targets it blends into, SLAB's layers (each allocated
@@ -73,6 +95,22 @@ class SampleStore {
   /// The pixel's state, its tile allocated and cleared on first touch.
   PixelRef pixel(uint32_t x, uint32_t y);
   PixelView view(uint32_t x, uint32_t y) const;
+  /// Asks the memory system for pixel (x, y)'s depth, colour and tracker
+  /// lines, for a fragment drawn soon (a hint: changes nothing; nothing if
+  /// its tile was never touched).
+  void prefetch(uint32_t x, uint32_t y) const {
+    const SampleTile* t = tiles_.find(x, y);
+    if (!t) return;
+    const size_t p = size_t(pixel_in_tile(x, y)), ps = p * size_t(header_.spp);
+    const uint8_t* b = t->base();
+    const auto lines = [](const uint8_t* from, size_t bytes) {
+      for (const uint8_t* q = from; q < from + bytes; q += 64) __builtin_prefetch(q, 1);
+      __builtin_prefetch(from + bytes - 1, 1);
+    };
+    lines(b + layout_.depth + ps * sizeof(float), size_t(header_.spp) * sizeof(float));
+    lines(b + layout_.rgb + ps * 3 * sizeof(uint16_t), size_t(header_.spp) * 3 * sizeof(uint16_t));
+    if (layout_.tracker) __builtin_prefetch(b + layout_.tracker + p * sizeof(TrackerState), 1);
+  }
   /// Box-filter resolve of every pixel, samples summed in sample order;
   /// untouched pixels get the clear colour.
   Image resolve() const;
@@ -105,6 +143,7 @@ class SampleStore {
   int slab_bits_;
   StoreTargets targets_;
   TileMap<SampleTile> tiles_;
+  SampleTileLayout layout_;
   BudgetShare mem_;  // the tiles' bytes in the run's memory budget (--memory-limit)
   float clear_depth_;
   uint16_t clear_rgb16_[3];

@@ -82,6 +82,10 @@ void StochasticModel::process_on(Lane& l, size_t i) {
 void StochasticModel::draw_lane(size_t li, const Fragment* f, size_t n) {
   Lane& l = *lanes_[li];
   for (size_t i = 0; i < n; ++i) {
+    // The next fragment's pixel state, the one after's record, on their way
+    // while this one runs.
+    if (i + 1 < n) l.rop.store().prefetch(f[i + 1].x, f[i + 1].y);
+    if (i + 2 < n) __builtin_prefetch(&f[i + 2]);
     l.work.f = &f[i];
     process_on(l, i);
   }
@@ -114,8 +118,10 @@ void StochasticModel::draw_batch(const Fragment* f, size_t n, const std::functio
           const size_t m = part.index.size();
           for (size_t j = 0; j < m; ++j) {
             // The lane's fragments are scattered over the batch: fetch the
-            // next one's header line and its plane while this one runs.
-            if (j + 1 < m) __builtin_prefetch(&f[idx[j + 1]]);
+            // next one's pixel state and the one after's record while this
+            // one runs.
+            if (j + 1 < m) l.rop.store().prefetch(f[idx[j + 1]].x, f[idx[j + 1]].y);
+            if (j + 2 < m) __builtin_prefetch(&f[idx[j + 2]]);
             l.work.f = &f[idx[j]];
             process_on(l, idx[j]);
           }
