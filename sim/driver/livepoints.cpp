@@ -29,8 +29,10 @@ namespace ropsim {
 
 namespace {
 
-/// The pixels of tile (x0, y0) of st that hold written values, appended to out.
-void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uint32_t y0, std::vector<Resident>& out) {
+/// The pixels of tile (x0, y0) of st that hold written values, written to
+/// out (room for 64); returns their number.
+size_t tile_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uint32_t y0, Resident* out) {
+  size_t n = 0;
   const TraceHeader& h = st.header();
   uint32_t clear_z;
   std::memcpy(&clear_z, &clear.depth[0], sizeof clear_z);
@@ -38,7 +40,7 @@ void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uin
     const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
     if (x >= h.width || y >= h.height) continue;
     const PixelView v = st.view(x, y);
-    if (!v.depth) return;  // the golden model never touched the tile
+    if (!v.depth) return n;  // the golden model never touched the tile
     Resident r;
     r.x = uint16_t(x);
     r.y = uint16_t(y);
@@ -51,8 +53,9 @@ void add_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, uin
     }
     r.tracker = v.tracker && !(*v.tracker == TrackerState{});
     r.layers = v.slab && v.slab->count > 0;
-    if (r.written || r.tracker || r.layers) out.push_back(r);
+    if (r.written || r.tracker || r.layers) out[n++] = r;
   }
+  return n;
 }
 
 /// Calls f(line) for every line a touch reads or writes, in the order the
@@ -286,6 +289,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
     while (got < out.size() && src->next(out[got])) ++got;
     invariant(got == sg.count, "the input delivers the fragments it was counted with");
   };
+  std::vector<Resident> resident;  // a live-point's, 64 slots per tile
+  std::vector<size_t> resident_n;
   std::vector<Fragment> cur, next;
   if (!segments.empty()) read_segment(segments[0], cur);
   Progress progress("live-points: recording", "fragments");
@@ -322,23 +327,41 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
         v->erase(std::unique(v->begin(), v->end()), v->end());
       }
       lp.pre.resize(pixels.size(), lib.header.spp);
-      std::vector<std::vector<Resident>> resident(tiles.size());
+      // Each tile's resident pixels into its own 64 slots, then packed in
+      // tile order. The lines of the pixel a few ahead are asked for while
+      // one is copied (the pre-state is cold: last touched a period ago).
+      resident.resize(tiles.size() * 64);
+      resident_n.assign(tiles.size(), 0);
+      constexpr size_t kAhead = 4;
       model.parallel_for(pixels.size() + tiles.size(), [&](size_t lo, size_t hi) {
         for (size_t j = lo; j < hi; ++j) {
           if (j < pixels.size()) {
+            if (j + kAhead < std::min(hi, pixels.size())) {
+              const uint32_t ax = uint32_t(pixels[j + kAhead] & 0xffff), ay = uint32_t(pixels[j + kAhead] >> 16);
+              model.store_of(ax, ay).prefetch(ax, ay);
+            }
             const uint32_t x = uint32_t(pixels[j] & 0xffff), y = uint32_t(pixels[j] >> 16);
             lp.pre.set(j, model.store_of(x, y), clear_view, x, y);
           } else {
-            const uint64_t t = tiles[j - pixels.size()];
-            const uint32_t x0 = uint32_t(t >> 16), y0 = uint32_t(t & 0xffff);
-            add_resident(model.store_of(x0, y0), clear, x0, y0, resident[j - pixels.size()]);
+            const size_t t = j - pixels.size();
+            const uint32_t x0 = uint32_t(tiles[t] >> 16), y0 = uint32_t(tiles[t] & 0xffff);
+            resident_n[t] = tile_resident(model.store_of(x0, y0), clear, x0, y0, &resident[t * 64]);
           }
         }
       });
-      for (const auto& r : resident) lp.resident.insert(lp.resident.end(), r.begin(), r.end());
+      size_t n_resident = 0;
+      for (size_t c : resident_n) n_resident += c;
+      lp.resident.reserve(n_resident);
+      for (size_t t = 0; t < tiles.size(); ++t)
+        lp.resident.insert(lp.resident.end(), resident.begin() + std::ptrdiff_t(t * 64),
+                           resident.begin() + std::ptrdiff_t(t * 64 + resident_n[t]));
+      // The ring's last ring_fill touches, oldest first: at most two runs.
+      const size_t oldest = (ring_at + ring_size - ring_fill) % std::max<size_t>(ring_size, 1);
+      const size_t first_run = std::min(ring_fill, ring_size - oldest);
       lp.warming.reserve(ring_fill);
-      for (size_t j = 0; j < ring_fill; ++j)
-        lp.warming.push_back(ring[(ring_at + ring_size - ring_fill + j) % ring_size]);
+      lp.warming.insert(lp.warming.end(), ring.begin() + std::ptrdiff_t(oldest),
+                        ring.begin() + std::ptrdiff_t(oldest + first_run));
+      lp.warming.insert(lp.warming.end(), ring.begin(), ring.begin() + std::ptrdiff_t(ring_fill - first_run));
       for (size_t j = 0; j < lp.fragments.size(); j += kBatch)
         draw(&lp.fragments[j], std::min<size_t>(kBatch, lp.fragments.size() - j),
              j == 0 ? read_next : std::function<void()>{}, true);
