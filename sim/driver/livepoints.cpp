@@ -58,6 +58,58 @@ size_t tile_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, 
   return n;
 }
 
+/// Canonicalises lp's fragments and reads, from the model's lanes between
+/// batches, the pre-state of the pixels they touch and the resident pixels of
+/// those pixels' tiles (on the model's threads). resident and resident_n:
+/// scratch kept across live-points.
+void read_pre_state(const StochasticModel& model, const TraceHeader& h, const PixelRef& clear,
+                    const PixelView& clear_view, LivePoint& lp, std::vector<Resident>& resident,
+                    std::vector<size_t>& resident_n) {
+  // The pixels and the 8x8 tiles they touch, each sorted by (y, x) and
+  // (x0, y0); their pre-state read on the model's threads.
+  std::vector<uint64_t> pixels, tiles;
+  pixels.reserve(lp.fragments.size());
+  tiles.reserve(lp.fragments.size());
+  for (Fragment& x : lp.fragments) {
+    canonicalise(h, x);
+    pixels.push_back(uint64_t(x.y) << 16 | x.x);
+    tiles.push_back(uint64_t(x.x & ~7u) << 16 | (x.y & ~7u));
+  }
+  for (auto* v : {&pixels, &tiles}) {
+    std::sort(v->begin(), v->end());
+    v->erase(std::unique(v->begin(), v->end()), v->end());
+  }
+  lp.pre.resize(pixels.size(), h.spp);
+  // Each tile's resident pixels into its own 64 slots, then packed in
+  // tile order. The lines of the pixel a few ahead are asked for while
+  // one is copied (the pre-state is cold: last touched a period ago).
+  resident.resize(tiles.size() * 64);
+  resident_n.assign(tiles.size(), 0);
+  constexpr size_t kAhead = 4;
+  model.parallel_for(pixels.size() + tiles.size(), [&](size_t lo, size_t hi) {
+    for (size_t j = lo; j < hi; ++j) {
+      if (j < pixels.size()) {
+        if (j + kAhead < std::min(hi, pixels.size())) {
+          const uint32_t ax = uint32_t(pixels[j + kAhead] & 0xffff), ay = uint32_t(pixels[j + kAhead] >> 16);
+          model.store_of(ax, ay).prefetch(ax, ay);
+        }
+        const uint32_t x = uint32_t(pixels[j] & 0xffff), y = uint32_t(pixels[j] >> 16);
+        lp.pre.set(j, model.store_of(x, y), clear_view, x, y);
+      } else {
+        const size_t t = j - pixels.size();
+        const uint32_t x0 = uint32_t(tiles[t] >> 16), y0 = uint32_t(tiles[t] & 0xffff);
+        resident_n[t] = tile_resident(model.store_of(x0, y0), clear, x0, y0, &resident[t * 64]);
+      }
+    }
+  });
+  size_t n_resident = 0;
+  for (size_t c : resident_n) n_resident += c;
+  lp.resident.reserve(n_resident);
+  for (size_t t = 0; t < tiles.size(); ++t)
+    lp.resident.insert(lp.resident.end(), resident.begin() + std::ptrdiff_t(t * 64),
+                       resident.begin() + std::ptrdiff_t(t * 64 + resident_n[t]));
+}
+
 /// Calls f(line) for every line a touch reads or writes, in the order the
 /// pipeline does (depth reads, tracker read, then the writes).
 template <class F>
@@ -312,49 +364,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       lp.fragments = std::move(cur);
       lp.pre.tracker = st0.has_tracker();
       lp.pre.slab_bits = st0.targets().slab_bits;
-      // The pixels and the 8x8 tiles they touch, each sorted by (y, x) and
-      // (x0, y0); their pre-state read on the model's threads.
-      std::vector<uint64_t> pixels, tiles;
-      pixels.reserve(lp.fragments.size());
-      tiles.reserve(lp.fragments.size());
-      for (Fragment& x : lp.fragments) {
-        canonicalise(lib.header, x);
-        pixels.push_back(uint64_t(x.y) << 16 | x.x);
-        tiles.push_back(uint64_t(x.x & ~7u) << 16 | (x.y & ~7u));
-      }
-      for (auto* v : {&pixels, &tiles}) {
-        std::sort(v->begin(), v->end());
-        v->erase(std::unique(v->begin(), v->end()), v->end());
-      }
-      lp.pre.resize(pixels.size(), lib.header.spp);
-      // Each tile's resident pixels into its own 64 slots, then packed in
-      // tile order. The lines of the pixel a few ahead are asked for while
-      // one is copied (the pre-state is cold: last touched a period ago).
-      resident.resize(tiles.size() * 64);
-      resident_n.assign(tiles.size(), 0);
-      constexpr size_t kAhead = 4;
-      model.parallel_for(pixels.size() + tiles.size(), [&](size_t lo, size_t hi) {
-        for (size_t j = lo; j < hi; ++j) {
-          if (j < pixels.size()) {
-            if (j + kAhead < std::min(hi, pixels.size())) {
-              const uint32_t ax = uint32_t(pixels[j + kAhead] & 0xffff), ay = uint32_t(pixels[j + kAhead] >> 16);
-              model.store_of(ax, ay).prefetch(ax, ay);
-            }
-            const uint32_t x = uint32_t(pixels[j] & 0xffff), y = uint32_t(pixels[j] >> 16);
-            lp.pre.set(j, model.store_of(x, y), clear_view, x, y);
-          } else {
-            const size_t t = j - pixels.size();
-            const uint32_t x0 = uint32_t(tiles[t] >> 16), y0 = uint32_t(tiles[t] & 0xffff);
-            resident_n[t] = tile_resident(model.store_of(x0, y0), clear, x0, y0, &resident[t * 64]);
-          }
-        }
-      });
-      size_t n_resident = 0;
-      for (size_t c : resident_n) n_resident += c;
-      lp.resident.reserve(n_resident);
-      for (size_t t = 0; t < tiles.size(); ++t)
-        lp.resident.insert(lp.resident.end(), resident.begin() + std::ptrdiff_t(t * 64),
-                           resident.begin() + std::ptrdiff_t(t * 64 + resident_n[t]));
+      read_pre_state(model, lib.header, clear, clear_view, lp, resident, resident_n);
       // The ring's last ring_fill touches, oldest first: at most two runs.
       const size_t oldest = (ring_at + ring_size - ring_fill) % std::max<size_t>(ring_size, 1);
       const size_t first_run = std::min(ring_fill, ring_size - oldest);
