@@ -72,10 +72,14 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
     if (tile->accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
     return tile;
   });
+  return in_tile(t.base(), x, y);
+}
+
+PixelRef SampleStore::in_tile(const uint8_t* cb, uint32_t x, uint32_t y) const {
   // From the tile's address and the layout: no load of the tile's header.
+  uint8_t* b = const_cast<uint8_t*>(cb);
   const int p = pixel_in_tile(x, y);
-  const size_t ps = size_t(p) * spp;
-  uint8_t* b = t.base();
+  const size_t ps = size_t(p) * size_t(header_.spp);
   const SampleTileLayout& l = layout_;
   return PixelRef{reinterpret_cast<float*>(b + l.depth) + ps,
                   reinterpret_cast<uint16_t*>(b + l.rgb) + ps * 3,
@@ -133,16 +137,8 @@ void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   const SampleTile* t = tiles_.find(x, y);
   if (!t) return {};
-  const int p = pixel_in_tile(x, y), spp = header_.spp;
-  const size_t ps = size_t(p) * spp;
-  const uint8_t* b = t->base();
-  const SampleTileLayout& l = layout_;
-  return PixelView{reinterpret_cast<const float*>(b + l.depth) + ps,
-                   reinterpret_cast<const uint16_t*>(b + l.rgb) + ps * 3,
-                   l.tracker ? reinterpret_cast<const TrackerState*>(b + l.tracker) + p : nullptr,
-                   l.slab ? reinterpret_cast<const SlabPixel*>(b + l.slab) + p : nullptr,
-                   l.trans ? b + l.trans + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
-                   l.accum ? b + l.accum + ps * sample_bytes(targets_.formats.accum) : nullptr};
+  const PixelRef r = in_tile(t->base(), x, y);
+  return PixelView{r.depth, r.rgb, r.tracker, r.slab, r.trans, r.accum};
 }
 
 Image SampleStore::resolve() const {

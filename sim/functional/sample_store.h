@@ -101,15 +101,14 @@ class SampleStore {
   void prefetch(uint32_t x, uint32_t y) const {
     const SampleTile* t = tiles_.find(x, y);
     if (!t) return;
-    const size_t p = size_t(pixel_in_tile(x, y)), ps = p * size_t(header_.spp);
-    const uint8_t* b = t->base();
-    const auto lines = [](const uint8_t* from, size_t bytes) {
-      for (const uint8_t* q = from; q < from + bytes; q += 64) __builtin_prefetch(q, 1);
-      __builtin_prefetch(from + bytes - 1, 1);
+    const PixelRef r = in_tile(t->base(), x, y);
+    const auto lines = [](const void* from, size_t bytes) {
+      const uintptr_t a = reinterpret_cast<uintptr_t>(from);
+      for (uintptr_t q = a & ~uintptr_t{63}; q < a + bytes; q += 64) __builtin_prefetch(reinterpret_cast<void*>(q), 1);
     };
-    lines(b + layout_.depth + ps * sizeof(float), size_t(header_.spp) * sizeof(float));
-    lines(b + layout_.rgb + ps * 3 * sizeof(uint16_t), size_t(header_.spp) * 3 * sizeof(uint16_t));
-    if (layout_.tracker) __builtin_prefetch(b + layout_.tracker + p * sizeof(TrackerState), 1);
+    lines(r.depth, size_t(header_.spp) * sizeof(float));
+    lines(r.rgb, size_t(header_.spp) * 3 * sizeof(uint16_t));
+    if (r.tracker) __builtin_prefetch(r.tracker, 1);
   }
   /// Box-filter resolve of every pixel, samples summed in sample order;
   /// untouched pixels get the clear colour.
@@ -144,6 +143,8 @@ class SampleStore {
   StoreTargets targets_;
   TileMap<SampleTile> tiles_;
   SampleTileLayout layout_;
+  /// Pixel (x, y)'s state in the tile block at b, from the layout alone.
+  PixelRef in_tile(const uint8_t* b, uint32_t x, uint32_t y) const;
   BudgetShare mem_;  // the tiles' bytes in the run's memory budget (--memory-limit)
   float clear_depth_;
   uint16_t clear_rgb16_[3];
