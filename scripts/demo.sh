@@ -4,7 +4,9 @@
 # under out/demo/; then the smoke study (out/study/smoke, report/index.html).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-bash "$root/scripts/build.sh"
+# Only what the demo runs: the CLI (and the image codec module it loads);
+# scripts/test.sh builds the rest (tests, benchmarks, RTL models).
+bash "$root/scripts/build.sh" --target ropsim
 ropsim="$root/build/ropsim"
 out="$root/out/demo"
 mkdir -p "$out"
