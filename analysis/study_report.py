@@ -403,7 +403,8 @@ def section_equal_quality(rep, df, params):
     ok["_cycles"] = num(ok, CYCLES)
     sub, costs = (ok[cyc], [("_cycles", "cycles"), ("_dram", "DRAM bytes")]) if cyc.any() else \
         (ok[~cyc], [("_state", "state bytes")])
-    keys = curve_key(params, sub)
+    # A named case (the column "case", docs/studies.md "Named cases") is a curve of its own.
+    keys = curve_key(params + [c for c in ("case",) if c in sub.columns and c not in params], sub)
     rows = []
     inputs = list(pd.unique(sub["input"])) if "input" in sub.columns else [None]
     for inp in inputs:

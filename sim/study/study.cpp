@@ -677,7 +677,7 @@ void check_study_inputs(const Study& s) {
     } catch (const std::exception& e) {
       missing(e.what());
     }
-    const std::string where = s.mesh_dir.empty() ? "give study run --mesh-dir DIR or set ROPSIM_MESH_DIR to the "
+    const std::string where = s.mesh_dir.empty() ? "give --mesh-dir DIR or set ROPSIM_MESH_DIR to the "
                                                    "folder of the meshes"
                                                  : "not in --mesh-dir " + s.mesh_dir + " either";
     for (const auto& ob : spec.objects) {
