@@ -174,8 +174,9 @@ TEST(StudySpec, BadCasesAreRefusedNamingTheCaseAndKey) {
     EXPECT_NE(e.find("spec.toml: " + why), std::string::npos) << axes << "\n gave: " << e;
   }
   // A case may take a design and hardware keys with a timed fidelity.
-  const std::string hw = head + "cases = [{name = \"c4\", fidelity = \"cycle\", \"distributor.rop_units\" = 4}, "
-                                "{name = \"f\", fidelity = \"functional\"}]\n";
+  const std::string hw = head +
+                         "cases = [{name = \"c4\", fidelity = \"cycle\", \"distributor.rop_units\" = 4}, "
+                         "{name = \"f\", fidelity = \"functional\"}]\n";
   EXPECT_EQ(error_of(hw), "");
 }
 
@@ -219,12 +220,13 @@ TEST(StudySpec, InputsAreNamedByTheirScenesOrByTheirEntry) {
   EXPECT_EQ(labels("meshes = [\"" + cloth + "\"]\n"), V{"cloth-mesh"});
   EXPECT_EQ(labels("scenes = [\"cloth\"]\nmeshes = [\"" + cloth + "\"]\n"), (V{"cloth", "cloth-mesh"}));
   EXPECT_EQ(labels("traces = [\"cloth.rtr\"]\nmeshes = [\"" + cloth + "\"]\n"), (V{"cloth", "cloth-mesh"}));
-  EXPECT_EQ(labels("meshes = [{path = \"" + cloth + "\", name = \"sheet\"}]\nscenes = [{scene = \"smoke\", name = "
-                                                   "\"puff\"}]\ntraces = [{path = \"cloth.rtr\", name = \"c4\"}]\n"),
+  EXPECT_EQ(labels("meshes = [{path = \"" + cloth +
+                   "\", name = \"sheet\"}]\nscenes = [{scene = \"smoke\", name = "
+                   "\"puff\"}]\ntraces = [{path = \"cloth.rtr\", name = \"c4\"}]\n"),
             (V{"c4", "puff", "sheet"}));
   // Two inputs of one name: refused, naming both entries.
-  const std::string twice = error_of("[inputs]\nscenes = [\"cloth\"]\ntraces = [\"cloth.rtr\"]\n",
-                                     (s.dir / "n.toml").string());
+  const std::string twice =
+      error_of("[inputs]\nscenes = [\"cloth\"]\ntraces = [\"cloth.rtr\"]\n", (s.dir / "n.toml").string());
   EXPECT_NE(twice.find("n.toml: inputs.traces[0]: two inputs are named cloth (inputs.scenes[0] too)"),
             std::string::npos)
       << twice;
@@ -252,7 +254,7 @@ TEST(StudySpec, EveryShippedStudyLoadsExpandsAndNamesEachInputOnce) {
     EXPECT_FALSE(points.empty()) << f;
     EXPECT_LE(points.size(), st.points_at_most) << f;
     for (const auto& in : st.inputs) {
-      const std::string what = !in.scene.empty() ? "scene " + in.scene
+      const std::string what = !in.scene.empty()  ? "scene " + in.scene
                                : !in.mesh.empty() ? "mesh " + fs::path(in.mesh).lexically_normal().string()
                                                   : "trace " + fs::path(in.trace).lexically_normal().string();
       const auto [it, fresh] = name_of.emplace(what, std::make_pair(in.label, e.path().filename().string()));
@@ -421,11 +423,11 @@ TEST(StudySpec, EqualQualityInterpolatesTheSppBetweenTheSweptPoints) {
       const std::string spp = row[{t, method}][3];
       const double want = std::pow(c / std::stod(t), 2);  // c / sqrt(spp) = t
       if (want < 4) {
-        EXPECT_NE(spp.find("outside the swept range"), std::string::npos) << method << " reaches " << t << " at "
-                                                                          << want << " spp, below 4: " << spp;
+        EXPECT_NE(spp.find("outside the swept range"), std::string::npos)
+            << method << " reaches " << t << " at " << want << " spp, below 4: " << spp;
       } else if (want > 64) {
-        EXPECT_NE(spp.find("outside the swept range"), std::string::npos) << method << " reaches " << t << " at "
-                                                                          << want << " spp, above 64: " << spp;
+        EXPECT_NE(spp.find("outside the swept range"), std::string::npos)
+            << method << " reaches " << t << " at " << want << " spp, above 64: " << spp;
       } else {
         EXPECT_NEAR(std::stod(spp), want, want * 0.005) << method << " at RMSE " << t << ": " << spp;
       }

@@ -142,7 +142,7 @@ int cmd_study_run_slurm(const StudyOpts& o, const Study& s, const StudyRunOption
 
 int cmd_study_run(const StudyOpts& o) {
   const Study s = load_study(o.file, o.mesh_dir);  // a bad file is refused before anything runs
-  check_study_inputs(s);                          // and so is a missing mesh, texture or material library
+  check_study_inputs(s);                           // and so is a missing mesh, texture or material library
   StudyRunOptions ro;
   ro.out_dir = out_dir(o, s);
   if (o.executor == "slurm") {

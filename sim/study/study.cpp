@@ -519,8 +519,7 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
               continue;
             }
             if (ckey == "cases") fail(s, cat, "a case cannot hold cases");
-            if (cn.is_table())
-              fail(s, cat, "expected a value (a hardware key is quoted: {\"section.key\" = ...})");
+            if (cn.is_table()) fail(s, cat, "expected a value (a hardware key is quoted: {\"section.key\" = ...})");
             if (cn.is_array())
               fail(s, cat, "a case is one combination: one value per key (sweep a key as an axis of its own)");
             check_key(ckey, cat);
@@ -682,8 +681,7 @@ void check_study_inputs(const Study& s) {
                                                  : "not in --mesh-dir " + s.mesh_dir + " either";
     for (const auto& ob : spec.objects) {
       // ob.name is the object's `name`, else "object[i]".
-      const std::string of =
-          in.mesh + ": " + (ob.name.rfind("object[", 0) == 0 ? ob.name : "object " + ob.name) + ": ";
+      const std::string of = in.mesh + ": " + (ob.name.rfind("object[", 0) == 0 ? ob.name : "object " + ob.name) + ": ";
       if (!is_regular_file(ob.mesh)) missing(of + ob.mesh + ": no such mesh file (" + where + ")");
       if (!ob.texture.empty() && !is_regular_file(ob.texture)) missing(of + ob.texture + ": no such texture file");
       for (const auto& f : files_named_by_mesh(ob.mesh))
