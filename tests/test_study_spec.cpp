@@ -323,6 +323,48 @@ height = 24
   EXPECT_FALSE(fs::exists(s.dir / "st2"));
 }
 
+// --mesh-dir reaches the tasks of another executor: the cluster's batch
+// scripts pass it to `study task`, whose capture then finds the mesh. Fake
+// sbatch and squeue stand for the cluster.
+TEST(StudySpec, TheMeshDirReachesTheClustersTasks) {
+  Scratch s;
+  const std::string mesh_folder = kSource + "/traces/scenes/mesh";
+  fs::create_directories(s.dir / "bin");
+  s.put("bin/sbatch", "#!/bin/sh\nn=$(cat '" + s.dir.string() + "/n' 2>/dev/null || echo 0); echo $((n + 1)) > '" +
+                          s.dir.string() + "/n'\necho $((n + 1))\n");
+  s.put("bin/squeue", "#!/bin/sh\nexit 0\n");
+  for (const char* t : {"sbatch", "squeue"}) fs::permissions(s.dir / "bin" / t, fs::perms::owner_all);
+  fs::create_directories(s.dir / "scenes");
+  s.put("scenes/sheet.toml", R"(
+name = "sheet"
+mesh_dir = "../nowhere"
+[camera]
+eye = [0.0, 0.35, 2.6]
+target = [0.03, 0.03, 0.0]
+fov_y = 40.0
+near = 1.0
+far = 5.0
+[[object]]
+mesh = "cloth.obj"
+opacity = 0.4
+)");
+  s.put("m.toml", "[inputs]\nmeshes = [\"scenes/sheet.toml\"]\n[axes]\nspp = 4\nwidth = 32\nheight = 24\n");
+  const Ran r =
+      shell(s.dir, "env PATH='" + (s.dir / "bin").string() +
+                       ":/usr/bin:/bin' '" ROPSIM_BINARY "' study run m.toml --out st --executor slurm --mesh-dir '" +
+                       mesh_folder + "'");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::string script = slurp(s.dir / "st" / "slurm" / "captures.sbatch");
+  EXPECT_NE(script.find(" --mesh-dir '" + mesh_folder + "'"), std::string::npos) << script;
+  // The task the script runs, as a node would run it.
+  const Ran task =
+      ropsim_test::ropsim(s.dir, "study task m.toml --out st --kind c --index 0 --mesh-dir '" + mesh_folder + "'");
+  EXPECT_EQ(task.status, 0) << task.err;
+  size_t traces = 0;
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "traces")) traces += e.path().extension() == ".rtr";
+  EXPECT_EQ(traces, 1u) << "the capture did not find the mesh in --mesh-dir";
+}
+
 // A glTF's external buffer is one of its mesh's files.
 TEST(StudySpec, AGltfsMissingBufferIsRefusedByTheInputCheck) {
   Scratch s;
