@@ -358,8 +358,36 @@ def section_quality(rep, df, params):
                   caption="The Pareto front: points no other point of the same input beats in both cost and RMSE.")
 
 
+def spp_at_rmse(spp, rmse, target):
+    """Where a curve reaches a target RMSE, between its swept spp (docs/studies.md "Equal quality").
+
+    The curve is made monotone first: at each swept spp, the least RMSE at that spp or below
+    (r_k = min over j <= k). Between the adjacent swept s_a < s_b with r_a > t >= r_b,
+    log(RMSE) is linear in log2(spp):
+        log2 s = log2 s_a + f * (log2 s_b - log2 s_a),   f = (ln r_a - ln t) / (ln r_a - ln r_b)
+    (linear in RMSE when r_b = 0). Returns ("in", s, a, b, f) with a, b indices into the points
+    sorted by spp; ("below", s_0, r_0) when the smallest swept spp already reaches t (the spp that
+    just reaches it is at or below s_0: outside the swept range); ("above", s_n, r_n) when no swept
+    spp reaches it. Nothing is extrapolated.
+    """
+    order = np.argsort(spp, kind="stable")
+    s = np.asarray(spp, float)[order]
+    r = np.minimum.accumulate(np.asarray(rmse, float)[order])
+    if r[0] <= target:
+        return ("below", s[0], r[0])
+    if r[-1] > target:
+        return ("above", s[-1], r[-1])
+    b = int(np.argmax(r <= target))
+    a = b - 1
+    if r[b] > 0:
+        f = (np.log(r[a]) - np.log(target)) / (np.log(r[a]) - np.log(r[b]))
+    else:
+        f = (r[a] - target) / (r[a] - r[b])
+    return ("in", float(2 ** (np.log2(s[a]) + f * (np.log2(s[b]) - np.log2(s[a])))), order[a], order[b], f)
+
+
 def section_equal_quality(rep, df, params):
-    """For target RMSEs, the smallest spp at which each curve reaches them and its cost there."""
+    """For target RMSEs, the spp at which each curve reaches them (interpolated) and its cost there."""
     rep.heading(2, "Equal quality", "equal-quality")
     ok = df[(df["status"] == "ok")].copy()
     ok["_rmse"] = num(ok, RMSE)
@@ -367,39 +395,60 @@ def section_equal_quality(rep, df, params):
     if ok.empty or "spp" not in ok.columns or ok["spp"].nunique() < 2:
         rep.para("The equal-quality table needs an RMSE against a reference and at least two spp values.")
         return
+    ok["_spp"] = num(ok, "spp")
+    ok = ok[ok["_spp"] > 0]
     cyc = is_cycle(ok)
     ok["_dram"] = num(ok, DRAM_R) + num(ok, DRAM_W)
     ok["_state"] = num(ok, STATE_R) + num(ok, STATE_W)
     ok["_cycles"] = num(ok, CYCLES)
     sub, costs = (ok[cyc], [("_cycles", "cycles"), ("_dram", "DRAM bytes")]) if cyc.any() else \
         (ok[~cyc], [("_state", "state bytes")])
-    keys = curve_key(params, sub)
+    # A named case (the column "case", docs/studies.md "Named cases") is a curve of its own.
+    keys = curve_key(params + [c for c in ("case",) if c in sub.columns and c not in params], sub)
     rows = []
     inputs = list(pd.unique(sub["input"])) if "input" in sub.columns else [None]
     for inp in inputs:
         s = sub if inp is None else sub[sub["input"] == inp]
-        agg = s.groupby(keys + ["spp"], dropna=False)[["_rmse"] + [c for c, _ in costs]].mean().reset_index()
-        best = agg.groupby("spp")["_rmse"].min().sort_index()
+        agg = s.groupby(keys + ["_spp"], dropna=False)[["_rmse"] + [c for c, _ in costs]].mean().reset_index()
+        best = agg.groupby("_spp")["_rmse"].min().sort_index()
         # The targets: what the best curve reaches at each spp (rounded up a little).
         targets = sorted({float(f"{v * 1.02:.3g}") for v in best.to_numpy(float)}, reverse=True)[:6]
         groups = agg.groupby(keys if len(keys) > 1 else keys[0], sort=False) if keys else [((), agg)]
         for t in targets:
             for gk, g in groups:
-                g = g.sort_values("spp")
-                hit = g[g["_rmse"] <= t]
+                g = g.reset_index(drop=True)
                 label = label_of(keys, gk)
-                if hit.empty:
-                    rows.append([fmt_value(inp), t, label, "not reached", round(float(g["_rmse"].min()), 3)] +
-                                ["" for _ in costs])
+                at = spp_at_rmse(g["_spp"].to_numpy(float), g["_rmse"].to_numpy(float), t)
+                if at[0] == "below":
+                    rows.append([fmt_value(inp), t, label,
+                                 f"at or below {fmt_value(at[1])}: outside the swept range", "",
+                                 f"{at[2]:.3g} at {fmt_value(at[1])} spp"] + ["" for _ in costs])
+                elif at[0] == "above":
+                    rows.append([fmt_value(inp), t, label,
+                                 f"above {fmt_value(at[1])}: outside the swept range", "",
+                                 f"best {at[2]:.3g} at {fmt_value(at[1])} spp"] + ["" for _ in costs])
                 else:
-                    r = hit.iloc[0]
-                    rows.append([fmt_value(inp), t, label, fmt_value(r["spp"]), round(float(r["_rmse"]), 3)] +
-                                [int(round(float(r[c]))) for c, _ in costs])
+                    _, spp, a, b, f = at
+                    ra, rb = g.loc[a], g.loc[b]
+                    cost = []
+                    for c, _ in costs:
+                        ca, cb = float(ra[c]), float(rb[c])
+                        v = ca ** (1 - f) * cb ** f if ca > 0 and cb > 0 else ca + f * (cb - ca)
+                        cost.append("" if np.isnan(v) else int(round(v)))
+                    rows.append([fmt_value(inp), t, label, f"{spp:.3g}",
+                                 f"{fmt_value(ra['_spp'])}-{fmt_value(rb['_spp'])}",
+                                 f"{ra['_rmse']:.3g} / {rb['_rmse']:.3g}"] + cost)
     fidelity = "cycle" if cyc.any() else "functional"
-    rep.table(["input", "target RMSE", "curve", "spp", "RMSE there"] + [w for _, w in costs], rows,
-              caption=f"For each target RMSE (8-bit units; what the best curve reaches at each spp), the smallest "
-                      f"spp at which each curve reaches it and its cost there ({fidelity} points, means over the "
-                      f"other parameters); \"not reached\" gives the curve's best RMSE.")
+    rep.table(["input", "target RMSE", "curve", "spp", "between swept spp", "RMSE at them"] + [w for _, w in costs],
+              rows,
+              caption=f"For each target RMSE t (8-bit units; what the best curve reaches at each swept spp, "
+                      f"x 1.02), the spp at which each curve reaches it, interpolated between the two swept spp "
+                      f"s_a < s_b around it with log(RMSE) linear in log2(spp): log2 s = log2 s_a + f (log2 s_b - "
+                      f"log2 s_a), f = (ln r_a - ln t) / (ln r_a - ln r_b), r the curve's RMSE made monotone "
+                      f"(the least at that spp or below); its cost there interpolated with the same f, "
+                      f"log(cost) linear in log2(spp). A target the smallest swept spp already reaches, or that "
+                      f"no swept spp reaches, is outside the swept range and is not extrapolated "
+                      f"({fidelity} points, means over the other parameters).")
 
 
 SILICON_ROP = "silicon.per_rop.nand2_eq"

@@ -65,8 +65,10 @@ TEST(Study, ABadStudyFileIsRefusedBeforeAnythingRuns) {
       {"[inputs]\ntraces = [\"missing.rtr\"]\n", "inputs.traces"},
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\nfidelity = \"cycle\"\n\"cache.ways\" = [0]\n", "axes.cache.ways"},
       {"[inputs]\nscenes = [\"cloth\"]\n[axes]\n\"cache.ways\" = [4]\n", "axes"},  // hardware without cycle
-      {"[inputs]\nscenes = [\"cloth\"]\n[study]\ncombine = \"zip\"\n[axes]\nspp = [4, 8]\nmethod = [\"lk\"]\n",
-       "axes.method"},
+      {"[inputs]\nscenes = [\"cloth\"]\n[study]\ncombine = \"zip\"\n[axes]\nspp = [4, 8]\nmethod = [\"lk\", "
+       "\"enderton\", "
+       "\"naive\"]\n",
+       "axes.spp"},
       {"[inputs]\nscenes = [\"cloth\"]\n[study]\nnme = \"x\"\n", "study.nme"},
       {"[inputs]\nscenes = [\"cloth\"]\n[extra]\n", "extra"},
       {"[inputs]\nscenes = [\"cloth\"\n", "line"},  // not TOML

@@ -153,7 +153,9 @@ height = 32
       << "the quality-against-silicon table (lk's points; enderton and opaque have no reference RTL):\n"
       << summary;
   EXPECT_NE(summary.find("16 of 24 points have no silicon cost"), std::string::npos) << summary;
-  EXPECT_NE(summary.find("| input | target RMSE | curve | spp | RMSE there | cycles | DRAM bytes |"), std::string::npos)
+  EXPECT_NE(
+      summary.find("| input | target RMSE | curve | spp | between swept spp | RMSE at them | cycles | DRAM bytes |"),
+      std::string::npos)
       << "the equal-quality table:\n"
       << summary;
   // Written again over itself: the same files, nothing left behind.

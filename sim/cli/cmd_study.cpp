@@ -25,6 +25,7 @@ namespace {
 
 struct StudyOpts {
   std::string file, out, dir, csv, kind;
+  std::string mesh_dir;  ///< --mesh-dir: searched first for a mesh scene's meshes
   unsigned jobs = 0;
   size_t index = 0;
   bool retry_failed = false, quiet = false;
@@ -39,7 +40,8 @@ std::string out_dir(const StudyOpts& o, const Study& s) { return o.out.empty() ?
 
 /// `study plan`: records what the folder holds, prints what is left as JSON.
 int cmd_study_plan(const StudyOpts& o) {
-  const Study s = load_study(o.file);
+  const Study s = load_study(o.file, o.mesh_dir);
+  check_study_inputs(s);
   StudyRunOptions ro;
   ro.out_dir = out_dir(o, s);
   ro.retry_failed = o.retry_failed;
@@ -60,7 +62,7 @@ int cmd_study_plan(const StudyOpts& o) {
 
 /// `study task`: one capture, reference or point, in this process.
 int cmd_study_task(const StudyOpts& o) {
-  const Study s = load_study(o.file);
+  const Study s = load_study(o.file, o.mesh_dir);
   const std::string dir = out_dir(o, s);
   if (run_study_task(s, o.kind[0], o.index, dir)) return 0;
   if (o.recorded_ok && o.kind != "p") {
@@ -139,7 +141,8 @@ int cmd_study_run_slurm(const StudyOpts& o, const Study& s, const StudyRunOption
 }
 
 int cmd_study_run(const StudyOpts& o) {
-  const Study s = load_study(o.file);  // a bad file is refused before anything runs
+  const Study s = load_study(o.file, o.mesh_dir);  // a bad file is refused before anything runs
+  check_study_inputs(s);                           // and so is a missing mesh, texture or material library
   StudyRunOptions ro;
   ro.out_dir = out_dir(o, s);
   if (o.executor == "slurm") {
@@ -219,6 +222,9 @@ VerbRunner add_study_command(CLI::App& app) {
   run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
   run->add_flag("--retry-failed", o->retry_failed, "Run again the points whose error is recorded");
   run->add_flag("--quiet", o->quiet, "No progress line; print only failures");
+  const char* mesh_dir_help =
+      "Folder to look for the mesh scenes' meshes in first (default: $ROPSIM_MESH_DIR), then each scene's mesh_dir";
+  run->add_option("--mesh-dir", o->mesh_dir, mesh_dir_help);
   run->add_option("--executor", o->executor, "local (worker processes here) or slurm (job arrays, sbatch)")
       ->check(CLI::IsMember({"local", "slurm"}));
   run->add_flag("--wait", o->wait, "slurm: wait for the jobs to end, then record their results (study collect)");
@@ -237,6 +243,7 @@ VerbRunner add_study_command(CLI::App& app) {
   plan->add_option("STUDY", o->file, "Study file (TOML)")->required();
   plan->add_option("--out", o->out, "Study folder (default out/study/NAME)");
   plan->add_flag("--retry-failed", o->retry_failed, "Plan the points whose error is recorded again");
+  plan->add_option("--mesh-dir", o->mesh_dir, mesh_dir_help);
   CLI::App* task = st->add_subcommand("task", "Run one task of a study in this process (for other executors)");
   task->add_option("STUDY", o->file, "Study file (TOML)")->required();
   task->add_option("--out", o->out, "Study folder (default out/study/NAME)");
@@ -245,6 +252,7 @@ VerbRunner add_study_command(CLI::App& app) {
       ->check(CLI::IsMember({"c", "r", "p"}));
   task->add_option("--index", o->index, "The point (for c and r: the point that names the capture or reference)")
       ->required();
+  task->add_option("--mesh-dir", o->mesh_dir, mesh_dir_help);
   task->add_flag("--recorded-ok", o->recorded_ok,
                  "Exit 0 when the task failed but recorded its error (a capture's or reference's: the points "
                  "that need it record it as theirs)");

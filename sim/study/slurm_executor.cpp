@@ -182,7 +182,8 @@ SlurmSubmission submit_study_slurm(const Study& s, const StudyRunOptions& o, con
       // (afterok would cancel every point of the study). A task that could
       // not record (killed, out of time or memory) still fails the phase.
       f << "exec " << sh(exe.string()) << " study task " << sh(study_file) << " --out " << sh(dir.string())
-        << " --kind " << kind << " --index \"$index\"" << (kind == 'p' ? "" : " --recorded-ok") << "\n";
+        << " --kind " << kind << " --index \"$index\"" << (kind == 'p' ? "" : " --recorded-ok")
+        << (s.mesh_dir.empty() ? "" : " --mesh-dir " + sh(s.mesh_dir)) << "\n";
       if (!f) throw UserError("study run: cannot write " + script.string());
     }
     std::string cmd = "sbatch --parsable";

@@ -195,6 +195,99 @@ uint64_t hash_text(const std::string& s) {
   return mix64(h ^ s.size());
 }
 
+/// The overrides a study gives its mesh scenes' files: the folder of the meshes.
+SceneOverrides scene_overrides(const Study& s) {
+  SceneOverrides o;
+  if (!s.mesh_dir.empty()) o.mesh_dir = s.mesh_dir;
+  return o;
+}
+
+/// Sets axis a's i-th value in m: a value, or a case's name and parameters.
+void put_value(StudyCase& m, const StudyAxis& a, size_t i) {
+  if (a.is_cases()) {
+    m[kCaseParam] = a.values[i];
+    for (const auto& [k, v] : a.cases[i]) m[k] = v;
+  } else {
+    m[a.key] = a.values[i];
+  }
+}
+
+/// combine = "zip": the number of positions (the longest list; 1 when every
+/// axis is a single value).
+size_t zip_length(const Study& s) {
+  size_t n = 1;
+  for (const auto& a : s.axes) n = std::max(n, a.values.size());
+  return n;
+}
+
+/// combine = "zip": the parameters at position i (a single value at every position).
+StudyCase zip_position(const Study& s, size_t i) {
+  StudyCase m;
+  for (const auto& a : s.axes) put_value(m, a, a.values.size() == 1 ? 0 : i);
+  return m;
+}
+
+nlohmann::ordered_json to_json_params(const StudyCase& c) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::object();
+  for (const auto& [k, v] : c) j[k] = to_json(v);
+  return j;
+}
+
+bool is_regular_file(const std::string& p) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(p, ec);
+}
+
+/// The files a mesh file names besides itself: an OBJ's material libraries
+/// (`mtllib`, the rest of the line, relative to the OBJ's folder, as Assimp
+/// reads them) and a glTF's external buffers and images (their relative
+/// `uri`s). A file that cannot be read names none (the capture says why).
+std::vector<std::string> files_named_by_mesh(const std::string& mesh) {
+  namespace fs = std::filesystem;
+  std::string ext = fs::path(mesh).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const fs::path folder = fs::path(mesh).parent_path();
+  std::vector<std::string> out;
+  if (ext == ".obj") {
+    std::ifstream f(mesh);
+    std::string line;
+    while (std::getline(f, line)) {
+      const size_t b = line.find_first_not_of(" \t");
+      if (b == std::string::npos || line.compare(b, 6, "mtllib") != 0 || b + 6 >= line.size() ||
+          !std::isspace(static_cast<unsigned char>(line[b + 6])))
+        continue;
+      const size_t n = line.find_first_not_of(" \t", b + 6), e = line.find_last_not_of(" \t\r");
+      if (n != std::string::npos && e >= n)
+        out.push_back((folder / line.substr(n, e - n + 1)).lexically_normal().string());
+    }
+  } else if (ext == ".gltf") {
+    const nlohmann::json j = nlohmann::json::parse(read_text(mesh), nullptr, /*allow_exceptions=*/false);
+    if (!j.is_object()) return out;
+    for (const char* section : {"buffers", "images"}) {
+      auto it = j.find(section);
+      if (it == j.end() || !it->is_array()) continue;
+      for (const auto& e : *it) {
+        if (!e.is_object()) continue;
+        auto u = e.find("uri");
+        if (u == e.end() || !u->is_string()) continue;
+        const std::string uri = u->get<std::string>();
+        if (uri.rfind("data:", 0) == 0 || uri.find("://") != std::string::npos) continue;
+        std::string path;  // percent-decoded (RFC 3986, as glTF's uris are)
+        for (size_t i = 0; i < uri.size(); ++i)
+          if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+              std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+            path += char(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+          } else {
+            path += uri[i];
+          }
+        out.push_back((folder / path).lexically_normal().string());
+      }
+    }
+  }
+  return out;
+}
+
 const StudyInput& input_of(const Study& s, const std::string& label) {
   for (const auto& in : s.inputs)
     if (in.label == label) return in;
@@ -203,15 +296,16 @@ const StudyInput& input_of(const Study& s, const std::string& label) {
 
 }  // namespace
 
-Study load_study(const std::string& path) {
+Study load_study(const std::string& path, const std::string& mesh_dir) {
   std::string text;
   if (!read_text_file(path, text)) throw UserError(path + ": cannot read the study file");
-  return parse_study(text, path);
+  return parse_study(text, path, mesh_dir);
 }
 
-Study parse_study(const std::string& text, const std::string& path) {
+Study parse_study(const std::string& text, const std::string& path, const std::string& mesh_dir) {
   Study s;
   s.path = path;
+  if (!mesh_dir.empty()) s.mesh_dir = std::filesystem::absolute(mesh_dir).lexically_normal().string();
   const TomlInput in = toml_input(text, path);
   if (!in.error.empty()) throw UserError(in.error);
   toml::table t;
@@ -296,47 +390,66 @@ Study parse_study(const std::string& text, const std::string& path) {
       }
     }
   }
-  std::set<std::string> labels;
+  // The inputs, each named by its scene's own name unless its entry names it.
+  std::map<std::string, std::string> named_by;  // label -> the entry that gave it
   if (const toml::table* in = t["inputs"].as_table()) {
-    std::set<std::string> scene_labels;  // the built-in scenes' names (checked below)
-    if (const toml::array* sc = (*in)["scenes"].as_array())
-      for (const auto& e : *sc)
-        if (auto v = e.value_exact<std::string>()) scene_labels.insert(*v);
     for (const auto& [k, node] : *in) {
       const std::string key = "inputs." + std::string(k.str());
       if (key != "inputs.scenes" && key != "inputs.traces" && key != "inputs.meshes")
         fail(s, key, "unknown key (scenes, traces, meshes)");
+      const bool scene = key == "inputs.scenes", trace = key == "inputs.traces";
+      const std::string what = scene ? "scene" : "path";
+      const std::string expected =
+          fmt::format("expected a non-empty list of {} or of tables {{{} = \"...\", name = \"...\"}}",
+                      scene ? "built-in scene names" : "file names", what);
       const toml::array* a = node.as_array();
-      if (!a || a->empty()) fail(s, key, "expected a non-empty list of strings");
-      for (const auto& e : *a) {
-        auto v = e.value_exact<std::string>();
-        if (!v) fail(s, key, "expected a list of strings");
+      if (!a || a->empty()) fail(s, key, expected);
+      for (size_t i = 0; i < a->size(); ++i) {
+        const toml::node& e = *a->get(i);
         StudyInput si;
-        if (key == "inputs.scenes") {
-          bool known = false;
-          for (const auto& sc : scene_catalog()) known = known || sc.name == *v;
-          if (!known) fail(s, key, *v + " is not a built-in scene (ropsim scene --list)");
-          si.scene = si.label = *v;
+        si.at = fmt::format("{}[{}]", key, i);
+        si.line = int(e.source().begin.line);
+        std::string v, name;
+        if (auto str = e.value_exact<std::string>()) {
+          v = *str;
+        } else if (const toml::table* et = e.as_table()) {
+          for (const auto& [ek, en] : *et) {
+            const std::string ekey(ek.str());
+            if (ekey != what && ekey != "name") fail(s, si.at + "." + ekey, "unknown key (" + what + ", name)");
+            auto sv = en.value_exact<std::string>();
+            if (!sv || sv->empty()) fail(s, si.at + "." + ekey, "expected a non-empty string");
+            (ekey == "name" ? name : v) = *sv;
+          }
+          if (v.empty()) fail(s, si.at, "missing " + what + " = \"...\"");
         } else {
-          std::filesystem::path p(*v);
+          fail(s, si.at, expected);
+        }
+        if (scene) {
+          bool known = false;
+          for (const auto& sc : scene_catalog()) known = known || sc.name == v;
+          if (!known) fail(s, si.at, v + " is not a built-in scene (ropsim scene --list)");
+          si.scene = si.label = v;
+        } else {
+          std::filesystem::path p(v);
           if (p.is_relative()) p = dir / p;
-          const bool trace = key == "inputs.traces";
           if (!std::filesystem::is_regular_file(p))
-            fail(s, key, *v + (trace ? ": no such trace file" : ": no such scene file"));
+            fail(s, si.at, v + (trace ? ": no such trace file" : ": no such scene file"));
           (trace ? si.trace : si.mesh) = p.lexically_normal().string();
           si.label = p.stem().string();
           if (!trace) {
             try {
-              load_scene_file(si.mesh);  // checked now: a bad scene file runs nothing
-            } catch (const std::exception& e) {
-              fail(s, key, e.what());
+              si.label = load_scene_file(si.mesh, scene_overrides(s)).name;  // checked now: a bad file runs nothing
+            } catch (const std::exception& ex) {
+              fail(s, si.at, ex.what());
             }
           }
         }
-        // A mesh or trace named like a built-in scene of the study is
-        // "<stem>-mesh" / "<stem>-trace" (the scenes keep their names).
-        if (si.scene.empty() && scene_labels.count(si.label)) si.label += si.trace.empty() ? "-mesh" : "-trace";
-        if (!labels.insert(si.label).second) fail(s, key, "two inputs are named " + si.label);
+        if (!name.empty()) si.label = name;
+        if (auto [it, fresh] = named_by.emplace(si.label, si.at); !fresh)
+          fail(s, si.at,
+               fmt::format("two inputs are named {} ({} too): give one a name of its own, {{{} = \"{}\", name = "
+                           "\"...\"}}",
+                           si.label, it->second, what, v));
         s.inputs.push_back(si);
       }
     }
@@ -352,6 +465,31 @@ Study parse_study(const std::string& text, const std::string& path) {
   if (has_trace && s.reference_spp) fail(s, "study.reference_spp", "applies to scenes only (a trace's spp is fixed)");
 
   bool any_cycle = false, any_hw = false;
+  // A key an axis or a case sets, at `at`: is it a parameter, and does it
+  // apply to the study's inputs?
+  auto check_key = [&](const std::string& key, const std::string& at) {
+    const bool hw = is_hw_key(key);
+    if (!is_run_param(key) && !hw)
+      fail(s, at,
+           "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
+           "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits, enderton_selection; or "
+           "a hardware key: ropsim config --markdown; or the named cases: cases)");
+    if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
+      fail(s, at, "applies to scenes and meshes only: the study has trace inputs");
+    if (key == "order" && (has_trace || has_scene))
+      fail(s, at, "applies to mesh inputs only (inputs.meshes): the study has other inputs");
+    if (key.rfind("numerics.", 0) == 0)
+      fail(s, at,
+           "sweep the numerics with the axes hash_bits, alpha_bits and surface_id_bits (they apply to "
+           "both fidelities)");
+    any_hw = any_hw || hw || key == "design";
+  };
+  auto check_value = [&](const std::string& key, const std::string& at, const StudyValue& v) {
+    if (is_run_param(key)) check_run_value(s, key, at, v);
+    if (is_hw_key(key)) check_hw_value(s, key, at, v);
+    if (key == "fidelity" && is_timed(to_string(v))) any_cycle = true;
+  };
+  std::map<std::string, std::string> case_keys;  // a key the cases set -> the first case that sets it
   if (const toml::table* ax = t["axes"].as_table()) {
     // In the order of the file (a toml::table iterates its keys sorted).
     std::vector<std::pair<std::string, const toml::node*>> in_order;
@@ -362,59 +500,102 @@ Study parse_study(const std::string& text, const std::string& path) {
     for (const auto& [key, node_ptr] : in_order) {
       const toml::node& node = *node_ptr;
       const std::string at = "axes." + key;
-      const bool run = is_run_param(key), hw = is_hw_key(key);
-      if (!run && !hw)
-        fail(
-            s, at,
-            "unknown parameter (a run parameter: method, spp, seed, fidelity, hash_bits, alpha_bits, "
-            "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits, enderton_selection; or "
-            "a hardware key: ropsim config --markdown)");
-      StudyAxis axis{key, {}};
-      if (const toml::array* a = node.as_array()) {
-        if (a->empty()) fail(s, at, "an axis needs at least one value");
-        for (const auto& e : *a) axis.values.push_back(value_of(s, at, e));
+      StudyAxis axis{key, {}, {}};
+      if (axis.is_cases()) {
+        const toml::array* a = node.as_array();
+        if (!a || a->empty() || !a->is_array_of_tables())
+          fail(s, at, "expected a list of tables, e.g. [{name = \"lk16\", method = \"lk\", spp = 16}]");
+        std::map<std::string, std::string> case_named, case_same;  // name / parameters -> the case
+        for (size_t i = 0; i < a->size(); ++i) {
+          const std::string ca = fmt::format("{}[{}]", at, i);
+          std::string name;
+          StudyCase c;
+          for (const auto& [ck, cn] : *a->get(i)->as_table()) {
+            const std::string ckey(ck.str()), cat = ca + "." + ckey;
+            if (ckey == "name") {
+              auto v = cn.value_exact<std::string>();
+              if (!v || v->empty()) fail(s, cat, "expected a non-empty string");
+              name = *v;
+              continue;
+            }
+            if (ckey == "cases") fail(s, cat, "a case cannot hold cases");
+            if (cn.is_table()) fail(s, cat, "expected a value (a hardware key is quoted: {\"section.key\" = ...})");
+            if (cn.is_array())
+              fail(s, cat, "a case is one combination: one value per key (sweep a key as an axis of its own)");
+            check_key(ckey, cat);
+            const StudyValue v = value_of(s, cat, cn);
+            check_value(ckey, cat, v);
+            c[ckey] = v;
+            case_keys.emplace(ckey, ca);
+          }
+          if (name.empty()) fail(s, ca, "missing name = \"...\" (the case's name in the results)");
+          if (auto [it, fresh] = case_named.emplace(name, ca); !fresh)
+            fail(s, ca + ".name", "two cases are named " + name + " (" + it->second + " too)");
+          if (auto [it, fresh] = case_same.emplace(to_json_params(c).dump(), ca); !fresh)
+            fail(s, ca, "sets the parameters of " + it->second + ": two cases would be one combination");
+          axis.values.emplace_back(name);
+          axis.cases.push_back(std::move(c));
+        }
       } else {
-        axis.values.push_back(value_of(s, at, node));
+        check_key(key, at);
+        if (const toml::array* a = node.as_array()) {
+          if (a->empty()) fail(s, at, "an axis needs at least one value");
+          for (const auto& e : *a) axis.values.push_back(value_of(s, at, e));
+        } else {
+          axis.values.push_back(value_of(s, at, node));
+        }
+        std::set<std::string> seen;
+        for (const auto& v : axis.values) {
+          // Under zip a value may stand at several positions.
+          if (s.combine == Study::Combine::kProduct && !seen.insert(to_string(v)).second)
+            fail(s, at, "the value " + to_string(v) + " appears twice");
+          check_value(key, at, v);
+        }
       }
-      std::set<std::string> seen;
-      for (const auto& v : axis.values) {
-        if (!seen.insert(to_string(v)).second) fail(s, at, "the value " + to_string(v) + " appears twice");
-        if (run) check_run_value(s, key, at, v);
-        if (hw) check_hw_value(s, key, at, v);
-        if (key == "fidelity" && is_timed(to_string(v))) any_cycle = true;
-      }
-      if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
-        fail(s, at, "applies to scenes and meshes only: the study has trace inputs");
-      if (key == "order" && (has_trace || has_scene))
-        fail(s, at, "applies to mesh inputs only (inputs.meshes): the study has other inputs");
-      if (key.rfind("numerics.", 0) == 0)
-        fail(s, at,
-             "sweep the numerics with the axes hash_bits, alpha_bits and surface_id_bits (they apply to "
-             "both fidelities)");
-      any_hw = any_hw || hw || key == "design";
       s.axes.push_back(std::move(axis));
     }
   }
+  for (const auto& a : s.axes)
+    if (auto c = case_keys.find(a.key); c != case_keys.end())
+      fail(s, "axes." + a.key, "is set by " + c->second + " too: a key is an axis or a key of the cases, not both");
   if (any_hw && !any_cycle) fail(s, "axes", "hardware keys need a timed fidelity (cycle or sampled) among the points");
-  if (s.combine == Study::Combine::kZip)
+  const size_t zip_n = zip_length(s);
+  if (s.combine == Study::Combine::kZip) {
+    const StudyAxis* longest = nullptr;
     for (const auto& a : s.axes)
-      if (a.values.size() != s.axes.front().values.size())
+      if (a.values.size() > 1 && !longest) longest = &a;
+    for (const auto& a : s.axes)
+      if (a.values.size() != 1 && a.values.size() != zip_n)
         fail(s, "axes." + a.key,
-             fmt::format("combine = \"zip\" needs lists of one length ({} here, {} for {})", a.values.size(),
-                         s.axes.front().values.size(), s.axes.front().key));
+             fmt::format("combine = \"zip\" needs lists of one length, or single values, which every position "
+                         "takes ({} here, {} for {})",
+                         a.values.size(), zip_n, longest->key));
+    // Two positions of one combination would be one point.
+    std::map<std::string, size_t> position_of;
+    for (size_t i = 0; i < zip_n && zip_n <= kMaxStudyPoints; ++i) {
+      const StudyCase c = zip_position(s, i);
+      if (auto [it, fresh] = position_of.emplace(to_json_params(c).dump(), i); !fresh)
+        fail(s, "axes",
+             fmt::format("combine = \"zip\": positions {} and {} of the lists (from 1) are the same combination ({}): "
+                         "give each position its own values",
+                         it->second + 1, i + 1, to_json_params(c).dump()));
+    }
+  }
   // Bounded before anything is expanded: a product of long lists is refused,
   // not allocated.
   uint64_t points = std::max<size_t>(1, s.inputs.size());
-  for (const auto& a : s.axes) {
-    const uint64_t n = s.combine == Study::Combine::kZip ? 1 : a.values.size();
-    if (n > 0 && points > kMaxStudyPoints / n) {
-      points = kMaxStudyPoints + 1;
-      break;
+  if (s.combine == Study::Combine::kZip) {
+    points = zip_n > kMaxStudyPoints ? kMaxStudyPoints + 1 : points * zip_n;
+  } else {
+    for (const auto& a : s.axes) {
+      const uint64_t n = a.values.size();
+      if (n > 0 && points > kMaxStudyPoints / n) {
+        points = kMaxStudyPoints + 1;
+        break;
+      }
+      points *= n;
     }
-    points *= n;
   }
-  if (s.combine == Study::Combine::kZip && !s.axes.empty())
-    points = std::max<size_t>(1, s.inputs.size()) * uint64_t(s.axes.front().values.size());
   if (points > kMaxStudyPoints)
     fail(s, "axes", fmt::format("the inputs and axes give more than {} points", kMaxStudyPoints));
   s.points_at_most = points;
@@ -429,23 +610,17 @@ nlohmann::ordered_json StudyPoint::params_json() const {
 }
 
 std::vector<StudyPoint> expand_study(const Study& s) {
-  std::vector<std::map<std::string, StudyValue>> combos;
-  if (s.axes.empty()) {
-    combos.emplace_back();
-  } else if (s.combine == Study::Combine::kZip) {
-    for (size_t i = 0; i < s.axes.front().values.size(); ++i) {
-      std::map<std::string, StudyValue> m;
-      for (const auto& a : s.axes) m[a.key] = a.values[i];
-      combos.push_back(std::move(m));
-    }
+  std::vector<StudyCase> combos;
+  if (s.combine == Study::Combine::kZip) {
+    for (size_t i = 0, n = zip_length(s); i < n; ++i) combos.push_back(zip_position(s, i));
   } else {
     combos.emplace_back();
     for (const auto& a : s.axes) {
-      std::vector<std::map<std::string, StudyValue>> next;
+      std::vector<StudyCase> next;
       for (const auto& c : combos)
-        for (const auto& v : a.values) {
+        for (size_t i = 0; i < a.values.size(); ++i) {
           auto m = c;
-          m[a.key] = v;
+          put_value(m, a, i);
           next.push_back(std::move(m));
         }
       combos = std::move(next);
@@ -488,6 +663,33 @@ std::vector<StudyPoint> expand_study(const Study& s) {
   return points;
 }
 
+void check_study_inputs(const Study& s) {
+  for (const auto& in : s.inputs) {
+    auto missing = [&](const std::string& why) {
+      throw UserError(fmt::format("{}: {} (line {}): {}", s.path, in.at, in.line, why));
+    };
+    if (!in.trace.empty() && !is_regular_file(in.trace)) missing(in.trace + ": no such trace file");
+    if (in.mesh.empty()) continue;
+    SceneSpec spec;
+    try {
+      spec = load_scene_file(in.mesh, scene_overrides(s));
+    } catch (const std::exception& e) {
+      missing(e.what());
+    }
+    const std::string where = s.mesh_dir.empty() ? "give --mesh-dir DIR or set ROPSIM_MESH_DIR to the "
+                                                   "folder of the meshes"
+                                                 : "not in --mesh-dir " + s.mesh_dir + " either";
+    for (const auto& ob : spec.objects) {
+      // ob.name is the object's `name`, else "object[i]".
+      const std::string of = in.mesh + ": " + (ob.name.rfind("object[", 0) == 0 ? ob.name : "object " + ob.name) + ": ";
+      if (!is_regular_file(ob.mesh)) missing(of + ob.mesh + ": no such mesh file (" + where + ")");
+      if (!ob.texture.empty() && !is_regular_file(ob.texture)) missing(of + ob.texture + ": no such texture file");
+      for (const auto& f : files_named_by_mesh(ob.mesh))
+        if (!is_regular_file(f)) missing(of + ob.mesh + " names " + f + ": no such file");
+    }
+  }
+}
+
 ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   ResolvedPoint r;
   const StudyInput& in = input_of(s, p.input);
@@ -502,6 +704,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   if (!in.mesh.empty()) {
     r.capture_scene = in.mesh;
     SceneOverrides& o = r.capture_overrides;
+    o = scene_overrides(s);
     if (get("spp")) o.spp = int(get_int("spp", 16));
     if (get("width")) o.width = uint32_t(get_int("width", 0));
     if (get("height")) o.height = uint32_t(get_int("height", 0));

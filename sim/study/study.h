@@ -26,16 +26,31 @@ nlohmann::ordered_json to_json(const StudyValue& v);
 /// One input of a study: a built-in scene, a trace file, or a mesh scene file
 /// captured on demand.
 struct StudyInput {
-  std::string label;  ///< the name the results use: the scene's name, or the file's stem
+  /// The name the results use: the study's `name` for the entry when given,
+  /// else the scene's own name (a built-in scene's, a mesh scene file's `name`
+  /// key, a trace file's stem).
+  std::string label;
   std::string scene;  ///< a built-in scene, or
   std::string trace;  ///< a trace file (absolute, resolved against the study file's folder), or
   std::string mesh;   ///< a mesh scene file (absolute), captured once per resolution, spp, seed and order
+  std::string at;     ///< the study file's entry that names it, e.g. "inputs.meshes[1]"
+  int line = 0;       ///< the line of that entry in the study file
 };
 
+/// The parameters of one named case: key -> value (run and hardware keys).
+using StudyCase = std::map<std::string, StudyValue>;
+
 struct StudyAxis {
-  std::string key;  ///< method, spp, seed, fidelity, hash_bits, ..., or a hardware key "section.key"
-  std::vector<StudyValue> values;
+  /// method, spp, seed, fidelity, hash_bits, ..., a hardware key
+  /// "section.key", or "cases" (the named cases of axes.cases)
+  std::string key;
+  std::vector<StudyValue> values;  ///< for "cases": the cases' names
+  std::vector<StudyCase> cases;    ///< for "cases": each case's parameters (values[i]'s)
+  bool is_cases() const { return key == "cases"; }
 };
+
+/// The parameter under which a point of a named case records the case's name.
+inline constexpr const char* kCaseParam = "case";
 
 /// The [slurm] section: options of `study run --executor slurm`
 /// (slurm_executor.h); the command line overrides them. Not part of any
@@ -61,6 +76,10 @@ struct Study {
   int reference_spp = 0;
   bool save_images = false;  ///< each point's image as image.png in its folder
   StudySlurm slurm;
+  /// Searched first for a mesh scene's meshes (`study run --mesh-dir`;
+  /// absolute; "" = $ROPSIM_MESH_DIR, then the scene's mesh_dir). Not part
+  /// of any point's identity.
+  std::string mesh_dir;
   /// Inputs x axes (before functional points are deduplicated), as counted
   /// by parse_study (at most kMaxStudyPoints).
   uint64_t points_at_most = 0;
@@ -71,11 +90,21 @@ struct Study {
 inline constexpr uint64_t kMaxStudyPoints = 100000;
 
 /// Reads and checks a study file. Every unknown key and bad value throws
-/// UserError "FILE: KEY: reason" before anything runs.
-Study load_study(const std::string& path);
+/// UserError "FILE: KEY: reason" before anything runs. mesh_dir: as
+/// Study::mesh_dir (made absolute).
+Study load_study(const std::string& path, const std::string& mesh_dir = "");
 /// load_study of a study file's text; path names it in errors and locates
 /// the files it names relative to its folder.
-Study parse_study(const std::string& text, const std::string& path);
+Study parse_study(const std::string& text, const std::string& path, const std::string& mesh_dir = "");
+
+/// Checks that every file the study's inputs need is there: each mesh scene's
+/// meshes, textures and OBJ material libraries (looked up as `ropsim capture
+/// --mesh-dir` does, with s.mesh_dir) and each trace. load_study checked the
+/// scene files, the traces and the design files; this is what a capture
+/// would find missing only when it ran. Throws UserError "FILE: ENTRY (line
+/// N): reason" naming the study file's entry of the first input that lacks
+/// a file.
+void check_study_inputs(const Study& s);
 
 /// A point of a study: one run's parameters.
 struct StudyPoint {
@@ -87,7 +116,9 @@ struct StudyPoint {
 };
 
 /// The points of a study, in a fixed order: inputs outermost, then the axes
-/// in file order (product), or the axes' i-th values together (zip).
+/// in file order (product), or the axes' i-th values together, a one-value
+/// axis with every position (zip). A named case is one value of the axis
+/// "cases": its parameters and its name (kCaseParam) together.
 std::vector<StudyPoint> expand_study(const Study& s);
 
 /// What a point runs: the input, the method, the fidelity and the design.
