@@ -193,10 +193,14 @@ def plain_ticks(ax):
     """Plain tick labels on the linear axes of ax (and of its secondary axes)."""
     axes = [ax] + [c for c in getattr(ax, "child_axes", [])]
     for a in axes:
+        if hasattr(a, "_set_scale"):
+            a._set_scale()  # a secondary axis takes its parent's scale now, not at the draw (which would reset it)
         for axis in (a.xaxis, a.yaxis):
-            if axis.get_scale() == "linear" and isinstance(axis.get_major_formatter(), ticker.ScalarFormatter):
+            if axis.get_scale() in ("linear", "function") and isinstance(axis.get_major_formatter(),
+                                                                        ticker.ScalarFormatter):
                 axis.set_major_formatter(ticker.FuncFormatter(short_number))
-            elif axis.get_scale() == "log" and not isinstance(axis.get_major_locator(), ticker.FixedLocator):
+            elif axis.get_scale() in ("log", "functionlog") and not isinstance(axis.get_major_locator(),
+                                                                             ticker.FixedLocator):
                 lo, hi = sorted(axis.get_view_interval())
                 if lo > 0 and hi / lo < 3:
                     axis.set_major_locator(ticker.MaxNLocator(4))
@@ -392,8 +396,8 @@ figcaption, .caption { font-size: 90%; color: #555; }
 # load is logged as "resource failed to load: URL" (the report has none: every
 # image is a data URI), and once the page has loaded, the number of images the
 # browser decoded is set as data-images-decoded on <body>, and each image's
-# shown box (CSS pixels) as data-shown="left top width height". Inline, no
-# resource.
+# shown box inside its border (CSS pixels) as data-shown="left top width
+# height". Inline, no resource.
 SCRIPT = """
 window.addEventListener('error', function (e) {
   var t = e.target;
@@ -404,7 +408,8 @@ window.addEventListener('load', function () {
   var ok = imgs.filter(function (i) { return i.complete && i.naturalWidth > 0; }).length;
   imgs.forEach(function (i) {
     var r = i.getBoundingClientRect();
-    i.setAttribute('data-shown', [r.left + window.scrollX, r.top + window.scrollY, r.width, r.height]
+    i.setAttribute('data-shown', [r.left + window.scrollX + i.clientLeft, r.top + window.scrollY + i.clientTop,
+                                  i.clientWidth, i.clientHeight]
       .map(function (v) { return v.toFixed(1); }).join(' '));
   });
   document.body.setAttribute('data-images-decoded', String(ok));
@@ -1004,7 +1009,7 @@ def error_colour_bar(vmax):
     ax = fig.add_subplot()
     cb = fig.colorbar(cm.ScalarMappable(norm=colors.Normalize(0, vmax), cmap=ERROR_CMAP), cax=ax,
                       orientation="horizontal")
-    cb.set_label("|image − reference|,\nmean over RGB (8-bit units)")
+    cb.set_label("|error| (8-bit units)")
     cb.ax.xaxis.set_major_locator(ticker.MaxNLocator(4))
     return fig
 
@@ -1067,7 +1072,8 @@ def section_images(rep, study_dir, df, params):
                           {"data-role": "colour-bar", "data-figure": bar_layout["figure"],
                            "data-layout": json.dumps(bar_layout, separators=(",", ":"))},
                           bar_layout["width"], bar_layout["height"])
-                + "<figcaption>reference (A-buffer); the error maps' scale</figcaption></figure>")
+                + "<figcaption>reference (A-buffer); the error maps' scale: |image − reference|, the mean "
+                  "over R, G, B</figcaption></figure>")
         cmap = plt.get_cmap(ERROR_CMAP)
         for (r, im), e in zip(points, errs):
             method = fmt_value(r.get("method", "image"))
