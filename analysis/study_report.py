@@ -911,7 +911,8 @@ def section_fidelity(rep, df, params):
     rows = []
     for _, r in res.iterrows():
         rows.append([r["_label"], r["fidelity"], fmt_value(round(r["cycles"])) if np.isfinite(r["cycles"]) else "",
-                     interval_text(r["cycles_lo"], r["cycles_hi"]), fmt_value(round(r["cycle_cycles"])),
+                     interval_text(r["cycles_lo"], r["cycles_hi"]),
+                     fmt_value(round(r["cycle_cycles"])) if np.isfinite(r["cycles"]) else "",
                      pct_text(r["cycles_err_pct"]), yes_no(r["covers_cycles"]), pct_text(r["read_err_pct"]),
                      yes_no(r["covers_read"]), pct_text(r["written_err_pct"]), yes_no(r["covers_written"]),
                      r["bottleneck"] or "", yes_no(r["bottleneck_ok"]), round(float(r["host_s"]), 3),
