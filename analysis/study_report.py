@@ -547,6 +547,8 @@ def section_quality(rep, df, params):
             for gk, g in groups:
                 g = g.assign(_spp=num(g, "spp")).sort_values("_spp") if "spp" in g.columns else g
                 lab = label_of(keys, gk)
+                if lab not in curves:
+                    curves.append(lab)
                 ax.plot(g[col], g["_rmse"], "o-", label=lab, ms=5, color=colours(curves.index(lab) % 10))
                 if "spp" in g.columns:
                     for _, r in g.iterrows():

@@ -42,8 +42,10 @@ std::pair<int, int> text_columns(const ropsim::DecodedImage& im, int y0, int y1)
 
 TEST(HeatMap, ThePngNamesTheMapAndItsUnitAboveTheMapAndAColourBarBelow) {
   ropsim_test::Scratch s("ropsim-test-heat-map");
-  const ropsim_test::Ran r = ropsim_test::ropsim(s.dir, "run --scene eight-layers --spp 4 --width 48 --height 40 --method lk --maps maps "
-                              "--quiet --out img.png");
+  const ropsim_test::Ran r =
+      ropsim_test::ropsim(s.dir,
+                          "run --scene eight-layers --spp 4 --width 48 --height 40 --method lk --maps maps "
+                          "--quiet --out img.png");
   ASSERT_EQ(r.status, 0) << r.err;
   const ropsim::DecodedImage exr = ropsim::decode_image_file((s.dir / "maps" / "samples_written.exr").string());
   const ropsim::DecodedImage png = ropsim::decode_image_file((s.dir / "maps" / "samples_written.png").string());
@@ -63,8 +65,8 @@ TEST(HeatMap, ThePngNamesTheMapAndItsUnitAboveTheMapAndAColourBarBelow) {
   ASSERT_LE(first, last) << "no title above the map";
   const int want = int(ropsim::heat_text_width(ropsim::heat_title(labels), k));
   EXPECT_LE(first, 6);
-  EXPECT_NEAR(last - first + 1, want, 4.0 * k) << "the title's width is not that of \"" << ropsim::heat_title(labels)
-                                               << "\"";
+  EXPECT_NEAR(last - first + 1, want, 4.0 * k)
+      << "the title's width is not that of \"" << ropsim::heat_title(labels) << "\"";
   EXPECT_LT(last, png.width - 1) << "the title is clipped at the right";
 
   // The map: each pixel the colour of its value, below the title band.
@@ -98,8 +100,11 @@ TEST(HeatMap, WideMapsKeepTheirWidthAndDrawLargerText) {
   const uint32_t w = 640, h = 8;
   const ropsim::HeatLabels labels{"tile_cycles", "cycles per tile"};
   const auto bytes = ropsim::encode_heat_png(
-      w, h, [](uint32_t, float* out) { for (uint32_t x = 0; x < w; ++x) out[x] = float(x); }, double(w - 1), labels,
-      "t.png");
+      w, h,
+      [](uint32_t, float* out) {
+        for (uint32_t x = 0; x < w; ++x) out[x] = float(x);
+      },
+      double(w - 1), labels, "t.png");
   const ropsim::DecodedImage png = ropsim::decode_image_memory(bytes.data(), bytes.size(), "png", "t.png");
   EXPECT_EQ(png.width, int(w)) << "a map wider than its text keeps its width (a tile map lies over the frame)";
   EXPECT_EQ(png.height, int(h + ropsim::kLegendRows));

@@ -95,21 +95,22 @@ struct Shot {
 };
 Shot screenshot(const fs::path& work, const fs::path& page, int height) {
   const fs::path png = work / "screenshot.png";
-  const Ran r = shell(work, chromium(work) + "--window-size=" + std::to_string(kWindowWidth) + "," +
-                                std::to_string(height) + " --screenshot='" + png.string() + "' 'file://" +
-                                fs::absolute(page).string() + "'");
+  const Ran r =
+      shell(work, chromium(work) + "--window-size=" + std::to_string(kWindowWidth) + "," + std::to_string(height) +
+                      " --screenshot='" + png.string() + "' 'file://" + fs::absolute(page).string() + "'");
   EXPECT_EQ(r.status, 0) << r.err;
-  const Ran py = shell(work, "/usr/bin/python3 -c 'import sys, matplotlib.image as m; a = m.imread(sys.argv[1]); "
-                             "print(a.shape[1], a.shape[0], int((a[..., :3].sum(axis=-1) < 1.5).sum()))' '" +
-                                 png.string() + "'");
+  const Ran py = shell(work,
+                       "/usr/bin/python3 -c 'import sys, matplotlib.image as m; a = m.imread(sys.argv[1]); "
+                       "print(a.shape[1], a.shape[0], int((a[..., :3].sum(axis=-1) < 1.5).sum()))' '" +
+                           png.string() + "'");
   Shot s;
   std::istringstream(py.out) >> s.width >> s.height >> s.dark;
   return s;
 }
 
 std::string html_unescape(const std::string& s) {
-  static const std::pair<const char*, char> kEntities[] = {{"&quot;", '"'}, {"&#x27;", '\''}, {"&lt;", '<'},
-                                                           {"&gt;", '>'},   {"&amp;", '&'}};
+  static const std::pair<const char*, char> kEntities[] = {
+      {"&quot;", '"'}, {"&#x27;", '\''}, {"&lt;", '<'}, {"&gt;", '>'}, {"&amp;", '&'}};
   std::string out;
   for (size_t i = 0; i < s.size();) {
     bool hit = false;
@@ -148,8 +149,12 @@ std::vector<unsigned char> base64_decode(const std::string& s) {
   uint32_t acc = 0;
   int bits = 0;
   for (char c : s) {
-    int v = c >= 'A' && c <= 'Z' ? c - 'A' : c >= 'a' && c <= 'z' ? c - 'a' + 26 : c >= '0' && c <= '9' ? c - '0' + 52
-            : c == '+' ? 62 : c == '/' ? 63 : -1;
+    int v = c >= 'A' && c <= 'Z'   ? c - 'A'
+            : c >= 'a' && c <= 'z' ? c - 'a' + 26
+            : c >= '0' && c <= '9' ? c - '0' + 52
+            : c == '+'             ? 62
+            : c == '/'             ? 63
+                                   : -1;
     if (v < 0) continue;
     acc = (acc << 6) | uint32_t(v);
     bits += 6;
@@ -172,7 +177,9 @@ std::string img_bytes(const std::string& tag) {
 struct Box {
   double x0, y0, x1, y1;
 };
-Box box(const nlohmann::json& j) { return Box{j[0].get<double>(), j[1].get<double>(), j[2].get<double>(), j[3].get<double>()}; }
+Box box(const nlohmann::json& j) {
+  return Box{j[0].get<double>(), j[1].get<double>(), j[2].get<double>(), j[3].get<double>()};
+}
 bool overlap(const Box& a, const Box& b, double by = 1.0) {
   return std::min(a.x1, b.x1) - std::max(a.x0, b.x0) > by && std::min(a.y1, b.y1) - std::max(a.y0, b.y0) > by;
 }
@@ -351,9 +358,8 @@ height = 24
   std::map<std::string, std::map<std::string, std::string>> by_point;
   for (const auto& row : export_rows(s.dir, "st")) by_point[row.at("point")] = row;
   std::string dom;
-  const std::string page = check_report(s.dir, s.dir / "st", 0 + count(slurp(s.dir / "st" / "report" / "index.html"),
-                                                                         "<img"),
-                                        {"Image strips"}, &dom);
+  const std::string page = check_report(
+      s.dir, s.dir / "st", 0 + count(slurp(s.dir / "st" / "report" / "index.html"), "<img"), {"Image strips"}, &dom);
   // The strips: per input a <div class="strip" data-input=...>, in it one
   // <figure data-point=...> per method at the input's largest spp.
   size_t figures = 0;
@@ -469,8 +475,9 @@ design = [")") + ROPSIM_SOURCE_DIR +
   while (std::getline(table, line) && line.rfind("| ", 0) == 0) {
     std::vector<std::string> c;
     std::istringstream cells(line.substr(2));
-    for (std::string f; std::getline(cells, f, '|');) c.push_back(f.substr(0, f.find_last_not_of(' ') + 1).substr(
-        f.find_first_not_of(' ') == std::string::npos ? 0 : f.find_first_not_of(' ')));
+    for (std::string f; std::getline(cells, f, '|');)
+      c.push_back(f.substr(0, f.find_last_not_of(' ') + 1)
+                      .substr(f.find_first_not_of(' ') == std::string::npos ? 0 : f.find_first_not_of(' ')));
     ASSERT_GE(c.size(), 15u) << line;
     const std::string fid = c[1];
     ++seen[fid];
@@ -502,8 +509,8 @@ design = [")") + ROPSIM_SOURCE_DIR +
   EXPECT_EQ(seen["functional"], 1u);
   EXPECT_NE(md.find("| cycle | 2 |"), std::string::npos) << "the summary's cycle row:\n" << md;
   // analysis/fidelity.py on the same folder.
-  const Ran f = shell(s.dir, "/usr/bin/python3 -W error::RuntimeWarning '" ROPSIM_SOURCE_DIR
-                             "/analysis/fidelity.py' st");
+  const Ran f =
+      shell(s.dir, "/usr/bin/python3 -W error::RuntimeWarning '" ROPSIM_SOURCE_DIR "/analysis/fidelity.py' st");
   ASSERT_EQ(f.status, 0) << f.err;
   EXPECT_EQ(f.err, "");
   EXPECT_NE(f.out.find("| cycle | 2 | "), std::string::npos) << f.out;

@@ -82,8 +82,8 @@ void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cy
   for (size_t i = 0; i < pixel_map_descs().size(); ++i) {
     const PixelMap m = PixelMap(i);
     add(
-        pixel_map_descs()[i].name, std::string(pixel_map_descs()[i].unit) + " per pixel", [b, m](uint32_t y, float* out) { b->row(m, y, out); },
-        double(b->max(m)));
+        pixel_map_descs()[i].name, std::string(pixel_map_descs()[i].unit) + " per pixel",
+        [b, m](uint32_t y, float* out) { b->row(m, y, out); }, double(b->max(m)));
   }
   if (reference) {
     std::vector<float> a(size_t(w) * 3), r(a.size());
