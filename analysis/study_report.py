@@ -950,8 +950,8 @@ def section_fidelity(rep, df, params):
             xerr = None
             if lo and g[lo].notna().any():
                 t = g[truth].to_numpy(float)
-                lo_e = 100.0 * (g[lo].to_numpy(float) - t) / t
-                hi_e = 100.0 * (g[hi].to_numpy(float) - t) / t
+                rel = (lambda v: np.divide(100.0 * (v - t), t, out=np.full_like(t, np.nan), where=t != 0))
+                lo_e, hi_e = rel(g[lo].to_numpy(float)), rel(g[hi].to_numpy(float))
                 x = g[err].to_numpy(float)
                 xerr = np.vstack([np.where(np.isfinite(lo_e), x - lo_e, 0), np.where(np.isfinite(hi_e), hi_e - x, 0)])
             ax.errorbar(g[err], yy, xerr=xerr, fmt="o", ms=5, capsize=3, color=colours[f], label=f)
