@@ -526,7 +526,6 @@ def section_quality(rep, df, params):
     if not cyc.any():
         rep.para("No cycle-fidelity point: RMSE against DRAM bytes and against cycles needs fidelity = \"cycle\"; "
                  "the functional points' state bytes stand for the memory traffic below.")
-    colours = plt.get_cmap("tab10")
     pareto_rows = []
     for fid, col, what, sub in plots:
         sub = sub[sub[col].notna()]
@@ -536,6 +535,7 @@ def section_quality(rep, df, params):
         keys = curve_key(params, sub)
         curves = [label_of(keys, tuple(r)) for r in sub[keys].drop_duplicates().itertuples(index=False)] if keys \
             else ["points"]
+        colours = plt.get_cmap("tab10" if len(curves) <= 10 else "tab20")
         fig, axes, lax = panel_grid(len(inputs), 3, panel_w=3.9, panel_h=3.4)
         ghz = one_clock(sub) if col == "_cycles" else None
         for ax, inp in zip(axes, inputs):
@@ -549,7 +549,7 @@ def section_quality(rep, df, params):
                 lab = label_of(keys, gk)
                 if lab not in curves:
                     curves.append(lab)
-                ax.plot(g[col], g["_rmse"], "o-", label=lab, ms=5, color=colours(curves.index(lab) % 10))
+                ax.plot(g[col], g["_rmse"], "o-", label=lab, ms=5, color=colours(curves.index(lab) % colours.N))
                 if "spp" in g.columns:
                     for _, r in g.iterrows():
                         ax.annotate(fmt_value(r["spp"]), (r[col], r["_rmse"]), textcoords="offset points",
