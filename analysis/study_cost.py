@@ -127,13 +127,20 @@ def table(agg, param):
 
 
 def plot(agg, param, out=None, title=""):
-    """The three panels; written to out (and closed), else returned."""
+    """The three panels; written to out (and closed), else returned. Drawn
+    for a page at 100 % zoom (96 dpi, 13 inches wide), the legends below the
+    panels, logarithmic axes only where the values span a decade."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
-    fig, (a, b, c) = plt.subplots(1, 3, figsize=(15, 4.3))
+    def spans(v):
+        v = np.asarray([x for x in v if x is not None and np.isfinite(x)], dtype=float)
+        return len(v) > 1 and v.min() > 0 and v.max() / v.min() >= 10
+
+    fig, (a, b, c) = plt.subplots(1, 3, figsize=(13, 4.9), dpi=96, layout="constrained")
     keys = [k for k in ("input", "spp") if k in agg.columns and k != param]
     groups = agg.groupby(keys if len(keys) > 1 else keys[0], sort=False) if keys else [((), agg)]
     for gk, g in groups:
@@ -146,12 +153,20 @@ def plot(agg, param, out=None, title=""):
                            color=line.get_color())
         c.plot(g["rop"], g["rmse"], "o-", ms=4, label=lab, color=line.get_color())
         for _, r in g.iterrows():
-            c.annotate(f"{r['_x']:g}", (r["rop"], r["rmse"]), textcoords="offset points", xytext=(3, 3), fontsize=7)
+            c.annotate(f"{r['_x']:g}", (r["rop"], r["rmse"]), textcoords="offset points", xytext=(3, 3), fontsize=8)
+    xs = sorted(agg["_x"].dropna().unique())
+    for ax in (a, b):
+        if len(xs) > 1 and xs[0] > 0 and xs[-1] / xs[0] >= 8:
+            ax.set_xscale("log", base=2)
+        if len(xs) <= 10:
+            ax.set_xticks(xs, [f"{v:g}" for v in xs])
+            ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    below = dict(loc="upper left", bbox_to_anchor=(0.0, -0.2), borderaxespad=0, frameon=False)
     a.set_xlabel(param)
-    a.set_ylabel("RMSE (8-bit units), mean ± sd over seeds")
-    a.set_title(f"quality against {param}", fontsize=10)
+    a.set_ylabel("RMSE (8-bit units), mean ± sd")
+    a.set_title(f"quality against {param}")
     a.grid(alpha=.3)
-    a.legend(fontsize=7)
+    a.legend(**below)
     g = agg.drop_duplicates("_x").sort_values("_x")
     sweep = g["alpha_est"] == "sweep"
     bound = g["alpha_bound"].fillna(0)
@@ -162,23 +177,29 @@ def plot(agg, param, out=None, title=""):
         err = bound[~sweep] * g["alpha"][~sweep]
         b.errorbar(g["_x"][~sweep], g[col][~sweep], yerr=err, fmt=mk, ms=6, mfc="none", color=colour, capsize=2,
                    label=f"{lab} (model, ± its bound)")
-    b.set_yscale("log")
+    if spans(list(g["alpha"]) + list(g["rop"])):
+        b.set_yscale("log")
     b.set_xlabel(param)
     b.set_ylabel("NAND2 equivalents")
-    b.set_title(f"gates against {param}", fontsize=10)
+    b.set_title(f"gates against {param}")
     b.grid(alpha=.3, which="both")
-    b.legend(fontsize=7)
-    c.set_xscale("log")
+    b.legend(**below)
+    if spans(agg["rop"]):
+        c.set_xscale("log")
     c.set_xlabel("NAND2 equivalents, LK units of one ROP")
     c.set_ylabel("RMSE (8-bit units)")
-    c.set_title(f"quality against gates (numbers: {param})", fontsize=10)
+    c.set_title(f"quality against gates (numbers: {param})")
     c.grid(alpha=.3, which="both")
-    c.legend(fontsize=7)
-    fig.suptitle(title or f"quality against {param} against gates", fontsize=11)
-    fig.tight_layout()
+    c.legend(**below)
+    for ax in (a, b, c):
+        for axis in (ax.xaxis, ax.yaxis):
+            if isinstance(axis.get_major_formatter(), matplotlib.ticker.ScalarFormatter):
+                axis.get_major_formatter().set_useOffset(False)
+                axis.get_major_formatter().set_scientific(False)
+    fig.suptitle(title or f"quality against {param} against gates", x=0.01, ha="left")
     if out is None:
         return fig
-    fig.savefig(out, dpi=100)
+    fig.savefig(out, dpi=96)
     plt.close(fig)
     return None
 

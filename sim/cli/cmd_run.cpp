@@ -72,17 +72,18 @@ void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cy
   if (!o.draw_csv.empty()) texts.push_back(TextOutput{o.draw_csv, draws_csv(*b, with_cycles, dram_listed)});
   if (o.maps.empty()) return;
   const uint32_t w = b->width(), h = b->height();
-  auto add = [&](const std::string& name, const MapRows& rows, double max) {
+  auto add = [&](const std::string& name, const std::string& unit, const MapRows& rows, double max) {
     const std::string base = (std::filesystem::path(o.maps) / name).string();
     const auto exr = encode_heat_exr(w, h, rows, base + ".exr");
-    const auto png = encode_heat_png(w, h, rows, max, base + ".png");
+    const auto png = encode_heat_png(w, h, rows, max, HeatLabels{name, unit}, base + ".png");
     texts.push_back(TextOutput{base + ".exr", std::string(exr.begin(), exr.end())});
     texts.push_back(TextOutput{base + ".png", std::string(png.begin(), png.end())});
   };
   for (size_t i = 0; i < pixel_map_descs().size(); ++i) {
     const PixelMap m = PixelMap(i);
     add(
-        pixel_map_descs()[i].name, [b, m](uint32_t y, float* out) { b->row(m, y, out); }, double(b->max(m)));
+        pixel_map_descs()[i].name, std::string(pixel_map_descs()[i].unit) + " per pixel",
+        [b, m](uint32_t y, float* out) { b->row(m, y, out); }, double(b->max(m)));
   }
   if (reference) {
     std::vector<float> a(size_t(w) * 3), r(a.size());
@@ -104,7 +105,7 @@ void add_breakdown_outputs(const RunOpts& o, const RunBreakdown* b, bool with_cy
       rows(y, row.data());
       for (float v : row) max = std::max(max, v);
     }
-    add("error", rows, double(max));
+    add("error", "8-bit units", rows, double(max));
   }
 }
 
@@ -134,7 +135,7 @@ void add_tile_maps(const RunOpts& o, const CycleRun& run, std::vector<TextOutput
         [&](uint32_t y, float* out) {
           for (uint32_t x = 0; x < w; ++x) out[x] = float(v[size_t(y / tp) * tx + x / tp]);
         },
-        double(max), base + ".png");
+        double(max), HeatLabels{m.name, std::string(m.unit) + " per tile"}, base + ".png");
     texts.push_back(TextOutput{base + ".exr", std::string(exr.begin(), exr.end())});
     texts.push_back(TextOutput{base + ".png", std::string(png.begin(), png.end())});
   }

@@ -1,6 +1,7 @@
 #include "heat_map.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -16,39 +17,100 @@ namespace {
 constexpr unsigned char kViridis[9][3] = {{68, 1, 84},    {71, 45, 123}, {59, 82, 139},  {44, 114, 142}, {33, 145, 140},
                                           {39, 173, 129}, {92, 200, 99}, {170, 220, 50}, {253, 231, 37}};
 
-// A 3 x 5 pixel font for the legend's labels: rows top to bottom, bit 2 the
-// left column.
+// A 5 x 7 pixel font for the titles and the colour bar: digits, lower-case
+// letters (upper case is drawn as lower case) and the punctuation of map
+// names, units and numbers; each glyph's rows top to bottom, '#' lit.
 struct Glyph {
   char c;
-  unsigned char rows[5];
+  const char* rows[7];
 };
 constexpr Glyph kFont[] = {
-    {'0', {7, 5, 5, 5, 7}}, {'1', {2, 6, 2, 2, 7}}, {'2', {7, 1, 7, 4, 7}}, {'3', {7, 1, 7, 1, 7}},
-    {'4', {5, 5, 7, 1, 1}}, {'5', {7, 4, 7, 1, 7}}, {'6', {7, 4, 7, 5, 7}}, {'7', {7, 1, 1, 1, 1}},
-    {'8', {7, 5, 7, 5, 7}}, {'9', {7, 5, 7, 1, 7}}, {'.', {0, 0, 0, 0, 2}}, {'e', {0, 7, 7, 4, 7}},
-    {'+', {0, 2, 7, 2, 0}}, {'-', {0, 0, 7, 0, 0}},
+    {'0', {".###.", "#...#", "#..##", "#.#.#", "##..#", "#...#", ".###."}},
+    {'1', {"..#..", ".##..", "..#..", "..#..", "..#..", "..#..", ".###."}},
+    {'2', {".###.", "#...#", "....#", "...#.", "..#..", ".#...", "#####"}},
+    {'3', {"#####", "...#.", "..#..", "...#.", "....#", "#...#", ".###."}},
+    {'4', {"...#.", "..##.", ".#.#.", "#..#.", "#####", "...#.", "...#."}},
+    {'5', {"#####", "#....", "####.", "....#", "....#", "#...#", ".###."}},
+    {'6', {"..##.", ".#...", "#....", "####.", "#...#", "#...#", ".###."}},
+    {'7', {"#####", "....#", "...#.", "..#..", ".#...", ".#...", ".#..."}},
+    {'8', {".###.", "#...#", "#...#", ".###.", "#...#", "#...#", ".###."}},
+    {'9', {".###.", "#...#", "#...#", ".####", "....#", "...#.", ".##.."}},
+    {'a', {".....", ".....", ".###.", "....#", ".####", "#...#", ".####"}},
+    {'b', {"#....", "#....", "#.##.", "##..#", "#...#", "#...#", "####."}},
+    {'c', {".....", ".....", ".###.", "#....", "#....", "#...#", ".###."}},
+    {'d', {"....#", "....#", ".##.#", "#..##", "#...#", "#...#", ".####"}},
+    {'e', {".....", ".....", ".###.", "#...#", "#####", "#....", ".###."}},
+    {'f', {"..##.", ".#..#", ".#...", "###..", ".#...", ".#...", ".#..."}},
+    {'g', {".....", ".####", "#...#", "#...#", ".####", "....#", ".###."}},
+    {'h', {"#....", "#....", "#.##.", "##..#", "#...#", "#...#", "#...#"}},
+    {'i', {"..#..", ".....", ".##..", "..#..", "..#..", "..#..", ".###."}},
+    {'j', {"...#.", ".....", "..##.", "...#.", "...#.", "#..#.", ".##.."}},
+    {'k', {"#....", "#....", "#..#.", "#.#..", "##...", "#.#..", "#..#."}},
+    {'l', {".##..", "..#..", "..#..", "..#..", "..#..", "..#..", ".###."}},
+    {'m', {".....", ".....", "##.#.", "#.#.#", "#.#.#", "#...#", "#...#"}},
+    {'n', {".....", ".....", "#.##.", "##..#", "#...#", "#...#", "#...#"}},
+    {'o', {".....", ".....", ".###.", "#...#", "#...#", "#...#", ".###."}},
+    {'p', {".....", ".....", "####.", "#...#", "####.", "#....", "#...."}},
+    {'q', {".....", ".....", ".##.#", "#..##", ".####", "....#", "....#"}},
+    {'r', {".....", ".....", "#.##.", "##..#", "#....", "#....", "#...."}},
+    {'s', {".....", ".....", ".###.", "#....", ".###.", "....#", "####."}},
+    {'t', {".#...", ".#...", "###..", ".#...", ".#...", ".#..#", "..##."}},
+    {'u', {".....", ".....", "#...#", "#...#", "#...#", "#..##", ".##.#"}},
+    {'v', {".....", ".....", "#...#", "#...#", "#...#", ".#.#.", "..#.."}},
+    {'w', {".....", ".....", "#...#", "#...#", "#.#.#", "#.#.#", ".#.#."}},
+    {'x', {".....", ".....", "#...#", ".#.#.", "..#..", ".#.#.", "#...#"}},
+    {'y', {".....", ".....", "#...#", "#...#", ".####", "....#", ".###."}},
+    {'z', {".....", ".....", "#####", "...#.", "..#..", ".#...", "#####"}},
+    {'.', {".....", ".....", ".....", ".....", ".....", ".##..", ".##.."}},
+    {',', {".....", ".....", ".....", ".....", ".##..", "..#..", ".#..."}},
+    {'-', {".....", ".....", ".....", "#####", ".....", ".....", "....."}},
+    {'+', {".....", "..#..", "..#..", "#####", "..#..", "..#..", "....."}},
+    {'_', {".....", ".....", ".....", ".....", ".....", ".....", "#####"}},
+    {'(', {"...#.", "..#..", ".#...", ".#...", ".#...", "..#..", "...#."}},
+    {')', {".#...", "..#..", "...#.", "...#.", "...#.", "..#..", ".#..."}},
+    {'/', {".....", "....#", "...#.", "..#..", ".#...", "#....", "....."}},
+    {'%', {"##...", "##..#", "...#.", "..#..", ".#...", "#..##", "...##"}},
+    {':', {".....", ".##..", ".##..", ".....", ".##..", ".##..", "....."}},
+    {'=', {".....", ".....", "#####", ".....", "#####", ".....", "....."}},
 };
+constexpr uint32_t kGlyphW = 5, kGlyphH = 7, kAdvance = 6, kMargin = 4;
 
 const Glyph* glyph(char c) {
+  c = char(std::tolower(static_cast<unsigned char>(c)));
   for (const Glyph& g : kFont)
     if (g.c == c) return &g;
   return nullptr;
 }
 
-/// Draws text (scale 2: 6 x 10 pixels per glyph, 2 pixels apart) at column x0
-/// of the legend rows, white.
-void draw_text(std::vector<unsigned char>& legend, uint32_t width, uint32_t x0, uint32_t y0, const std::string& s) {
-  uint32_t x = x0;
-  for (char c : s) {
-    if (const Glyph* g = glyph(c))
-      for (uint32_t r = 0; r < 10; ++r)
-        for (uint32_t k = 0; k < 6; ++k)
-          if ((g->rows[r / 2] >> (2 - k / 2)) & 1u) {
-            const uint32_t px = x + k, py = y0 + r;
-            if (px < width && py < kLegendRows) std::memset(&legend[(size_t(py) * width + px) * 3], 255, 3);
-          }
-    x += 8;
+/// An RGB canvas of the PNG's bands, black.
+struct Canvas {
+  uint32_t width, height;
+  std::vector<unsigned char> px;
+  Canvas(uint32_t w, uint32_t h) : width(w), height(h), px(size_t(w) * h * 3, 0) {}
+  void set(uint32_t x, uint32_t y, const unsigned char rgb[3]) {
+    if (x < width && y < height) std::memcpy(&px[(size_t(y) * width + x) * 3], rgb, 3);
   }
+  const unsigned char* row(uint32_t y) const { return &px[size_t(y) * width * 3]; }
+};
+
+constexpr unsigned char kWhite[3] = {255, 255, 255};
+
+/// Draws s white with its top-left corner at (x0, y0), each font pixel k x k.
+void draw_text(Canvas& c, uint32_t x0, uint32_t y0, const std::string& s, uint32_t k) {
+  uint32_t x = x0;
+  for (char ch : s) {
+    if (const Glyph* g = glyph(ch))
+      for (uint32_t r = 0; r < kGlyphH * k; ++r)
+        for (uint32_t q = 0; q < kGlyphW * k; ++q)
+          if (g->rows[r / k][q / k] == '#') c.set(x + q, y0 + r, kWhite);
+    x += kAdvance * k;
+  }
+}
+
+/// The colour bar's three labels: 0, max / 2, max.
+std::vector<std::string> bar_labels(double max) {
+  max = std::max(max, 0.0);
+  return {"0", legend_label(max / 2.0), legend_label(max)};
 }
 
 }  // namespace
@@ -72,6 +134,23 @@ std::string legend_label(double v) {
   return b;
 }
 
+uint32_t heat_text_scale(uint32_t width) { return width >= 400 ? 2 : 1; }
+
+uint32_t heat_text_width(const std::string& s, uint32_t k) {
+  return s.empty() ? 0 : uint32_t(s.size()) * kAdvance * k - (kAdvance - kGlyphW) * k;
+}
+
+std::string heat_title(const HeatLabels& labels) {
+  return labels.unit.empty() ? labels.title : labels.title + " (" + labels.unit + ")";
+}
+
+uint32_t heat_png_width(uint32_t width, const HeatLabels& labels, double max) {
+  const uint32_t k = heat_text_scale(width);
+  uint32_t labels_w = 0;
+  for (const std::string& l : bar_labels(max)) labels_w += heat_text_width(l, k) + 2 * kAdvance * k;
+  return std::max({width, 2 * kMargin + heat_text_width(heat_title(labels), k), 2 * kMargin + labels_w});
+}
+
 std::vector<unsigned char> encode_heat_exr(uint32_t width, uint32_t height, const MapRows& rows,
                                            const std::string& path) {
   std::vector<float> v(width);
@@ -90,31 +169,46 @@ std::vector<unsigned char> encode_heat_exr(uint32_t width, uint32_t height, cons
 }
 
 std::vector<unsigned char> encode_heat_png(uint32_t width, uint32_t height, const MapRows& rows, double max,
-                                           const std::string& path) {
-  // The legend: a dark strip, the scale as a bar over its middle rows, the
-  // labels 0 (left) and max (right) above it.
-  std::vector<unsigned char> legend(size_t(width) * kLegendRows * 3, 0);
-  for (uint32_t x = 0; x < width; ++x) {
+                                           const HeatLabels& labels, const std::string& path) {
+  const uint32_t k = heat_text_scale(width), cw = heat_png_width(width, labels, max);
+  // The title band: the title centred vertically, at the left margin.
+  Canvas title(cw, kTitleRows);
+  draw_text(title, kMargin, (kTitleRows - kGlyphH * k) / 2, heat_title(labels), k);
+  // The colour bar band: the scale from 0 (left) to max (right) over the
+  // canvas less its margins, rows 4 to 15; ticks below it at 0, max / 2 and
+  // max, each labelled (the first left-aligned on its tick, the middle one
+  // centred, the last right-aligned).
+  Canvas bar(cw, kBarRows);
+  const uint32_t x0 = kMargin, x1 = cw - 1 - kMargin, bar_top = 4, bar_bottom = 16;
+  for (uint32_t x = x0; x <= x1; ++x) {
     unsigned char c[3];
-    heat_color(width > 1 ? double(x) / double(width - 1) : 1.0, c);
-    for (uint32_t y = 12; y < kLegendRows; ++y) std::memcpy(&legend[(size_t(y) * width + x) * 3], c, 3);
+    heat_color(double(x - x0) / double(std::max(1u, x1 - x0)), c);
+    for (uint32_t y = bar_top; y < bar_bottom; ++y) bar.set(x, y, c);
   }
-  const std::string hi = legend_label(std::max(max, 0.0));
-  draw_text(legend, width, 1, 1, "0");
-  const uint32_t hi_w = uint32_t(hi.size()) * 8;
-  if (width > hi_w + 12) draw_text(legend, width, width - hi_w, 1, hi);
+  const std::vector<std::string> text = bar_labels(max);
+  const uint32_t ticks[3] = {x0, x0 + (x1 - x0) / 2, x1};
+  for (int i = 0; i < 3; ++i) {
+    for (uint32_t y = bar_bottom; y < bar_bottom + 4; ++y) bar.set(ticks[i], y, kWhite);
+    const uint32_t w = heat_text_width(text[size_t(i)], k);
+    const uint32_t at = i == 0 ? ticks[0] : i == 1 ? ticks[1] - std::min(ticks[1], w / 2) : ticks[2] + 1 - w;
+    draw_text(bar, at, bar_bottom + 6, text[size_t(i)], k);
+  }
   std::vector<float> v(width);
   try {
     return encode_png_rows(
-        int(width), int(height + kLegendRows),
-        [&](int y, void* row) {
+        int(cw), int(height + kLegendRows),
+        [&](int yy, void* row) {
           auto* o = static_cast<unsigned char*>(row);
-          if (uint32_t(y) >= height) {
-            std::memcpy(o, &legend[size_t(uint32_t(y) - height) * width * 3], size_t(width) * 3);
-            return;
+          const uint32_t y = uint32_t(yy);
+          if (y < kTitleRows) {
+            std::memcpy(o, title.row(y), size_t(cw) * 3);
+          } else if (y >= kTitleRows + height) {
+            std::memcpy(o, bar.row(y - kTitleRows - height), size_t(cw) * 3);
+          } else {
+            rows(y - kTitleRows, v.data());
+            for (uint32_t x = 0; x < width; ++x) heat_color(max > 0 ? v[x] / max : 0.0, o + 3 * x);
+            std::memset(o + 3 * size_t(width), 0, size_t(cw - width) * 3);
           }
-          rows(uint32_t(y), v.data());
-          for (uint32_t x = 0; x < width; ++x) heat_color(max > 0 ? v[x] / max : 0.0, o + 3 * x);
         },
         path);
   } catch (const ImageCodecError& e) {
