@@ -106,9 +106,19 @@ def parameter_names(study_dir, df):
     if tomllib and os.path.isfile(toml_path):
         try:
             with open(toml_path, "rb") as f:
-                axes = list(tomllib.load(f).get("axes", {}).keys())
+                axes_table = tomllib.load(f).get("axes", {})
         except (OSError, ValueError):
-            axes = []
+            axes_table = {}
+        # Named cases are one axis: its name (column "case"), then the keys
+        # the cases set, in the order they first appear.
+        for key, value in axes_table.items():
+            if key != "cases":
+                axes.append(key)
+                continue
+            axes.append("case")
+            for case in value if isinstance(value, list) else []:
+                if isinstance(case, dict):
+                    axes += [k for k in case if k != "name" and k not in axes]
     if not axes:
         for h in df["point"]:
             try:
