@@ -881,3 +881,75 @@ TEST(EndertonSelection, OriginalChoosesAmongCoveredSamplesBeforeTheDepthTest) {
   }
   EXPECT_EQ(first_state_difference(fa.store(), fo.store()), "") << "far to near, both choose among the same samples";
 }
+
+// Under `original`, samples_opacity_passed counts the R each fragment chose
+// among its covered samples (the opacity decision, as a2c's and hashed's
+// count their masks before the depth test), not the chosen that then passed
+// the depth test (that is samples_written). enderton-1 drawn near to far:
+// green chooses among all 4 samples, some of them held by red. The expected
+// sum is enderton_count over the fragments that reach the choice (a fragment
+// no sample of which passes leaves at the depth test).
+TEST(EndertonSelection, OriginalOpacityCounterIsTheRChosen) {
+  const TraceHeader h = header(64, 64, 4, {0, 0, 1});
+  std::vector<Fragment> frags;
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      frags.push_back(frag(x, y, 0xF, 0.3f, 0.45f, {1, 0, 0}, 0));
+      frags.push_back(frag(x, y, 0xF, 0.6f, 0.45f, {0, 1, 0}, 1));
+    }
+  for (EndertonSelection sel : {EndertonSelection::kDepthFirst, EndertonSelection::kOriginal}) {
+    GoldenConfig c;
+    c.method = Method::kEnderton;
+    c.enderton_selection = sel;
+    StochasticModel m(h, c);
+    uint64_t chosen = 0;
+    m.set_counts_observer([&](size_t, const FragWork& w, const Counters&) {
+      if (w.killed()) return;
+      const uint64_t pool = sel == EndertonSelection::kOriginal ? w.f->coverage : w.survivors;
+      chosen += enderton_count(alpha_to_fixed(w.f->alpha, 32), 32, uint32_t(__builtin_popcountll(pool)),
+                               fragment_key(c.seed, w.f->draw_id, w.f->prim_id, w.f->x, w.f->y));
+    });
+    m.draw_batch(frags.data(), frags.size());
+    const Counters k = m.counters();
+    EXPECT_EQ(k.samples_opacity_passed, chosen) << to_string(sel) << ": the R chosen";
+    if (sel == EndertonSelection::kOriginal)
+      EXPECT_GT(k.samples_opacity_passed, k.samples_written)
+          << "original: some chosen samples fail the depth test, so fewer are written than chosen";
+    else
+      EXPECT_EQ(k.samples_opacity_passed, k.samples_written) << "depth-first: every chosen sample is written";
+  }
+}
+
+// A fragment the coverage selection discards (a2c, hashed, hashed-a2c at
+// alpha 0) reaches no depth test: it reads no depth and adds no state
+// traffic (docs/numerics.md); a fragment it keeps reads the depth of the
+// samples kept, 4 bytes each.
+TEST(Counters, ADiscardedFragmentReadsNoDepth) {
+  const TraceHeader h = header(64, 64, 4);
+  std::vector<Fragment> zero, half;
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      zero.push_back(frag(x, y, 0xF, 0.5f, 0.0f));
+      half.push_back(frag(x, y, 0xF, 0.5f, 0.5f, {1, 1, 1}, 0, x + 64 * y));
+    }
+  for (Method me : {Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
+    StochasticModel m = model(h, me);
+    m.draw_batch(zero.data(), zero.size());
+    const Counters c = m.counters();
+    EXPECT_EQ(c.fragments, 64u * 64) << to_string(me);
+    EXPECT_EQ(c.samples_tested, 64u * 64 * 4) << to_string(me) << ": the covered samples";
+    EXPECT_EQ(c.samples_opacity_passed, 0u) << to_string(me) << ": alpha 0 keeps no sample";
+    EXPECT_EQ(c.depth_bytes_read, 0u) << to_string(me) << ": a discarded fragment costs no depth read";
+    EXPECT_EQ(c.state_bytes_read(), 0u) << to_string(me);
+    EXPECT_EQ(c.state_bytes_written(), 0u) << to_string(me);
+    // Alpha 0.5 into the clear buffer: every kept sample passes the depth
+    // test, so the depth read is 4 bytes per kept sample.
+    StochasticModel m2 = model(h, me);
+    m2.draw_batch(half.data(), half.size());
+    const Counters c2 = m2.counters();
+    EXPECT_GT(c2.samples_opacity_passed, 0u) << to_string(me);
+    EXPECT_LT(c2.samples_opacity_passed, c2.samples_tested) << to_string(me) << ": the test needs discarded samples";
+    EXPECT_EQ(c2.depth_bytes_read, 4 * c2.samples_opacity_passed) << to_string(me);
+  }
+}
+

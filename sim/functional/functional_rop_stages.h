@@ -68,7 +68,6 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
-  c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
   // Blend passes: the plain test, no coverage selection, no tracker.
   [[maybe_unused]] const bool stochastic = !(passes_of(M).count > 1 || traits(M).wboit) || !is_blend_pass(s_.pass);
@@ -89,6 +88,11 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
       selection_hashes_ += 3;
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
+    if (!tested) {  // discarded: the fragment reaches no depth test and reads no depth
+      w.covered = w.survivors = 0;
+      w.m = 0;
+      return 0;
+    }
   }
   if constexpr (kT.tracker)
     if (stochastic) c_.tracker_bytes_read += s_.tracker_bytes;
@@ -96,7 +100,6 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     // SLAB has no per-sample depth: it reads the pixel's layers, draws the
     // fragment's stratified b-bit mask among the bits of its covered samples
     // and lets it on only where nearer layers leave some of its bits open.
-    c_.depth_bytes_read -= kDepthSampleBytes * covered;  // no per-sample depth read
     c_.layer_bytes_read += s_.slab_bytes;
     float z[64];
     s_.sample_depths(f, f.coverage, z);
@@ -124,6 +127,10 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.samples_depth_passed += w.m;
     return covered;
   }
+  // The stored depth of each tested sample is read (a2c, hashed, hashed-a2c:
+  // only the samples their mask kept).
+  const uint32_t n_tested = uint32_t(__builtin_popcountll(tested));
+  c_.depth_bytes_read += kDepthSampleBytes * n_tested;
   // Each tested sample's depth and its test, in one pass; branch-free:
   // pass/fail is data-dependent.
   uint64_t S = 0;
@@ -149,7 +156,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   w.survivors = S;
   w.m = uint32_t(__builtin_popcountll(S));
   c_.samples_depth_passed += w.m;
-  return uint32_t(__builtin_popcountll(tested));
+  return n_tested;
 }
 
 inline uint32_t DepthStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
@@ -186,7 +193,7 @@ inline uint32_t ReferenceStage::run_as(FragWork& w) {
     const uint64_t key = s_.random_key(f);
     const uint32_t r = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, n, key);
     enderton_pick(w.enderton.list, n, r, key);
-    w.enderton.count = r;
+    w.enderton.chosen = w.enderton.count = r;
     if (original) {  // keep the chosen survivors, in choice order
       uint32_t kept = 0;
       for (uint32_t j = 0; j < r; ++j)
@@ -251,7 +258,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
       write(i, z[i]);
       wrote |= uint64_t{1} << i;
     }
-    c_.samples_opacity_passed += w.enderton.count;
+    c_.samples_opacity_passed += w.enderton.chosen;  // the opacity decision: R (original: some then fail depth)
     examined = w.enderton.count;
   } else if constexpr (M == Method::kNaive) {
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
