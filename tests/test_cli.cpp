@@ -610,6 +610,34 @@ TEST(Cli, AlphaRefVectors) {
   EXPECT_EQ(box.files(), (std::set<std::string>{"v.csv"})) << "vectors wrote other files";
 }
 
+// Vectors from a trace: the file has the random vectors' header and one row
+// per call, the summary line says how many; bad requests are one-line
+// errors that write nothing.
+TEST(Cli, TraceVectors) {
+  CliSandbox box;
+  expect_ok(box.run("scene cloth --spp 4 --width 64 --height 64 -o c.trace"), "scene cloth");
+  const CliResult r = box.run("vectors tracker --trace c.trace --window 8,8,40,40 -o t.csv");
+  expect_ok(r, "vectors tracker --trace");
+  const auto rows = lines_of(slurp(box.path("t.csv")));
+  ASSERT_GT(rows.size(), 10u) << "a header row and the window's tracker updates expected";
+  EXPECT_EQ(rows[0],
+            "spp,surface_id_bits,covered_in_hex,surface_id_in,surviving_hex,new_surface,n,surface_id_out,"
+            "covered_out_hex");
+  EXPECT_NE(r.out.find("wrote t.csv: " + std::to_string(rows.size() - 1) + " vectors for tracker from c.trace"),
+            std::string::npos)
+      << r.describe();
+  expect_ok(box.run("vectors depth-test --trace c.trace --method hashed --format hex -o d.hex"), "depth-test hex");
+  expect_cli_error(box, "vectors tracker --trace c.trace --method enderton -o e.csv", {"tracker", "enderton"});
+  expect_cli_error(box, "vectors half --trace c.trace -o h.csv", {"half"});
+  expect_cli_error(box, "vectors depth-test --trace c.trace --method slab -o s.csv", {"slab"});
+  expect_cli_error(box, "vectors tracker --trace c.trace --window 5,5,1,1 -o w.csv", {"--window"});
+  expect_cli_error(box, "vectors tracker --trace c.trace --window 1,2,3 -o w.csv", {"--window", "x0,y0,x1,y1"});
+  expect_cli_error(box, "vectors tracker --trace c.trace --count 5 -o n.csv", {"--count"});
+  expect_cli_error(box, "vectors tracker --window 0,0,1,1 -o x.csv", {"--window", "--trace"});
+  expect_cli_error(box, "vectors tracker --trace missing.trace -o x.csv", {"missing.trace"});
+  EXPECT_EQ(box.files(), (std::set<std::string>{"c.trace", "t.csv", "d.hex"})) << "a failed request wrote a file";
+}
+
 }  // namespace
 
 namespace {

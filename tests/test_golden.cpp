@@ -881,3 +881,351 @@ TEST(EndertonSelection, OriginalChoosesAmongCoveredSamplesBeforeTheDepthTest) {
   }
   EXPECT_EQ(first_state_difference(fa.store(), fo.store()), "") << "far to near, both choose among the same samples";
 }
+
+// Under `original`, samples_opacity_passed counts the R each fragment chose
+// among its covered samples (the opacity decision, as a2c's and hashed's
+// count their masks before the depth test), not the chosen that then passed
+// the depth test (that is samples_written). enderton-1 drawn near to far:
+// green chooses among all 4 samples, some of them held by red. The expected
+// sum is enderton_count over the fragments that reach the choice (a fragment
+// no sample of which passes leaves at the depth test).
+TEST(EndertonSelection, OriginalOpacityCounterIsTheRChosen) {
+  const TraceHeader h = header(64, 64, 4, {0, 0, 1});
+  std::vector<Fragment> frags;
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      frags.push_back(frag(x, y, 0xF, 0.3f, 0.45f, {1, 0, 0}, 0));
+      frags.push_back(frag(x, y, 0xF, 0.6f, 0.45f, {0, 1, 0}, 1));
+    }
+  for (EndertonSelection sel : {EndertonSelection::kDepthFirst, EndertonSelection::kOriginal}) {
+    GoldenConfig c;
+    c.method = Method::kEnderton;
+    c.enderton_selection = sel;
+    StochasticModel m(h, c);
+    uint64_t chosen = 0;
+    m.set_counts_observer([&](size_t, const FragWork& w, const Counters&) {
+      if (w.killed()) return;
+      const uint64_t pool = sel == EndertonSelection::kOriginal ? w.f->coverage : w.survivors;
+      chosen += enderton_count(alpha_to_fixed(w.f->alpha, 32), 32, uint32_t(__builtin_popcountll(pool)),
+                               fragment_key(c.seed, w.f->draw_id, w.f->prim_id, w.f->x, w.f->y));
+    });
+    m.draw_batch(frags.data(), frags.size());
+    const Counters k = m.counters();
+    EXPECT_EQ(k.samples_opacity_passed, chosen) << to_string(sel) << ": the R chosen";
+    if (sel == EndertonSelection::kOriginal)
+      EXPECT_GT(k.samples_opacity_passed, k.samples_written)
+          << "original: some chosen samples fail the depth test, so fewer are written than chosen";
+    else
+      EXPECT_EQ(k.samples_opacity_passed, k.samples_written) << "depth-first: every chosen sample is written";
+  }
+}
+
+// A fragment the coverage selection discards (a2c, hashed, hashed-a2c at
+// alpha 0) reaches no depth test: it reads no depth and adds no state
+// traffic (docs/numerics.md); a fragment it keeps reads the depth of the
+// samples kept, 4 bytes each.
+TEST(Counters, ADiscardedFragmentReadsNoDepth) {
+  const TraceHeader h = header(64, 64, 4);
+  std::vector<Fragment> zero, half;
+  for (uint32_t y = 0; y < 64; ++y)
+    for (uint32_t x = 0; x < 64; ++x) {
+      zero.push_back(frag(x, y, 0xF, 0.5f, 0.0f));
+      half.push_back(frag(x, y, 0xF, 0.5f, 0.5f, {1, 1, 1}, 0, x + 64 * y));
+    }
+  for (Method me : {Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
+    StochasticModel m = model(h, me);
+    m.draw_batch(zero.data(), zero.size());
+    const Counters c = m.counters();
+    EXPECT_EQ(c.fragments, 64u * 64) << to_string(me);
+    EXPECT_EQ(c.samples_tested, 64u * 64 * 4) << to_string(me) << ": the covered samples";
+    EXPECT_EQ(c.samples_opacity_passed, 0u) << to_string(me) << ": alpha 0 keeps no sample";
+    EXPECT_EQ(c.depth_bytes_read, 0u) << to_string(me) << ": a discarded fragment costs no depth read";
+    EXPECT_EQ(c.state_bytes_read(), 0u) << to_string(me);
+    EXPECT_EQ(c.state_bytes_written(), 0u) << to_string(me);
+    // Alpha 0.5 into the clear buffer: every kept sample passes the depth
+    // test, so the depth read is 4 bytes per kept sample.
+    StochasticModel m2 = model(h, me);
+    m2.draw_batch(half.data(), half.size());
+    const Counters c2 = m2.counters();
+    EXPECT_GT(c2.samples_opacity_passed, 0u) << to_string(me);
+    EXPECT_LT(c2.samples_opacity_passed, c2.samples_tested) << to_string(me) << ": the test needs discarded samples";
+    EXPECT_EQ(c2.depth_bytes_read, 4 * c2.samples_opacity_passed) << to_string(me);
+  }
+}
+
+// ------------------------------------------------------------ vectors from a trace
+
+#include <cstring>
+#include <functional>
+#include <sstream>
+
+#include "alpha_ref.h"
+#include "hilbert.h"
+#include "opacity.h"
+#include "sort_order.h"
+#include "tracker.h"
+#include "vectors.h"
+
+namespace {
+
+std::vector<std::string> split_on(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::istringstream in(s);
+  for (std::string f; std::getline(in, f, sep);) out.push_back(f);
+  if (!s.empty() && s.back() == sep) out.push_back("");
+  return out;
+}
+uint64_t hex_u64(const std::string& s) { return std::stoull(s, nullptr, 16); }
+float hex_f32(const std::string& s) {
+  const uint32_t b = uint32_t(std::stoul(s, nullptr, 16));
+  float f;
+  std::memcpy(&f, &b, 4);
+  return f;
+}
+
+/// The rows (header dropped, each split at commas) of unit's vectors from req.
+struct Captured {
+  std::string text;
+  uint64_t returned = 0;
+  std::vector<std::vector<std::string>> rows;
+};
+Captured capture(const std::string& unit, const TraceVectorRequest& req) {
+  Captured c;
+  c.returned = make_trace_vectors(unit, req, [&c](std::string_view s) { c.text += s; });
+  const auto lines = split_on(c.text, '\n');
+  for (size_t i = 1; i < lines.size(); ++i)
+    if (!lines[i].empty()) c.rows.push_back(split_on(lines[i], ','));
+  return c;
+}
+
+/// The calls of each unit the replay of in with cfg makes, counted from the
+/// golden model's counters: every fragment's counter delta (every pass),
+/// for the fragments keep() accepts.
+struct Calls {
+  uint64_t depth_tests = 0;     ///< fragments charged a depth read (4 bytes per tested sample)
+  uint64_t depth_samples = 0;   ///< depth_bytes_read / 4
+  uint64_t tracked = 0;         ///< fragments whose tracker was written
+  uint64_t multi_sorts = 0;     ///< sorts
+  uint64_t survivors = 0;       ///< samples_depth_passed of the fragments that reach the tracker / the write
+  uint64_t opacity_passed = 0;  ///< samples_opacity_passed
+};
+Calls count_calls(const InputSpec& in, const GoldenConfig& cfg, const std::function<bool(const Fragment&)>& keep) {
+  const FragmentList list = load_fragments(in);
+  StochasticModel m(list.header, cfg);
+  Calls c;
+  m.set_counts_observer([&](size_t, const FragWork& w, const Counters& d) {
+    if (!keep(*w.f)) return;
+    c.depth_tests += d.depth_bytes_read > 0;
+    c.depth_samples += d.depth_bytes_read / 4;
+    c.tracked += d.tracker_bytes_written > 0;
+    c.multi_sorts += d.sorts;
+    c.survivors += d.samples_depth_passed;
+    c.opacity_passed += d.samples_opacity_passed;
+  });
+  for (int p = 0; p < m.passes(); ++p) {
+    m.begin_pass(p);
+    m.draw_batch(list.fragments.data(), list.fragments.size());
+  }
+  return c;
+}
+
+/// Checks every row of unit against the unit's own function (rtl_models/algo)
+/// applied to the row's inputs; counts in *interesting the rows with a
+/// property worth seeing (a new surface, two or more to sort, a pass), so a
+/// test can ask for variety.
+void check_rows(const std::string& unit, const Captured& c, const std::string& what, uint64_t* interesting_out) {
+  uint64_t& interesting = *interesting_out;
+  interesting = 0;
+  for (size_t r = 0; r < c.rows.size(); ++r) {
+    const auto& v = c.rows[r];
+    const std::string at = what + " " + unit + " row " + std::to_string(r + 1);
+    if (unit == "depth-test") {
+      ASSERT_EQ(v.size(), 8u) << at;
+      const int spp = std::stoi(v[0]);
+      const uint64_t cov = hex_u64(v[1]);
+      const float z0 = hex_f32(v[2]), dzdx = hex_f32(v[3]), dzdy = hex_f32(v[4]);
+      const auto stored = split_on(v[5], ';'), zs = split_on(v[6], ';');
+      EXPECT_NE(cov, 0u) << at << ": a depth test with nothing to test";
+      const auto pos = standard_sample_positions(spp);
+      uint64_t pass = 0;
+      for (int i = 0; i < spp; ++i) {
+        if (!(cov >> i & 1)) {
+          EXPECT_EQ(zs[size_t(i)], "-") << at;
+          continue;
+        }
+        const float z = plane_depth(z0, dzdx, dzdy, sample_offset(pos[size_t(i)].x), sample_offset(pos[size_t(i)].y));
+        EXPECT_EQ(depth_bits(z), uint32_t(hex_u64(zs[size_t(i)]))) << at << ": sample " << i << "'s depth";
+        if (depth_passes(z, hex_f32(stored[size_t(i)]))) pass |= uint64_t{1} << i;
+      }
+      EXPECT_EQ(pass, hex_u64(v[7])) << at << ": the samples that pass";
+      interesting += pass != cov;
+    } else if (unit == "tracker") {
+      ASSERT_EQ(v.size(), 9u) << at;
+      TrackerState t{hex_u64(v[2]), uint32_t(std::stoul(v[3]))};
+      const uint64_t surviving = hex_u64(v[4]);
+      const TrackResult res = track_surface(t, surviving, std::stoi(v[1]));
+      track_commit(t, surviving);
+      EXPECT_EQ(int(res.new_surface), std::stoi(v[5])) << at;
+      EXPECT_EQ(res.n, uint32_t(std::stoul(v[6]))) << at;
+      EXPECT_EQ(t.surface_id, uint32_t(std::stoul(v[7]))) << at;
+      EXPECT_EQ(t.covered, hex_u64(v[8])) << at;
+      interesting += res.new_surface;
+    } else if (unit == "sorter") {
+      ASSERT_EQ(v.size(), 4u) << at;
+      const int spp = std::stoi(v[0]);
+      const auto stored_s = split_on(v[2], ';');
+      float stored[64];
+      for (int i = 0; i < spp; ++i) stored[i] = hex_f32(stored_s[size_t(i)]);
+      uint8_t order[64];
+      const int m = sort_by_stored_depth(stored, hex_u64(v[1]), order);
+      std::string want;
+      for (int k = 0; k < m; ++k) want += (k ? ";" : "") + std::to_string(order[k]);
+      EXPECT_EQ(v[3], want) << at;
+      interesting += m > 1;
+    } else if (unit == "alpha-ref") {
+      ASSERT_EQ(v.size(), 7u) << at;
+      const uint32_t s = uint32_t(std::stoul(v[0])), sid = uint32_t(std::stoul(v[2])), spp = uint32_t(std::stoul(v[3]));
+      const uint64_t p = std::stoull(v[1]);
+      const int hb = std::stoi(v[4]);
+      const uint32_t idx = alpha_ref_index(s, p, spp, hb);
+      EXPECT_EQ(idx, uint32_t(hex_u64(v[5]))) << at;
+      EXPECT_EQ(calc_alpha_ref_index(idx, sid, hb), uint32_t(hex_u64(v[6]))) << at;
+      interesting += sid > 0;
+    } else if (unit == "opacity") {
+      ASSERT_EQ(v.size(), 5u) << at;
+      const bool pass = opacity_passes(hex_u64(v[2]), std::stoi(v[0]), uint32_t(hex_u64(v[3])), std::stoi(v[1]));
+      EXPECT_EQ(int(pass), std::stoi(v[4])) << at;
+      interesting += pass;
+    } else if (unit == "hilbert") {
+      ASSERT_EQ(v.size(), 4u) << at;
+      const int order = std::stoi(v[0]);
+      EXPECT_EQ(hilbert_xy2d(1u << order, uint32_t(std::stoul(v[1])), uint32_t(std::stoul(v[2]))), hex_u64(v[3])) << at;
+      interesting += 1;
+    }
+  }
+}
+
+uint64_t expect_rows_are_the_unit_function(const std::string& unit, const Captured& c, const std::string& what) {
+  uint64_t interesting = 0;
+  check_rows(unit, c, what, &interesting);
+  return interesting;
+}
+
+}  // namespace
+
+// Vectors from a trace: every row's outputs are the unit's function of the
+// row's inputs, and there is one row per call the replay makes, counted
+// independently from the golden model's counters (per-fragment deltas):
+// lk's depth tests (4 bytes of depth per tested sample), tracker updates
+// (its tracker writes), sorts (the `sorts` counter: rows with two or more
+// survivors), references and opacity tests (one per surviving sample; the
+// passes are samples_opacity_passed) and Hilbert indices (one per fragment
+// that reaches the references). Then a window, a draw id, a second pass,
+// a coverage selection that discards fragments, naive's opacity tests, and
+// the hex format.
+TEST(TraceVectors, EveryRowIsTheUnitFunctionAndEveryCallIsARow) {
+  auto all = [](const Fragment&) { return true; };
+  TraceVectorRequest req;
+  req.input.scene.name = "cloth";
+  req.input.scene.spp = 4;
+  req.input.scene.width = req.input.scene.height = 64;
+  req.method.method = Method::kLk;
+  const Calls lk = count_calls(req.input, req.method, all);
+  ASSERT_GT(lk.tracked, 100u) << "the test needs content";
+  struct Want {
+    const char* unit;
+    uint64_t rows, interesting_at_least;
+  };
+  for (const Want& u : {Want{"depth-test", lk.depth_tests, 1}, Want{"tracker", lk.tracked, 1},
+                        Want{"sorter", lk.tracked, lk.multi_sorts}, Want{"alpha-ref", lk.survivors, 1},
+                        Want{"opacity", lk.survivors, lk.opacity_passed}, Want{"hilbert", lk.tracked, lk.tracked}}) {
+    const Captured c = capture(u.unit, req);
+    EXPECT_EQ(c.rows.size(), u.rows) << u.unit << ": one row per call";
+    EXPECT_EQ(c.returned, c.rows.size()) << u.unit;
+    const uint64_t interesting = expect_rows_are_the_unit_function(u.unit, c, "cloth lk");
+    EXPECT_GE(interesting, u.interesting_at_least) << u.unit << ": the rows lack variety";
+    if (std::string(u.unit) == "sorter") {
+      EXPECT_EQ(interesting, lk.multi_sorts) << "rows with 2+ survivors: sorts";
+    }
+    if (std::string(u.unit) == "opacity") {
+      EXPECT_EQ(interesting, lk.opacity_passed) << "passing rows";
+    }
+  }
+  // The depth test's samples are the counters' 4 bytes each.
+  {
+    const Captured c = capture("depth-test", req);
+    uint64_t samples = 0;
+    for (const auto& v : c.rows) samples += uint64_t(__builtin_popcountll(hex_u64(v[1])));
+    EXPECT_EQ(samples, lk.depth_samples);
+  }
+  // A window: only its pixels' calls.
+  {
+    TraceVectorRequest w = req;
+    w.window = TraceVectorRequest::Window{16, 20, 31, 40};
+    const Calls in_w = count_calls(w.input, w.method,
+                                   [](const Fragment& f) { return f.x >= 16 && f.x <= 31 && f.y >= 20 && f.y <= 40; });
+    ASSERT_GT(in_w.tracked, 0u);
+    ASSERT_LT(in_w.tracked, lk.tracked);
+    EXPECT_EQ(capture("tracker", w).rows.size(), in_w.tracked);
+    EXPECT_EQ(capture("alpha-ref", w).rows.size(), in_w.survivors);
+  }
+  // A draw id (eight-layers: one draw per surface), and lk+ac's two passes,
+  // each of which depth-tests every fragment.
+  {
+    TraceVectorRequest d;
+    d.input.scene.name = "eight-layers";
+    d.input.scene.spp = 4;
+    d.input.scene.width = d.input.scene.height = 32;
+    d.method.method = Method::kLk;
+    d.draw = 3;
+    const Calls c3 = count_calls(d.input, d.method, [](const Fragment& f) { return f.draw_id == 3; });
+    ASSERT_GT(c3.depth_tests, 0u);
+    const Captured dt = capture("depth-test", d);
+    EXPECT_EQ(dt.rows.size(), c3.depth_tests);
+    expect_rows_are_the_unit_function("depth-test", dt, "eight-layers draw 3");
+    d.method.method = Method::kLkAc;
+    d.draw.reset();
+    const Calls ac = count_calls(d.input, d.method, all);
+    const Captured two = capture("depth-test", d);
+    EXPECT_EQ(two.rows.size(), ac.depth_tests);
+    EXPECT_EQ(two.rows.size(), 2 * load_fragments(d.input).fragments.size()) << "every fragment, in both passes";
+    expect_rows_are_the_unit_function("depth-test", two, "eight-layers lk+ac");
+  }
+  // hashed-a2c on the foliage: a fragment its mask discards reaches no
+  // depth test, so there are fewer rows than fragments.
+  {
+    TraceVectorRequest h;
+    h.input.scene.name = "foliage";
+    h.input.scene.spp = 4;
+    h.input.scene.width = h.input.scene.height = 64;
+    h.method.method = Method::kHashedA2c;
+    const Calls hc = count_calls(h.input, h.method, all);
+    const Captured dt = capture("depth-test", h);
+    EXPECT_EQ(dt.rows.size(), hc.depth_tests);
+    EXPECT_LT(dt.rows.size(), load_fragments(h.input).fragments.size()) << "the foliage has discarded fragments";
+    expect_rows_are_the_unit_function("depth-test", dt, "foliage hashed-a2c");
+    // naive: one opacity test per surviving sample, against its 32-bit random reference.
+    h.method.method = Method::kNaive;
+    const Calls nc = count_calls(h.input, h.method, all);
+    const Captured op = capture("opacity", h);
+    EXPECT_EQ(op.rows.size(), nc.survivors);
+    EXPECT_EQ(expect_rows_are_the_unit_function("opacity", op, "foliage naive"), nc.opacity_passed);
+  }
+  // The hex format: the same rows, one word each.
+  {
+    TraceVectorRequest x = req;
+    x.format = "hex";
+    const Captured c = capture("tracker", x);
+    uint64_t words = 0;
+    for (const auto& line : split_on(c.text, '\n')) words += !line.empty() && line.rfind("//", 0) != 0;
+    EXPECT_EQ(words, lk.tracked);
+    EXPECT_EQ(c.returned, lk.tracked);
+  }
+  // A method that never calls the unit, and a unit --trace cannot capture.
+  TraceVectorRequest e = req;
+  e.method.method = Method::kEnderton;
+  EXPECT_THROW(make_trace_vectors("tracker", e, [](std::string_view) {}), std::invalid_argument);
+  EXPECT_THROW(make_trace_vectors("half", req, [](std::string_view) {}), std::invalid_argument);
+  e.method.method = Method::kSlab;
+  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), std::invalid_argument);
+}

@@ -529,10 +529,12 @@ void add_sampling_options(CLI::App* run, RunOpts* ro) {
 void add_design_options(CLI::App* run, RunOpts* ro) {
   run->add_option(
          "--hw", ro->hw,
-         "Hardware design file (TOML, docs/config.md; default: built-in defaults); functional: only its [numerics]")
+         "Hardware design file (TOML, docs/config.md; default: built-in defaults); functional: only its [numerics], "
+         "blend.*_format and [compression]")
       ->check(CLI::ExistingFile);
   run->add_option("--hw-set", ro->hw_sets,
-                  "Override one design parameter, section.key=value; repeatable (functional: numerics.* only)");
+                  "Override one design parameter, section.key=value; repeatable (functional: numerics.*, "
+                  "blend.*_format and compression.* only)");
 }
 
 }  // namespace

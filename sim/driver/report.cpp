@@ -115,7 +115,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   in.put("spp", run.header.spp, "samples", "samples per pixel");
   r.put("method", to_string(ctx.config.method), "-", "the transparency method");
   r.put("seed", ctx.config.seed, "-",
-        "the seed of the method's hash-based random numbers (enderton, naive, hashed, hashed-a2c, slab)");
+        "the seed of the hash-based random numbers, in every report; the methods that draw them: enderton and its "
+        "variants, naive, hashed, hashed-a2c, slab (the others ignore it)");
   if (selection_of(ctx.config.method) == Method::kEnderton)
     r.put("enderton_selection", to_string(ctx.config.enderton_selection), "-",
           "enderton and its variants: depth-first (R of the depth survivors) or original (R of the covered samples, "

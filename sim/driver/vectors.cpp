@@ -10,6 +10,7 @@
 
 #include "alpha_ref.h"
 #include "depth.h"
+#include "golden_model.h"
 #include "half.h"
 #include "hilbert.h"
 #include "opacity.h"
@@ -72,8 +73,62 @@ std::string hex32(uint32_t v) { return fmt::format("{:08x}", v); }
 std::string hexf(float f) { return hex32(depth_bits(f)); }
 std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
 
+// ------------------------------------------------------------- the rows
+// One row of each unit's CSV, written once: the random vectors and the
+// vectors captured from a trace both format their rows here.
+
+const char* const kAlphaRefHeader = "sample_id,pixel_id,surface_id,spp,hash_bits,index_hex,ref_hex\n";
+const char* const kTrackerHeader =
+    "spp,surface_id_bits,covered_in_hex,surface_id_in,surviving_hex,new_surface,n,surface_id_out,covered_out_hex\n";
+const char* const kSorterHeader = "spp,surviving_hex,stored_depths_hex,order\n";
+const char* const kDepthTestHeader =
+    "spp,coverage_hex,z0_hex,dzdx_hex,dzdy_hex,stored_depths_hex,sample_depths_hex,pass_hex\n";
+const char* const kOpacityHeader = "alpha_bits,hash_bits,a_fixed_hex,ref_hex,pass\n";
+const char* const kHilbertHeader = "order,x,y,d_hex\n";
+
+std::string alpha_ref_row(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id, uint32_t spp, int hash_bits,
+                          uint32_t index, uint32_t ref) {
+  return fmt::format("{},{},{},{},{},{},{}\n", sample_id, pixel_id, surface_id, spp, hash_bits, hex32(index),
+                     hex32(ref));
+}
+
+std::string tracker_row(int spp, int surface_id_bits, const TrackerState& in, uint64_t surviving, const TrackResult& r,
+                        const TrackerState& out) {
+  return fmt::format("{},{},{},{},{},{},{},{},{}\n", spp, surface_id_bits, hex64(in.covered), in.surface_id,
+                     hex64(surviving), int(r.new_surface), r.n, out.surface_id, hex64(out.covered));
+}
+
+std::string join_hex_depths(const float* d, int spp) {
+  std::string s;
+  for (int i = 0; i < spp; ++i) s += (i ? ";" : "") + hexf(d[i]);
+  return s;
+}
+
+std::string sorter_row(int spp, uint64_t surviving, const float* stored, const uint8_t* order, int m) {
+  std::string o;
+  for (int k = 0; k < m; ++k) o += (k ? ";" : "") + std::to_string(order[k]);
+  return fmt::format("{},{},{},{}\n", spp, hex64(surviving), join_hex_depths(stored, spp), o);
+}
+
+/// z[i] is read for the covered samples only (the others are "-").
+std::string depth_test_row(int spp, uint64_t coverage, float z0, float dzdx, float dzdy, const float* stored,
+                           const float* z, uint64_t pass) {
+  std::string zs;
+  for (int i = 0; i < spp; ++i) zs += (i ? ";" : "") + (coverage >> i & 1 ? hexf(z[i]) : std::string("-"));
+  return fmt::format("{},{},{},{},{},{},{},{}\n", spp, hex64(coverage), hexf(z0), hexf(dzdx), hexf(dzdy),
+                     join_hex_depths(stored, spp), zs, hex64(pass));
+}
+
+std::string opacity_row(int alpha_bits, int hash_bits, uint64_t a_fixed, uint32_t ref, bool pass) {
+  return fmt::format("{},{},{:09x},{},{}\n", alpha_bits, hash_bits, a_fixed, hex32(ref), int(pass));
+}
+
+std::string hilbert_row(int order, uint32_t x, uint32_t y, uint64_t d) {
+  return fmt::format("{},{},{},{}\n", order, x, y, hex64(d));
+}
+
 std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
-  std::string out = "sample_id,pixel_id,surface_id,spp,hash_bits,index_hex,ref_hex\n";
+  std::string out = kAlphaRefHeader;
   struct Case {
     uint32_t s;
     uint64_t p;
@@ -88,8 +143,7 @@ std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) 
   auto emit = [&](uint32_t s, uint64_t p, uint32_t sid, uint32_t spp) {
     sid &= uint32_t(low_mask(num.surface_id_bits));  // the surface-id register's width
     const uint32_t idx = alpha_ref_index(s, p, spp, num.hash_bits);
-    out += fmt::format("{},{},{},{},{},{},{}\n", s, p, sid, spp, num.hash_bits, hex32(idx),
-                       hex32(calc_alpha_ref_index(idx, sid, num.hash_bits)));
+    out += alpha_ref_row(s, p, sid, spp, num.hash_bits, idx, calc_alpha_ref_index(idx, sid, num.hash_bits));
     ++n;
   };
   for (const auto& c : directed) {
@@ -105,15 +159,14 @@ std::string alpha_ref_vectors(uint64_t count, VecRng& rng, const Numerics& num) 
 }
 
 std::string tracker_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
-  std::string out =
-      "spp,surface_id_bits,covered_in_hex,surface_id_in,surviving_hex,new_surface,n,surface_id_out,covered_out_hex\n";
+  std::string out = kTrackerHeader;
   uint64_t n = 0;
   auto emit = [&](int spp, uint64_t covered, uint32_t sid, uint64_t surviving) {
-    TrackerState t{covered, sid};
+    const TrackerState in{covered, sid};
+    TrackerState t = in;
     TrackResult r = track_surface(t, surviving, num.surface_id_bits);
     track_commit(t, surviving);
-    out += fmt::format("{},{},{},{},{},{},{},{},{}\n", spp, num.surface_id_bits, hex64(covered), sid, hex64(surviving),
-                       int(r.new_surface), r.n, t.surface_id, hex64(t.covered));
+    out += tracker_row(spp, num.surface_id_bits, in, surviving, r, t);
     ++n;
   };
   const uint32_t sid_max = uint32_t(low_mask(num.surface_id_bits));
@@ -134,14 +187,8 @@ std::string tracker_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
   return out;
 }
 
-std::string join_hex_depths(const float* d, int spp) {
-  std::string s;
-  for (int i = 0; i < spp; ++i) s += (i ? ";" : "") + hexf(d[i]);
-  return s;
-}
-
 std::string sorter_vectors(uint64_t count, VecRng& rng) {
-  std::string out = "spp,surviving_hex,stored_depths_hex,order\n";
+  std::string out = kSorterHeader;
   for (uint64_t n = 0; n < count; ++n) {
     const int spp = n < 2 ? rng.directed_spp(64) : rng.spp();
     float d[64];
@@ -149,15 +196,13 @@ std::string sorter_vectors(uint64_t count, VecRng& rng) {
     const uint64_t s = n < 2 ? low_mask(spp) : rng.mask(spp);
     uint8_t order_ids[64];
     const int m = sort_by_stored_depth(d, s, order_ids);  // the golden model's sorter
-    std::string order;
-    for (int k = 0; k < m; ++k) order += (k ? ";" : "") + std::to_string(order_ids[k]);
-    out += fmt::format("{},{},{},{}\n", spp, hex64(s), join_hex_depths(d, spp), order);
+    out += sorter_row(spp, s, d, order_ids, m);
   }
   return out;
 }
 
 std::string depth_test_vectors(uint64_t count, VecRng& rng) {
-  std::string out = "spp,coverage_hex,z0_hex,dzdx_hex,dzdy_hex,stored_depths_hex,sample_depths_hex,pass_hex\n";
+  std::string out = kDepthTestHeader;
   for (uint64_t n = 0; n < count; ++n) {
     const int spp = rng.spp();
     const auto pos = standard_sample_positions(spp);
@@ -171,30 +216,24 @@ std::string depth_test_vectors(uint64_t count, VecRng& rng) {
     float stored[64], z[64];
     for (int i = 0; i < spp; ++i) stored[i] = rng.below(3) ? rng.depth() : z0;  // ties with z0
     uint64_t pass = 0;
-    std::string zs;
-    for (int i = 0; i < spp; ++i) {
+    for (int i = 0; i < spp; ++i)
       if (cov >> i & 1) {
         z[i] = plane_depth(z0, dzdx, dzdy, sample_offset(pos[i].x), sample_offset(pos[i].y));
         if (depth_passes(z[i], stored[i])) pass |= uint64_t{1} << i;
-        zs += (i ? ";" : "") + hexf(z[i]);
-      } else {
-        zs += (i ? ";" : "") + std::string("-");
       }
-    }
-    out += fmt::format("{},{},{},{},{},{},{},{}\n", spp, hex64(cov), hexf(z0), hexf(dzdx), hexf(dzdy),
-                       join_hex_depths(stored, spp), zs, hex64(pass));
+    out += depth_test_row(spp, cov, z0, dzdx, dzdy, stored, z, pass);
   }
   return out;
 }
 
 std::string opacity_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
-  std::string out = "alpha_bits,hash_bits,a_fixed_hex,ref_hex,pass\n";
+  std::string out = kOpacityHeader;
   const int ab = num.alpha_bits, hb = num.hash_bits;
   const uint64_t a_max = uint64_t{1} << ab;
   const uint32_t r_max = uint32_t(low_mask(hb));
   uint64_t n = 0;
   auto emit = [&](uint64_t a, uint32_t ref) {
-    out += fmt::format("{},{},{:09x},{},{}\n", ab, hb, a, hex32(ref), int(opacity_passes(a, ab, ref, hb)));
+    out += opacity_row(ab, hb, a, ref, opacity_passes(a, ab, ref, hb));
     ++n;
   };
   // Directed: alpha 0 never passes, alpha 1 always, the ends of ref's range.
@@ -214,10 +253,10 @@ std::string opacity_vectors(uint64_t count, VecRng& rng, const Numerics& num) {
 }
 
 std::string hilbert_vectors(uint64_t count, VecRng& rng, int order) {
-  std::string out = "order,x,y,d_hex\n";
+  std::string out = kHilbertHeader;
   uint64_t n = 0;
   auto emit = [&](int k, uint32_t x, uint32_t y) {
-    out += fmt::format("{},{},{},{}\n", k, x, y, hex64(hilbert_xy2d(1u << k, x, y)));
+    out += hilbert_row(k, x, y, hilbert_xy2d(1u << k, x, y));
     ++n;
   };
   // Directed: the 4 x 4 grid of hilbert.h's comment (order 2), then corners.
@@ -326,10 +365,9 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-/// The CSV rows of `unit` as $readmemh words: a comment block naming each
-/// field's bits, then one line per vector, the first column in the most
-/// significant digits; a list's element i at [lo + i * bits +: bits].
-std::string csv_to_hex(const std::string& unit, const std::string& csv) {
+/// The comment block that opens unit's hex file: the word width and each
+/// field's bits.
+std::string hex_comment(const std::string& unit) {
   const auto& layout = hex_layout(unit);
   int total = 0;
   for (const ColSpec& c : layout) total += 4 * ((c.bits + 3) / 4) * c.count;
@@ -344,33 +382,187 @@ std::string csv_to_hex(const std::string& unit, const std::string& csv) {
       out += fmt::format("//   [{}:{}] {}: {} x {} bits, element i at [{} + {} * i +: {}]\n", hi + w * c.count - 1, hi,
                          c.name, c.count, w, hi, w, w);
   }
-  const auto lines = split(csv, '\n');
-  for (size_t r = 1; r < lines.size(); ++r) {
-    if (lines[r].empty()) continue;
-    const auto cols = split(lines[r], ',');
-    if (cols.size() != layout.size())
-      throw std::logic_error("vectors: hex layout of " + unit + " does not fit its CSV");
-    std::string word;
-    for (size_t c = 0; c < layout.size(); ++c) {
-      const ColSpec& spec = layout[c];
-      const int digits = (spec.bits + 3) / 4;
-      std::vector<std::string> vals = spec.count == 1 ? std::vector<std::string>{cols[c]} : split(cols[c], ';');
-      vals.resize(size_t(spec.count));
-      // A list's last element first: the word's most significant digits.
-      for (int i = spec.count - 1; i >= 0; --i) {
-        const std::string& v = vals[size_t(i)];
-        uint64_t x = 0;
-        if (!v.empty() && v != "-")
-          x = std::stoull(v, nullptr, spec.kind == Col::kDec || spec.kind == Col::kDecList ? 10 : 16);
-        word += fmt::format("{:0{}x}", x, digits);
-      }
-    }
-    out += word + "\n";
-  }
   return out;
 }
 
+/// One CSV row (no newline) of unit as its $readmemh word: the first column
+/// in the most significant digits; a list's element i at [lo + i * bits +: bits].
+std::string hex_word(const std::string& unit, const std::string& row) {
+  const auto& layout = hex_layout(unit);
+  const auto cols = split(row, ',');
+  if (cols.size() != layout.size()) throw std::logic_error("vectors: hex layout of " + unit + " does not fit its CSV");
+  std::string word;
+  for (size_t c = 0; c < layout.size(); ++c) {
+    const ColSpec& spec = layout[c];
+    const int digits = (spec.bits + 3) / 4;
+    std::vector<std::string> vals = spec.count == 1 ? std::vector<std::string>{cols[c]} : split(cols[c], ';');
+    vals.resize(size_t(spec.count));
+    // A list's last element first: the word's most significant digits.
+    for (int i = spec.count - 1; i >= 0; --i) {
+      const std::string& v = vals[size_t(i)];
+      uint64_t x = 0;
+      if (!v.empty() && v != "-")
+        x = std::stoull(v, nullptr, spec.kind == Col::kDec || spec.kind == Col::kDecList ? 10 : 16);
+      word += fmt::format("{:0{}x}", x, digits);
+    }
+  }
+  return word;
+}
+
+/// The CSV rows of `unit` as $readmemh words: the comment block, then one
+/// line per vector.
+std::string csv_to_hex(const std::string& unit, const std::string& csv) {
+  std::string out = hex_comment(unit);
+  const auto lines = split(csv, '\n');
+  for (size_t r = 1; r < lines.size(); ++r)
+    if (!lines[r].empty()) out += hex_word(unit, lines[r]) + "\n";
+  return out;
+}
+
+// ------------------------------------------------------ vectors from a trace
+
+/// Formats each captured call of one unit as its row (or hex word) and
+/// hands the text to the sink in pieces of about a megabyte.
+class VectorCapture : public RopObserver {
+ public:
+  VectorCapture(const std::string& unit, const TraceHeader& h, const TraceVectorRequest& req,
+                const std::function<void(std::string_view)>& write)
+      : unit_(unit), spp_(h.spp), req_(req), hex_(req.format == "hex"), write_(write) {}
+
+  void depth_tested(const FragWork& w) override {
+    if (unit_ != "depth-test" || !keep(w)) return;
+    const Fragment& f = *w.f;
+    emit(depth_test_row(spp_, w.covered, f.z0, f.dzdx, f.dzdy, w.px.depth, w.z, w.survivors));
+  }
+  void tracked(const FragWork& w, const TrackerState& before, int surface_id_bits) override {
+    if (unit_ == "tracker" && keep(w))
+      emit(tracker_row(spp_, surface_id_bits, before, w.survivors, w.lk.track, *w.px.tracker));
+  }
+  void sorted(const FragWork& w) override {
+    if (unit_ == "sorter" && keep(w)) emit(sorter_row(spp_, w.survivors, w.px.depth, w.lk.order, int(w.m)));
+  }
+  void referenced(const FragWork& w, uint32_t hilbert_n, uint64_t pixel_id, int hash_bits) override {
+    if (!keep(w)) return;
+    if (unit_ == "hilbert") emit(hilbert_row(__builtin_ctz(hilbert_n), w.f->x, w.f->y, pixel_id));
+    if (unit_ != "alpha-ref") return;
+    for (uint32_t j = 0; j < w.m; ++j) {
+      const uint32_t sample_id = w.lk.track.n + j;  // the running index of LK Fig. 7 line 11
+      emit(alpha_ref_row(sample_id, pixel_id, w.lk.track.surface_id, uint32_t(spp_), hash_bits,
+                         alpha_ref_index(sample_id, pixel_id, uint32_t(spp_), hash_bits), w.lk.ref[j]));
+    }
+  }
+  void opacity_tested(const FragWork& w, uint64_t a_fixed, int alpha_bits, uint32_t ref, int hash_bits,
+                      bool passed) override {
+    if (unit_ == "opacity" && keep(w)) emit(opacity_row(alpha_bits, hash_bits, a_fixed, ref, passed));
+  }
+
+  uint64_t rows() const { return rows_; }
+  void start() { buf_ = hex_ ? hex_comment(unit_) : header_of(unit_); }
+  void finish() {
+    if (!buf_.empty()) write_(buf_);
+    buf_.clear();
+  }
+
+ private:
+  static std::string header_of(const std::string& unit) {
+    if (unit == "alpha-ref") return kAlphaRefHeader;
+    if (unit == "tracker") return kTrackerHeader;
+    if (unit == "sorter") return kSorterHeader;
+    if (unit == "depth-test") return kDepthTestHeader;
+    if (unit == "opacity") return kOpacityHeader;
+    return kHilbertHeader;
+  }
+  bool keep(const FragWork& w) const {
+    const Fragment& f = *w.f;
+    if (req_.draw && f.draw_id != *req_.draw) return false;
+    if (const auto& b = req_.window) return f.x >= b->x0 && f.x <= b->x1 && f.y >= b->y0 && f.y <= b->y1;
+    return true;
+  }
+  void emit(const std::string& row) {
+    ++rows_;
+    if (hex_)
+      buf_ += hex_word(unit_, row.substr(0, row.size() - 1)) + "\n";
+    else
+      buf_ += row;
+    if (buf_.size() >= (size_t{1} << 20)) finish();
+  }
+  std::string unit_;
+  int spp_;
+  const TraceVectorRequest& req_;
+  bool hex_;
+  const std::function<void(std::string_view)>& write_;
+  std::string buf_;
+  uint64_t rows_ = 0;
+};
+
+/// Does method m's ROP call unit's rule? Empty if so, else why not.
+std::string calls_unit(Method m, const std::string& unit) {
+  const MethodTraits& t = traits(selection_of(m));
+  const char* name = to_string(m);
+  if (!traits(m).pipeline) return std::string("the ") + name + " method has no ROP pipeline";
+  if (unit == "depth-test" && m == Method::kSlab)
+    return "slab has no per-sample depth test (its layers hold the depth)";
+  if ((unit == "tracker" && !t.tracker) || (unit == "sorter" && !t.sorter) ||
+      ((unit == "alpha-ref" || unit == "hilbert") && selection_of(m) != Method::kLk) ||
+      (unit == "opacity" && selection_of(m) != Method::kLk && m != Method::kNaive))
+    return std::string(name) + " never calls the " + unit + " unit (lk and its variants do" +
+           (unit == "opacity" ? ", and naive" : "") + ")";
+  return "";
+}
+
 }  // namespace
+
+const std::vector<std::string>& trace_vector_units() {
+  static const std::vector<std::string> u = {"alpha-ref", "tracker", "sorter", "depth-test", "opacity", "hilbert"};
+  return u;
+}
+
+uint64_t make_trace_vectors(const std::string& unit, const TraceVectorRequest& req,
+                            const std::function<void(std::string_view)>& write) {
+  const auto& units = trace_vector_units();
+  if (std::find(units.begin(), units.end(), unit) == units.end()) {
+    std::string known;
+    for (const auto& u : units) known += (known.empty() ? "" : ", ") + u;
+    throw std::invalid_argument("--trace captures the calls of " + known + ", not " + unit);
+  }
+  if (req.format != "csv" && req.format != "hex") throw std::invalid_argument("format must be csv or hex");
+  if (const std::string why = calls_unit(req.method.method, unit); !why.empty())
+    throw std::invalid_argument(unit + " vectors of " + to_string(req.method.method) + ": " + why);
+  if (const auto& b = req.window; b && (b->x0 > b->x1 || b->y0 > b->y1))
+    throw std::invalid_argument("--window: x0 > x1 or y0 > y1");
+  auto src = open_fragments(req.input);
+  const TraceHeader h = src->header();
+  if (unit == "depth-test") {
+    // The depth-test vectors hold a plane and the standard sample positions.
+    if (h.depth_mode != DepthMode::kPlane)
+      throw std::invalid_argument(
+          req.input.describe() +
+          ": the trace stores per-sample depths; depth-test vectors take a plane (z0, dzdx, dzdy)");
+    const auto standard = standard_sample_positions(h.spp);
+    for (int i = 0; i < h.spp; ++i)
+      if (h.positions[size_t(i)].x != standard[size_t(i)].x || h.positions[size_t(i)].y != standard[size_t(i)].y)
+        throw std::invalid_argument(req.input.describe() + ": sample " + std::to_string(i) +
+                                    "'s position is not the standard one of " + std::to_string(h.spp) +
+                                    " spp, which the depth-test vectors assume");
+  }
+  StochasticModel model(h, req.method, 1);
+  VectorCapture capture(unit, h, req, write);
+  model.set_rop_observer(&capture);
+  capture.start();
+  std::vector<Fragment> batch(4096);
+  for (int pass = 0; pass < model.passes(); ++pass) {
+    if (pass > 0) src = open_fragments(req.input);  // every pass replays the input
+    model.begin_pass(pass);
+    for (;;) {
+      size_t n = 0;
+      while (n < batch.size() && src->next(batch[n])) ++n;
+      if (n == 0) break;
+      model.draw_batch(batch.data(), n);
+    }
+  }
+  capture.finish();
+  return capture.rows();
+}
 
 const std::vector<std::string>& vector_formats() {
   static const std::vector<std::string> f = {"csv", "hex"};

@@ -2,9 +2,14 @@
 // header row, inputs then outputs, floats as IEEE-754 bit patterns in hex.
 #pragma once
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "fragment_source.h"
+#include "method.h"
 #include "numerics.h"
 
 namespace ropsim {
@@ -27,5 +32,35 @@ struct VectorOptions {
 /// or an option out of range.
 std::string make_vectors(const std::string& unit, uint64_t count, uint64_t seed, const Numerics& num,
                          const VectorOptions& opt = {});
+
+/// The units whose calls a replay captures (make_trace_vectors): every unit
+/// of vector_units() that the functional ROP's stages call (half is
+/// memoised, not called per fragment).
+const std::vector<std::string>& trace_vector_units();
+
+/// Which calls of a replay become vectors.
+struct TraceVectorRequest {
+  InputSpec input;      ///< the trace (or scene) replayed
+  MethodConfig method;  ///< the method replayed; its numerics are the datapaths' widths
+  std::string format = "csv";
+  struct Window {
+    uint32_t x0, y0, x1, y1;  ///< pixels x0 <= x <= x1, y0 <= y <= y1
+  };
+  std::optional<Window> window;  ///< only the calls for fragments of these pixels
+  std::optional<uint32_t> draw;  ///< only the calls for fragments of this draw id
+};
+
+/// Replays the input through the golden model (one thread, every pass of
+/// the method in order) and writes, through `write`, unit's vectors in the
+/// format of make_vectors: the header (or the hex comment block), then one
+/// row per call the ROP's stages make of the unit's rule, in the order made,
+/// with the inputs and outputs the stage used (captured by a RopObserver,
+/// not recomputed). Returns the rows written. Throws std::invalid_argument
+/// for a unit --trace cannot capture, a method that never calls it, or a
+/// depth-test input the vectors' columns cannot hold (per-sample depths,
+/// sample positions other than the standard ones); TraceError or SceneError
+/// for bad input.
+uint64_t make_trace_vectors(const std::string& unit, const TraceVectorRequest& req,
+                            const std::function<void(std::string_view)>& write);
 
 }  // namespace ropsim

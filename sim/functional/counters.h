@@ -16,14 +16,17 @@ namespace ropsim {
   X(samples_depth_passed, "samples",                                                                                \
     "samples that passed the depth test (a2c, hashed, hashed-a2c: among the samples the mask kept)", kAll)          \
   X(samples_opacity_passed, "samples",                                                                              \
-    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen; a2c, hashed, "         \
-    "hashed-a2c: the mask)",                                                                                        \
+    "samples that passed the opacity decision (lk: the opacity test; enderton: the R chosen, with original of the " \
+    "covered samples, some of which may fail the depth test; a2c, hashed, hashed-a2c: the mask)",                   \
     kAll)                                                                                                           \
   X(samples_written, "samples", "samples whose depth and colour were written (slab: mask bits of inserted layers)", \
     kAll)                                                                                                           \
   X(surface_id_changes, "events", "lk: new surfaces started by a bitmask conflict", kAll)                           \
   X(sorts, "fragments", "lk: fragments with 2 or more surviving samples to sort", kAll)                             \
-  X(depth_bytes_read, "bytes", "4 per tested sample (binary32 depth; slab: none, its layers hold the depth)", kAll) \
+  X(depth_bytes_read, "bytes",                                                                                      \
+    "4 per depth-tested sample (binary32 depth; a2c, hashed, hashed-a2c: the samples the mask kept, none for a "    \
+    "discarded fragment; slab: none, its layers hold the depth)",                                                   \
+    kAll)                                                                                                           \
   X(depth_bytes_written, "bytes", "4 per written sample", kAll)                                                     \
   X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)", kAll)                                      \
   X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment", kAll)                        \

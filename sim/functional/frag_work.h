@@ -29,8 +29,9 @@ struct FragWork {
     uint32_t ref[64];   ///< alpha reference of the j-th sorted survivor order[j]
   };
   struct Enderton {
-    uint32_t count;  ///< R = floor(alpha m + xi): samples to write
-    int list[64];    ///< list[0..count): the chosen samples, in choice order
+    uint32_t chosen;  ///< R = floor(alpha n + xi): the samples chosen (n: m, or the covered with `original`)
+    uint32_t count;   ///< samples to write: R (original: the chosen that passed the depth test)
+    int list[64];     ///< list[0..count): the samples to write, in choice order
   };
   struct Naive {
     uint32_t ref[64];  ///< random reference of survivor sample i, at index i

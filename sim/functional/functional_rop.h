@@ -19,6 +19,7 @@
 #include "depth.h"
 #include "frag_work.h"
 #include "method.h"
+#include "rop_observer.h"
 #include "sample_store.h"
 #include "trace.h"
 
@@ -42,6 +43,7 @@ struct RopSetup {
   std::array<uint64_t, 65> a2c_prefix{};         ///< a2c: mask of the first k samples
   std::array<uint64_t, 64> slab_bits_of{};       ///< slab: the mask bits sample s owns
   uint32_t slab_bytes = 0;                       ///< slab: one pixel's layers in memory (slab_pixel_bytes)
+  RopObserver* observer = nullptr;               ///< told every unit call (FunctionalRop::set_observer)
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
   /// from its plane, or its stored per-sample depths.
@@ -189,6 +191,10 @@ class FunctionalRop {
   /// The method's image from the final state: the box-filter resolve, or its
   /// composite (alpha correction, depth-based, wboit: composite.h).
   Image resolve() const;
+
+  /// Tells o (not owned; null: nobody) every call the stages make of a unit's
+  /// rule, with its inputs and outputs (rop_observer.h), from here on.
+  void set_observer(RopObserver* o) { setup_.observer = o; }
 
   /// One fragment through every stage of its method, in order: fetch, the
   /// depth test, and unless it killed the fragment, the stages its traits name.

@@ -68,7 +68,6 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
   c_.samples_tested += covered;
-  c_.depth_bytes_read += kDepthSampleBytes * covered;
   uint64_t tested = f.coverage;
   // Blend passes: the plain test, no coverage selection, no tracker.
   [[maybe_unused]] const bool stochastic = !(passes_of(M).count > 1 || traits(M).wboit) || !is_blend_pass(s_.pass);
@@ -89,6 +88,11 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
       selection_hashes_ += 3;
     }
     c_.samples_opacity_passed += uint64_t(__builtin_popcountll(tested));
+    if (!tested) {  // discarded: the fragment reaches no depth test and reads no depth
+      w.covered = w.survivors = 0;
+      w.m = 0;
+      return 0;
+    }
   }
   if constexpr (kT.tracker)
     if (stochastic) c_.tracker_bytes_read += s_.tracker_bytes;
@@ -96,7 +100,6 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     // SLAB has no per-sample depth: it reads the pixel's layers, draws the
     // fragment's stratified b-bit mask among the bits of its covered samples
     // and lets it on only where nearer layers leave some of its bits open.
-    c_.depth_bytes_read -= kDepthSampleBytes * covered;  // no per-sample depth read
     c_.layer_bytes_read += s_.slab_bytes;
     float z[64];
     s_.sample_depths(f, f.coverage, z);
@@ -124,6 +127,10 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.samples_depth_passed += w.m;
     return covered;
   }
+  // The stored depth of each tested sample is read (a2c, hashed, hashed-a2c:
+  // only the samples their mask kept).
+  const uint32_t n_tested = uint32_t(__builtin_popcountll(tested));
+  c_.depth_bytes_read += kDepthSampleBytes * n_tested;
   // Each tested sample's depth and its test, in one pass; branch-free:
   // pass/fail is data-dependent.
   uint64_t S = 0;
@@ -149,14 +156,19 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   w.survivors = S;
   w.m = uint32_t(__builtin_popcountll(S));
   c_.samples_depth_passed += w.m;
-  return uint32_t(__builtin_popcountll(tested));
+  if (s_.observer) s_.observer->depth_tested(w);
+  return n_tested;
 }
 
 inline uint32_t DepthStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 
 inline void TrackStage::run(FragWork& w) {
+  RopObserver* const obs = s_.observer;
+  TrackerState before{};
+  if (obs) before = *w.px.tracker;
   w.lk.track = track_surface(*w.px.tracker, w.survivors, s_.cfg.numerics.surface_id_bits);
   track_commit(*w.px.tracker, w.survivors);  // line 18: the state is not read again for this fragment
+  if (obs) obs->tracked(w, before, s_.cfg.numerics.surface_id_bits);
   c_.surface_id_changes += w.lk.track.new_surface;
   c_.tracker_bytes_written += s_.tracker_bytes;
 }
@@ -164,6 +176,7 @@ inline void TrackStage::run(FragWork& w) {
 inline uint32_t SortStage::run(FragWork& w) {
   const int m = sort_by_stored_depth(w.px.depth, w.survivors, w.lk.order);
   c_.sorts += m > 1;
+  if (s_.observer) s_.observer->sorted(w);
   return uint32_t(m);
 }
 
@@ -174,6 +187,7 @@ inline uint32_t ReferenceStage::run_as(FragWork& w) {
     const uint64_t pixel_id = hilbert_xy2d(s_.hilbert_n, f.x, f.y);
     calc_alpha_refs(w.lk.track.n, int(w.m), pixel_id, w.lk.track.surface_id, uint32_t(s_.spp),
                     s_.cfg.numerics.hash_bits, w.lk.ref);
+    if (s_.observer) s_.observer->referenced(w, s_.hilbert_n, pixel_id, s_.cfg.numerics.hash_bits);
     return w.m;
   } else if constexpr (selection_of(M) == Method::kEnderton) {
     // Depth-first: R of the m depth survivors. Original: R of the c covered
@@ -186,7 +200,7 @@ inline uint32_t ReferenceStage::run_as(FragWork& w) {
     const uint64_t key = s_.random_key(f);
     const uint32_t r = enderton_count(memo_.fixed_alpha(f.alpha), s_.cfg.numerics.alpha_bits, n, key);
     enderton_pick(w.enderton.list, n, r, key);
-    w.enderton.count = r;
+    w.enderton.chosen = w.enderton.count = r;
     if (original) {  // keep the chosen survivors, in choice order
       uint32_t kept = 0;
       for (uint32_t j = 0; j < r; ++j)
@@ -211,6 +225,7 @@ inline uint32_t ReferenceStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 template <Method M>
 inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
+  [[maybe_unused]] RopObserver* const obs = s_.observer;
   const uint16_t* rgb16 = memo_.half_color(w.f->rgb);
   uint64_t wrote = 0;
   uint32_t examined = w.m;
@@ -239,7 +254,9 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];
-      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
+      const bool pass = opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits);
+      if (obs) obs->opacity_tested(w, a, num.alpha_bits, w.lk.ref[j], num.hash_bits, pass);
+      if (pass) {
         write(i, z[i]);
         wrote |= uint64_t{1} << i;
       }
@@ -251,13 +268,15 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
       write(i, z[i]);
       wrote |= uint64_t{1} << i;
     }
-    c_.samples_opacity_passed += w.enderton.count;
+    c_.samples_opacity_passed += w.enderton.chosen;  // the opacity decision: R (original: some then fail depth)
     examined = w.enderton.count;
   } else if constexpr (M == Method::kNaive) {
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
-      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) {
+      const bool pass = opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32);
+      if (obs) obs->opacity_tested(w, a, num.alpha_bits, w.naive.ref[i], 32, pass);
+      if (pass) {
         px.write_sample(i, z[i], rgb16);
         wrote |= uint64_t{1} << i;
       }

@@ -45,6 +45,10 @@ StochasticModel::~StochasticModel() = default;
 
 const FunctionalRop& StochasticModel::lane0() const { return lanes_[0]->rop; }
 
+void StochasticModel::set_rop_observer(RopObserver* o) {
+  for (auto& l : lanes_) l->rop.set_observer(o);
+}
+
 size_t StochasticModel::lane_of(uint32_t x, uint32_t y) const {
   if (lanes_.size() == 1) return 0;
   // Tiles dealt by a hash of their position: neighbouring tiles land in

@@ -90,6 +90,10 @@ class StochasticModel : public FunctionalModel {
   /// concurrently for fragments of different lanes (never for one index
   /// twice). Empty: nothing is called.
   void set_observer(std::function<void(size_t, const FragWork&)> f) { observer_ = std::move(f); }
+  /// Tells o (not owned; null: nobody) every unit call of every lane's ROP
+  /// (FunctionalRop::set_observer, rop_observer.h). On several threads the
+  /// lanes call it concurrently; on one, in API order.
+  void set_rop_observer(RopObserver* o);
   /// Like set_observer, with what the fragment added to the counters (every
   /// counter, so the deltas of a run add up to counters() exactly). Costs two
   /// counter snapshots per fragment; empty: nothing is called.
