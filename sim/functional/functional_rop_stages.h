@@ -252,11 +252,15 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     return 1;
   } else if constexpr (selection_of(M) == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    // The observer sees each test in its own loop, so the write loop stays
+    // the one the golden model runs without it.
+    if (obs)
+      for (uint32_t j = 0; j < w.m; ++j)
+        obs->opacity_tested(w, a, num.alpha_bits, w.lk.ref[j], num.hash_bits,
+                            opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits));
     for (uint32_t j = 0; j < w.m; ++j) {
       const int i = w.lk.order[j];
-      const bool pass = opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits);
-      if (obs) obs->opacity_tested(w, a, num.alpha_bits, w.lk.ref[j], num.hash_bits, pass);
-      if (pass) {
+      if (opacity_passes(a, num.alpha_bits, w.lk.ref[j], num.hash_bits)) {
         write(i, z[i]);
         wrote |= uint64_t{1} << i;
       }
@@ -272,11 +276,15 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     examined = w.enderton.count;
   } else if constexpr (M == Method::kNaive) {
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
+    if (obs)
+      for (uint64_t s = w.survivors; s; s &= s - 1) {
+        const int i = __builtin_ctzll(s);
+        obs->opacity_tested(w, a, num.alpha_bits, w.naive.ref[i], 32,
+                            opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32));
+      }
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
-      const bool pass = opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32);
-      if (obs) obs->opacity_tested(w, a, num.alpha_bits, w.naive.ref[i], 32, pass);
-      if (pass) {
+      if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) {
         px.write_sample(i, z[i], rgb16);
         wrote |= uint64_t{1} << i;
       }
