@@ -503,8 +503,9 @@ namespace {
 
 /// A small functional study of eight-layers named `name`, one point per method.
 std::string tiny_study(const std::string& name, const std::string& methods, const std::string& extra = "") {
-  return "[study]\nname = \"" + name + "\"\n" + extra + "\n[inputs]\nscenes = [\"eight-layers\"]\n[axes]\nmethod = " +
-         methods + "\nspp = [4]\nwidth = 32\nheight = 32\n";
+  return "[study]\nname = \"" + name + "\"\n" + extra +
+         "\n[inputs]\nscenes = [\"eight-layers\"]\n[axes]\nmethod = " + methods +
+         "\nspp = [4]\nwidth = 32\nheight = 32\n";
 }
 
 /// Deletes a point's row from a study's database (as a user tidying up would).

@@ -234,8 +234,8 @@ VerbRunner add_study_command(CLI::App& app) {
   run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
   run->add_flag("--retry-failed", o->retry_failed,
                 "Run again the points whose input error is recorded (host failures always run again)");
-  CLI::Option* force = run->add_flag(
-      "--force", o->force, "The folder holds another study's results (or this study's with other points): replace them");
+  CLI::Option* force = run->add_flag("--force", o->force,
+                                     "Replace the folder's results (another study's, or this one's) before running");
   run->add_flag("--extend", o->extend,
                 "The study adds points to those the folder holds: keep them, run the new ones (refused if one of "
                 "them changed)")

@@ -252,8 +252,7 @@ const LivePoints& point_library(const ResolvedPoint& r, const std::string& dir, 
         } catch (const SystemError& e) {
           if (unusable.empty()) throw;
           throw SystemError(lib.string() + ": the cached library is unusable (" + unusable +
-                                ") and could not be written again: " + e.what() +
-                                "; remove it and run the study again",
+                                ") and could not be written again: " + e.what() + "; remove it and run the study again",
                             e.error_number());
         }
         if (!unusable.empty()) rebuilt = "recorded again in place of a cached library that was unusable: " + unusable;
@@ -342,7 +341,7 @@ std::string sqlite_uri(const fs::path& p) {
 
 /// A point's row as a study's database records it.
 struct RowState {
-  std::string status, error;              ///< "ok" / "failed", the error
+  std::string status, error;                    ///< "ok" / "failed", the error
   StudyFailure failure = StudyFailure::kInput;  ///< when failed
 };
 
@@ -416,8 +415,7 @@ class Db {
     declared = has_table("points");
     if (declared) {
       sqlite3_stmt* st = prepare("SELECT point, params FROM points ORDER BY point_index");
-      while (sqlite3_step(st) == SQLITE_ROW)
-        v.push_back({text(st, 0), text(st, 1)});
+      while (sqlite3_step(st) == SQLITE_ROW) v.push_back({text(st, 0), text(st, 1)});
       sqlite3_finalize(st);
       declared = !v.empty();
     }
@@ -470,8 +468,8 @@ class Db {
     std::map<std::string, RowState> m;
     sqlite3_stmt* st = prepare("SELECT point, status, error, failure FROM results");
     while (sqlite3_step(st) == SQLITE_ROW)
-      m[text(st, 0)] = RowState{text(st, 1), text(st, 2),
-                                text(st, 3) == "host" ? StudyFailure::kHost : StudyFailure::kInput};
+      m[text(st, 0)] =
+          RowState{text(st, 1), text(st, 2), text(st, 3) == "host" ? StudyFailure::kHost : StudyFailure::kInput};
     sqlite3_finalize(st);
     return m;
   }
@@ -619,7 +617,8 @@ Outcome record_from_folder(Db& db, const std::string& dir, const StudyPoint& p) 
     db.put_row(row);
     return Outcome::kOk;
   }
-  for (const auto& [file, kind] : {std::pair{"error.txt", StudyFailure::kInput}, {"host-error.txt", StudyFailure::kHost}})
+  for (const auto& [file, kind] :
+       {std::pair{"error.txt", StudyFailure::kInput}, {"host-error.txt", StudyFailure::kHost}})
     if (fs::exists(pd / file)) {
       db.put_row(row_of(p, "failed", recorded_error(pd / file), nullptr, kind));
       return kind == StudyFailure::kHost ? Outcome::kHostFailure : Outcome::kInputFailure;
@@ -719,7 +718,7 @@ void remove_study_results(const std::string& dir) {
 
 /// Checks that the study folder dir holds s (o.use), naming the folder and
 /// the study recorded there when it does not. Returns true when its results
-/// must be removed first (--force on another study).
+/// must be removed first (--force, whatever study they are of).
 ///
 /// Two studies are the same when they have the same points, a point being
 /// its hash: every parameter, the contents of the design files it names, the
@@ -729,6 +728,7 @@ bool replaces_folder(Db& db, const Study& s, const std::vector<StudyPoint>& poin
   bool declared = false;
   const std::vector<RecordedPoint> rec = db.recorded_points(declared);
   if (rec.empty()) return false;  // a new folder, or one that holds nothing yet
+  if (o.use == StudyFolderUse::kReplace) return true;
   std::map<std::string, const StudyPoint*> now;
   std::map<std::string, const StudyPoint*> by_params;
   for (const auto& p : points) {
@@ -742,7 +742,6 @@ bool replaces_folder(Db& db, const Study& s, const std::vector<StudyPoint>& poin
   // A folder that did not declare its points holds the results of some:
   // they are the study's when they are among its points.
   if (gone.empty() && (added == 0 || !declared)) return false;
-  if (o.use == StudyFolderUse::kReplace) return true;
   const std::string name = db.meta("name"), file = db.meta("file");
   const std::string held = fmt::format("study {} ({}{})", name.empty() ? "?" : name, file.empty() ? "" : file + ", ",
                                        count_of(rec.size(), "point"));
@@ -752,21 +751,25 @@ bool replaces_folder(Db& db, const Study& s, const std::vector<StudyPoint>& poin
     auto same = by_params.find(g.params);
     const std::string why =
         same != by_params.end()
-            ? fmt::format("point {} has the parameters {} there but another identity here ({}): a design file it "
-                          "names, the reference settings or ropsim's version changed",
-                          g.hash, g.params, same->second->hash)
+            ? fmt::format(
+                  "point {} has the parameters {} there but another identity here ({}): a design file it "
+                  "names, the reference settings or ropsim's version changed",
+                  g.hash, g.params, same->second->hash)
             : fmt::format("point {}{} is not a point of {}", g.hash, g.params.empty() ? "" : " " + g.params, s.path);
-    throw UserError(fmt::format("{}: --extend keeps the points of the {} held there, but {} of them changed or "
-                                "are gone: {}; use --force to replace the folder's results, or another --out",
-                                o.out_dir, held, gone.size(), why));
+    throw UserError(
+        fmt::format("{}: --extend keeps the points of the {} held there, but {} of them changed or "
+                    "are gone: {}; use --force to replace the folder's results, or another --out",
+                    o.out_dir, held, gone.size(), why));
   }
   if (gone.empty())
-    throw UserError(fmt::format("{}: holds the results of {}; {} (study {}) adds {} to them: use --extend to run "
-                                "them, --force to replace the folder's results, or another --out",
-                                o.out_dir, held, s.path, s.name, count_of(added, "point")));
-  throw UserError(fmt::format("{}: holds the results of {}, not of {} (study {}, {}, {} of them in common): use "
-                              "--force to replace the folder's results, or another --out",
-                              o.out_dir, held, s.path, s.name, count_of(points.size(), "point"), kept));
+    throw UserError(
+        fmt::format("{}: holds the results of {}; {} (study {}) adds {} to them: use --extend to run "
+                    "them, --force to replace the folder's results, or another --out",
+                    o.out_dir, held, s.path, s.name, count_of(added, "point")));
+  throw UserError(
+      fmt::format("{}: holds the results of {}, not of {} (study {}, {}, {} of them in common): use "
+                  "--force to replace the folder's results, or another --out",
+                  o.out_dir, held, s.path, s.name, count_of(points.size(), "point"), kept));
 }
 
 /// A failed point in the summary.
@@ -819,10 +822,10 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
       continue;
     }
     StudyFailure kind = in_folder == Outcome::kHostFailure ? StudyFailure::kHost : StudyFailure::kInput;
-    std::string error = in_folder == Outcome::kNone ? "" : recorded_error(point_dir(o.out_dir, p) /
-                                                                           (kind == StudyFailure::kHost
-                                                                                ? "host-error.txt"
-                                                                                : "error.txt"));
+    std::string error =
+        in_folder == Outcome::kNone
+            ? ""
+            : recorded_error(point_dir(o.out_dir, p) / (kind == StudyFailure::kHost ? "host-error.txt" : "error.txt"));
     if (in_folder == Outcome::kNone && it != status.end()) {  // the row's failure, its folder gone or cleared
       kind = it->second.failure;
       error = it->second.error;
@@ -911,10 +914,12 @@ std::string describe_failures(const StudySummary& sum) {
   if (!sum.failed) return "0 failed";
   const char* input_rerun = input == 1 ? "--retry-failed reruns it" : "--retry-failed reruns them";
   const char* host_rerun = host == 1 ? "running the study again retries it" : "running the study again retries them";
-  if (!host) return fmt::format("{} failed ({}; {})", input, input == 1 ? "an input error" : "input errors", input_rerun);
-  if (!input) return fmt::format("{} failed ({}; {})", host, host == 1 ? "a host failure" : "host failures", host_rerun);
-  return fmt::format("{} failed ({} input error{}, {}; {} host failure{}, {})", sum.failed, input, input == 1 ? "" : "s",
-                     input_rerun, host, host == 1 ? "" : "s", host_rerun);
+  if (!host)
+    return fmt::format("{} failed ({}; {})", input, input == 1 ? "an input error" : "input errors", input_rerun);
+  if (!input)
+    return fmt::format("{} failed ({}; {})", host, host == 1 ? "a host failure" : "host failures", host_rerun);
+  return fmt::format("{} failed ({} input error{}, {}; {} host failure{}, {})", sum.failed, input,
+                     input == 1 ? "" : "s", input_rerun, host, host == 1 ? "" : "s", host_rerun);
 }
 
 namespace {
@@ -934,8 +939,9 @@ namespace {
     } catch (...) {
       std::tie(res.failure, res.error) = failure_of(std::current_exception());
     }
-    const std::string reply = res.ok ? fmt::format("{} {} ok\n", kind, index)
-                                     : fmt::format("{} {} fail {} {}\n", kind, index, to_string(res.failure), res.error);
+    const std::string reply = res.ok
+                                  ? fmt::format("{} {} ok\n", kind, index)
+                                  : fmt::format("{} {} fail {} {}\n", kind, index, to_string(res.failure), res.error);
     if (::write(out_fd, reply.data(), reply.size()) != ssize_t(reply.size())) break;
   }
   std::fflush(nullptr);
@@ -1121,8 +1127,9 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     if (res.ok && record_from_folder(db, o.out_dir, p) == Outcome::kOk) {
       ++sum.ran;
     } else if (res.ok) {
-      record_failure(p, StudyTaskResult{false, StudyFailure::kHost, "its worker said done, but its folder holds no "
-                                                                    "report.json"});
+      record_failure(p, StudyTaskResult{false, StudyFailure::kHost,
+                                        "its worker said done, but its folder holds no "
+                                        "report.json"});
     } else {
       record_failure(p, res);
     }

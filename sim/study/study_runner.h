@@ -16,7 +16,7 @@ namespace ropsim {
 /// other points) gets (docs/studies.md "One study a folder").
 enum class StudyFolderUse {
   kSameStudy,  ///< refused: the folder holds another study
-  kReplace,    ///< --force: its results are removed, then the study runs
+  kReplace,    ///< --force: its results (whatever study they are of) are removed, then the study runs
   kExtend,     ///< --extend: its points are kept (they must be points of the study), the new ones run
 };
 
