@@ -761,4 +761,16 @@ TEST(Study, AFinishedStudyExportsAndReportsFromReadOnlyMedia) {
   EXPECT_EQ(first_line(s.dir / "rep" / "summary.md"), "# Study ro");
   EXPECT_TRUE(fs::exists(s.dir / "rep" / "index.html"));
   EXPECT_FALSE(fs::exists(s.dir / "st" / "report")) << "the report was written into the study folder";
+  // A database left in WAL mode (a run killed before it was done) exports
+  // from read-only media too (opened immutable: no write-ahead log is left).
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((s.dir / "st" / "results.db").c_str(), &db), SQLITE_OK);
+  EXPECT_EQ(sqlite3_exec(db, "PRAGMA journal_mode=WAL", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  fs::remove(s.dir / "ro.csv");
+  s.put("ro-export.sh", "mount --bind '" + st + "' '" + st + "' && mount -o remount,ro,bind '" + st +
+                            "' || exit 98\n'" ROPSIM_BINARY "' study export '" + st + "' --csv ro.csv\n");
+  const Ran wal = shell(s.dir, "unshare -m sh ro-export.sh");
+  EXPECT_EQ(wal.status, 0) << wal.err;
+  EXPECT_EQ(slurp(s.dir / "ro.csv"), slurp(s.dir / "out.csv")) << "the export of a WAL database on read-only media";
 }
