@@ -606,6 +606,13 @@ TEST(Study, ExtendRunsOnlyTheNewPointsAndRefusesPointsThatChanged) {
             std::string::npos)
       << changed.err;
   EXPECT_NE(changed.err.find("another identity here"), std::string::npos) << changed.err;
+  // The same parameters with another identity (here the reference; most often another ropsim), run plainly.
+  s.put("a4.toml", tiny_study("a", "[\"lk\", \"enderton\", \"naive\"]", "reference_spp = 16"));
+  const Ran same = ropsim(s.dir, "study run a4.toml --out st -j 2");
+  EXPECT_EQ(same.status, 1) << same.out;
+  EXPECT_NE(same.err.find("a4.toml has the same parameters but 3 of its points have another identity"),
+            std::string::npos)
+      << same.err;
   EXPECT_EQ(export_rows(s.dir, "st"), three) << "the refused study changed the folder";
 }
 

@@ -33,6 +33,7 @@
 #include "output_file.h"
 #include "progress.h"
 #include "report.h"
+#include "version.h"
 
 namespace fs = std::filesystem;
 
@@ -446,6 +447,7 @@ class Db {
     set_meta("name", s.name);
     set_meta("file", s.path);
     set_meta("points", std::to_string(points.size()));
+    set_meta("ropsim", std::string(ropsim_version()) + " " + ropsim_commit());
     exec("COMMIT");
   }
 
@@ -760,6 +762,19 @@ bool replaces_folder(Db& db, const Study& s, const std::vector<StudyPoint>& poin
         fmt::format("{}: --extend keeps the points of the {} held there, but {} of them changed or "
                     "are gone: {}; use --force to replace the folder's results, or another --out",
                     o.out_dir, held, gone.size(), why));
+  }
+  // The same parameters throughout, another identity: most often another
+  // ropsim (a point's identity includes the tool's version and commit).
+  bool same_params = declared && rec.size() == points.size();
+  for (const auto& r : rec) same_params = same_params && by_params.count(r.params);
+  if (same_params) {
+    const std::string made = db.meta("ropsim"), now_tool = std::string(ropsim_version()) + " " + ropsim_commit();
+    throw UserError(fmt::format(
+        "{}: holds the results of {}{}; {} has the same parameters but {} of its points have another identity "
+        "({}a design file they name or the reference settings changed): use --force to run the study again, or "
+        "another --out",
+        o.out_dir, held, made.empty() ? "" : ", made by ropsim " + made, s.path, gone.size(),
+        made.empty() || made == now_tool ? "ropsim's version, " : "this is ropsim " + now_tool + "; or "));
   }
   if (gone.empty())
     throw UserError(
