@@ -708,13 +708,14 @@ void remove_study_results(const std::string& dir) {
     fs::rename(from, trash / name, ec);
     if (ec) throw UserError(from.string() + ": cannot remove the study's results: " + ec.message());
   }
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind(".replaced-", 0) == 0 && e.is_directory() && !e.is_symlink()) {
-      std::error_code ec;
-      fs::remove_all(e.path(), ec);
-      if (ec) throw UserError(e.path().string() + ": cannot remove the study's former results: " + ec.message());
-    }
+  std::vector<fs::path> replaced;  // this removal's and any an interrupted one left
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().rfind(".replaced-", 0) == 0 && e.is_directory() && !e.is_symlink())
+      replaced.push_back(e.path());
+  for (const auto& r : replaced) {
+    std::error_code ec;
+    fs::remove_all(r, ec);
+    if (ec) throw UserError(r.string() + ": cannot remove the study's former results: " + ec.message());
   }
 }
 
