@@ -1,7 +1,10 @@
 #!/usr/bin/python3
 """Writes the report of a study folder: DIR/report/index.html and DIR/report/summary.md.
 
-usage: study_report.py DIR
+usage: study_report.py DIR [--out OUT]
+
+--out OUT writes OUT/index.html and OUT/summary.md instead (a study on
+read-only media: the script only reads DIR).
 
 DIR is the folder of `ropsim study run` (results.db, study.toml, points/, refs/).
 index.html is self-contained: the CSS is inline and every plot and image is a
@@ -1170,7 +1173,7 @@ def section_images(rep, study_dir, df, params):
 # ---------------------------------------------------------------- main
 
 
-def build(study_dir):
+def build(study_dir, out=None):
     name, declared, df, params = load(study_dir)
     rep = Report()
     rep.heading(1, f"Study {name}", "study")
@@ -1187,7 +1190,7 @@ def build(study_dir):
     page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>Study {html.escape(name)}</title><style>{CSS}</style><script>{SCRIPT}</script></head>\n"
             f"<body data-images=\"{rep.images}\">\n" + "\n".join(rep.html) + "\n</body></html>\n")
-    out = os.path.join(study_dir, "report")
+    out = out or os.path.join(study_dir, "report")
     os.makedirs(out, exist_ok=True)
     write_atomically(os.path.join(out, "index.html"), page)
     write_atomically(os.path.join(out, "summary.md"), "\n".join(rep.md) + "\n")
@@ -1195,12 +1198,15 @@ def build(study_dir):
 
 
 def main(argv):
-    if len(argv) != 2 or argv[1] in ("-h", "--help"):
+    args, out = argv[1:], None
+    if len(args) == 3 and args[1] == "--out":
+        args, out = args[:1], args[2]
+    if len(args) != 1 or args[0] in ("-h", "--help"):
         print(__doc__.strip(), file=sys.stderr)
-        return 0 if len(argv) == 2 else 2
-    study_dir = argv[1]
+        return 0 if len(args) == 1 else 2
+    study_dir = args[0]
     try:
-        out, n = build(study_dir)
+        out, n = build(study_dir, out)
     except StudyError as e:
         print(f"study_report: error: {study_dir}: {e}", file=sys.stderr)
         return 1

@@ -5,6 +5,8 @@
 // the others complete.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sqlite3.h>
+#include <sys/mount.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -120,7 +122,7 @@ TEST(Study, TwoWorkersGiveTheResultsOfOneAndEveryPointOnce) {
   // Running it again runs nothing and changes nothing.
   const Ran c = ropsim(s.dir, "study run small.toml --out j2 -j 2");
   EXPECT_EQ(c.status, 0);
-  EXPECT_NE(c.out.find("0 run now, 24 already done"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("0 points run, 24 already done, 0 failed"), std::string::npos) << c.out;
   EXPECT_EQ(model_results(export_rows(s.dir, "j2")), r2);
 }
 
@@ -171,7 +173,7 @@ height = 96
   // Again: only what is missing runs; every point is there once.
   const Ran again = ropsim(s.dir, "study run long.toml --out killed -j 2");
   ASSERT_EQ(again.status, 0) << again.err << again.out;
-  EXPECT_EQ(again.out.find("40 run now"), std::string::npos) << "everything ran again:\n" << again.out;
+  EXPECT_EQ(again.out.find("40 points run"), std::string::npos) << "everything ran again:\n" << again.out;
   const Rows resumed = model_results(export_rows(s.dir, "killed"));
   ASSERT_EQ(resumed.size(), 40u) << "a point is missing or twice";
   EXPECT_EQ(resumed, whole) << "the resumed study's results differ from an uninterrupted run's";
@@ -193,7 +195,9 @@ height = 32
 )");
   const Ran r = ropsim(s.dir, "study run ways.toml --out st -j 2");
   EXPECT_EQ(r.status, 1) << "a failed point makes the study's exit status 1";
-  EXPECT_NE(r.out.find("2 run now, 0 already done, 1 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("2 points run, 0 already done, 1 failed (an input error; --retry-failed reruns it)"),
+            std::string::npos)
+      << r.out;
   EXPECT_NE(r.out.find("cache.ways=3"), std::string::npos) << "the summary lists the failure:\n" << r.out;
   const Rows rows = export_rows(s.dir, "st");
   ASSERT_EQ(rows.size(), 3u);
@@ -221,7 +225,9 @@ TEST(Study, APointWhoseReferenceFailedRecordsThatError) {
   s.put("two.toml", "[inputs]\ntraces = [\"good.rtr\", \"bad.rtr\"]\n[axes]\nmethod = [\"lk\", \"enderton\"]\n");
   const Ran r = ropsim(s.dir, "study run two.toml --out st -j 2 --quiet");
   EXPECT_EQ(r.status, 1) << r.err << r.out;
-  EXPECT_NE(r.out.find("2 run now, 0 already done, 2 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("2 points run, 0 already done, 2 failed (input errors; --retry-failed reruns them)"),
+            std::string::npos)
+      << r.out;
   const Rows rows = export_rows(s.dir, "st");
   ASSERT_EQ(rows.size(), 4u);
   for (const auto& row : rows) {
@@ -493,4 +499,287 @@ height = 32
   ASSERT_EQ(run.status, 0) << run.err;
   const auto j = nlohmann::json::parse(std::ifstream(s.dir / "o.json"));
   EXPECT_NEAR(std::stod(rmse["enderton+ac/original/functional"]), j["vs_reference"]["rmse_8bit"].get<double>(), 1e-9);
+}
+
+namespace {
+
+/// A small functional study of eight-layers named `name`, one point per method.
+std::string tiny_study(const std::string& name, const std::string& methods, const std::string& extra = "") {
+  return "[study]\nname = \"" + name + "\"\n" + extra +
+         "\n[inputs]\nscenes = [\"eight-layers\"]\n[axes]\nmethod = " + methods +
+         "\nspp = [4]\nwidth = 32\nheight = 32\n";
+}
+
+/// Deletes a point's row from a study's database (as a user tidying up would).
+void delete_row(const fs::path& db_path, const std::string& point) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(db_path.c_str(), &db), SQLITE_OK);
+  const std::string sql = "DELETE FROM results WHERE point = '" + point + "'";
+  EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+  sqlite3_close(db);
+}
+
+/// The first line of a file.
+std::string first_line(const fs::path& p) {
+  std::ifstream f(p);
+  std::string l;
+  std::getline(f, l);
+  return l;
+}
+
+}  // namespace
+
+// A study folder holds one study: another study's run into it is refused in
+// one line naming the folder and the study it holds, and changes nothing; the
+// report names the study of the database; --force replaces the results (and
+// leaves the user's own files in the folder).
+TEST(Study, AFolderHoldsOneStudyAnotherIsRefusedOrReplacesItWithForce) {
+  Scratch s;
+  s.put("alpha.toml", tiny_study("alpha", "[\"lk\", \"enderton\"]"));
+  s.put("beta.toml", tiny_study("beta", "[\"naive\"]"));
+  ASSERT_EQ(ropsim(s.dir, "study run alpha.toml --out st -j 2 --quiet").status, 0);
+  const Rows before = export_rows(s.dir, "st");
+  ASSERT_EQ(before.size(), 2u);
+  const Ran other = ropsim(s.dir, "study run beta.toml --out st -j 2 --quiet");
+  EXPECT_EQ(other.status, 1) << "another study ran into the folder:\n" << other.out;
+  EXPECT_EQ(std::count(other.err.begin(), other.err.end(), '\n'), 1) << "not one line:\n" << other.err;
+  EXPECT_NE(other.err.find("ropsim: error: st: holds the results of study alpha (alpha.toml, 2 points)"),
+            std::string::npos)
+      << other.err;
+  EXPECT_NE(other.err.find("--force"), std::string::npos) << "the error says what to do:\n" << other.err;
+  EXPECT_EQ(export_rows(s.dir, "st"), before) << "the refused study changed the folder";
+  // The export and the report name the folder's study, not the last command's.
+  const Ran ex = ropsim(s.dir, "study export st --csv out.csv");
+  EXPECT_NE(ex.out.find("study alpha: 2 points (2 ok, 0 failed), "), std::string::npos) << ex.out;
+  EXPECT_NE(ex.out.find(" columns written to out.csv"), std::string::npos) << ex.out;
+  const Ran rep = ropsim(s.dir, "study report st");
+  ASSERT_EQ(rep.status, 0) << rep.err;
+  EXPECT_EQ(first_line(s.dir / "st" / "report" / "summary.md"), "# Study alpha");
+  // --force: beta's results alone, the user's file kept.
+  s.put("st/notes.txt", "mine\n");
+  const Ran forced = ropsim(s.dir, "study run beta.toml --out st -j 2 --quiet --force");
+  ASSERT_EQ(forced.status, 0) << forced.err << forced.out;
+  const Rows after = export_rows(s.dir, "st");
+  ASSERT_EQ(after.size(), 1u) << "alpha's rows are left";
+  EXPECT_EQ(after[0].at("method"), "naive");
+  size_t folders = 0;
+  for (const auto& e : fs::directory_iterator(s.dir / "st" / "points")) folders += e.is_directory();
+  EXPECT_EQ(folders, 1u) << "alpha's point folders are left";
+  EXPECT_EQ(slurp(s.dir / "st" / "notes.txt"), "mine\n") << "--force removed a file that is not a result";
+  for (const auto& e : fs::directory_iterator(s.dir / "st"))
+    EXPECT_NE(e.path().filename().string().rfind(".replaced-", 0), 0u) << "left behind: " << e.path();
+  ASSERT_EQ(ropsim(s.dir, "study report st").status, 0);
+  EXPECT_EQ(first_line(s.dir / "st" / "report" / "summary.md"), "# Study beta");
+}
+
+// --extend: the same study with new points runs only those and keeps the
+// others' results; a study whose kept points changed meaning (the same
+// parameters, another identity: here the reference settings) is refused.
+TEST(Study, ExtendRunsOnlyTheNewPointsAndRefusesPointsThatChanged) {
+  Scratch s;
+  s.put("a.toml", tiny_study("a", "[\"lk\"]"));
+  s.put("a2.toml", tiny_study("a", "[\"lk\", \"enderton\", \"naive\"]"));
+  s.put("a3.toml", tiny_study("a", "[\"lk\", \"enderton\", \"naive\", \"a2c\"]", "reference_spp = 16"));
+  ASSERT_EQ(ropsim(s.dir, "study run a.toml --out st -j 2 --quiet").status, 0);
+  const Rows one = export_rows(s.dir, "st");
+  ASSERT_EQ(one.size(), 1u);
+  const Ran plain = ropsim(s.dir, "study run a2.toml --out st -j 2 --quiet");
+  EXPECT_EQ(plain.status, 1) << plain.out;
+  EXPECT_NE(plain.err.find("st: holds the results of study a (a.toml, 1 point); a2.toml (study a) adds 2 points"),
+            std::string::npos)
+      << plain.err;
+  EXPECT_NE(plain.err.find("--extend"), std::string::npos) << plain.err;
+  const Ran ext = ropsim(s.dir, "study run a2.toml --out st -j 2 --extend");
+  ASSERT_EQ(ext.status, 0) << ext.err << ext.out;
+  EXPECT_NE(ext.out.find("3 points: 2 points run, 1 already done, 0 failed"), std::string::npos) << ext.out;
+  const Rows three = export_rows(s.dir, "st");
+  ASSERT_EQ(three.size(), 3u);
+  for (const auto& [column, value] : one[0])  // (the new points may add columns)
+    EXPECT_EQ(three[0].at(column), value) << "the kept point's " << column << " changed";
+  // The extended study is the folder's study: a plain rerun runs nothing.
+  const Ran again = ropsim(s.dir, "study run a2.toml --out st -j 2");
+  EXPECT_EQ(again.status, 0) << again.err;
+  EXPECT_NE(again.out.find("0 points run, 3 already done"), std::string::npos) << again.out;
+  const Ran changed = ropsim(s.dir, "study run a3.toml --out st -j 2 --extend");
+  EXPECT_EQ(changed.status, 1) << changed.out;
+  EXPECT_EQ(std::count(changed.err.begin(), changed.err.end(), '\n'), 1) << "not one line:\n" << changed.err;
+  EXPECT_NE(changed.err.find("--extend keeps the points of the study a (a2.toml, 3 points) held there, but 3 of them "
+                             "changed or are gone"),
+            std::string::npos)
+      << changed.err;
+  EXPECT_NE(changed.err.find("another identity here"), std::string::npos) << changed.err;
+  // The same parameters with another identity (here the reference; most often another ropsim), run plainly.
+  s.put("a4.toml", tiny_study("a", "[\"lk\", \"enderton\", \"naive\"]", "reference_spp = 16"));
+  const Ran same = ropsim(s.dir, "study run a4.toml --out st -j 2");
+  EXPECT_EQ(same.status, 1) << same.out;
+  EXPECT_NE(same.err.find("a4.toml has the same parameters but 3 of its points have another identity"),
+            std::string::npos)
+      << same.err;
+  EXPECT_EQ(export_rows(s.dir, "st"), three) << "the refused study changed the folder";
+}
+
+// A study's live-point library in DIR/livepoints/ is a cache bound to its
+// points: another point's library copied over it, or a truncated one, is
+// recorded again in its place (and the log says so), and the point's figures
+// are those of its own library, never the other's.
+TEST(Study, ASwappedOrTruncatedLibraryIsRecordedAgainNeverGivesAWrongFigure) {
+  Scratch s;
+  s.put("lib.toml", R"(
+[study]
+reference = false
+
+[inputs]
+scenes = ["smoke"]
+
+[axes]
+fidelity = "sampled"
+spp = [4, 16]
+sample_units = 6
+sample_size = 500
+sample_warmup = 1000
+sample_cooldown = 500
+)");
+  ASSERT_EQ(ropsim(s.dir, "study run lib.toml --out st -j 2 --quiet").status, 0);
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 2u);
+  const auto& r4 = rows[0].at("spp") == "4" ? rows[0] : rows[1];
+  const auto& r16 = rows[0].at("spp") == "4" ? rows[1] : rows[0];
+  ASSERT_EQ(r16.at("spp"), "16");
+  const fs::path lib4 = s.dir / r4.at("timing.sampling.library"), lib16 = s.dir / r16.at("timing.sampling.library");
+  ASSERT_NE(lib4, lib16);
+  ASSERT_NE(r4.at("timing.total_cycles"), r16.at("timing.total_cycles")) << "the test needs libraries that differ";
+  const std::string own = slurp(lib16);
+  const std::vector<std::pair<std::string, std::string>> damage = {
+      {"the 4-spp library copied over the 16-spp one", slurp(lib4)},
+      {"the 16-spp library cut in half", own.substr(0, own.size() / 2)},
+  };
+  for (const auto& [what, bytes] : damage) {
+    SCOPED_TRACE(what);
+    std::ofstream(lib16, std::ios::binary | std::ios::trunc) << bytes;
+    fs::remove_all(s.dir / "st" / "points" / r16.at("point"));
+    delete_row(s.dir / "st" / "results.db", r16.at("point"));
+    const Ran again = ropsim(s.dir, "study run lib.toml --out st -j 2");
+    ASSERT_EQ(again.status, 0) << again.err << again.out;
+    EXPECT_NE(again.out.find("1 point run, 1 already done, 0 failed"), std::string::npos) << again.out;
+    EXPECT_NE(again.err.find("live-point library " + r16.at("timing.sampling.library") +
+                             ": recorded again in place of a cached library that was unusable: "),
+              std::string::npos)
+        << again.err;
+    EXPECT_NE(slurp(s.dir / "st" / "points" / r16.at("point") / "log.txt").find("recorded again"), std::string::npos)
+        << "the point's log does not say its library was recorded again";
+    const Rows now = export_rows(s.dir, "st");
+    ASSERT_EQ(now.size(), 2u);
+    for (const auto& row : now)
+      if (row.at("point") == r16.at("point")) {
+        EXPECT_EQ(row.at("status"), "ok") << row.at("error");
+        EXPECT_EQ(row.at("input.spp"), "16") << "the point ran on another library";
+        EXPECT_EQ(row.at("timing.total_cycles"), r16.at("timing.total_cycles")) << "a figure from another library";
+      }
+    EXPECT_EQ(slurp(lib16), own) << "the library recorded again differs from the first";
+  }
+}
+
+// A point whose host failed (here its folder on a full disk: ENOSPC) is a
+// host failure, and a plain rerun runs it again once there is room.
+TEST(Study, APointWhoseHostFailedRunsAgainOnAPlainRerun) {
+  Scratch s;
+  s.put("h.toml", tiny_study("h", "[\"lk\", \"enderton\"]"));
+  const Ran pts = ropsim(s.dir, "study points h.toml");
+  ASSERT_EQ(pts.status, 0) << pts.err;
+  const std::string hash = pts.out.substr(0, pts.out.find(' '));
+  const fs::path full = s.dir / "st" / "points" / hash;
+  fs::create_directories(full);
+  if (::mount("tmpfs", full.c_str(), "tmpfs", 0, "size=4k,mode=0755") != 0)
+    GTEST_SKIP() << "cannot mount a tmpfs: " << std::strerror(errno);
+  {
+    std::ofstream(full / ".filler", std::ios::binary) << std::string(4096, 'x');  // the one page: no room left
+  }
+  const Ran r = ropsim(s.dir, "study run h.toml --out st -j 2 --quiet");
+  ::umount2(full.c_str(), MNT_DETACH);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("1 point run, 0 already done, 1 failed (a host failure; running the study again retries it)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("failed (host): " + hash), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(std::strerror(ENOSPC)), std::string::npos) << "the error names its cause:\n" << r.out;
+  const Rows failed = export_rows(s.dir, "st");
+  ASSERT_EQ(failed.size(), 2u);
+  EXPECT_EQ(failed[0].count("failure") ? failed[0].at("failure") : "(no column)", "host");
+  // Room again: a plain rerun completes the study.
+  const Ran again = ropsim(s.dir, "study run h.toml --out st -j 2");
+  EXPECT_EQ(again.status, 0) << again.out << again.err;
+  EXPECT_NE(again.out.find("1 point run, 1 already done, 0 failed"), std::string::npos) << again.out;
+  for (const auto& row : export_rows(s.dir, "st")) {
+    EXPECT_EQ(row.at("status"), "ok") << row.at("error");
+    EXPECT_EQ(row.count("failure") ? row.at("failure") : "(no column)", "");
+  }
+}
+
+// An input error is the point's own: mending the input does not rerun it,
+// --retry-failed does.
+TEST(Study, AnInputErrorRunsAgainOnlyWithRetryFailed) {
+  Scratch s;
+  ASSERT_EQ(ropsim(s.dir, "scene eight-layers --spp 4 --width 32 --height 32 -o good.rtr").status, 0);
+  const std::string good = slurp(s.dir / "good.rtr");
+  s.put("bad.rtr", good.substr(0, good.size() / 2));
+  s.put("two.toml", "[inputs]\ntraces = [\"good.rtr\", \"bad.rtr\"]\n[axes]\nmethod = \"lk\"\n");
+  const Ran r = ropsim(s.dir, "study run two.toml --out st -j 2 --quiet");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("1 point run, 0 already done, 1 failed (an input error; --retry-failed reruns it)"),
+            std::string::npos)
+      << r.out;
+  s.put("bad.rtr", good);  // mended
+  const Ran plain = ropsim(s.dir, "study run two.toml --out st -j 2 --quiet");
+  EXPECT_EQ(plain.status, 1) << "a plain rerun ran an input error again:\n" << plain.out;
+  EXPECT_NE(plain.out.find("0 points run, 1 already done, 1 failed (an input error; --retry-failed reruns it)"),
+            std::string::npos)
+      << plain.out;
+  for (const auto& row : export_rows(s.dir, "st")) {
+    if (row.at("input") == "bad") {
+      EXPECT_EQ(row.count("failure") ? row.at("failure") : "(no column)", "input");
+    }
+  }
+  const Ran retry = ropsim(s.dir, "study run two.toml --out st -j 2 --retry-failed");
+  EXPECT_EQ(retry.status, 0) << retry.out << retry.err;
+  EXPECT_NE(retry.out.find("1 point run, 1 already done, 0 failed"), std::string::npos) << retry.out;
+}
+
+// A finished study on read-only media (a read-only bind mount of its folder,
+// which holds even for root) exports and reports, the report written
+// elsewhere (--out); the export says what it wrote.
+TEST(Study, AFinishedStudyExportsAndReportsFromReadOnlyMedia) {
+  Scratch s;
+  s.put("ro.toml", tiny_study("ro", "[\"lk\", \"enderton\"]"));
+  ASSERT_EQ(ropsim(s.dir, "study run ro.toml --out st -j 2 --quiet").status, 0);
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 2u);
+  if (shell(s.dir, "unshare -m true").status != 0) GTEST_SKIP() << "unshare -m is not permitted here";
+  const std::string st = (s.dir / "st").string();
+  s.put("ro.sh", "mount --bind '" + st + "' '" + st + "' && mount -o remount,ro,bind '" + st +
+                     "' || exit 98\n"
+                     "touch '" +
+                     st + "/probe' 2>/dev/null && exit 99\n'" ROPSIM_BINARY "' study export '" + st +
+                     "' --csv ro.csv || exit\n'" ROPSIM_BINARY "' study report '" + st + "' --out rep\n");
+  const Ran r = shell(s.dir, "unshare -m sh ro.sh");
+  if (r.status == 98) GTEST_SKIP() << "cannot make a read-only bind mount: " << r.err;
+  ASSERT_NE(r.status, 99) << "the folder is writable: the test proves nothing";
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("study ro: 2 points (2 ok, 0 failed), "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("columns written to ro.csv"), std::string::npos) << r.out;
+  EXPECT_EQ(slurp(s.dir / "ro.csv"), slurp(s.dir / "out.csv")) << "the read-only export differs";
+  EXPECT_EQ(first_line(s.dir / "rep" / "summary.md"), "# Study ro");
+  EXPECT_TRUE(fs::exists(s.dir / "rep" / "index.html"));
+  EXPECT_FALSE(fs::exists(s.dir / "st" / "report")) << "the report was written into the study folder";
+  // A database left in WAL mode (a run killed before it was done) exports
+  // from read-only media too (opened immutable: no write-ahead log is left).
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((s.dir / "st" / "results.db").c_str(), &db), SQLITE_OK);
+  EXPECT_EQ(sqlite3_exec(db, "PRAGMA journal_mode=WAL", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  fs::remove(s.dir / "ro.csv");
+  s.put("ro-export.sh", "mount --bind '" + st + "' '" + st + "' && mount -o remount,ro,bind '" + st +
+                            "' || exit 98\n'" ROPSIM_BINARY "' study export '" + st + "' --csv ro.csv\n");
+  const Ran wal = shell(s.dir, "unshare -m sh ro-export.sh");
+  EXPECT_EQ(wal.status, 0) << wal.err;
+  EXPECT_EQ(slurp(s.dir / "ro.csv"), slurp(s.dir / "out.csv")) << "the export of a WAL database on read-only media";
 }

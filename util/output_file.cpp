@@ -268,7 +268,10 @@ void OutputFile::fail(const std::string& what) {
   throw UserError((path_ == "-" ? std::string("standard output") : path_) + ": " + what);
 }
 
-void OutputFile::fail_errno(int err) { fail(std::strerror(err)); }
+void OutputFile::fail_errno(int err) {
+  discard();
+  throw SystemError((path_ == "-" ? std::string("standard output") : path_) + ": " + std::strerror(err), err);
+}
 
 void OutputFile::discard() noexcept {
   if (pipe_) {

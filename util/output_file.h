@@ -12,7 +12,7 @@
 //    FIFO) is opened O_WRONLY and written in place; it stays what it was.
 //  - "-" is standard output, where the caller allows it (a single text output).
 //  - Any failure (ENOSPC, EFBIG under `ulimit -f`, EIO...) throws UserError
-//    "PATH: <strerror>"; the temporary file is removed and nothing appears
+//    "PATH: <strerror>" (a SystemError with the errno, errors.h); the temporary file is removed and nothing appears
 //    under the final name. An OutputFile destroyed without commit() discards.
 //  - Targets this process created (the name did not exist) are remembered, so
 //    a failing run can remove them with remove_created_outputs(); a

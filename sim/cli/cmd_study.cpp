@@ -29,6 +29,7 @@ struct StudyOpts {
   unsigned jobs = 0;
   size_t index = 0;
   bool retry_failed = false, quiet = false;
+  bool force = false, extend = false;  ///< study run: the folder holds another study's results
   bool recorded_ok = false;  ///< study task: a failure whose error is recorded exits 0
   std::string executor = "local";
   bool wait = false;
@@ -64,14 +65,24 @@ int cmd_study_plan(const StudyOpts& o) {
 int cmd_study_task(const StudyOpts& o) {
   const Study s = load_study(o.file, o.mesh_dir);
   const std::string dir = out_dir(o, s);
-  if (run_study_task(s, o.kind[0], o.index, dir)) return 0;
-  if (o.recorded_ok && o.kind != "p") {
+  const StudyTaskResult res = run_study_task(s, o.kind[0], o.index, dir);
+  if (res.ok) return 0;
+  // A host failure is not the task's verdict: the task fails, so that the
+  // phases after it do not run on a missing capture or reference.
+  if (o.recorded_ok && o.kind != "p" && res.recorded && res.failure == StudyFailure::kInput) {
     std::fprintf(stderr, "ropsim: study task %s %zu failed; its error is recorded for the points that need it\n",
                  o.kind.c_str(), o.index);
     return 0;
   }
-  std::fprintf(stderr, "ropsim: error: study task %s %zu failed (its error file holds why)\n", o.kind.c_str(), o.index);
+  std::fprintf(stderr, "ropsim: error: study task %s %zu failed (%s): %s\n", o.kind.c_str(), o.index,
+               res.failure == StudyFailure::kHost ? "its host failed" : "an input error", res.error.c_str());
   return 1;
+}
+
+/// One line per failed point, its kind of failure named.
+void print_failures(const StudySummary& sum) {
+  for (const auto& f : sum.failures)
+    fmt::print("  failed{}: {}: {}\n", f.kind == StudyFailure::kHost ? " (host)" : "", f.point, f.error);
 }
 
 /// Point index -> its task's log and the logs of the phase before it.
@@ -91,7 +102,7 @@ int collect_summary(const Study& s, const std::string& dir, const TaskLogs& logs
   const StudyPlan plan = plan_study(s, ro, sum);
   fmt::print("study {}: {} points: {} done, {} failed, {} not run yet; results in {}/results.db\n", s.name, sum.points,
              sum.reused, sum.failed, plan.points.size(), dir);
-  for (const auto& [point, error] : sum.failures) fmt::print("  failed: {}: {}\n", point, error);
+  print_failures(sum);
   const std::vector<StudyPoint> points = logs.empty() ? std::vector<StudyPoint>{} : expand_study(s);
   for (size_t pi : plan.points)
     if (auto it = logs.find(pi); it != logs.end()) {
@@ -145,6 +156,7 @@ int cmd_study_run(const StudyOpts& o) {
   check_study_inputs(s);                           // and so is a missing mesh, texture or material library
   StudyRunOptions ro;
   ro.out_dir = out_dir(o, s);
+  ro.use = o.force ? StudyFolderUse::kReplace : o.extend ? StudyFolderUse::kExtend : StudyFolderUse::kSameStudy;
   if (o.executor == "slurm") {
     ro.retry_failed = o.retry_failed;
     return cmd_study_run_slurm(o, s, ro);
@@ -154,9 +166,9 @@ int cmd_study_run(const StudyOpts& o) {
   ro.progress = !o.quiet;
   const StudySummary r = run_study(s, ro);
   if (!o.quiet || r.failed) {
-    fmt::print("study {}: {} points: {} run now, {} already done, {} failed; results in {}/results.db\n", s.name,
-               r.points, r.ran, r.reused, r.failed, ro.out_dir);
-    for (const auto& [point, error] : r.failures) fmt::print("  failed: {}: {}\n", point, error);
+    fmt::print("study {}: {}: {} run, {} already done, {}; results in {}/results.db\n", s.name,
+               count_of(r.points, "point"), count_of(r.ran, "point"), r.reused, describe_failures(r), ro.out_dir);
+    print_failures(r);
   }
   return r.failed ? 1 : 0;
 }
@@ -199,7 +211,10 @@ int cmd_study_report(const StudyOpts& o) {
   const pid_t pid = ::fork();
   if (pid < 0) throw UserError(std::string("study report: fork: ") + std::strerror(errno));
   if (pid == 0) {
-    ::execl(kPython, kPython, script.c_str(), o.dir.c_str(), static_cast<char*>(nullptr));
+    if (o.out.empty())
+      ::execl(kPython, kPython, script.c_str(), o.dir.c_str(), static_cast<char*>(nullptr));
+    else
+      ::execl(kPython, kPython, script.c_str(), o.dir.c_str(), "--out", o.out.c_str(), static_cast<char*>(nullptr));
     std::fprintf(stderr, "ropsim: error: study report: %s: %s\n", kPython, std::strerror(errno));
     ::_exit(1);
   }
@@ -220,7 +235,14 @@ VerbRunner add_study_command(CLI::App& app) {
   run->add_option("STUDY", o->file, "Study file (TOML)")->required();
   run->add_option("--out", o->out, "Study folder (default out/study/NAME)");
   run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
-  run->add_flag("--retry-failed", o->retry_failed, "Run again the points whose error is recorded");
+  run->add_flag("--retry-failed", o->retry_failed,
+                "Run again the points whose input error is recorded (host failures always run again)");
+  CLI::Option* force = run->add_flag("--force", o->force,
+                                     "Replace the folder's results (another study's, or this one's) before running");
+  run->add_flag("--extend", o->extend,
+                "The study adds points to those the folder holds: keep them, run the new ones (refused if one of "
+                "them changed)")
+      ->excludes(force);
   run->add_flag("--quiet", o->quiet, "No progress line; print only failures");
   const char* mesh_dir_help =
       "Folder to look for the mesh scenes' meshes in first (default: $ROPSIM_MESH_DIR), then each scene's mesh_dir";
@@ -260,12 +282,19 @@ VerbRunner add_study_command(CLI::App& app) {
   col->add_option("DIR", o->dir, "Study folder")->required();
   CLI::App* rep = st->add_subcommand("report", "Write a study folder's HTML report and Markdown summary (DIR/report)");
   rep->add_option("DIR", o->dir, "Study folder")->required();
+  rep->add_option("--out", o->out, "Folder for index.html and summary.md (default DIR/report; DIR is only read)");
   return [o, st, run, pts, exp, rep, plan, task, col]() {
     if (!st->parsed()) return -1;
     if (run->parsed()) return cmd_study_run(*o);
     if (pts->parsed()) return cmd_study_points(*o);
     if (exp->parsed()) {
-      export_study_csv(o->dir, o->csv);
+      const StudyExport ex = export_study_csv(o->dir, o->csv);
+      // What it wrote, on standard error when the table went to standard output.
+      const std::string said =
+          fmt::format("study {}: {} ({} ok, {} failed), {} written to {}\n", ex.study.empty() ? o->dir : ex.study,
+                      count_of(ex.rows, "point"), ex.ok, ex.failed, count_of(ex.columns, "column"),
+                      o->csv == "-" ? "standard output" : o->csv);
+      std::fputs(said.c_str(), o->csv == "-" ? stderr : stdout);
       return 0;
     }
     if (rep->parsed()) return cmd_study_report(*o);

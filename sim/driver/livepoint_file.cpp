@@ -736,4 +736,27 @@ void check_library_method(const LivePoints& lib, const std::string& lib_path, co
          m.enderton_selection == EndertonSelection::kOriginal ? "original" : "depth-first");
 }
 
+void check_library_sampling(const LivePoints& lib, const std::string& lib_path, const SamplingParams& p) {
+  const SamplingParams& l = lib.params;
+  auto fail = [&](const char* what, const std::string& lib_v, const std::string& run_v) {
+    throw UserError(lib_path + ": the library was recorded with " + what + " " + lib_v + ", the run asks for " + run_v +
+                    " (a library serves one sampling; build another with `ropsim livepoints`)");
+  };
+  const std::pair<const char*, std::pair<uint64_t, uint64_t>> counts[] = {
+      {"K (units)", {l.units, p.units}},
+      {"U (unit fragments)", {l.unit_fragments, p.unit_fragments}},
+      {"W (warm-up fragments)", {l.warmup_fragments, p.warmup_fragments}},
+      {"C (cool-down fragments)", {l.cooldown_fragments, p.cooldown_fragments}},
+      {"T (warming fragments)", {l.warming_fragments, p.warming_fragments}},
+  };
+  for (const auto& [what, v] : counts)
+    if (v.first != v.second) fail(what, std::to_string(v.first), std::to_string(v.second));
+  if (l.warming_reach != p.warming_reach) {
+    char a[32], b[32];
+    std::snprintf(a, sizeof a, "%g", l.warming_reach);
+    std::snprintf(b, sizeof b, "%g", p.warming_reach);
+    fail("R (warming reach)", a, b);
+  }
+}
+
 }  // namespace ropsim

@@ -50,4 +50,8 @@ void check_library_input(const LivePoints& lib, const std::string& lib_path, con
 /// library's (a library serves one method and its numerics).
 void check_library_method(const LivePoints& lib, const std::string& lib_path, const MethodConfig& method);
 
+/// Throws UserError naming the first sampling parameter (K, U, W, C, T, R)
+/// of p that differs from the library's (a library is one sampling's).
+void check_library_sampling(const LivePoints& lib, const std::string& lib_path, const SamplingParams& p);
+
 }  // namespace ropsim
