@@ -693,7 +693,7 @@ TEST(Output, AReaderThatClosesEarlyIsAnErrorNotASignal) {
   // Standard output closed early: quiet, as any tool in a pipeline (the
   // status of a SIGPIPE), with no temporary file left.
   for (const auto& args : std::vector<std::vector<std::string>>{
-           {"trace", "dump", "t.trace"}, {"run", "--trace", "t.trace", "--report", "-", "--out", "y.png"}}) {
+           {"trace", "dump", "t.trace"}, {"run", "--fidelity", "cycle", "--trace", "t.trace", "--report", "-", "--out", "y.png"}}) {
     int p[2];
     ASSERT_EQ(::pipe2(p, O_CLOEXEC), 0);  // the child keeps only the write end, as its stdout
     // One page of buffer: the output (more than 4 KiB) cannot all fit before the close.
@@ -766,7 +766,7 @@ TEST(Output, DefaultNamesComeFromTheInputReplayed) {
   Box box;
   ASSERT_EQ(box.run(cat({"scene", "testcard", "-o", "motor.trace"}, kSmall)).code, 0);
   ASSERT_EQ(box.run({"livepoints", "motor.trace", "-o", "motor.rlp", "--quiet"}).code, 0);
-  ASSERT_EQ(box.run(cat({"livepoints", "--scene", "eight-layers", "--method", "enderton", "-o", "e.rlp", "--quiet"},
+  ASSERT_EQ(box.run(cat({"livepoints", "--scene", "eight-layers", "--method", "opaque", "-o", "e.rlp", "--quiet"},
                         kSmall))
                 .code,
             0);
@@ -788,7 +788,7 @@ TEST(Output, DefaultNamesComeFromTheInputReplayed) {
   // Sampled on a library: named after the library's input, spp and method
   // (not the default scene cloth at 16 spp).
   expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "motor.rlp"}), "motor-lk-4spp-sampled-hw");
-  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "e.rlp"}), "eight-layers-64x64-enderton-4spp-sampled-hw");
+  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "e.rlp"}), "eight-layers-64x64-opaque-4spp-sampled-hw");
   // Every fidelity on a trace: its stem and its header's spp.
   expect_base(names({"run", "--trace", "motor.trace"}), "motor-lk-4spp.");
   for (const char* f : {"sampled", "cycle", "approximate"})
