@@ -810,6 +810,12 @@ TEST(Output, AFailedRunRemovesTheFoldersItCreated) {
                                kSmall));
   EXPECT_EQ(r.code, 1) << r.describe();
   EXPECT_EQ(written_files(box, {"afile"}), std::vector<std::string>{}) << r.describe();
+  // The maps cannot be written (a full disk, here the file size limit).
+  Box::Options lim;
+  lim.fsize_limit = 512;
+  const Result f = box.run(cat({"run", "--scene", "cloth", "--maps", "m2", "--report", "r.json", "--quiet"}, kSmall), lim);
+  EXPECT_EQ(f.code, 1) << f.describe();
+  EXPECT_EQ(written_files(box, {"afile"}), std::vector<std::string>{}) << f.describe();
   // A folder that was there stays, with what it held.
   fs::create_directories(box.work() / "m");
   std::ofstream(box.path("m/mine.txt")) << "keep";
