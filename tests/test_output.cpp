@@ -559,7 +559,6 @@ TEST(OutputFile, ByNameAndThroughAPipeForLibraryWriters) {
   EXPECT_TRUE(left.empty()) << left[0];
 }
 
-
 // ------------------------------------------------------------ distinct outputs
 
 /// Every file and folder under work/ (relative), but those in keep.
@@ -597,7 +596,7 @@ TEST(Output, TwoOutputsThatAreOneFileAreRefusedBeforeAnyWork) {
       {{"--maps", "m", "--out", "m/fragments.png"}, "--out", "--maps", "m/fragments.png"},
       {{"--report", "s.json", "--draw-csv", "link.json"}, "--report", "--draw-csv", "link.json"},  // a symlink
       {{"--report", "h1.json", "--draw-csv", "h2.json"}, "--report", "--draw-csv", "h2.json"},     // a hard link
-      {{"--report", "t.trace"}, "--report", "the input --trace", "t.trace"},                      // the input
+      {{"--report", "t.trace"}, "--report", "the input --trace", "t.trace"},                       // the input
   };
   for (const auto& c : cases) {
     const auto args = cat({"run", "--trace", "t.trace", "--quiet"}, c.args);
@@ -693,7 +692,8 @@ TEST(Output, AReaderThatClosesEarlyIsAnErrorNotASignal) {
   // Standard output closed early: quiet, as any tool in a pipeline (the
   // status of a SIGPIPE), with no temporary file left.
   for (const auto& args : std::vector<std::vector<std::string>>{
-           {"trace", "dump", "t.trace"}, {"run", "--fidelity", "cycle", "--trace", "t.trace", "--report", "-", "--out", "y.png"}}) {
+           {"trace", "dump", "t.trace"},
+           {"run", "--fidelity", "cycle", "--trace", "t.trace", "--report", "-", "--out", "y.png"}}) {
     int p[2];
     ASSERT_EQ(::pipe2(p, O_CLOEXEC), 0);  // the child keeps only the write end, as its stdout
     // One page of buffer: the output (more than 4 KiB) cannot all fit before the close.
@@ -766,10 +766,10 @@ TEST(Output, DefaultNamesComeFromTheInputReplayed) {
   Box box;
   ASSERT_EQ(box.run(cat({"scene", "testcard", "-o", "motor.trace"}, kSmall)).code, 0);
   ASSERT_EQ(box.run({"livepoints", "motor.trace", "-o", "motor.rlp", "--quiet"}).code, 0);
-  ASSERT_EQ(box.run(cat({"livepoints", "--scene", "eight-layers", "--method", "opaque", "-o", "e.rlp", "--quiet"},
-                        kSmall))
-                .code,
-            0);
+  ASSERT_EQ(
+      box.run(cat({"livepoints", "--scene", "eight-layers", "--method", "opaque", "-o", "e.rlp", "--quiet"}, kSmall))
+          .code,
+      0);
   /// The names under out/run/ after a run (removed for the next).
   auto names = [&](const std::vector<std::string>& args) {
     const Result r = box.run(cat(args, {"--quiet"}));
@@ -788,7 +788,8 @@ TEST(Output, DefaultNamesComeFromTheInputReplayed) {
   // Sampled on a library: named after the library's input, spp and method
   // (not the default scene cloth at 16 spp).
   expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "motor.rlp"}), "motor-lk-4spp-sampled-hw");
-  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "e.rlp"}), "eight-layers-64x64-opaque-4spp-sampled-hw");
+  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "e.rlp"}),
+              "eight-layers-64x64-opaque-4spp-sampled-hw");
   // Every fidelity on a trace: its stem and its header's spp.
   expect_base(names({"run", "--trace", "motor.trace"}), "motor-lk-4spp.");
   for (const char* f : {"sampled", "cycle", "approximate"})
@@ -813,14 +814,15 @@ TEST(Output, AFailedRunRemovesTheFoldersItCreated) {
   // The maps cannot be written (a full disk, here the file size limit).
   Box::Options lim;
   lim.fsize_limit = 512;
-  const Result f = box.run(cat({"run", "--scene", "cloth", "--maps", "m2", "--report", "r.json", "--quiet"}, kSmall), lim);
+  const Result f =
+      box.run(cat({"run", "--scene", "cloth", "--maps", "m2", "--report", "r.json", "--quiet"}, kSmall), lim);
   EXPECT_EQ(f.code, 1) << f.describe();
   EXPECT_EQ(written_files(box, {"afile"}), std::vector<std::string>{}) << f.describe();
   // A folder that was there stays, with what it held.
   fs::create_directories(box.work() / "m");
   std::ofstream(box.path("m/mine.txt")) << "keep";
-  const Result r2 = box.run(
-      cat({"run", "--scene", "cloth", "--maps", "m", "--report", "afile/r.json", "--quiet"}, kSmall));
+  const Result r2 =
+      box.run(cat({"run", "--scene", "cloth", "--maps", "m", "--report", "afile/r.json", "--quiet"}, kSmall));
   EXPECT_EQ(r2.code, 1) << r2.describe();
   EXPECT_EQ(written_files(box, {"afile", "m", "m/mine.txt"}), std::vector<std::string>{}) << r2.describe();
   // On success the missing folders are made (docs/outputs.md).
@@ -835,8 +837,8 @@ TEST(Output, NewFilesGetTheUmasksModeAndReplacedFilesKeepTheirs) {
   o.umask = 027;
   std::ofstream(box.path("old.json")) << "old";
   fs::permissions(box.path("old.json"), fs::perms(0604));
-  const Result r = box.run(
-      cat({"run", "--scene", "cloth", "--out", "new.png", "--report", "old.json", "--quiet"}, kSmall), o);
+  const Result r =
+      box.run(cat({"run", "--scene", "cloth", "--out", "new.png", "--report", "old.json", "--quiet"}, kSmall), o);
   ASSERT_EQ(r.code, 0) << r.describe();
   EXPECT_EQ(int(fs::status(box.path("new.png")).permissions() & fs::perms::all), 0640);
   EXPECT_EQ(int(fs::status(box.path("old.json")).permissions() & fs::perms::all), 0604);
@@ -859,13 +861,14 @@ TEST(Output, AFailedWriteToStandardOutputIsAnError) {
   ASSERT_EQ(box.run(cat({"scene", "cloth", "-o", "s.trace"}, kSmall)).code, 0);
   Box::Options full;
   full.stdout_path = "/dev/full";
-  for (const auto& args : std::vector<std::vector<std::string>>{{"scene", "--list"},
-                                                                {"config"},
-                                                                {"trace", "info", "s.trace"},
-                                                                {"trace", "dump", "s.trace"},
-                                                                {"--help"},
-                                                                cat({"run", "--scene", "cloth", "--report", "-"}, kSmall),
-                                                                cat({"run", "--scene", "cloth", "--out", "a.png"}, kSmall)}) {
+  for (const auto& args :
+       std::vector<std::vector<std::string>>{{"scene", "--list"},
+                                             {"config"},
+                                             {"trace", "info", "s.trace"},
+                                             {"trace", "dump", "s.trace"},
+                                             {"--help"},
+                                             cat({"run", "--scene", "cloth", "--report", "-"}, kSmall),
+                                             cat({"run", "--scene", "cloth", "--out", "a.png"}, kSmall)}) {
     const Result r = box.run(args, full);
     EXPECT_EQ(r.code, 1) << r.describe();
     EXPECT_EQ(r.err, std::string("ropsim: error: standard output: ") + std::strerror(ENOSPC) + "\n") << r.describe();

@@ -343,8 +343,8 @@ int OutputFile::open_in_place() {
     }
     auto step = pause;
     if (timeout >= 0) {
-      const auto left = std::chrono::duration_cast<std::chrono::microseconds>(
-          std::chrono::duration<double>(timeout - waited));
+      const auto left =
+          std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::duration<double>(timeout - waited));
       if (left < step) step = left;
     }
     std::this_thread::sleep_for(step);

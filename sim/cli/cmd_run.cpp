@@ -388,8 +388,8 @@ LivePoints read_library(const RunOpts& o, CLI::App& sub, const InputSpec& in, co
 /// A sampled run: on the library read (library non-null, with the method
 /// run_cfg it serves), else on live-points recorded from in now.
 int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& run_cfg, const HwConfig& hw,
-                    LivePoints* library, std::chrono::steady_clock::time_point t0,
-                    const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
+                    LivePoints* library, std::chrono::steady_clock::time_point t0, const std::vector<std::string>& outs,
+                    const std::string& report, const std::string& cmdline) {
   LibrarySource from;
   LivePoints recorded;
   if (library)
@@ -485,8 +485,9 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   GoldenConfig run_cfg = cfg;
   if (sampled && !o.livepoints.empty()) library = read_library(o, sub, in, cfg, hw, run_cfg);
   if (outs.empty() && report.empty()) {
-    const std::string base = library ? default_output_base(o, library->input.spec, int(library->header.spp), run_cfg, hw)
-                                     : default_output_base(o, in, input_spp(o, in), run_cfg, hw);
+    const std::string base = library
+                                 ? default_output_base(o, library->input.spec, int(library->header.spp), run_cfg, hw)
+                                 : default_output_base(o, in, input_spp(o, in), run_cfg, hw);
     outs = {base + ".png", base + ".exr"};
     report = base + ".json";
   }
@@ -634,7 +635,8 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   auto* opt_trace =
       run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
   add_input_and_method_options(run, ro.get(), opt_trace);
-  run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable. Missing folders are made; "
+  run->add_option("--out", ro->outs,
+                  "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable. Missing folders are made; "
                   "no two outputs may be one file (docs/outputs.md; default: out/run/ named after the input, "
                   "method and design)");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
