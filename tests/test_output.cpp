@@ -559,6 +559,39 @@ TEST(OutputFile, ByNameAndThroughAPipeForLibraryWriters) {
   EXPECT_TRUE(left.empty()) << left[0];
 }
 
+TEST(OutputFile, OutputPlanComparesWhereNamesLead) {
+  Box box;
+  const std::string w = box.work().string();
+  fs::create_directories(box.work() / "d");
+  fs::create_symlink("d", box.path("dl"));  // a symlink to a folder
+  std::ofstream(box.path("d/a")) << "a";
+  auto clash = [](const std::vector<std::pair<std::string, std::string>>& outs) -> std::string {
+    ropsim::OutputPlan plan;
+    for (const auto& [what, path] : outs) plan.output(what, path);
+    try {
+      plan.check();
+    } catch (const ropsim::UserError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(clash({{"--a", w + "/d/a"}, {"--b", w + "/dl/a"}}), "") << "through a folder's symlink";
+  EXPECT_NE(clash({{"--a", w + "/d/new"}, {"--b", w + "/dl/../d/new"}}), "") << "a name that does not exist yet";
+  EXPECT_EQ(clash({{"--a", w + "/d/a"}, {"--b", w + "/d/b"}}), "");
+  EXPECT_EQ(clash({{"--a", "-"}, {"--b", "-"}}), "") << "standard output is not a file here";
+  EXPECT_EQ(clash({{"--a", "/dev/null"}, {"--b", "/dev/null"}}), "") << "a character device takes several outputs";
+  ropsim::OutputPlan in;
+  in.input("--trace", w + "/d/a");
+  in.input("--hw", w + "/d/a");  // two inputs may be one file
+  in.output("--report", w + "/dl/a");
+  try {
+    in.check();
+    ADD_FAILURE() << "an output that is an input was accepted";
+  } catch (const ropsim::UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("the input --trace"), std::string::npos) << e.what();
+  }
+}
+
 // ------------------------------------------------------------ distinct outputs
 
 /// Every file and folder under work/ (relative), but those in keep.
