@@ -25,6 +25,7 @@ import io
 import json
 import os
 import sqlite3
+import stat
 import sys
 import tempfile
 import urllib.parse
@@ -430,13 +431,27 @@ window.addEventListener('load', function () {
 """
 
 
+def new_file_mode(path):
+    """The mode the file written to path gets: a replaced file's own, else
+    what open() would give a new file (0666 less the umask), as ropsim's
+    writer does (docs/outputs.md); mkstemp alone would leave 0600."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        mask = os.umask(0o22)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
 def write_atomically(path, text):
     d = os.path.dirname(path)
+    mode = new_file_mode(path)
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
             f.flush()
+            os.fchmod(f.fileno(), mode)
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:

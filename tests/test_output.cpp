@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -64,6 +65,9 @@ struct Result {
 struct RunOptions {
   long fsize_limit = -1;  ///< RLIMIT_FSIZE in bytes for the child
   std::vector<std::string> env;
+  int stdout_fd = -1;       ///< >= 0: the child's standard output (else io/<tag>.out)
+  std::string stdout_path;  ///< non-empty: opened for writing as the child's standard output
+  int umask = -1;           ///< >= 0: the child's umask
 };
 
 /// A private folder: work/ (ropsim's working directory: only what it writes),
@@ -109,12 +113,15 @@ class Box {
     if (pid == 0) {  // only async-signal-safe calls from here
       if (::chdir(wd.c_str()) != 0) ::_exit(126);
       const int in = ::open("/dev/null", O_RDONLY);
-      const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int fo = o.stdout_fd >= 0         ? o.stdout_fd
+                     : !o.stdout_path.empty() ? ::open(o.stdout_path.c_str(), O_WRONLY)
+                                              : ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (in < 0 || fo < 0 || fe < 0) ::_exit(126);
       ::dup2(in, 0);
       ::dup2(fo, 1);
       ::dup2(fe, 2);
+      if (o.umask >= 0) ::umask(mode_t(o.umask));
       if (o.fsize_limit >= 0) {
         struct rlimit rl;
         rl.rlim_cur = rl.rlim_max = rlim_t(o.fsize_limit);
@@ -133,7 +140,7 @@ class Box {
     }
     if (WIFEXITED(st)) r.code = WEXITSTATUS(st);
     if (WIFSIGNALED(st)) r.signal = WTERMSIG(st);
-    r.out = slurp(root_ / "io" / (tag + ".out"));
+    if (fs::exists(root_ / "io" / (tag + ".out"))) r.out = slurp(root_ / "io" / (tag + ".out"));
     r.err = slurp(root_ / "io" / (tag + ".err"));
     r.cmd = "ropsim";
     for (const auto& a : args) r.cmd += " " + a;
@@ -550,6 +557,371 @@ TEST(OutputFile, ByNameAndThroughAPipeForLibraryWriters) {
   }
   const auto left = box.leftovers();
   EXPECT_TRUE(left.empty()) << left[0];
+}
+
+TEST(OutputFile, OutputPlanComparesWhereNamesLead) {
+  Box box;
+  const std::string w = box.work().string();
+  fs::create_directories(box.work() / "d");
+  fs::create_symlink("d", box.path("dl"));  // a symlink to a folder
+  std::ofstream(box.path("d/a")) << "a";
+  auto clash = [](const std::vector<std::pair<std::string, std::string>>& outs) -> std::string {
+    ropsim::OutputPlan plan;
+    for (const auto& [what, path] : outs) plan.output(what, path);
+    try {
+      plan.check();
+    } catch (const ropsim::UserError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(clash({{"--a", w + "/d/a"}, {"--b", w + "/dl/a"}}), "") << "through a folder's symlink";
+  EXPECT_NE(clash({{"--a", w + "/d/new"}, {"--b", w + "/dl/../d/new"}}), "") << "a name that does not exist yet";
+  EXPECT_EQ(clash({{"--a", w + "/d/a"}, {"--b", w + "/d/b"}}), "");
+  EXPECT_EQ(clash({{"--a", "-"}, {"--b", "-"}}), "") << "standard output is not a file here";
+  EXPECT_EQ(clash({{"--a", "/dev/null"}, {"--b", "/dev/null"}}), "") << "a character device takes several outputs";
+  ropsim::OutputPlan in;
+  in.input("--trace", w + "/d/a");
+  in.input("--hw", w + "/d/a");  // two inputs may be one file
+  in.output("--report", w + "/dl/a");
+  try {
+    in.check();
+    ADD_FAILURE() << "an output that is an input was accepted";
+  } catch (const ropsim::UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("the input --trace"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------ distinct outputs
+
+/// Every file and folder under work/ (relative), but those in keep.
+std::vector<std::string> written_files(const Box& box, const std::vector<std::string>& keep) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::recursive_directory_iterator(box.work())) {
+    const std::string rel = fs::relative(e.path(), box.work()).string();
+    if (std::find(keep.begin(), keep.end(), rel) == keep.end()) v.push_back(rel);
+  }
+  return v;
+}
+
+TEST(Output, TwoOutputsThatAreOneFileAreRefusedBeforeAnyWork) {
+  Box box;
+  ASSERT_EQ(box.run(cat({"scene", "testcard", "-o", "t.trace"}, kSmall)).code, 0);
+  std::ofstream(box.path("h1.json")) << "old";
+  ASSERT_EQ(::link(box.path("h1.json").c_str(), box.path("h2.json").c_str()), 0) << std::strerror(errno);
+  fs::create_symlink("s.json", box.path("link.json"));  // dangling: s.json is written by the run
+  fs::create_directories(box.work() / "sub");
+  const std::vector<std::string> keep = {"t.trace", "h1.json", "h2.json", "link.json", "sub"};
+  const std::vector<std::string> cycle = {"--fidelity", "cycle"};
+  struct Case {
+    std::vector<std::string> args;
+    std::string first, second, path;  ///< the two flags and the path the line names
+  };
+  const std::vector<Case> cases = {
+      {{"--out", "x.exr", "--report", "x.exr"}, "--out", "--report", "x.exr"},
+      {{"--out", "x.png", "--report", "x.png"}, "--out", "--report", "x.png"},
+      {{"--out", "x.png", "--out", "sub/../x.png"}, "--out", "--out", "x.png"},
+      {{"--report", "x.json", "--draw-csv", "x.json"}, "--report", "--draw-csv", "x.json"},
+      {cat(cycle, {"--vcd", "x.json", "--report", "x.json"}), "--report", "--vcd", "x.json"},
+      {cat(cycle, {"--vcd", "x.vcd", "--stats-interval", "100", "--stats-csv", "x.vcd"}), "--vcd", "--stats-csv",
+       "x.vcd"},
+      {cat(cycle, {"--vcd", "x", "--report", "x.gtkw"}), "--report", "--vcd's GTKWave save file", "x.gtkw"},
+      {{"--maps", "m", "--out", "m/fragments.png"}, "--out", "--maps", "m/fragments.png"},
+      {{"--report", "s.json", "--draw-csv", "link.json"}, "--report", "--draw-csv", "link.json"},  // a symlink
+      {{"--report", "h1.json", "--draw-csv", "h2.json"}, "--report", "--draw-csv", "h2.json"},     // a hard link
+      {{"--report", "t.trace"}, "--report", "the input --trace", "t.trace"},                       // the input
+  };
+  for (const auto& c : cases) {
+    const auto args = cat({"run", "--trace", "t.trace", "--quiet"}, c.args);
+    std::string shown = "ropsim";
+    for (const auto& a : args) shown += " " + a;
+    SCOPED_TRACE(shown);
+    const Result r = box.run(args);
+    EXPECT_EQ(r.code, 1) << r.describe();
+    EXPECT_EQ(lines_of(r.err).size(), 1u) << r.describe();
+    EXPECT_EQ(r.err.rfind("ropsim: error: ", 0), 0u) << r.describe();
+    for (const auto& w : {c.first, c.second, c.path})
+      EXPECT_NE(r.err.find(w), std::string::npos) << "the line does not name " << w << "\n" << r.describe();
+    EXPECT_EQ(written_files(box, keep), std::vector<std::string>{}) << "written before the refusal\n" << r.describe();
+    EXPECT_EQ(slurp(box.path("h1.json")), "old");
+    EXPECT_GT(fs::file_size(box.path("t.trace")), 100u) << "the input was replaced";
+  }
+  // The other verbs: an output that is the input.
+  for (const auto& args : std::vector<std::vector<std::string>>{{"trace", "dump", "t.trace", "-o", "t.trace"},
+                                                                {"livepoints", "t.trace", "-o", "./t.trace"}}) {
+    const Result r = box.run(args);
+    EXPECT_EQ(r.code, 1) << r.describe();
+    EXPECT_EQ(lines_of(r.err).size(), 1u) << r.describe();
+    EXPECT_NE(r.err.find("t.trace"), std::string::npos) << r.describe();
+    EXPECT_EQ(trace_problem(box.path("t.trace")), "") << "the input was replaced";
+  }
+  // Distinct names for one run are fine (a control: the refusals are about the clash).
+  const Result ok = box.run(
+      cat({"run", "--trace", "t.trace", "--quiet", "--out", "x.png", "--report", "x.json", "--maps", "m"}, cycle));
+  EXPECT_EQ(ok.code, 0) << ok.describe();
+  EXPECT_TRUE(fs::exists(box.path("m/fragments.png")));
+}
+
+// ------------------------------------------------------------ readers that close, FIFOs without a reader
+
+/// A reader of the FIFO at path that reads `limit` bytes, then closes it.
+struct EarlyReader {
+  std::string path;
+  std::thread t;
+  size_t got = 0;
+  EarlyReader(const std::string& p, size_t limit) : path(p) {
+    t = std::thread([this, limit] {
+      const int fd = ::open(path.c_str(), O_RDONLY);
+      if (fd < 0) return;
+      (void)::fcntl(fd, F_SETPIPE_SZ, 4096);  // the smallest buffer: the writer soon meets the close
+      char buf[256];
+      while (got < limit) {
+        const ssize_t n = ::read(fd, buf, std::min(sizeof buf, limit - got));
+        if (n <= 0) break;
+        got += size_t(n);
+      }
+      ::close(fd);
+    });
+  }
+  ~EarlyReader() {
+    // Unblock the open if the writer never came.
+    const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK);
+    if (fd >= 0) ::close(fd);
+    t.join();
+  }
+};
+
+TEST(Output, AReaderThatClosesEarlyIsAnErrorNotASignal) {
+  Box box;
+  ASSERT_EQ(box.run(cat({"scene", "testcard", "-o", "t.trace"}, {"--spp", "4"})).code, 0);
+  struct Case {
+    const char* what;
+    std::vector<std::string> args;
+    std::string fifo;
+  };
+  // Each output is far larger than a pipe's buffer (64 KiB).
+  const std::vector<Case> cases = {
+      {"vcd", {"run", "--fidelity", "cycle", "--trace", "t.trace", "--vcd", "v.vcd", "--quiet"}, "v.vcd"},
+      {"exr", {"run", "--trace", "t.trace", "--out", "x.exr", "--quiet"}, "x.exr"},
+      {"trace dump", {"trace", "dump", "t.trace", "-o", "d.jsonl"}, "d.jsonl"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.what);
+    ASSERT_EQ(::mkfifo(box.path(c.fifo).c_str(), 0600), 0) << std::strerror(errno);
+    Result r;
+    {
+      EarlyReader reader(box.path(c.fifo), 100);
+      r = box.run(c.args);
+    }
+    EXPECT_EQ(r.signal, 0) << "killed by a signal (SIGPIPE must be ignored)\n" << r.describe();
+    EXPECT_EQ(r.code, 1) << r.describe();
+    EXPECT_EQ(r.err, "ropsim: error: " + c.fifo + ": the reader closed it\n") << r.describe();
+    EXPECT_TRUE(is_fifo(box.path(c.fifo)));
+    EXPECT_FALSE(fs::exists(box.path("v.gtkw"))) << "the waveform's save file was written after the error";
+    const auto left = box.leftovers();
+    EXPECT_TRUE(left.empty()) << left[0];
+    fs::remove(box.path(c.fifo));
+  }
+  // Standard output closed early: quiet, as any tool in a pipeline (the
+  // status of a SIGPIPE), with no temporary file left.
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"trace", "dump", "t.trace"},
+           {"run", "--fidelity", "cycle", "--trace", "t.trace", "--report", "-", "--out", "y.png"}}) {
+    int p[2];
+    ASSERT_EQ(::pipe2(p, O_CLOEXEC), 0);  // the child keeps only the write end, as its stdout
+    // One page of buffer: the output (more than 4 KiB) cannot all fit before the close.
+    ASSERT_GE(::fcntl(p[1], F_SETPIPE_SZ, 4096), 4096) << std::strerror(errno);
+    Box::Options o;
+    o.stdout_fd = p[1];
+    const pid_t pid = box.start(args, "pipe", o);
+    ::close(p[1]);
+    char buf[100];
+    size_t got = 0;
+    for (ssize_t n; got < sizeof buf && (n = ::read(p[0], buf + got, sizeof buf - got)) > 0;) got += size_t(n);
+    ::close(p[0]);
+    const Result r = box.wait(pid, "pipe", args);
+    EXPECT_EQ(got, sizeof buf) << r.describe();
+    EXPECT_EQ(r.signal, SIGPIPE) << r.describe();
+    EXPECT_EQ(r.err, "") << r.describe();
+    const auto left = box.leftovers();
+    EXPECT_TRUE(left.empty()) << left[0];
+  }
+}
+
+TEST(Output, AFifoWithoutAReaderWaitsSaysSoAndTimesOut) {
+  Box box;
+  const std::string fifo = box.path("r.json");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  const auto args = cat({"run", "--scene", "cloth", "--report", "r.json", "--quiet"}, kSmall);
+  // --output-timeout: one line naming the file and the flag, exit 1.
+  for (const char* t : {"0", "0.05"}) {
+    SCOPED_TRACE(std::string("--output-timeout ") + t);
+    const Result r = box.run(cat({"--output-timeout", t}, args));
+    EXPECT_EQ(r.code, 1) << r.describe();
+    auto lines = lines_of(r.err);
+    if (std::string(t) != "0") {  // it waited: it said so, once
+      ASSERT_FALSE(lines.empty()) << r.describe();
+      EXPECT_EQ(lines[0], "ropsim: waiting for a reader of r.json") << r.describe();
+      lines.erase(lines.begin());
+    }
+    EXPECT_EQ(lines, std::vector<std::string>{"ropsim: error: r.json: no reader opened it within " + std::string(t) +
+                                              " s (--output-timeout)"})
+        << r.describe();
+    EXPECT_TRUE(is_fifo(fifo));
+  }
+  // The default waits for a reader, saying so once; the report then arrives whole.
+  const pid_t pid = box.start(args, "wait");
+  const fs::path err = box.work().parent_path() / "io" / "wait.err";
+  bool said = false;
+  for (int i = 0; i < 60000 && !said; ++i) {  // up to a minute, for a loaded machine
+    said = slurp(err).find("waiting for a reader of r.json") != std::string::npos;
+    if (!said) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  std::string got;
+  if (said) {
+    std::ifstream in(fifo, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    got = ss.str();
+  } else {
+    ::kill(pid, SIGKILL);
+  }
+  const Result r = box.wait(pid, "wait", args);
+  ASSERT_TRUE(said) << "no word while it waits\n" << r.describe();
+  EXPECT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(r.err, "ropsim: waiting for a reader of r.json\n") << r.describe();
+  EXPECT_EQ(json_problem(got), "") << got.substr(0, 300);
+}
+
+// ------------------------------------------------------------ default names
+
+TEST(Output, DefaultNamesComeFromTheInputReplayed) {
+  Box box;
+  ASSERT_EQ(box.run(cat({"scene", "testcard", "-o", "motor.trace"}, kSmall)).code, 0);
+  ASSERT_EQ(box.run({"livepoints", "motor.trace", "-o", "motor.rlp", "--quiet"}).code, 0);
+  ASSERT_EQ(
+      box.run(cat({"livepoints", "--scene", "eight-layers", "--method", "opaque", "-o", "e.rlp", "--quiet"}, kSmall))
+          .code,
+      0);
+  /// The names under out/run/ after a run (removed for the next).
+  auto names = [&](const std::vector<std::string>& args) {
+    const Result r = box.run(cat(args, {"--quiet"}));
+    EXPECT_EQ(r.code, 0) << r.describe();
+    std::vector<std::string> v;
+    if (fs::exists(box.work() / "out" / "run"))
+      for (const auto& e : fs::directory_iterator(box.work() / "out" / "run")) v.push_back(e.path().filename());
+    std::sort(v.begin(), v.end());
+    fs::remove_all(box.work() / "out");
+    return v;
+  };
+  auto expect_base = [](const std::vector<std::string>& got, const std::string& prefix) {
+    ASSERT_EQ(got.size(), 3u) << "png, exr and json expected";
+    for (const auto& n : got) EXPECT_EQ(n.rfind(prefix, 0), 0u) << n << " does not start with " << prefix;
+  };
+  // Sampled on a library: named after the library's input, spp and method
+  // (not the default scene cloth at 16 spp).
+  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "motor.rlp"}), "motor-lk-4spp-sampled-hw");
+  expect_base(names({"run", "--fidelity", "sampled", "--livepoints", "e.rlp"}),
+              "eight-layers-64x64-opaque-4spp-sampled-hw");
+  // Every fidelity on a trace: its stem and its header's spp.
+  expect_base(names({"run", "--trace", "motor.trace"}), "motor-lk-4spp.");
+  for (const char* f : {"sampled", "cycle", "approximate"})
+    expect_base(names({"run", "--trace", "motor.trace", "--fidelity", f}), std::string("motor-lk-4spp-") + f + "-hw");
+  // A scene's parameters that change the input are in its name.
+  expect_base(names(cat({"run", "--scene", "testcard", "--scene-seed", "3", "--repeat", "2"}, kSmall)),
+              "testcard-64x64-seed3-lk-4spp-x2.");
+}
+
+// ------------------------------------------------------------ folders, modes, standard output, flags
+
+TEST(Output, AFailedRunRemovesTheFoldersItCreated) {
+  Box box;
+  std::ofstream(box.path("afile")) << "x";
+  // The report cannot be written: the maps folder and the image's missing
+  // folders this run made go with the files.
+  const Result r = box.run(cat({"run", "--scene", "cloth", "--maps", "m/deep", "--out", "nodir/sub/x.png", "--report",
+                                "afile/r.json", "--quiet"},
+                               kSmall));
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_EQ(written_files(box, {"afile"}), std::vector<std::string>{}) << r.describe();
+  // The maps cannot be written (a full disk, here the file size limit).
+  Box::Options lim;
+  lim.fsize_limit = 512;
+  const Result f =
+      box.run(cat({"run", "--scene", "cloth", "--maps", "m2", "--report", "r.json", "--quiet"}, kSmall), lim);
+  EXPECT_EQ(f.code, 1) << f.describe();
+  EXPECT_EQ(written_files(box, {"afile"}), std::vector<std::string>{}) << f.describe();
+  // A folder that was there stays, with what it held.
+  fs::create_directories(box.work() / "m");
+  std::ofstream(box.path("m/mine.txt")) << "keep";
+  const Result r2 =
+      box.run(cat({"run", "--scene", "cloth", "--maps", "m", "--report", "afile/r.json", "--quiet"}, kSmall));
+  EXPECT_EQ(r2.code, 1) << r2.describe();
+  EXPECT_EQ(written_files(box, {"afile", "m", "m/mine.txt"}), std::vector<std::string>{}) << r2.describe();
+  // On success the missing folders are made (docs/outputs.md).
+  const Result ok = box.run(cat({"run", "--scene", "cloth", "--out", "nodir/sub/x.png", "--quiet"}, kSmall));
+  EXPECT_EQ(ok.code, 0) << ok.describe();
+  EXPECT_EQ(image_problem(box.path("nodir/sub/x.png")), "");
+}
+
+TEST(Output, NewFilesGetTheUmasksModeAndReplacedFilesKeepTheirs) {
+  Box box;
+  Box::Options o;
+  o.umask = 027;
+  std::ofstream(box.path("old.json")) << "old";
+  fs::permissions(box.path("old.json"), fs::perms(0604));
+  const Result r =
+      box.run(cat({"run", "--scene", "cloth", "--out", "new.png", "--report", "old.json", "--quiet"}, kSmall), o);
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(int(fs::status(box.path("new.png")).permissions() & fs::perms::all), 0640);
+  EXPECT_EQ(int(fs::status(box.path("old.json")).permissions() & fs::perms::all), 0604);
+  // The study report (written by analysis/study_report.py) alike.
+  std::ofstream(box.path("s.toml")) << "[study]\nname = \"modes\"\n[inputs]\nscenes = [\"cloth\"]\n"
+                                       "[axes]\nmethod = [\"lk\"]\nspp = [4]\nwidth = 16\nheight = 16\n";
+  const Result run = box.run({"study", "run", "s.toml", "--out", "st", "-j", "1", "--quiet"}, o);
+  ASSERT_EQ(run.code, 0) << run.describe();
+  const Result rep = box.run({"study", "report", "st"}, o);
+  ASSERT_EQ(rep.code, 0) << rep.describe();
+  for (const char* f : {"st/report/index.html", "st/report/summary.md"})
+    EXPECT_EQ(int(fs::status(box.path(f)).permissions() & fs::perms::all), 0640) << f;
+  const Result exp = box.run({"study", "export", "st", "--csv", "st.csv"}, o);
+  ASSERT_EQ(exp.code, 0) << exp.describe();
+  EXPECT_EQ(int(fs::status(box.path("st.csv")).permissions() & fs::perms::all), 0640);
+}
+
+TEST(Output, AFailedWriteToStandardOutputIsAnError) {
+  Box box;
+  ASSERT_EQ(box.run(cat({"scene", "cloth", "-o", "s.trace"}, kSmall)).code, 0);
+  Box::Options full;
+  full.stdout_path = "/dev/full";
+  for (const auto& args :
+       std::vector<std::vector<std::string>>{{"scene", "--list"},
+                                             {"config"},
+                                             {"trace", "info", "s.trace"},
+                                             {"trace", "dump", "s.trace"},
+                                             {"--help"},
+                                             cat({"run", "--scene", "cloth", "--report", "-"}, kSmall),
+                                             cat({"run", "--scene", "cloth", "--out", "a.png"}, kSmall)}) {
+    const Result r = box.run(args, full);
+    EXPECT_EQ(r.code, 1) << r.describe();
+    EXPECT_EQ(r.err, std::string("ropsim: error: standard output: ") + std::strerror(ENOSPC) + "\n") << r.describe();
+  }
+  EXPECT_FALSE(fs::exists(box.path("a.png"))) << "a run that failed kept the image it created";
+}
+
+TEST(ExitStatus, MemoryLimitZeroAndEmptyAreRefusedNoneIsNoLimit) {
+  Box box;
+  for (const char* v : {"0", "0M", ""}) {
+    SCOPED_TRACE(std::string("--memory-limit '") + v + "'");
+    const Result r = box.run({"--memory-limit", v, "config"});
+    EXPECT_EQ(r.code, 1) << r.describe();
+    expect_one_line(r, "ropsim: error: --memory-limit \"" + std::string(v) + "\": ");
+  }
+  const Result r = box.run(cat({"run", "--scene", "cloth", "--memory-limit", "none", "--report", "-"}, kSmall));
+  EXPECT_EQ(r.code, 0) << r.describe();
+  const auto j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.out.substr(0, 300);
+  EXPECT_EQ(j["host"]["memory_limit_bytes"], 0) << "none: no limit";
 }
 
 }  // namespace

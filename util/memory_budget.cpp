@@ -55,13 +55,15 @@ uint64_t parse_memory_size(const std::string& text, const std::string& flag) {
                     "\": expected bytes with an optional K, M, G or T suffix (binary), a percentage of physical "
                     "memory such as 50%, or none");
   };
-  if (text == "none" || text == "0") return 0;
+  if (text == "none") return 0;
   uint64_t v = 0;
   const char* first = text.data();
   const char* last = text.data() + text.size();
   const auto r = std::from_chars(first, last, v);
   if (r.ec != std::errc() || r.ptr == first) bad();
   const std::string suffix(r.ptr, last);
+  if (v == 0)
+    throw UserError(flag + " \"" + text + "\": a limit of 0 leaves no memory to run in; for no limit give none");
   if (suffix == "%") {
     if (v == 0 || v > 100) bad();
     return physical_memory() / 100 * v;
@@ -90,7 +92,6 @@ uint64_t parse_memory_size(const std::string& text, const std::string& flag) {
     bad();
   }
   if (v > (UINT64_MAX >> shift)) bad();
-  if ((v << shift) == 0) bad();
   return v << shift;
 }
 

@@ -47,7 +47,8 @@ uint64_t default_memory_limit();
 
 /// A memory size: a whole number of bytes with an optional binary suffix
 /// K, M, G or T (KiB ... TiB), or a percentage of physical memory ("50%"),
-/// or 0 / "none" for no limit. Throws UserError naming `flag` on anything else.
+/// or "none" for no limit (returned as 0). Throws UserError naming `flag` on
+/// anything else, "" and a zero size (0, 0M, 0%) included.
 uint64_t parse_memory_size(const std::string& text, const std::string& flag);
 
 /// "1.5 GiB", "640 MiB", "12 KiB", "100 B".

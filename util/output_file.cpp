@@ -1,16 +1,20 @@
 #include "output_file.h"
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <climits>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -48,13 +52,38 @@ void drop_pending(const std::string& p) {
     if (g_pending_kind[i] && p == g_pending[i]) g_pending_kind[i] = 0;
 }
 
-extern "C" void on_fatal_signal(int sig) {
+void remove_pending() {
   for (int pass = 1; pass <= 2; ++pass)  // files first, then their folders
     for (int i = 0; i < kPendingSlots; ++i)
       if (g_pending_kind[i] == pass) pass == 1 ? (void)::unlink(g_pending[i]) : (void)::rmdir(g_pending[i]);
-  ::signal(sig, SIG_DFL);
-  ::raise(sig);
 }
+
+/// Dies of sig with its default action (after the handler's cleanup).
+[[noreturn]] void die_of(int sig) {
+  ::signal(sig, SIG_DFL);
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, sig);
+  ::sigprocmask(SIG_UNBLOCK, &set, nullptr);
+  ::raise(sig);
+  ::_exit(128 + sig);  // not reached: the default action of every signal used here ends the process
+}
+
+extern "C" void on_fatal_signal(int sig) {
+  remove_pending();
+  die_of(sig);
+}
+
+/// Standard output's reader closed it: end as a pipeline's writer does, by
+/// SIGPIPE (no message; the shell's status 141), the temporary files removed.
+[[noreturn]] void die_of_closed_stdout() {
+  std::fflush(stderr);
+  remove_pending();
+  die_of(SIGPIPE);
+}
+
+/// Seconds to wait for a FIFO's reader; negative: forever.
+std::atomic<double> g_output_timeout{-1.0};
 
 // ------------------------------------------------ targets this run created
 struct Created {
@@ -63,16 +92,11 @@ struct Created {
   ino_t ino;
 };
 std::vector<Created> g_created;
+std::vector<std::string> g_created_dirs;  ///< by ensure_parent_dir, outermost first
 std::mutex g_created_mutex;
 
-mode_t current_umask() {
-  static const mode_t m = [] {
-    const mode_t u = ::umask(0);
-    ::umask(u);
-    return u;
-  }();
-  return m;
-}
+/// The mode of a new file: what open(..., 0666) would give it.
+mode_t new_file_mode() { return 0666 & ~current_umask(); }
 
 std::string dir_of(const std::string& p) {
   const auto slash = p.find_last_of('/');
@@ -185,8 +209,7 @@ OutputFile::OutputFile(std::string path, Options opt) : path_(std::move(path)), 
   if (mode_ == Mode::kStdout) {
     f_ = stdout;
   } else if (mode_ == Mode::kInPlace) {
-    const int fd = ::open(target_.c_str(), O_WRONLY | O_NOCTTY | O_CLOEXEC);
-    if (fd < 0) fail_errno(errno);
+    const int fd = open_in_place();
     f_ = ::fdopen(fd, "wb");
     if (!f_) {
       const int e = errno;
@@ -269,8 +292,67 @@ void OutputFile::fail(const std::string& what) {
 }
 
 void OutputFile::fail_errno(int err) {
+  if (err == EPIPE) {
+    if (mode_ == Mode::kStdout) {
+      discard();
+      die_of_closed_stdout();
+    }
+    fail("the reader closed it");
+  }
   discard();
+  // A SystemError carries errno, so a study tells a host fault (ENOSPC, EIO)
+  // from a bad input.
   throw SystemError((path_ == "-" ? std::string("standard output") : path_) + ": " + std::strerror(err), err);
+}
+
+int OutputFile::open_in_place() {
+  struct stat st;
+  const bool fifo = ::stat(target_.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+  if (!fifo) {
+    const int fd = ::open(target_.c_str(), O_WRONLY | O_NOCTTY | O_CLOEXEC);
+    if (fd < 0) fail_errno(errno);
+    return fd;
+  }
+  // A FIFO: a blocking open would wait for a reader without a word and
+  // without end. Open it without blocking (ENXIO: no reader yet) and retry.
+  const double timeout = g_output_timeout.load();
+  const auto t0 = std::chrono::steady_clock::now();
+  auto pause = std::chrono::microseconds(500);
+  bool said = false;
+  for (;;) {
+    const int fd = ::open(target_.c_str(), O_WRONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+    if (fd >= 0) {
+      // Written like any file from here on: writes wait for the reader.
+      const int flags = ::fcntl(fd, F_GETFL);
+      if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+        const int e = errno;
+        ::close(fd);
+        fail_errno(e);
+      }
+      return fd;
+    }
+    if (errno == EINTR) continue;
+    if (errno != ENXIO) fail_errno(errno);
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (timeout >= 0 && waited >= timeout) {
+      char secs[32];
+      std::snprintf(secs, sizeof secs, "%g", timeout);
+      fail(std::string("no reader opened it within ") + secs + " s (--output-timeout)");
+    }
+    if (!said) {
+      std::fprintf(stderr, "ropsim: waiting for a reader of %s\n", path_.c_str());
+      std::fflush(stderr);
+      said = true;
+    }
+    auto step = pause;
+    if (timeout >= 0) {
+      const auto left =
+          std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::duration<double>(timeout - waited));
+      if (left < step) step = left;
+    }
+    std::this_thread::sleep_for(step);
+    pause = std::min<std::chrono::microseconds>(pause * 2, std::chrono::milliseconds(50));
+  }
 }
 
 void OutputFile::discard() noexcept {
@@ -329,7 +411,7 @@ void OutputFile::commit_stream() {
   const int fd = ::fileno(f_);
   if (mode_ == Mode::kReplace) {
     if (::fsync(fd) != 0) fail_errno(errno);
-    ::fchmod(fd, target_mode_ >= 0 ? mode_t(target_mode_) : (0666 & ~current_umask()));
+    ::fchmod(fd, target_mode_ >= 0 ? mode_t(target_mode_) : new_file_mode());
   }
   FILE* f = f_;
   f_ = nullptr;
@@ -349,13 +431,19 @@ void OutputFile::commit_named() {
       ::close(fd);
       fail_errno(e);
     }
-    ::fchmod(fd, target_mode_ >= 0 ? mode_t(target_mode_) : (0666 & ~current_umask()));
+    ::fchmod(fd, target_mode_ >= 0 ? mode_t(target_mode_) : new_file_mode());
     ::close(fd);
     rename_onto_target(-1);
     return;
   }
   // In place or stdout: copy the bytes into the target.
-  const int out = mode_ == Mode::kStdout ? ::dup(1) : ::open(target_.c_str(), O_WRONLY | O_NOCTTY | O_CLOEXEC);
+  int out = -1;
+  try {
+    out = mode_ == Mode::kStdout ? ::dup(1) : open_in_place();
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
   if (out < 0) {
     const int e = errno;
     ::close(fd);
@@ -413,6 +501,24 @@ void ensure_parent_dir(const std::string& path) {
   if (path == "-") return;
   const std::filesystem::path p(path);
   if (!p.has_parent_path()) return;
+  // Each missing folder, outermost first, made by this call's own mkdir: a
+  // folder a concurrent run made is not this run's to remove.
+  std::vector<std::filesystem::path> missing;
+  for (std::filesystem::path d = p.parent_path(); !d.empty(); d = d.parent_path()) {
+    struct stat st;
+    if (::lstat(d.c_str(), &st) == 0) break;
+    missing.insert(missing.begin(), d);
+    if (d == d.parent_path()) break;
+  }
+  for (const auto& d : missing) {
+    if (::mkdir(d.c_str(), 0777) == 0) {
+      std::lock_guard<std::mutex> lock(g_created_mutex);
+      g_created_dirs.push_back(d.string());
+    } else if (errno != EEXIST) {
+      throw UserError(path + ": cannot create the folder " + p.parent_path().string() + ": " + std::strerror(errno));
+    }
+  }
+  // What mkdir could not say (a component that is a file, a symlink to a folder...).
   std::error_code ec;
   std::filesystem::create_directories(p.parent_path(), ec);
   if (ec) throw UserError(path + ": cannot create the folder " + p.parent_path().string() + ": " + ec.message());
@@ -428,22 +534,120 @@ int remove_created_outputs() noexcept {
       ++n;
   }
   g_created.clear();
+  // Then the folders made for them, deepest first; rmdir keeps any that holds something.
+  for (auto it = g_created_dirs.rbegin(); it != g_created_dirs.rend(); ++it) ::rmdir(it->c_str());
+  g_created_dirs.clear();
   return n;
 }
 
 void forget_created_outputs() noexcept {
   std::lock_guard<std::mutex> lock(g_created_mutex);
   g_created.clear();
+  g_created_dirs.clear();
 }
 
 void install_output_signal_handling() {
   ::signal(SIGXFSZ, SIG_IGN);
+  ::signal(SIGPIPE, SIG_IGN);
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
     struct sigaction sa {};
     sa.sa_handler = on_fatal_signal;
     sigemptyset(&sa.sa_mask);
     ::sigaction(sig, &sa, nullptr);
   }
+}
+
+void set_output_timeout(double seconds) { g_output_timeout.store(std::isfinite(seconds) ? seconds : -1.0); }
+
+void finish_standard_output() {
+  errno = 0;
+  const bool flush_failed = std::fflush(stdout) != 0;
+  int err = flush_failed ? errno : 0;
+  if (!flush_failed && !std::ferror(stdout)) return;
+  if (!err) {
+    // An earlier write failed (stdio keeps only the flag): a pipe or socket
+    // whose reader is gone shows POLLERR; anything else is an I/O error.
+    struct stat st;
+    pollfd pf{1, POLLOUT, 0};
+    err = ::fstat(1, &st) == 0 && (S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode)) && ::poll(&pf, 1, 0) == 1 &&
+                  (pf.revents & POLLERR)
+              ? EPIPE
+              : EIO;
+  }
+  standard_output_failed(err);
+}
+
+void standard_output_failed(int err) {
+  if (err == EPIPE) die_of_closed_stdout();
+  std::clearerr(stdout);
+  throw UserError(std::string("standard output: ") + std::strerror(err ? err : EIO));
+}
+
+mode_t current_umask() {
+  // Linux 4.7 and later tell it in /proc; umask() would set it for a moment,
+  // giving a file another thread creates meanwhile the mode 0666.
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);)
+    if (line.rfind("Umask:", 0) == 0) return mode_t(std::strtoul(line.c_str() + 6, nullptr, 8)) & 0777;
+  static std::mutex m;
+  std::lock_guard<std::mutex> lock(m);
+  const mode_t u = ::umask(022);
+  ::umask(u);
+  return u;
+}
+
+FileIdentity file_identity(const std::string& path) {
+  namespace fs = std::filesystem;
+  FileIdentity id;
+  std::error_code ec;
+  fs::path p = fs::absolute(resolve_symlinks(path), ec);
+  if (ec) p = resolve_symlinks(path);
+  // The folders' symlinks resolved where they exist, the rest made normal.
+  const fs::path c = fs::weakly_canonical(p, ec);
+  id.path = (ec ? p.lexically_normal() : c).string();
+  struct stat st;
+  if (::stat(id.path.c_str(), &st) == 0) {
+    id.exists = true;
+    id.char_device = S_ISCHR(st.st_mode);
+    id.dev = st.st_dev;
+    id.ino = st.st_ino;
+  }
+  return id;
+}
+
+bool same_file(const FileIdentity& a, const FileIdentity& b) {
+  if (a.exists && b.exists) return a.dev == b.dev && a.ino == b.ino;
+  return a.path == b.path;
+}
+
+void OutputPlan::output(std::string what, std::string path) {
+  if (path.empty() || path == "-") return;
+  entries_.push_back(Entry{std::move(what), std::move(path), false});
+}
+
+void OutputPlan::input(std::string what, std::string path) {
+  if (path.empty() || path == "-") return;
+  entries_.push_back(Entry{std::move(what), std::move(path), true});
+}
+
+void OutputPlan::check() const {
+  std::vector<FileIdentity> ids;
+  ids.reserve(entries_.size());
+  for (const auto& e : entries_) ids.push_back(file_identity(e.path));
+  for (size_t j = 0; j < entries_.size(); ++j)
+    for (size_t i = 0; i < j; ++i) {
+      const Entry &a = entries_[i], &b = entries_[j];
+      if (a.input && b.input) continue;
+      if (!same_file(ids[i], ids[j]) || ids[i].char_device) continue;
+      const Entry& out = a.input ? b : a;  // the first output named, then the other
+      const Entry& other = a.input ? a : b;
+      const std::string other_what = other.input ? "the input " + other.what : other.what;
+      std::string msg = out.path == other.path
+                            ? out.what + " and " + other_what + " both name " + out.path
+                            : out.what + " " + out.path + " and " + other_what + " " + other.path + " are one file";
+      msg += other.input ? ": an output must not replace an input" : ": give each output a file of its own";
+      throw UserError(msg);
+    }
 }
 
 std::string resolve_symlinks(const std::string& path) {

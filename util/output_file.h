@@ -9,7 +9,13 @@
 //  - A symlink is resolved (the whole chain): the link's target is replaced and
 //    the link is kept.
 //  - A target that exists and is not a regular file (a character device, a
-//    FIFO) is opened O_WRONLY and written in place; it stays what it was.
+//    FIFO) is opened O_WRONLY and written in place; it stays what it was. A
+//    FIFO is opened without blocking, retried until a reader opens it or
+//    --output-timeout passes (set_output_timeout), saying once on stderr that
+//    it waits.
+//  - SIGPIPE is ignored (install_output_signal_handling): a reader that
+//    closes a FIFO or pipe early is the error "PATH: the reader closed it";
+//    standard output closed early ends the process quietly, as by SIGPIPE.
 //  - "-" is standard output, where the caller allows it (a single text output).
 //  - Any failure (ENOSPC, EFBIG under `ulimit -f`, EIO...) throws UserError
 //    "PATH: <strerror>" (a SystemError with the errno, errors.h); the temporary file is removed and nothing appears
@@ -20,10 +26,13 @@
 //
 // Bottom layer: POSIX and the standard library only.
 #pragma once
+#include <sys/types.h>
+
 #include <cstdio>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace ropsim {
 
@@ -83,6 +92,9 @@ class OutputFile {
   enum class Mode { kStdout, kInPlace, kReplace };
   struct Pipe;
   [[noreturn]] void fail_errno(int err);
+  /// Opens the in-place target for writing (a FIFO: without blocking, waiting
+  /// for its reader up to --output-timeout). Throws UserError.
+  int open_in_place();
   void commit_stream();
   void commit_named();
   void rename_onto_target(int fd_for_mode);
@@ -104,19 +116,82 @@ class OutputFile {
 void write_text_output(const std::string& path, std::string_view text, bool allow_stdout = false);
 
 /// Creates the folders leading to path ("-" and bare names: nothing); throws
-/// UserError "PATH: cannot create the folder DIR: <reason>".
+/// UserError "PATH: cannot create the folder DIR: <reason>". The folders it
+/// creates are remembered with the created targets: remove_created_outputs()
+/// removes them again when they are empty.
 void ensure_parent_dir(const std::string& path);
 
 /// Removes every target this process created through OutputFile::commit that
-/// is still the file it wrote (same device and inode). Returns how many.
+/// is still the file it wrote (same device and inode), then the folders
+/// ensure_parent_dir created that are empty, deepest first. Returns how many
+/// files it removed.
 int remove_created_outputs() noexcept;
-/// Forgets the created targets (after a run succeeded).
+/// Forgets the created targets and folders (after a run succeeded).
 void forget_created_outputs() noexcept;
 
 /// Process setup for a CLI: ignore SIGXFSZ (a write beyond RLIMIT_FSIZE then
-/// fails with EFBIG instead of killing the process) and remove the pending
+/// fails with EFBIG instead of killing the process) and SIGPIPE (a closed
+/// reader is then EPIPE, reported by the writer), and remove the pending
 /// temporary files on SIGINT, SIGTERM and SIGHUP before dying of the signal.
 void install_output_signal_handling();
+
+/// How long opening a FIFO target waits for its reader (--output-timeout),
+/// in seconds: negative waits forever (the default), 0 not at all.
+void set_output_timeout(double seconds);
+
+/// Flushes standard output and checks that everything written to it arrived
+/// (once, at the end of a command). A write error (ENOSPC, EIO...) throws
+/// UserError "standard output: <reason>"; a reader that closed it (EPIPE)
+/// ends the process quietly, as SIGPIPE would, after removing the pending
+/// temporary files.
+void finish_standard_output();
+/// A write to standard output failed with err (e.g. fmt::print's
+/// std::system_error): EPIPE ends the process quietly, as above; anything
+/// else throws UserError "standard output: <reason>".
+[[noreturn]] void standard_output_failed(int err);
+
+/// The process's file mode creation mask (read without changing it where
+/// /proc tells; else umask() twice).
+mode_t current_umask();
+
+/// Where a path leads: symlinks followed (the last component's chain, then
+/// every folder), made absolute and normal; the device and inode when it
+/// exists.
+struct FileIdentity {
+  std::string path;  ///< absolute, no symlink, no "." or ".."
+  bool exists = false;
+  bool char_device = false;
+  dev_t dev = 0;
+  ino_t ino = 0;
+};
+FileIdentity file_identity(const std::string& path);
+/// One file: the same device and inode when both exist, else the same path.
+bool same_file(const FileIdentity& a, const FileIdentity& b);
+
+/// The files one command writes and reads, checked before any work is done
+/// (docs/outputs.md "Distinct outputs"): two outputs that are one file (the
+/// same name, a symlink to it, a hard link of it, or an implied file such as
+/// a waveform's GTKWave save file or a --maps folder's images), or an output
+/// that is one of the command's inputs, are refused with one line naming both
+/// flags and the path. A character device (/dev/null) may take several.
+class OutputPlan {
+ public:
+  /// An output; `what` names it for the user: a flag ("--report") or an
+  /// implied file ("--vcd's GTKWave save file"). "" (not given) and "-"
+  /// (standard output) are skipped.
+  void output(std::string what, std::string path);
+  /// An input the outputs must not replace ("--trace").
+  void input(std::string what, std::string path);
+  /// Throws UserError "A and B both name PATH: ..." for the first clash.
+  void check() const;
+
+ private:
+  struct Entry {
+    std::string what, path;
+    bool input;
+  };
+  std::vector<Entry> entries_;
+};
 
 /// Resolves a symlink chain (relative links against their folder). Returns
 /// the first path that is not a symlink (it may not exist). Throws UserError

@@ -53,6 +53,10 @@ int run_capture(const CaptureOpts& o, const CLI::App& sub) {
 #endif
   }
   if (o.out.empty()) throw CaptureError("capture: give -o TRACE");
+  OutputPlan plan;
+  plan.input("SCENE", o.scene);
+  plan.output("-o", o.out);
+  plan.check();
   ensure_parent_dir(o.out);
   CaptureStats st;
   {

@@ -20,6 +20,7 @@
 #include "livepoint_file.h"
 #include "report.h"
 #include "slab.h"
+#include "trace.h"
 
 namespace ropsim {
 
@@ -233,6 +234,87 @@ std::string gtkw_path(const std::string& vcd) {
   return p.replace_extension(".gtkw").string();
 }
 
+/// The samples per pixel of an input: a scene's flag, a trace's header.
+int input_spp(const RunOpts& o, const InputSpec& in) {
+  if (!in.from_trace()) return o.spp;
+  return int(TraceReader(in.trace_path).header().spp);
+}
+
+/// The default outputs' name, out/run/BASE.{png,exr,json} (docs/outputs.md
+/// "Default names"): the input replayed (a trace file's stem, or a scene's
+/// name with the parameters that change it), its spp and the method, then
+/// what else makes two runs' results differ: the slab's k and b, the
+/// fidelity and the design's digest, or a functional run's non-default
+/// numerics.
+std::string default_output_base(const RunOpts& o, const InputSpec& in, int spp, const GoldenConfig& cfg,
+                                const HwConfig& hw) {
+  std::string base;
+  if (in.from_trace()) {
+    base = std::filesystem::path(in.trace_path).stem().string();
+  } else {
+    const SceneParams& sp = in.scene;
+    base = sp.name;
+    if (sp.width || sp.height) {
+      uint32_t w = sp.width, h = sp.height;
+      for (const auto& c : scene_catalog())
+        if (c.name == sp.name) {
+          if (!w) w = c.width;
+          if (!h) h = c.height;
+        }
+      base += fmt::format("-{}x{}", w, h);
+    }
+    if (sp.seed != SceneParams{}.seed) base += fmt::format("-seed{}", sp.seed);
+  }
+  base = fmt::format("out/run/{}-{}-{}spp", base, to_string(cfg.method), spp);
+  if (in.repeat > 1) base += fmt::format("-x{}", in.repeat);
+  if (cfg.method == Method::kSlab) base += fmt::format("-k{}b{}", cfg.slab_layers, cfg.slab_bits);
+  // Distinct designs never share a name: a timed run adds a digest of the
+  // resolved design (numerics included), a functional run its numerics when
+  // they are not the defaults.
+  const Numerics& n = cfg.numerics;
+  if (o.fidelity != "functional")
+    base += "-" + o.fidelity + "-hw" + hw_digest_hex(hw);
+  else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
+           n.surface_id_bits != Numerics{}.surface_id_bits)
+    base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
+  return base;
+}
+
+/// The --maps folder's files a run writes (add_breakdown_outputs,
+/// add_tile_maps): per map an EXR and a PNG.
+std::vector<std::string> map_files(const RunOpts& o, bool cycle) {
+  std::vector<std::string> names;
+  for (const auto& d : pixel_map_descs()) names.push_back(d.name);
+  if (o.vs_reference) names.push_back("error");
+  if (cycle)
+    for (const auto& d : tile_map_descs()) names.push_back(d.name);
+  std::vector<std::string> files;
+  for (const auto& n : names)
+    for (const char* ext : {".exr", ".png"}) files.push_back((std::filesystem::path(o.maps) / n).string() + ext);
+  return files;
+}
+
+/// Refuses, before any work, two outputs of the run that are one file (the
+/// same name, a link, an implied file) and an output that is an input.
+void check_outputs(const RunOpts& o, const std::vector<std::string>& outs, const std::string& report, bool cycle) {
+  const bool defaults = o.outs.empty() && o.report.empty();
+  OutputPlan plan;
+  plan.input("--trace", o.trace);
+  plan.input("--livepoints", o.livepoints);
+  plan.input("--hw", o.hw);
+  for (const auto& p : outs) plan.output(defaults ? "the default image" : "--out", p);
+  plan.output(defaults ? "the default report" : "--report", report);
+  plan.output("--vcd", o.vcd);
+  if (!o.vcd.empty()) plan.output("--vcd's GTKWave save file", gtkw_path(o.vcd));
+  plan.output("--stats-csv", o.stats_csv);
+  plan.output("--draw-csv", o.draw_csv);
+  if (!o.maps.empty()) {
+    plan.output("--maps", o.maps);
+    for (const auto& f : map_files(o, cycle)) plan.output("--maps", f);
+  }
+  plan.check();
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                   uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
                   const std::string& report, const std::string& cmdline) {
@@ -273,44 +355,53 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   return 0;
 }
 
-int cmd_run_sampled(const RunOpts& o, CLI::App& sub, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
-                    const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
-  const auto t0 = std::chrono::steady_clock::now();
-  LibrarySource from;
-  LivePoints lib;
-  GoldenConfig run_cfg = cfg;
-  if (!o.livepoints.empty()) {
-    for (const char* f : kSamplingFlags)
-      if (sub.count(f))
-        throw UserError(std::string(f) +
-                        " does not apply with --livepoints: the library fixes the sampling (give it to "
-                        "`ropsim livepoints`)");
-    from.path = o.livepoints;
-    lib = read_livepoints(o.livepoints);
-    // The input, when named, must be the library's; unnamed, it is.
-    bool scene_named = false;
-    for (const char* f : kSceneFlags) scene_named = scene_named || sub.count(f) > 0;
-    if (in.from_trace() || scene_named) {
-      InputSpec named = in;
-      named.repeat = lib.input.spec.repeat;
-      check_library_input(lib, o.livepoints, named);
-    }
-    // The method: the library's, unless a flag names it (then they must agree).
-    run_cfg = lib.method;
-    if (sub.count("--method")) run_cfg.method = cfg.method;
-    if (sub.count("--seed")) run_cfg.seed = cfg.seed;
-    if (sub.count("--slab-layers")) run_cfg.slab_layers = cfg.slab_layers;
-    if (sub.count("--slab-bits")) run_cfg.slab_bits = cfg.slab_bits;
-    if (sub.count("--enderton-selection")) run_cfg.enderton_selection = cfg.enderton_selection;
-    run_cfg.numerics = hw.numerics;  // the design's: a library serves designs of its numerics
-    check_library_method(lib, o.livepoints, run_cfg);
-  } else {
-    lib = record_livepoints(in, cfg, o.sampling);
+/// The library of `--livepoints LIB`, read and checked against the flags
+/// that name an input or a method (a library fixes its input, its sampling,
+/// its method and numerics); run_cfg gets the method it serves.
+LivePoints read_library(const RunOpts& o, CLI::App& sub, const InputSpec& in, const GoldenConfig& cfg,
+                        const HwConfig& hw, GoldenConfig& run_cfg) {
+  for (const char* f : kSamplingFlags)
+    if (sub.count(f))
+      throw UserError(std::string(f) +
+                      " does not apply with --livepoints: the library fixes the sampling (give it to "
+                      "`ropsim livepoints`)");
+  LivePoints lib = read_livepoints(o.livepoints);
+  // The input, when named, must be the library's; unnamed, it is.
+  bool scene_named = false;
+  for (const char* f : kSceneFlags) scene_named = scene_named || sub.count(f) > 0;
+  if (in.from_trace() || scene_named) {
+    InputSpec named = in;
+    named.repeat = lib.input.spec.repeat;
+    check_library_input(lib, o.livepoints, named);
   }
+  // The method: the library's, unless a flag names it (then they must agree).
+  run_cfg = lib.method;
+  if (sub.count("--method")) run_cfg.method = cfg.method;
+  if (sub.count("--seed")) run_cfg.seed = cfg.seed;
+  if (sub.count("--slab-layers")) run_cfg.slab_layers = cfg.slab_layers;
+  if (sub.count("--slab-bits")) run_cfg.slab_bits = cfg.slab_bits;
+  if (sub.count("--enderton-selection")) run_cfg.enderton_selection = cfg.enderton_selection;
+  run_cfg.numerics = hw.numerics;  // the design's: a library serves designs of its numerics
+  check_library_method(lib, o.livepoints, run_cfg);
+  return lib;
+}
+
+/// A sampled run: on the library read (library non-null, with the method
+/// run_cfg it serves), else on live-points recorded from in now.
+int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& run_cfg, const HwConfig& hw,
+                    LivePoints* library, std::chrono::steady_clock::time_point t0, const std::vector<std::string>& outs,
+                    const std::string& report, const std::string& cmdline) {
+  LibrarySource from;
+  LivePoints recorded;
+  if (library)
+    from.path = o.livepoints;
+  else
+    recorded = record_livepoints(in, run_cfg, o.sampling);
+  const LivePoints& lib = library ? *library : recorded;
   from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const SampledRun s = run_sampled(lib, hw, o.jobs > 0 ? o.jobs : available_cores());
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ReportContext ctx{cmdline, o.livepoints.empty() ? in : lib.input.spec, run_cfg, {}, {}};
+  ReportContext ctx{cmdline, library ? lib.input.spec : in, run_cfg, {}, {}};
   write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall, from).dump(2); });
   if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall, from).c_str(), stdout);
   return 0;
@@ -384,34 +475,30 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   const GoldenConfig cfg = resolve_method(o, hw);
   std::vector<std::string> outs = o.outs;
   std::string report = o.report;
-  if (outs.empty() && report.empty()) {
-    const std::string stem = in.from_trace() ? std::filesystem::path(o.trace).stem().string() : o.scene;
-    // A trace's spp is in its header, which is only read by the run: name by stem.
-    std::string base = in.from_trace() ? fmt::format("out/run/{}-{}", stem, o.method)
-                                       : fmt::format("out/run/{}-{}-{}spp", stem, o.method, o.spp);
-    // Distinct designs never share a name: a cycle run adds a digest of the
-    // resolved design (numerics included), a functional run its numerics
-    // when they are not the defaults.
-    const Numerics& n = cfg.numerics;
-    if (cfg.method == Method::kSlab) base += fmt::format("-k{}b{}", cfg.slab_layers, cfg.slab_bits);
-    if (cycle || sampled || approximate)
-      base += "-" + o.fidelity + "-hw" + hw_digest_hex(hw);
-    else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
-             n.surface_id_bits != Numerics{}.surface_id_bits)
-      base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
-    outs = {base + ".png", base + ".exr"};
-    report = base + ".json";
-  }
   for (const auto& p : outs) {  // fail before the run, not after
     auto ext = std::filesystem::path(p).extension().string();
     if (ext != ".png" && ext != ".exr") throw UserError("--out " + p + ": use a .png or .exr file name");
   }
+  // A sampled run on a library replays the library's input with its method:
+  // read it first, so that the outputs are named after what runs.
+  const auto t0 = std::chrono::steady_clock::now();
+  std::optional<LivePoints> library;
+  GoldenConfig run_cfg = cfg;
+  if (sampled && !o.livepoints.empty()) library = read_library(o, sub, in, cfg, hw, run_cfg);
+  if (outs.empty() && report.empty()) {
+    const std::string base = library
+                                 ? default_output_base(o, library->input.spec, int(library->header.spp), run_cfg, hw)
+                                 : default_output_base(o, in, input_spp(o, in), run_cfg, hw);
+    outs = {base + ".png", base + ".exr"};
+    report = base + ".json";
+  }
+  check_outputs(o, outs, report, cycle);
   if (cycle) {
     if (cfg.method == Method::kReference)
       throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
     return cmd_run_cycle(o, in, cfg, hw, vcd_first, vcd_last, outs, report, cmdline);
   }
-  if (sampled) return cmd_run_sampled(o, sub, in, cfg, hw, outs, report, cmdline);
+  if (sampled) return cmd_run_sampled(o, in, run_cfg, hw, library ? &*library : nullptr, t0, outs, report, cmdline);
   if (approximate) return cmd_run_approximate(in, cfg, hw, o, outs, report, cmdline);
   FunctionalRun run = run_functional(in, cfg, o.vs_reference, 0, o.breakdown());
   ReportContext ctx{cmdline, in, cfg, {}, {}};
@@ -440,6 +527,11 @@ int cmd_livepoints(const RunOpts& o, CLI::App& sub) {
   const HwConfig hw = resolve_design(o, sub);
   const InputSpec in = resolve_input(o, sub);
   const GoldenConfig cfg = resolve_method(o, hw);
+  OutputPlan plan;
+  plan.input("TRACE", o.trace);
+  plan.input("--hw", o.hw);
+  plan.output("-o", o.library_out);
+  plan.check();
   const auto t0 = std::chrono::steady_clock::now();
   const LivePoints lib = record_livepoints(in, cfg, o.sampling);
   const double rec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -546,7 +638,10 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   auto* opt_trace =
       run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
   add_input_and_method_options(run, ro.get(), opt_trace);
-  run->add_option("--out", ro->outs, "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable");
+  run->add_option("--out", ro->outs,
+                  "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable. Missing folders are made; "
+                  "no two outputs may be one file (docs/outputs.md; default: out/run/ named after the input, "
+                  "method and design)");
   run->add_option("--report", ro->report, "JSON report file (- for standard output, then no summary is printed)");
   run->add_option(
          "--fidelity", ro->fidelity,

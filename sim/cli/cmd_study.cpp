@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -211,6 +212,7 @@ int cmd_study_report(const StudyOpts& o) {
   const pid_t pid = ::fork();
   if (pid < 0) throw UserError(std::string("study report: fork: ") + std::strerror(errno));
   if (pid == 0) {
+    ::signal(SIGPIPE, SIG_DFL);  // ropsim ignores it (output_file.h); the script gets the default
     if (o.out.empty())
       ::execl(kPython, kPython, script.c_str(), o.dir.c_str(), static_cast<char*>(nullptr));
     else
@@ -288,6 +290,11 @@ VerbRunner add_study_command(CLI::App& app) {
     if (run->parsed()) return cmd_study_run(*o);
     if (pts->parsed()) return cmd_study_points(*o);
     if (exp->parsed()) {
+      OutputPlan plan;
+      plan.input("DIR's results.db", (std::filesystem::path(o->dir) / "results.db").string());
+      plan.input("DIR's study.toml", (std::filesystem::path(o->dir) / "study.toml").string());
+      plan.output("--csv", o->csv);
+      plan.check();
       const StudyExport ex = export_study_csv(o->dir, o->csv);
       // What it wrote, on standard error when the table went to standard output.
       const std::string said =

@@ -128,6 +128,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
 
 /// JSON lines to `out` ("-": standard output) through OutputFile.
 int cmd_trace_dump(const std::string& path, const std::string& out_path, uint64_t limit) {
+  OutputPlan plan;
+  plan.input("FILE", path);
+  plan.output("-o", out_path);
+  plan.check();
   TraceReader r(path);
   ensure_parent_dir(out_path);
   OutputFile::Options o;

@@ -7,11 +7,14 @@
 //   2  internal error: an invariant of the simulator does not hold.
 //      One line "ropsim: internal error: <invariant>: please report it".
 // A failing run removes the outputs it created (never a file it replaced).
+// Standard output is flushed and checked once, at the end (a failed write
+// is a user error; a reader that closed it ends ropsim quietly, as SIGPIPE).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "cli_common.h"
@@ -43,7 +46,7 @@ int internal_error(const char* what) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  install_output_signal_handling();  // SIGXFSZ ignored: a file size limit is a write error
+  install_output_signal_handling();  // SIGXFSZ, SIGPIPE ignored: write errors, reported by the writer
   CLI::App app{"ropsim: a simulator of a GPU ROP for stratified stochastic transparency (Laine & Karras 2011)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("ropsim ") + ropsim_version() + " (commit " + ropsim_commit() + ")",
@@ -54,11 +57,20 @@ int main(int argc, char** argv) {
   });
   // Global: before or after the verb (fallthrough), for every verb that simulates.
   std::string memory_limit;
-  app.add_option("--memory-limit", memory_limit,
-                 "Most memory the run's growing state may take (the touched tiles' buffers, the image, the "
-                 "A-buffer reference): bytes with K, M, G or T (binary), a percentage of physical memory, or none; "
-                 "default 80%. Going over is a one-line error")
-      ->type_name("SIZE");
+  CLI::Option* opt_memory_limit =
+      app.add_option("--memory-limit", memory_limit,
+                     "Most memory the run's growing state may take (the touched tiles' buffers, the image, the "
+                     "A-buffer reference): bytes with K, M, G or T (binary), a percentage of physical memory, or "
+                     "none for no limit (0 and an empty value are refused); default 80%. Going over is a one-line "
+                     "error")
+          ->type_name("SIZE");
+  double output_timeout = -1;
+  CLI::Option* opt_output_timeout =
+      app.add_option("--output-timeout", output_timeout,
+                     "Seconds an output that is a FIFO waits for its reader before ropsim gives up with an error "
+                     "(0: do not wait; default: wait as long as it takes, saying once on stderr that it waits)")
+          ->check(CLI::Range(0.0, 1e9))
+          ->type_name("SECONDS");
   int threads = 0;
   app.add_option("--threads", threads,
                  "Host threads of the golden model (the functional fidelity, the reference pre-pass of a cycle "
@@ -78,20 +90,30 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);  // prints help, the version or the one-line error
-    return rc == 0 ? 0 : 1;      // CLI11's own codes (105, 106...) are all "bad flag"
+    if (rc == 0) {               // --help, --version: on std::cout, synchronised with stdout
+      try {
+        finish_standard_output();
+      } catch (const std::exception& w) {
+        return user_error(w.what());
+      }
+    }
+    return rc == 0 ? 0 : 1;  // CLI11's own codes (105, 106...) are all "bad flag"
   }
 
   try {
     // Test hook (tests/test_output.cpp): exercises the exit status 2 path.
     if (const char* t = std::getenv("ROPSIM_TEST_INTERNAL_ERROR"); t && *t && std::string(t) != "0")
       throw InternalError("test hook ROPSIM_TEST_INTERNAL_ERROR is set");
-    if (!memory_limit.empty()) memory_budget().set_limit(parse_memory_size(memory_limit, "--memory-limit"));
+    if (opt_memory_limit->count()) memory_budget().set_limit(parse_memory_size(memory_limit, "--memory-limit"));
+    if (opt_output_timeout->count()) set_output_timeout(output_timeout);
     if (threads > 0) set_host_threads(threads);
     for (const auto& verb : verbs)
       if (const int rc = verb(); rc >= 0) {
+        finish_standard_output();  // what the verb printed must have arrived
         forget_created_outputs();
         return rc;
       }
+    finish_standard_output();
     return 0;
   } catch (const InternalError& e) {
     return internal_error(e.what());
@@ -99,6 +121,14 @@ int main(int argc, char** argv) {
     return user_error(e.what());
   } catch (const std::logic_error& e) {  // e.g. the cycle model's stall check
     return internal_error(e.what());
+  } catch (const std::system_error& e) {
+    // fmt::print (every verb's printing to standard output) throws this when the write fails.
+    if (std::string(e.what()).rfind("cannot write to file", 0) != 0) return user_error(e.what());
+    try {
+      standard_output_failed(e.code().value());
+    } catch (const std::exception& w) {
+      return user_error(w.what());
+    }
   } catch (const std::runtime_error& e) {  // UserError, TraceError, ImageError, ConfigError, ...
     return user_error(e.what());
   } catch (const std::bad_alloc&) {
