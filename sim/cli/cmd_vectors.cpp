@@ -40,19 +40,22 @@ VerbRunner add_vectors_command(CLI::App& app) {
       app.add_subcommand("vectors", "Golden test vectors (CSV or $readmemh hex) for one unit, for RTL verification");
   vec->add_option("UNIT", o->unit, "Unit: " + join(vector_units()))->required()->check(CLI::IsMember(vector_units()));
   vec->add_option("--count", o->count, "Number of vectors (default 1000)")
-      ->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
-  vec->add_option("-o,--output", o->out, "File to write (- for standard output)")->required();
+      ->check(in_range(uint64_t{1}, uint64_t{100000000}));
+  vec->add_option("-o,--out,--output", o->out, "File to write (- for standard output)")->required()->type_name("FILE");
   vec->add_option("--format", o->opt.format, "csv (default) or hex: one $readmemh word per vector")
       ->check(CLI::IsMember(vector_formats()));
   vec->add_option("--spp", o->opt.spp, "Samples per pixel of every vector (default: 1..64 at random)")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   vec->add_option("--order", o->opt.hilbert_order, "hilbert: log2 of the grid side (default: 1..16 at random)")
-      ->check(CLI::Range(1, 16));
+      ->check(in_range(1, 16));
   vec->add_option("--seed", o->seed, "Seed of the random cases (default 1)");
-  vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
-  vec->add_option("--alpha-bits", o->num.alpha_bits, "opacity: opacity precision (1..32)")->check(CLI::Range(1, 32));
+  vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(in_range(8, 32));
+  vec->add_option("--alpha-bits", o->num.alpha_bits, "opacity: opacity precision (1..32)")->check(in_range(1, 32));
   vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker, alpha-ref: surface id width (1..32)")
-      ->check(CLI::Range(1, 32));
+      ->check(in_range(1, 32));
+  vec->footer(examples({"ropsim vectors alpha-ref --count 100 -o alpha_ref.csv",
+                        "ropsim vectors alpha-ref --format hex --count 100 -o alpha_ref.hex   # $readmemh words",
+                        "ropsim vectors depth-test --spp 16 --count 100 -o depth_test.csv"}));
   return [o, vec]() { return vec->parsed() ? cmd_vectors(*o) : -1; };
 }
 
