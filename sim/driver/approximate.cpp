@@ -257,6 +257,7 @@ struct RopEpoch {
 
 struct PassResult {
   uint64_t cycles = 0, fill = 0, flush = 0, epochs = 0;
+  uint64_t dram_service = 0;  ///< the busiest channel's service of all its bursts, the final flush's too
 };
 
 /// What the model needs of one fragment, from the functional pass: its
@@ -273,14 +274,14 @@ struct FragRec {
 class Model {
  public:
   Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
-      : hw_(hw),
+      : rop_demand(hw.distributor.rop_units),
+        hw_(hw),
         out_(out),
         owner_(hw.distributor, rop.header().width),
         amap_(rop.header().width, rop.header().spp, rop.setup().tracker_bytes, hw.cache.line_bytes,
               rop.setup().cfg.formats, rop.setup().slab_bytes),
         dram_(hw.dram),
         sorter_(make_sorter(hw.sorter.kind, rop.header().spp)),
-        rop_demand(hw.distributor.rop_units),
         rops_(hw.distributor.rop_units),
         width_(rop.header().width),
         retire_(size_t(ceil_div(rop.header().width, 8u)) * ceil_div(rop.header().height, 8u) * 64, -1e300),
@@ -412,6 +413,7 @@ class Model {
     double tail = 0;
     for (size_t i = 0; i < after.size(); ++i) tail = std::max(tail, backlog_[i] + double(after[i] - before[i]));
     p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
+    p.dram_service = dram_.max_clock();
     p.epochs = epochs_;
     for (auto& c : caches_) out_.cache += c->stats();
     const DramStats& d = dram_.stats();
@@ -597,6 +599,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     s.flush_cycles += p.flush;
     s.total_cycles += p.cycles + p.fill + p.flush;
     s.epochs += p.epochs;
+    s.dram_service_cycles += p.dram_service;
     for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
     for (size_t r = 0; r < rop_demand.size(); ++r)
       for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
@@ -608,8 +611,10 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
       ApproxBound(std::max_element(s.limiting_cycles.begin(), s.limiting_cycles.end()) - s.limiting_cycles.begin());
   // The bottleneck from the model's own bounds, in the cycle model's terms
   // (cycle_bounds): the source's and the distributor's rate bounds, per unit
-  // kind the busiest ROP's initiation intervals, and the DRAM bound with the
-  // final flush's service beyond the drain.
+  // kind the busiest ROP's initiation intervals, and for the DRAM the larger
+  // of two lower bounds: the busiest channel's service of all its bursts
+  // back to back (reads, write-backs, the flush), and the DRAM bound of the
+  // epochs (each at most its epoch's cycles) plus the final flush.
   std::vector<ResourceBound> bounds = {
       {"trace_source", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kSource)]},
       {"distributor", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kDistributor)]}};
@@ -618,8 +623,9 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     for (const auto& r : rop_demand) most = std::max(most, r[size_t(k)]);
     bounds.push_back({kUnitNames[k], ResourceBound::Kind::kThroughput, most});
   }
-  bounds.push_back(
-      {"dram", ResourceBound::Kind::kBandwidth, s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles)});
+  bounds.push_back({"dram", ResourceBound::Kind::kBandwidth,
+                    std::max(double(s.dram_service_cycles),
+                             s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
   s.bottleneck = classify_bottleneck(std::move(bounds), double(s.total_cycles));
   run.counters = rop->counters();
   run.image = rop->resolve();

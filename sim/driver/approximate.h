@@ -53,6 +53,11 @@ struct ApproxStats {
   uint64_t fill_cycles = 0;      ///< the first fragment's trip through an empty pipeline (summed over passes)
   uint64_t flush_cycles = 0;     ///< the final cache flush's DRAM writes, served by the channels
   uint64_t epochs = 0;
+  /// The busiest DRAM channel's service of all its bursts in arrival order,
+  /// back to back (reads, write-backs and the final flush; summed over the
+  /// passes): the DRAM's bound on the frame, as the cycle model's
+  /// DramStats::max_channel_service.
+  uint64_t dram_service_cycles = 0;
   uint64_t epoch_fragments = 0;  ///< fragments per epoch (the buffering that lets the ROPs drift apart)
   /// Per bound: its sum over the epochs (cycles), and the cycles of the
   /// epochs in which it was the largest.
@@ -61,8 +66,9 @@ struct ApproxStats {
   std::string busiest_unit;
   ApproxBound limiting = ApproxBound::kUnit;  ///< the bound largest over the most cycles
   /// What bounds the frame (bottleneck.h): the source, the distributor, each
-  /// unit kind (the busiest ROP's initiation intervals) and the DRAM bound
-  /// plus the final flush, against total_cycles.
+  /// unit kind (the busiest ROP's initiation intervals) and the DRAM (the
+  /// larger of dram_service_cycles and its bound over the epochs plus
+  /// flush_cycles), against total_cycles.
   Bottleneck bottleneck;
   CacheStats cache;                            ///< tag-only, summed over the ROPs
   DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM

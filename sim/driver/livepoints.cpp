@@ -534,10 +534,9 @@ void put_str(std::string& m, const std::string& s) {
 
 std::string encode_figures(uint64_t unit, const UnitFigures& f) {
   std::string m;
-  for (uint64_t v :
-       {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles, f.tail_bytes_read,
-        f.total_cycles, f.dram_max_channel_busy, f.dram_max_channel_service, f.fragments, f.warming_used,
-        f.warming_short})
+  for (uint64_t v : {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles,
+                     f.tail_bytes_read, f.total_cycles, f.dram_max_channel_busy, f.dram_max_channel_service,
+                     f.fragments, f.warming_used, f.warming_short})
     put64(m, v);
   put64(m, f.units.size());
   for (const UnitReport& u : f.units) {
@@ -575,10 +574,9 @@ UnitFigures decode_figures(const std::string& m, uint64_t& unit) {
   MessageReader r{m};
   UnitFigures f;
   unit = r.u64();
-  for (uint64_t* v :
-       {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles, &f.tail_bytes_read,
-        &f.total_cycles, &f.dram_max_channel_busy, &f.dram_max_channel_service, &f.fragments, &f.warming_used,
-        &f.warming_short})
+  for (uint64_t* v : {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles,
+                      &f.tail_bytes_read, &f.total_cycles, &f.dram_max_channel_busy, &f.dram_max_channel_service,
+                      &f.fragments, &f.warming_used, &f.warming_short})
     *v = r.u64();
   f.units.resize(size_t(r.u64()));
   for (UnitReport& u : f.units) {

@@ -69,8 +69,8 @@ std::string format_bottleneck(const Bottleneck& b) {
 std::string format_bounds(const Bottleneck& b) {
   std::string s;
   for (const ResourceBound& r : b.bounds)
-    s += (s.empty() ? "" : ", ") + r.name + " " + cycles_text(r.cycles) + " (" + percent_text(r.cycles, b.frame_cycles) +
-         ")";
+    s += (s.empty() ? "" : ", ") + r.name + " " + cycles_text(r.cycles) + " (" +
+         percent_text(r.cycles, b.frame_cycles) + ")";
   return s.empty() ? "none" : s;
 }
 

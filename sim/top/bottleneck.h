@@ -30,9 +30,9 @@ struct Bottleneck {
     kLatency,     ///< no bound reaches kBoundShare of the frame: waiting on misses and round trips dominates
   };
   Kind kind = Kind::kLatency;
-  std::string resource;      ///< the resource with the largest bound ("" when there is none)
-  double bound_cycles = 0;   ///< its bound, cycles
-  double frame_cycles = 0;   ///< the frame's cycles the bounds are compared with
+  std::string resource;               ///< the resource with the largest bound ("" when there is none)
+  double bound_cycles = 0;            ///< its bound, cycles
+  double frame_cycles = 0;            ///< the frame's cycles the bounds are compared with
   std::vector<ResourceBound> bounds;  ///< every resource's bound, largest first (ties: in the order given)
   /// The largest bound's share of the frame, in [0, inf).
   double share() const { return frame_cycles > 0 ? bound_cycles / frame_cycles : 0.0; }

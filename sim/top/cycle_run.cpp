@@ -27,7 +27,8 @@ std::vector<ResourceBound> cycle_bounds(const CycleStats& s) {
   std::vector<Instance> inst;
   for (const auto& u : s.units) {
     const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
-    auto it = std::find_if(inst.begin(), inst.end(), [&](const Instance& i) { return i.kind == u.kind && i.rop == u.rop; });
+    auto it =
+        std::find_if(inst.begin(), inst.end(), [&](const Instance& i) { return i.kind == u.kind && i.rop == u.rop; });
     if (it == inst.end())
       inst.push_back({u.kind, u.rop, busy});
     else
@@ -45,7 +46,9 @@ std::vector<ResourceBound> cycle_bounds(const CycleStats& s) {
   return b;
 }
 
-Bottleneck classify_bottleneck(const CycleStats& s) { return classify_bottleneck(cycle_bounds(s), double(s.total_cycles)); }
+Bottleneck classify_bottleneck(const CycleStats& s) {
+  return classify_bottleneck(cycle_bounds(s), double(s.total_cycles));
+}
 
 const std::vector<StatDesc>& tile_map_descs() {
   static const std::vector<StatDesc> d = {
