@@ -27,8 +27,8 @@ NOT_KEYS = ("fidelity", "seed")
 
 
 def bottleneck_class(text):
-    """The bottleneck's class: the text before the first ':' (the unit kind
-    and reason, or memory-bound / source-bound)."""
+    """The bottleneck's class: the text before the first ':' (throughput
+    (UNIT), bandwidth (dram) or latency; docs/reports.md "The bottleneck")."""
     return str(text).split(":")[0].strip() if isinstance(text, str) and text else None
 
 

@@ -45,7 +45,7 @@ def pct(x, y):
     return 0.0 if x == y == 0 else 100.0 * (x / y - 1)
 
 
-def kind(b):  # "depth_test-bound (memory latency): ..." -> "depth_test-bound (memory latency)"
+def kind(b):  # "bandwidth (dram): bound ..." -> "bandwidth (dram)"
     return b.split(":")[0]
 
 

@@ -511,6 +511,132 @@ TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
   expect_cli_error(box, "trace dump cut.trace --limit 4", {"cut.trace", "record 3:"});
 }
 
+// A negative --limit is refused in one line naming the flag (it wrapped to
+// "everything" and exited 0).
+TEST(Cli, DumpRefusesANegativeLimit) {
+  CliSandbox box;
+  expect_ok(box.run("scene cloth --spp 4 -o c.trace"), "scene cloth");
+  expect_cli_error(box, "trace dump c.trace --limit -1", {"--limit", "-1", ">= 0"});
+  expect_cli_error(box, "trace dump c.trace --limit -1 -o d.jsonl", {"--limit"});
+  const CliResult r = box.run("trace dump c.trace --limit 0");
+  expect_ok(r, "trace dump --limit 0");
+  EXPECT_EQ(lines_of(r.out).size(), 1u) << "--limit 0: the header alone\n" << r.describe();
+}
+
+// Ranges read as a person writes them: ">= 1" for an open range, "8..32" for
+// a closed one, in --help and in the error; never the type's largest value.
+TEST(Cli, RangesInHelpAndErrorsAreReadable) {
+  CliSandbox box;
+  for (const char* verb : {"run", "livepoints", "scene", "capture", "trace dump", "vectors", "config", "study run"}) {
+    const CliResult h = box.run(std::string(verb) + " --help");
+    expect_ok(h, std::string(verb) + " --help");
+    EXPECT_EQ(h.out.find("18446744073709551615"), std::string::npos) << verb << " --help\n" << h.out;
+    EXPECT_EQ(h.out.find(" - 1099511627776]"), std::string::npos) << verb << " --help\n" << h.out;
+  }
+  const CliResult h = box.run("run --help");
+  for (const char* shown : {"--stats-interval N:>= 1", "8..32"})
+    EXPECT_NE(h.out.find(shown), std::string::npos) << "run --help lacks \"" << shown << "\"\n" << h.out;
+  expect_cli_error(box, "run --fidelity cycle --stats-interval 0", {"--stats-interval", "must be >= 1"});
+  expect_cli_error(box, "run --hash-bits 40", {"--hash-bits", "40", "must be in 8..32"});
+  expect_cli_error(box, "vectors alpha-ref --count 0 -o v.csv", {"--count", "must be in 1..100000000"});
+  for (const char* bad : {"run --fidelity cycle --stats-interval 0", "run --hash-bits 40", "trace dump x --limit -1"}) {
+    const CliResult r = box.run(bad);
+    EXPECT_EQ(r.err.find("18446744073709551615"), std::string::npos) << bad << "\n" << r.describe();
+  }
+}
+
+// The main output of every verb that writes a file is -o/--out FILE (a study
+// folder for study run, plan and task); the older spellings stay as aliases
+// and write the same bytes.
+TEST(Cli, EveryVerbTakesDashOOutForItsMainOutput) {
+  CliSandbox box;
+  for (const char* flag : {"-o", "--out", "--output"})
+    expect_ok(box.run(std::string("scene smoke --spp 4 --width 64 --height 64 ") + flag + " s" + (flag + 1) + ".trace"),
+              std::string("scene ") + flag);
+  EXPECT_EQ(slurp(box.path("so.trace")), slurp(box.path("s-out.trace")));
+  EXPECT_EQ(slurp(box.path("so.trace")), slurp(box.path("s-output.trace")));
+  for (const char* flag : {"-o", "--out", "--output"}) {
+    expect_ok(box.run(std::string("trace dump so.trace --limit 3 ") + flag + " d" + (flag + 1) + ".jsonl"),
+              std::string("trace dump ") + flag);
+    expect_ok(box.run(std::string("vectors tracker --count 10 ") + flag + " v" + (flag + 1) + ".csv"),
+              std::string("vectors ") + flag);
+  }
+  EXPECT_EQ(slurp(box.path("do.jsonl")), slurp(box.path("d-out.jsonl")));
+  EXPECT_EQ(slurp(box.path("vo.csv")), slurp(box.path("v-output.csv")));
+  EXPECT_FALSE(slurp(box.path("d-output.jsonl")).empty());
+  expect_ok(box.run("run --trace so.trace -o a.png --quiet"), "run -o");
+  expect_ok(box.run("run --trace so.trace --out b.png --quiet"), "run --out");
+  EXPECT_EQ(slurp(box.path("a.png")), slurp(box.path("b.png")));
+  for (const char* verb : {"capture", "livepoints", "study run", "study plan", "study task", "study export"}) {
+    const CliResult h = box.run(std::string(verb) + " --help");
+    expect_ok(h, std::string(verb) + " --help");
+    EXPECT_NE(h.out.find("-o,--out"), std::string::npos) << verb << " --help has no -o,--out\n" << h.out;
+  }
+}
+
+// trace dump writes each covered sample's depth under its index in sample
+// order (0, 2, 10, 11; as strings "10" and "11" would come before "2").
+TEST(Cli, DumpWritesSampleDepthsInSampleOrder) {
+  CliSandbox box;
+  expect_ok(box.run("scene cloth --spp 16 -o c.trace"), "scene cloth");
+  const CliResult r = box.run("trace dump c.trace --limit 200");
+  expect_ok(r, "trace dump");
+  const auto lines = lines_of(r.out);
+  ASSERT_EQ(lines.size(), 201u) << r.describe();
+  size_t mixed = 0;  // fragments with samples below 10 and from 10 on: string order would differ
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const auto j = nlohmann::ordered_json::parse(lines[i]);  // keeps the keys in the order written
+    ASSERT_TRUE(j["sample_depth"].is_object()) << lines[i];
+    int last = -1;
+    bool low = false, high = false;
+    for (const auto& [key, depth] : j["sample_depth"].items()) {
+      const int k = std::stoi(key);
+      EXPECT_GT(k, last) << "sample_depth keys out of sample order: " << lines[i];
+      last = k;
+      (k < 10 ? low : high) = true;
+      EXPECT_TRUE(depth.is_number()) << lines[i];
+    }
+    mixed += low && high;
+  }
+  EXPECT_GT(mixed, 0u) << "no fragment covered samples on both sides of 10: the check proves nothing";
+}
+
+// Every verb's --help ends with two or three examples, and each runs as
+// written (exit 0) in a folder holding the checkout's configs/, studies/ and
+// traces/: the verbs in an order where each example finds the files the ones
+// before it wrote (the scene examples make cloth.trace, run's lk.exr and
+// reference.exr, study run's st).
+TEST(Cli, EveryVerbsHelpHasExamplesThatRun) {
+  CliSandbox box;
+  for (const char* d : {"configs", "studies", "traces"})
+    fs::create_directory_symlink(fs::path(ROPSIM_SOURCE_DIR) / d, box.work() / d);
+  const std::vector<std::string> verbs = {
+      "scene",        "trace",      "trace info",   "trace validate", "trace dump", "trace kinds",   "capture",
+      "run",          "livepoints", "compare",      "vectors",        "config",     "report-fields", "study",
+      "study points", "study run",  "study export", "study plan",     "study task", "study collect", "study report"};
+  std::set<std::string> ran;
+  for (const auto& verb : verbs) {
+    const CliResult h = box.run(verb + " --help");
+    expect_ok(h, verb + " --help");
+    const auto at = h.out.find("\nExamples:\n");
+    ASSERT_NE(at, std::string::npos) << "ropsim " << verb << " --help has no examples\n" << h.out;
+    std::vector<std::string> cmds;
+    for (const auto& l : lines_of(h.out.substr(at + 11))) {
+      if (l.rfind("  ropsim ", 0) != 0) break;
+      std::string c = l.substr(9);
+      if (const auto hash = c.find("   #"); hash != std::string::npos) c.erase(hash);
+      cmds.push_back(c);
+    }
+    EXPECT_GE(cmds.size(), 2u) << "ropsim " << verb << " --help: two or three examples\n" << h.out;
+    EXPECT_LE(cmds.size(), 3u) << "ropsim " << verb << " --help: two or three examples\n" << h.out;
+    for (const auto& c : cmds) {
+      if (!ran.insert(c).second) continue;
+      const CliResult r = box.run(c);
+      EXPECT_EQ(r.code, 0) << "the example of " << verb << " --help failed: ropsim " << c << "\n" << r.describe();
+    }
+  }
+}
+
 TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
   // fuzz/regressions/trace/ keeps two traces written before the checksum
   // existed (header flags 0): --no-checksum must reproduce them byte for byte,

@@ -588,11 +588,11 @@ TEST(Timing, SmallDramBandwidthIsMemoryBoundAndTheReportSaysSo) {
   apply_hw_override(hw, "dram.bytes_per_clock=2");
   const CycleRun r = run_cycle(scene_input("cloth", 16), method_config(Method::kLk), hw);
   EXPECT_TRUE(r.stats.memory_bound) << "DRAM utilization " << r.stats.dram_utilization;
-  EXPECT_EQ(r.stats.bottleneck.kind, Bottleneck::Kind::kMemory) << format_bottleneck(r.stats);
-  EXPECT_EQ(format_bottleneck(r.stats).rfind("memory-bound", 0), 0u) << format_bottleneck(r.stats);
+  EXPECT_EQ(r.stats.bottleneck.kind, Bottleneck::Kind::kBandwidth) << format_bottleneck(r.stats);
+  EXPECT_EQ(format_bottleneck(r.stats).rfind("bandwidth (dram):", 0), 0u) << format_bottleneck(r.stats);
   const CycleRun fast = run_cycle(scene_input("cloth", 16), method_config(Method::kLk), unlimited_memory());
   EXPECT_FALSE(fast.stats.memory_bound) << format_bottleneck(fast.stats);
-  EXPECT_NE(fast.stats.bottleneck.kind, Bottleneck::Kind::kMemory) << format_bottleneck(fast.stats);
+  EXPECT_NE(fast.stats.bottleneck.kind, Bottleneck::Kind::kBandwidth) << format_bottleneck(fast.stats);
   EXPECT_GT(r.stats.total_cycles, 3 * fast.stats.total_cycles);
 }
 
@@ -2055,7 +2055,7 @@ TEST(Sampled, BottleneckIsTheCycleModels) {
     const CycleRun full = run_cycle(in, GoldenConfig{}, hw);
     EXPECT_EQ(s.stats.bottleneck.kind, full.stats.bottleneck.kind)
         << config << ": " << format_bottleneck(s.stats) << " vs " << format_bottleneck(full.stats);
-    EXPECT_EQ(s.stats.bottleneck.unit_kind, full.stats.bottleneck.unit_kind)
+    EXPECT_EQ(s.stats.bottleneck.resource, full.stats.bottleneck.resource)
         << config << ": " << format_bottleneck(s.stats) << " vs " << format_bottleneck(full.stats);
     for (const UnitReport& u : s.stats.units) {
       uint64_t sum = 0;

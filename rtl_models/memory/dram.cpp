@@ -27,7 +27,8 @@ uint64_t Dram::access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint6
     ready += cfg_.row_miss_cycles;  // precharge + activate, in the bank only
   }
   const uint64_t transfer = bus_.div(uint64_t(bytes) + cfg_.bytes_per_clock - 1);
-  const uint64_t start = std::max(ready, c.bus_free);  // the data bus is shared by the banks
+  const uint64_t start = std::max(ready, c.bus_free);         // the data bus is shared by the banks
+  c.service += start + transfer - std::max(now, c.bus_free);  // from the request or the previous burst's end
   c.bus_free = start + transfer;
   c.bank_free[bank] = start + transfer;
   c.busy += transfer;
@@ -75,6 +76,7 @@ DramStats Dram::stats() const {
   for (const auto& c : ch_) {
     s.busy_cycles += c.busy;
     s.max_channel_busy = std::max(s.max_channel_busy, c.busy);
+    s.max_channel_service = std::max(s.max_channel_service, c.service);
   }
   return s;
 }

@@ -26,7 +26,12 @@ struct DramStats {
   uint64_t reads = 0, writes = 0, row_hits = 0, row_misses = 0;
   uint64_t busy_cycles = 0;       ///< sum over channels of data-bus cycles
   uint64_t max_channel_busy = 0;  ///< the busiest channel's busy cycles
-  uint64_t last_completion = 0;   ///< cycle the last access completes
+  /// The largest over the channels of its service cycles: the cycles in which
+  /// it had a request and was serving one (in arrival order: a burst's
+  /// transfer, and before it the cycles its bank was busy or switching rows
+  /// with the bus idle). At least its data-bus cycles; the DRAM's own bound.
+  uint64_t max_channel_service = 0;
+  uint64_t last_completion = 0;  ///< cycle the last access completes
 
   /// Bytes read (written) over every buffer.
   uint64_t total_bytes_read() const {
@@ -129,6 +134,7 @@ class Dram {
   Divisor bus_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0, row_misses = 0;
+    uint64_t service = 0;             // cycles serving a request: DramStats::max_channel_service
     std::vector<uint64_t> open_row;   // per bank, ~0 = closed
     std::vector<uint64_t> bank_free;  // per bank: cycle its last access ends
   };

@@ -9,9 +9,14 @@
 // per-module error types) for the user, InternalError for a broken invariant;
 // main maps them to the exit status (README "Exit status").
 #pragma once
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <functional>
+#include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "errors.h"
@@ -38,6 +43,38 @@ VerbRunner add_study_command(CLI::App& app);
 /// forced into logs with --progress, else on a terminal only.
 inline void set_progress_flags(bool quiet, bool force) {
   set_progress_mode(quiet ? ProgressMode::kOff : force ? ProgressMode::kAlways : ProgressMode::kTerminal);
+}
+
+/// A number in [lo, hi]. Help and errors show the range as "lo..hi", or as
+/// ">= lo" when hi is the type's largest (CLI::Range would print its digits);
+/// a negative value for an unsigned option is refused here, before CLI11's
+/// conversion could wrap it. The error, after CLI11's "--flag: ", is
+/// "VALUE: must be >= 1".
+template <class T>
+CLI::Validator in_range(T lo, T hi = std::numeric_limits<T>::max()) {
+  static_assert(std::is_arithmetic_v<T>, "a numeric option");
+  const bool open = hi == std::numeric_limits<T>::max();
+  const std::string range = open ? fmt::format(">= {}", lo) : fmt::format("{}..{}", lo, hi);
+  const std::string must = open ? "must be " + range : "must be in " + range;
+  return CLI::Validator(
+      [lo, hi, must](std::string& text) -> std::string {
+        const char* s = text.c_str();
+        char* end = nullptr;
+        const long double v = std::strtold(s, &end);
+        if (end == s || *end != '\0' || v != v) return text + ": not a number";
+        if (v < static_cast<long double>(lo) || v > static_cast<long double>(hi)) return text + ": " + must;
+        return "";
+      },
+      range);
+}
+
+/// A verb's --help footer: its examples, each a whole command line that runs
+/// as written from the checkout (after the scene and run examples have made
+/// cloth.trace, lk.exr and reference.exr; tests/test_cli.cpp runs them all).
+inline std::string examples(const std::vector<std::string>& lines) {
+  std::string s = "Examples:";
+  for (const auto& l : lines) s += "\n  " + l;
+  return s;
 }
 
 inline std::string join(const std::vector<std::string>& v, const char* sep = ", ") {

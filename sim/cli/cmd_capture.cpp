@@ -82,14 +82,16 @@ std::function<int()> add_capture_command(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "capture", "Rasterize a mesh scene file (OBJ / glTF meshes, camera, opacity; docs/capture.md) into a trace");
   sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
-  sub->add_option("-o,--output", o->out, "Trace file to write (written atomically: no file on error; docs/outputs.md)");
+  sub->add_option("-o,--out,--output", o->out,
+                  "Trace file to write (written atomically: no file on error; docs/outputs.md)")
+      ->type_name("FILE");
   sub->add_option(
       "--mesh-dir", o->mesh_dir,
       "Folder to look for the scene's meshes in first (default: $ROPSIM_MESH_DIR), then the scene's mesh_dir");
   sub->add_option("--spp", o->spp, "Override the scene's samples per pixel: 1, 2, 4, 8, 16, 32 or 64")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
-  sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(CLI::Range(1u, 32768u));
-  sub->add_option("--height", o->height, "Override the scene's height in pixels")->check(CLI::Range(1u, 32768u));
+  sub->add_option("--width", o->width, "Override the scene's width in pixels")->check(in_range(1u, 32768u));
+  sub->add_option("--height", o->height, "Override the scene's height in pixels")->check(in_range(1u, 32768u));
   sub->add_option("--seed", o->seed, "Override the scene's shuffle seed");
   sub->add_option("--order", o->order, "Override every object's draw order")
       ->check(CLI::IsMember({"authored", "shuffled", "far-to-near", "near-to-far"}));
@@ -103,6 +105,9 @@ std::function<int()> add_capture_command(CLI::App& app) {
   sub->add_flag("--progress", o->progress,
                 "Show progress (share of the triangles, rate, ETA) even when stderr is not a terminal: a line every "
                 "5 s, for logs");
+  sub->footer(examples({"ropsim capture traces/scenes/mesh/cloth.toml --width 128 --height 128 --spp 4 -o mesh.trace",
+                        "ropsim capture traces/scenes/mesh/cloth.toml --width 128 --height 128 --order far-to-near "
+                        "-o sorted.trace"}));
   return [o, sub]() { return sub->parsed() ? run_capture(*o, *sub) : -1; };
 }
 

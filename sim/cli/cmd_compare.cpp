@@ -47,6 +47,9 @@ VerbRunner add_compare_command(CLI::App& app) {
   cmp->add_option("A", o->a, "Image")->required()->check(CLI::ExistingFile);
   cmp->add_option("B", o->b, "Reference image")->required()->check(CLI::ExistingFile);
   cmp->add_flag("--json", o->json, "Print JSON");
+  cmp->footer(examples({"ropsim compare lk.exr reference.exr",
+                        "ropsim compare lk.png reference.exr   # a PNG (sRGB) against an EXR, in linear light",
+                        "ropsim compare lk.exr reference.exr --json"}));
   return [o, cmp]() { return cmp->parsed() ? cmd_compare(*o) : -1; };
 }
 

@@ -126,16 +126,18 @@ VerbRunner add_config_command(CLI::App& app) {
   cfgc->add_option("--spp", o->spp, "With --silicon: samples per pixel (default 16)")->needs(si);
   cfgc->add_option("--width", o->width, "With --silicon: screen width in pixels (default 1024)")
       ->needs(si)
-      ->check(CLI::Range(1, 32768));
+      ->check(in_range(1, 32768));
   cfgc->add_option("--height", o->height, "With --silicon: screen height in pixels (default 1024)")
       ->needs(si)
-      ->check(CLI::Range(1, 32768));
+      ->check(in_range(1, 32768));
   auto* sc = cfgc->add_flag("--silicon-check", o->silicon_check,
                             "Print each cost model's largest error on the sweep rows held out from its fit");
   si->excludes(cfgc->get_option("--json"));
   si->excludes(md);
   sc->excludes(si);
   sc->excludes(md);
+  cfgc->footer(examples({"ropsim config configs/narrow.toml", "ropsim config --markdown",
+                         "ropsim config configs/wide.toml --hw-set numerics.hash_bits=16 --json"}));
   return [o, cfgc]() { return cfgc->parsed() ? cmd_config(*o) : -1; };
 }
 

@@ -15,6 +15,7 @@ VerbRunner add_report_fields_command(CLI::App& app) {
   auto markdown = std::make_shared<bool>(false);
   CLI::App* c = app.add_subcommand("report-fields", "List every report field with its unit and meaning");
   c->add_flag("--markdown", *markdown, "As the Markdown table of docs/reports.md");
+  c->footer(examples({"ropsim report-fields", "ropsim report-fields --markdown"}));
   return [markdown, c]() {
     if (!c->parsed()) return -1;
     const auto docs = report_field_docs();

@@ -571,9 +571,9 @@ void add_input_and_method_options(CLI::App* run, RunOpts* ro_, CLI::Option* opt_
   run->add_option("--spp", ro->spp, "Samples per pixel for --scene: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   run->add_option("--width", ro->width, "Scene width in pixels (default: the scene's)")
-      ->check(CLI::Range(1u, kMaxScreenSide));
+      ->check(in_range(1u, kMaxScreenSide));
   run->add_option("--height", ro->height, "Scene height in pixels (default: the scene's)")
-      ->check(CLI::Range(1u, kMaxScreenSide));
+      ->check(in_range(1u, kMaxScreenSide));
   run->add_option("--scene-seed", ro->scene_seed, "Seed of the scene generator (default 1)");
   run->add_option("--seed", ro->seed, "Seed of the methods' hash-based random numbers (default 1)");
   run->add_option("--slab-layers", ro->slab_layers, "slab: k, layers per pixel (1..16, default 8)");
@@ -584,23 +584,23 @@ void add_input_and_method_options(CLI::App* run, RunOpts* ro_, CLI::Option* opt_
       ->check(CLI::IsMember({"depth-first", "original"}));
   run->add_option("--hash-bits", ro->num.hash_bits,
                   "Alpha-reference hash datapath width, bits (8..32; default: the design's numerics.hash_bits, 32)")
-      ->check(CLI::Range(8, 32));
+      ->check(in_range(8, 32));
   run->add_option("--alpha-bits", ro->num.alpha_bits,
                   "Opacity fixed-point precision, bits (1..32; default: the design's numerics.alpha_bits, 32)")
-      ->check(CLI::Range(1, 32));
+      ->check(in_range(1, 32));
   run->add_option("--surface-id-bits", ro->num.surface_id_bits,
                   "Surface id register width, bits (1..32; default: the design's numerics.surface_id_bits, 32)")
-      ->check(CLI::Range(1, 32));
+      ->check(in_range(1, 32));
 }
 
 void add_sampling_options(CLI::App* run, RunOpts* ro) {
   const SamplingParams dp;
   run->add_option("--sample-units", ro->sampling.units,
                   "sampled: units K, placed every N / K fragments (default " + std::to_string(dp.units) + ")")
-      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 40));
+      ->check(in_range(uint64_t{1}, uint64_t{1} << 40));
   run->add_option("--sample-size", ro->sampling.unit_fragments,
                   "sampled: fragments U per measured window (default " + std::to_string(dp.unit_fragments) + ")")
-      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 40));
+      ->check(in_range(uint64_t{1}, uint64_t{1} << 40));
   run->add_option("--sample-warmup", ro->sampling.warmup_fragments,
                   "sampled: fragments W simulated in detail before each window (default " +
                       std::to_string(dp.warmup_fragments) + ")");
@@ -614,7 +614,7 @@ void add_sampling_options(CLI::App* run, RunOpts* ro) {
                   "sampled: per design, warm tag-only from where the touches before the warm-up reach R x the "
                   "design's cache lines in distinct lines, at most T back (default " +
                       fmt::format("{}", dp.warming_reach) + ")")
-      ->check(CLI::Range(0.0, 1e6))
+      ->check(in_range(0.0, 1e6))
       ->type_name("R");
 }
 
@@ -638,7 +638,7 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   auto* opt_trace =
       run->add_option("--trace", ro->trace, "Fragment trace file (ropsim trace v1)")->check(CLI::ExistingFile);
   add_input_and_method_options(run, ro.get(), opt_trace);
-  run->add_option("--out", ro->outs,
+  run->add_option("-o,--out", ro->outs,
                   "Output image(s): .png (sRGB 8-bit) or .exr (linear float); repeatable. Missing folders are made; "
                   "no two outputs may be one file (docs/outputs.md; default: out/run/ named after the input, "
                   "method and design)");
@@ -656,7 +656,7 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->check(CLI::ExistingFile)
       ->type_name("LIB");
   run->add_option("-j,--jobs", ro->jobs, "sampled: worker processes simulating the units (default: every core)")
-      ->check(CLI::Range(1, 1024));
+      ->check(in_range(1, 1024));
   add_design_options(run, ro.get());
   run->add_option("--vcd", ro->vcd,
                   "cycle: write a VCD waveform in clock cycles (with a clock): unit activities by name, FIFO "
@@ -669,11 +669,11 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
                 "for checking the decoupling)");
   run->add_option("--stats-interval", ro->stats_interval,
                   "cycle: also write the run's statistics every N cycles (--stats-csv; docs/reports.md)")
-      ->check(CLI::Range(uint64_t{1}, ~uint64_t{0}))
+      ->check(in_range(uint64_t{1}))
       ->type_name("N");
   run->add_option("--stats-csv", ro->stats_csv, "cycle: the CSV file of --stats-interval")->type_name("FILE");
   run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
-      ->check(CLI::Range(1u, 1000u));
+      ->check(in_range(1u, 1000u));
   run->add_flag("--vs-reference", ro->vs_reference,
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--per-draw", ro->per_draw,
@@ -690,6 +690,10 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_flag("--progress", ro->progress,
                 "Show progress (share of the input consumed, rate, ETA) even when stderr is not a terminal: a line "
                 "every 5 s, for logs");
+  run->footer(examples(
+      {"ropsim run --trace cloth.trace --method lk -o lk.png -o lk.exr --report lk.json",
+       "ropsim run --trace cloth.trace --method reference -o reference.exr   # the A-buffer ground truth",
+       "ropsim run --fidelity cycle --hw configs/narrow.toml --trace cloth.trace   # cycles, DRAM, the bottleneck"}));
   return [ro, run, command_line]() { return run->parsed() ? cmd_run(*ro, *run, command_line) : -1; };
 }
 
@@ -711,6 +715,9 @@ VerbRunner add_livepoints_command(CLI::App& app) {
   lp->add_flag("--quiet", ro->quiet, "Print nothing on success");
   lp->add_flag("--progress", ro->progress,
                "Show progress even when stderr is not a terminal: a line every 5 s, for logs");
+  lp->footer(examples({"ropsim livepoints cloth.trace -o cloth.rlp",
+                       "ropsim run --fidelity sampled --livepoints cloth.rlp --hw configs/wide.toml -j 2   # then "
+                       "any design from it"}));
   return [ro, lp]() { return lp->parsed() ? cmd_livepoints(*ro, *lp) : -1; };
 }
 

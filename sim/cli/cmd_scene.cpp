@@ -44,11 +44,11 @@ VerbRunner add_scene_command(CLI::App& app) {
   scn->add_option("NAME", o->sp.name, "Scene: " + join(scene_names()))->check(CLI::IsMember(scene_names()));
   scn->add_option("--spp", o->sp.spp, "Samples per pixel: 1, 2, 4, 8, 16, 32 or 64 (default 16)")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
-  scn->add_option("-o,--output", o->out, "Trace file to write");
+  scn->add_option("-o,--out,--output", o->out, "Trace file to write")->type_name("FILE");
   scn->add_option("--width", o->sp.width, "Width in pixels (default: the scene's)")
-      ->check(CLI::Range(1u, kMaxScreenSide));
+      ->check(in_range(1u, kMaxScreenSide));
   scn->add_option("--height", o->sp.height, "Height in pixels (default: the scene's)")
-      ->check(CLI::Range(1u, kMaxScreenSide));
+      ->check(in_range(1u, kMaxScreenSide));
   scn->add_option("--seed", o->sp.seed, "Scene generator seed (default 1)");
   scn->add_option("--depth", o->depth_mode, "Depth records: plane or per-sample (default plane)")
       ->check(CLI::IsMember({"plane", "per-sample"}));
@@ -59,6 +59,8 @@ VerbRunner add_scene_command(CLI::App& app) {
   scn->add_flag("--no-checksum", o->no_checksum,
                 "Write the payload without checksum records (header flag 0; docs/trace-format.md 2.3)");
   scn->add_flag("--list", o->list, "List the built-in scenes");
+  scn->footer(examples({"ropsim scene --list", "ropsim scene cloth --spp 4 -o cloth.trace",
+                        "ropsim scene cloth --spp 4 --no-checksum -o plain.trace"}));
   return [o, scn]() { return scn->parsed() ? cmd_scene(*o, *scn) : -1; };
 }
 

@@ -233,10 +233,12 @@ VerbRunner add_study_command(CLI::App& app) {
   auto o = std::make_shared<StudyOpts>();
   CLI::App* st = app.add_subcommand("study", "What-if studies: sweep parameters, collect results (docs/studies.md)");
   st->require_subcommand(1);
+  st->footer(examples({"ropsim study points studies/smoke.toml", "ropsim study run studies/smoke.toml -o st -j 2",
+                       "ropsim study export st -o st.csv"}));
   CLI::App* run = st->add_subcommand("run", "Run the points of a study that its folder does not hold yet");
   run->add_option("STUDY", o->file, "Study file (TOML)")->required();
-  run->add_option("--out", o->out, "Study folder (default out/study/NAME)");
-  run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(CLI::Range(1u, 1024u));
+  run->add_option("-o,--out", o->out, "Study folder (default out/study/NAME)")->type_name("DIR");
+  run->add_option("-j,--jobs", o->jobs, "Worker processes (default: the cores)")->check(in_range(1u, 1024u));
   run->add_flag("--retry-failed", o->retry_failed,
                 "Run again the points whose input error is recorded (host failures always run again)");
   CLI::Option* force = run->add_flag("--force", o->force,
@@ -256,21 +258,28 @@ VerbRunner add_study_command(CLI::App& app) {
   run->add_option("--slurm-time", o->slurm.time, "slurm: sbatch --time per task (over [slurm] time)");
   run->add_option("--slurm-mem", o->slurm.mem, "slurm: sbatch --mem per task (over [slurm] mem)");
   run->add_option("--slurm-throttle", o->slurm.throttle, "slurm: array tasks at once (over [slurm] throttle)")
-      ->check(CLI::Range(1u, 100000u));
+      ->check(in_range(1u, 100000u));
   run->add_option("--slurm-arg", o->slurm_args, "slurm: an extra sbatch argument (repeatable; after [slurm] args)");
+  run->footer(
+      examples({"ropsim study run studies/smoke.toml -o st -j 2",
+                "ropsim study run studies/smoke.toml -o st --retry-failed --quiet   # resumes: runs what st lacks"}));
   CLI::App* pts = st->add_subcommand("points", "List the points of a study (hash and parameters) without running");
   pts->add_option("STUDY", o->file, "Study file (TOML)")->required();
+  pts->footer(examples({"ropsim study points studies/smoke.toml", "ropsim study points studies/designs.toml"}));
   CLI::App* exp = st->add_subcommand("export", "Write a study folder's results as CSV");
   exp->add_option("DIR", o->dir, "Study folder")->required();
-  exp->add_option("--csv", o->csv, "CSV file to write (- for standard output)")->required();
+  exp->add_option("-o,--out,--csv", o->csv, "CSV file to write (- for standard output)")->required()->type_name("FILE");
+  exp->footer(examples({"ropsim study export st -o st.csv", "ropsim study export st -o -   # to standard output"}));
   CLI::App* plan = st->add_subcommand("plan", "Record what a study folder holds; print the tasks left as JSON");
   plan->add_option("STUDY", o->file, "Study file (TOML)")->required();
-  plan->add_option("--out", o->out, "Study folder (default out/study/NAME)");
+  plan->add_option("-o,--out", o->out, "Study folder (default out/study/NAME)")->type_name("DIR");
   plan->add_flag("--retry-failed", o->retry_failed, "Plan the points whose error is recorded again");
   plan->add_option("--mesh-dir", o->mesh_dir, mesh_dir_help);
+  plan->footer(examples(
+      {"ropsim study plan studies/smoke.toml -o st", "ropsim study plan studies/smoke.toml -o st --retry-failed"}));
   CLI::App* task = st->add_subcommand("task", "Run one task of a study in this process (for other executors)");
   task->add_option("STUDY", o->file, "Study file (TOML)")->required();
-  task->add_option("--out", o->out, "Study folder (default out/study/NAME)");
+  task->add_option("-o,--out", o->out, "Study folder (default out/study/NAME)")->type_name("DIR");
   task->add_option("--kind", o->kind, "c (capture), r (reference) or p (point)")
       ->required()
       ->check(CLI::IsMember({"c", "r", "p"}));
@@ -280,11 +289,16 @@ VerbRunner add_study_command(CLI::App& app) {
   task->add_flag("--recorded-ok", o->recorded_ok,
                  "Exit 0 when the task failed but recorded its error (a capture's or reference's: the points "
                  "that need it record it as theirs)");
+  task->footer(examples({"ropsim study task studies/smoke.toml -o st --kind p --index 0",
+                         "ropsim study task studies/smoke.toml -o st --kind p --index 1 --recorded-ok"}));
   CLI::App* col = st->add_subcommand("collect", "Record every finished task of a study folder in its database");
   col->add_option("DIR", o->dir, "Study folder")->required();
+  col->footer(examples({"ropsim study collect st", "ropsim study export st -o st.csv   # then its results as CSV"}));
   CLI::App* rep = st->add_subcommand("report", "Write a study folder's HTML report and Markdown summary (DIR/report)");
   rep->add_option("DIR", o->dir, "Study folder")->required();
-  rep->add_option("--out", o->out, "Folder for index.html and summary.md (default DIR/report; DIR is only read)");
+  rep->add_option("-o,--out", o->out, "Folder for index.html and summary.md (default DIR/report; DIR is only read)");
+  rep->footer(examples({"ropsim study run studies/smoke.toml -o st -j 2   # first the study's results",
+                        "ropsim study report st   # then st/report/index.html and st/report/summary.md"}));
   return [o, st, run, pts, exp, rep, plan, task, col]() {
     if (!st->parsed()) return -1;
     if (run->parsed()) return cmd_study_run(*o);

@@ -182,21 +182,32 @@ VerbRunner add_trace_command(CLI::App& app) {
   auto o = std::make_shared<TraceOpts>();
   CLI::App* trc = app.add_subcommand("trace", "Inspect a trace file");
   trc->require_subcommand(1);
+  trc->footer(examples({"ropsim trace info cloth.trace", "ropsim trace validate cloth.trace",
+                        "ropsim trace dump cloth.trace --limit 5"}));
   CLI::App* tinfo = trc->add_subcommand("info", "Header and statistics (streams the whole trace)");
   tinfo->add_option("FILE", o->path, "Trace file")->required();
   tinfo->add_flag("--json", o->json, "Print the header and statistics as one JSON object");
+  tinfo->footer(examples({"ropsim trace info cloth.trace", "ropsim trace info cloth.trace --json"}));
   CLI::App* tval = trc->add_subcommand("validate", "Check every record; exit 1 naming the first bad one");
   tval->add_option("FILE", o->path, "Trace file")->required();
+  tval->footer(examples({"ropsim trace validate cloth.trace", "ropsim trace validate plain.trace"}));
   CLI::App* tdump = trc->add_subcommand("dump", "Header and fragments as JSON lines");
   tdump->add_option("FILE", o->path, "Trace file")->required();
-  tdump->add_option("--limit", o->dump_limit, "Dump at most this many fragments");
-  tdump->add_option("-o,--output", o->out, "File to write (default -: standard output)");
+  tdump->add_option("--limit", o->dump_limit, "Dump at most this many fragments (default: all; 0: the header alone)")
+      ->check(in_range(uint64_t{0}))
+      ->type_name("N");
+  tdump->add_option("-o,--out,--output", o->out, "File to write (default -: standard output)")->type_name("FILE");
+  tdump->footer(
+      examples({"ropsim trace dump cloth.trace --limit 5",
+                "ropsim trace dump cloth.trace --limit 0 -o header.jsonl   # the header line alone, to a file"}));
   CLI::App* tkinds = trc->add_subcommand("kinds", "Pixels by kind and each method's RMSE within each kind");
   tkinds->add_option("FILE", o->path, "Trace file")->required();
   tkinds
       ->add_option("--method", o->methods, "A method to compare with the reference; repeatable (default lk, enderton)")
       ->check(CLI::IsMember(method_names()));
   tkinds->add_option("--seed", o->seed, "Seed of the methods' hash-based random numbers (default 1)");
+  tkinds->footer(examples(
+      {"ropsim trace kinds cloth.trace", "ropsim trace kinds cloth.trace --method lk --method hashed --seed 7"}));
   return [o, tinfo, tval, tdump, tkinds]() {
     if (tkinds->parsed())
       return cmd_trace_kinds(o->path, o->methods.empty() ? std::vector<std::string>{"lk", "enderton"} : o->methods,

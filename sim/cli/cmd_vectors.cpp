@@ -93,8 +93,8 @@ VerbRunner add_vectors_command(CLI::App& app) {
       "the unit's calls while a trace replays (--trace)");
   vec->add_option("UNIT", o->unit, "Unit: " + join(vector_units()))->required()->check(CLI::IsMember(vector_units()));
   CLI::Option* count = vec->add_option("--count", o->count, "Number of random vectors (default 1000)")
-                           ->check(CLI::Range(uint64_t{1}, uint64_t{100000000}));
-  vec->add_option("-o,--output", o->out, "File to write (- for standard output)")->required();
+                           ->check(in_range(uint64_t{1}, uint64_t{100000000}));
+  vec->add_option("-o,--out,--output", o->out, "File to write (- for standard output)")->required()->type_name("FILE");
   vec->add_option("--format", o->opt.format, "csv (default) or hex: one $readmemh word per vector")
       ->check(CLI::IsMember(vector_formats()));
   CLI::Option* spp =
@@ -102,13 +102,13 @@ VerbRunner add_vectors_command(CLI::App& app) {
           ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}));
   CLI::Option* order =
       vec->add_option("--order", o->opt.hilbert_order, "hilbert: log2 of the grid side (default: 1..16 at random)")
-          ->check(CLI::Range(1, 16));
+          ->check(in_range(1, 16));
   vec->add_option("--seed", o->seed,
                   "Seed of the random cases (default 1); with --trace, of the method's hash-based random numbers");
-  vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(CLI::Range(8, 32));
-  vec->add_option("--alpha-bits", o->num.alpha_bits, "opacity: opacity precision (1..32)")->check(CLI::Range(1, 32));
+  vec->add_option("--hash-bits", o->num.hash_bits, "alpha-ref: hash width (8..32)")->check(in_range(8, 32));
+  vec->add_option("--alpha-bits", o->num.alpha_bits, "opacity: opacity precision (1..32)")->check(in_range(1, 32));
   vec->add_option("--surface-id-bits", o->num.surface_id_bits, "tracker, alpha-ref: surface id width (1..32)")
-      ->check(CLI::Range(1, 32));
+      ->check(in_range(1, 32));
   vec->add_option("--trace", o->trace,
                   "Vectors from this trace: every call of the unit while the golden model replays it (units: " +
                       join(trace_vector_units()) + ")")
@@ -124,6 +124,9 @@ VerbRunner add_vectors_command(CLI::App& app) {
   vec->add_option("--window", o->window, "--trace: only the calls for pixels x0 <= x <= x1, y0 <= y <= y1")
       ->type_name("x0,y0,x1,y1");
   vec->add_option("--draw", o->draw, "--trace: only the calls for fragments of this draw id");
+  vec->footer(examples({"ropsim vectors alpha-ref --count 100 -o alpha_ref.csv",
+                        "ropsim vectors alpha-ref --format hex --count 100 -o alpha_ref.hex   # $readmemh words",
+                        "ropsim vectors tracker --trace cloth.trace --window 100,100,115,115 -o tracker_cloth.csv"}));
   return [o, vec]() { return vec->parsed() ? cmd_vectors(*o, *vec) : -1; };
 }
 

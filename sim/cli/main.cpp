@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads,
                  "Host threads of the golden model (the functional fidelity, the reference pre-pass of a cycle "
                  "run); the result is bit-identical for every count. Default: every core this process may use")
-      ->check(CLI::Range(1, 1024))
+      ->check(in_range(1, 1024))
       ->type_name("N");
   app.fallthrough();
   std::string cmdline;

@@ -1,7 +1,5 @@
 #include "approximate.h"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <chrono>
 #include <future>
@@ -259,6 +257,7 @@ struct RopEpoch {
 
 struct PassResult {
   uint64_t cycles = 0, fill = 0, flush = 0, epochs = 0;
+  uint64_t dram_service = 0;  ///< the busiest channel's service of all its bursts, the final flush's too
 };
 
 /// What the model needs of one fragment, from the functional pass: its
@@ -275,7 +274,8 @@ struct FragRec {
 class Model {
  public:
   Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
-      : hw_(hw),
+      : rop_demand(hw.distributor.rop_units),
+        hw_(hw),
         out_(out),
         owner_(hw.distributor, rop.header().width),
         amap_(rop.header().width, rop.header().spp, rop.setup().tracker_bytes, hw.cache.line_bytes,
@@ -413,6 +413,7 @@ class Model {
     double tail = 0;
     for (size_t i = 0; i < after.size(); ++i) tail = std::max(tail, backlog_[i] + double(after[i] - before[i]));
     p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
+    p.dram_service = dram_.max_clock();
     p.epochs = epochs_;
     for (auto& c : caches_) out_.cache += c->stats();
     const DramStats& d = dram_.stats();
@@ -429,6 +430,8 @@ class Model {
   }
 
   std::array<double, kUnitKinds> unit_cycles{};
+  /// Per ROP and unit kind: its initiation intervals summed over the pass.
+  std::vector<std::array<double, kUnitKinds>> rop_demand;
 
  private:
   void close_epoch() {
@@ -437,7 +440,9 @@ class Model {
     b[int(ApproxBound::kSource)] = n / hw_.source.fragments_per_clock;
     b[int(ApproxBound::kDistributor)] = n / hw_.distributor.fragments_per_clock;
     int unit_kind = kOrdering;
-    for (const RopEpoch& e : rops_) {
+    for (size_t r = 0; r < rops_.size(); ++r) {
+      const RopEpoch& e = rops_[r];
+      for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += double(e.demand[size_t(k)]);
       for (int k = 0; k < kUnitKinds; ++k)
         if (double(e.demand[size_t(k)]) > b[int(ApproxBound::kUnit)]) {
           b[int(ApproxBound::kUnit)] = double(e.demand[size_t(k)]);
@@ -527,6 +532,9 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   LineSet in_dram(hw.cache.line_bytes);
   std::array<double, kUnitKinds> unit_cycles{};
+  // Per ROP and unit kind: its initiation intervals over every pass (the
+  // passes run one after another, so they add up).
+  std::vector<std::array<double, kUnitKinds>> rop_demand(hw.distributor.rop_units);
   Progress progress("approximate", "fragments");
   uint64_t read = 0;
   for (int pass = 0; pass < rop->passes(); ++pass) {
@@ -591,62 +599,39 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     s.flush_cycles += p.flush;
     s.total_cycles += p.cycles + p.fill + p.flush;
     s.epochs += p.epochs;
+    s.dram_service_cycles += p.dram_service;
     for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
+    for (size_t r = 0; r < rop_demand.size(); ++r)
+      for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
   }
   progress.update(1.0, read);
   progress.finish();
   s.busiest_unit = kUnitNames[std::max_element(unit_cycles.begin(), unit_cycles.end()) - unit_cycles.begin()];
-  s.bottleneck =
+  s.limiting =
       ApproxBound(std::max_element(s.limiting_cycles.begin(), s.limiting_cycles.end()) - s.limiting_cycles.begin());
+  // The bottleneck from the model's own bounds, in the cycle model's terms
+  // (cycle_bounds): the source's and the distributor's rate bounds, per unit
+  // kind the busiest ROP's initiation intervals, and for the DRAM the larger
+  // of two lower bounds: the busiest channel's service of all its bursts
+  // back to back (reads, write-backs, the flush), and the DRAM bound of the
+  // epochs (each at most its epoch's cycles) plus the final flush.
+  std::vector<ResourceBound> bounds = {
+      {"trace_source", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kSource)]},
+      {"distributor", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kDistributor)]}};
+  for (int k = 0; k < kUnitKinds; ++k) {
+    double most = 0;
+    for (const auto& r : rop_demand) most = std::max(most, r[size_t(k)]);
+    bounds.push_back({kUnitNames[k], ResourceBound::Kind::kThroughput, most});
+  }
+  bounds.push_back({"dram", ResourceBound::Kind::kBandwidth,
+                    std::max(double(s.dram_service_cycles),
+                             s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
+  s.bottleneck = classify_bottleneck(std::move(bounds), double(s.total_cycles));
   run.counters = rop->counters();
   run.image = rop->resolve();
   run.state_bytes = rop->store().state_bytes();
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return run;
-}
-
-std::string format_approx_bottleneck(const ApproxStats& s) {
-  const double total = double(std::max<uint64_t>(1, s.total_cycles));
-  const double util = double(s.dram.max_channel_busy) / total;
-  if (util >= 0.8)
-    return fmt::format("memory-bound: the busiest DRAM channel is busy {:.0f}% of the cycles", 100 * util);
-  switch (s.bottleneck) {
-    case ApproxBound::kSource:
-      return fmt::format("source-bound: the trace source delivers fragments {:.0f}% of the cycles ({} per clock)",
-                         100 * s.bound_cycles[int(ApproxBound::kSource)] / total, s.hw.source.fragments_per_clock);
-    case ApproxBound::kDistributor:
-      return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
-                         100 * s.bound_cycles[int(ApproxBound::kDistributor)] / total);
-    case ApproxBound::kUnit:
-      // Pixel ordering issues one fragment per clock, the rate at which the
-      // distributor feeds one ROP: when one ROP's ordering sets the pace, the
-      // cycle model sees the distributor busy every cycle (and each ROP's
-      // ordering busy only when its turn comes), and names the distributor.
-      if (s.busiest_unit == "pixel_ordering")
-        return fmt::format("distributor-bound (throughput): busy {:.0f}% of the cycles",
-                           100 * s.limiting_cycles[int(ApproxBound::kUnit)] / total);
-      return fmt::format("{}-bound (throughput): busy {:.0f}% of the cycles", s.busiest_unit,
-                         100 * s.bound_cycles[int(ApproxBound::kUnit)] / total);
-    case ApproxBound::kLatency:
-    case ApproxBound::kDram:
-      return fmt::format(
-          "depth_test-bound (memory latency): waiting for memory {:.0f}% of the cycles",
-          100 * (s.limiting_cycles[int(ApproxBound::kLatency)] + s.limiting_cycles[int(ApproxBound::kDram)]) / total);
-    case ApproxBound::kHazard:
-      // Likewise a hazard stalls the ordering of the ROP whose pixels are in
-      // flight: with several ROPs the cycle model's average over the
-      // instances is small and the distributor, waiting on that ROP, is named.
-      if (s.hw.distributor.rop_units > 1)
-        return fmt::format("distributor-bound (throughput): pixel hazards in one ROP {:.0f}% of the cycles",
-                           100 * s.limiting_cycles[int(ApproxBound::kHazard)] / total);
-      [[fallthrough]];
-    case ApproxBound::kScoreboard:
-      return fmt::format(
-          "pixel_ordering-bound (pixel hazards): {:.0f}% of the cycles",
-          100 * (s.limiting_cycles[int(ApproxBound::kScoreboard)] + s.limiting_cycles[int(ApproxBound::kHazard)]) /
-              total);
-  }
-  return "?";
 }
 
 }  // namespace ropsim

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "bottleneck.h"
 #include "compressibility.h"
 #include "counters.h"
 #include "dram.h"
@@ -32,7 +33,7 @@ namespace ropsim {
 
 /// The bounds the model computes, each a number of cycles: the sum over the
 /// epochs of that bound alone (so the largest one, were it alone, would be
-/// the time), and the bottleneck: the bound that was largest over most cycles.
+/// the time), and the bound that was the largest over the most cycles.
 enum class ApproxBound : int {
   kSource,       ///< the trace source: fragments / source.fragments_per_clock
   kDistributor,  ///< the distributor: fragments / distributor.fragments_per_clock
@@ -52,13 +53,23 @@ struct ApproxStats {
   uint64_t fill_cycles = 0;      ///< the first fragment's trip through an empty pipeline (summed over passes)
   uint64_t flush_cycles = 0;     ///< the final cache flush's DRAM writes, served by the channels
   uint64_t epochs = 0;
+  /// The busiest DRAM channel's service of all its bursts in arrival order,
+  /// back to back (reads, write-backs and the final flush; summed over the
+  /// passes): the DRAM's bound on the frame, as the cycle model's
+  /// DramStats::max_channel_service.
+  uint64_t dram_service_cycles = 0;
   uint64_t epoch_fragments = 0;  ///< fragments per epoch (the buffering that lets the ROPs drift apart)
   /// Per bound: its sum over the epochs (cycles), and the cycles of the
   /// epochs in which it was the largest.
   std::array<double, kApproxBounds> bound_cycles{}, limiting_cycles{};
   /// The unit kind whose demand made kUnit (the busiest over the run).
   std::string busiest_unit;
-  ApproxBound bottleneck = ApproxBound::kUnit;
+  ApproxBound limiting = ApproxBound::kUnit;  ///< the bound largest over the most cycles
+  /// What bounds the frame (bottleneck.h): the source, the distributor, each
+  /// unit kind (the busiest ROP's initiation intervals) and the DRAM (the
+  /// larger of dram_service_cycles and its bound over the epochs plus
+  /// flush_cycles), against total_cycles.
+  Bottleneck bottleneck;
   CacheStats cache;                            ///< tag-only, summed over the ROPs
   DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM
   uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed
@@ -77,9 +88,5 @@ struct ApproxRun {
 /// Throws UserError for the reference method (no pipeline) and bad numerics;
 /// TraceError for a bad trace.
 ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw);
-
-/// The bottleneck as one line, in the words of the cycle model's
-/// (format_bottleneck): memory-bound, source-bound or unit-bound.
-std::string format_approx_bottleneck(const ApproxStats& s);
 
 }  // namespace ropsim

@@ -180,21 +180,32 @@ ReportContext with_design(const ReportContext& ctx, const HwConfig& hw) {
   return c;
 }
 
-std::string format_bottleneck(const CycleStats& s) {
-  const Bottleneck& b = s.bottleneck;
-  switch (b.kind) {
-    case Bottleneck::Kind::kMemory:
-      return fmt::format("memory-bound: the busiest DRAM channel is busy {:.0f}% of the cycles ({:.1f} of {:.1f} GB/s)",
-                         100 * s.dram_utilization, s.dram_achieved_gbps, s.dram_peak_gbps);
-    case Bottleneck::Kind::kSource:
-      return fmt::format("source-bound: the trace source delivers fragments {:.0f}% of the cycles ({} per clock)",
-                         100 * b.busy, s.hw.source.fragments_per_clock);
-    case Bottleneck::Kind::kUnit:
-      break;
+std::string format_bottleneck(const CycleStats& s) { return format_bottleneck(s.bottleneck); }
+
+namespace {
+/// timing.bottleneck*: the class and its line, and every bound beside it.
+void put_bottleneck(Fields t, const Bottleneck& b) {
+  t.put("bottleneck", format_bottleneck(b), "-",
+        "one line \"CLASS: why\": throughput (UNIT) or bandwidth (dram) when that resource's bound is >= 80 % of "
+        "total_cycles, the largest bound; else latency (docs/reports.md \"The bottleneck\")");
+  t.put("bottleneck_kind", to_string(b.kind), "-", "throughput, bandwidth or latency (the class of bottleneck)");
+  t.empty_array("bottleneck_bounds");
+  for (const ResourceBound& r : b.bounds) {
+    Fields j = t.item("bottleneck_bounds");
+    j.put("resource", r.name, "-", "a unit kind (throughput) or dram (bandwidth); largest bound first");
+    j.put("kind", to_string(r.kind), "-", "throughput (a unit) or bandwidth (the DRAM)");
+    j.put(
+        "cycles", r.cycles, "cycles",
+        "the resource's own lower bound on the frame: a unit kind's busy cycles in its busiest instance (approximate: "
+        "the initiation intervals of its busiest ROP), the DRAM's busiest channel's service cycles (approximate: the "
+        "larger of its bursts served back to back and bound_cycles.dram + flush_cycles; docs/reports.md \"The "
+        "bottleneck\")");
+    j.put("frame_share", b.frame_cycles > 0 ? r.cycles / b.frame_cycles : 0.0, "fraction",
+          "cycles / total_cycles: at least 0.8 bounds the frame");
   }
-  return fmt::format("{}-bound ({}): busy {:.0f}%, waiting for memory {:.0f}%, pixel hazard {:.0f}% of the cycles",
-                     b.unit_kind, b.reason, 100 * b.busy, 100 * b.memory, 100 * b.hazard);
 }
+
+}  // namespace
 
 void put_cycle_stats(Fields t, const CycleStats& s) {
   t.put("clock_ghz", s.hw.clock.frequency_ghz, "GHz", "the ROP clock");
@@ -204,10 +215,8 @@ void put_cycle_stats(Fields t, const CycleStats& s) {
   t.put("frame_time_us", s.frame_time_us, "µs", "total_cycles at the clock");
   t.put("fragments_per_clock", s.fragments_per_clock, "1/clock", "fragments over total_cycles");
   t.put("samples_per_clock", s.samples_per_clock, "1/clock", "covered samples over total_cycles");
-  t.put("bottleneck", format_bottleneck(s), "-",
-        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
-        "waits on its own resources most, and why");
-  t.put("memory_bound", s.memory_bound, "bool", "the busiest DRAM channel's utilization >= 0.8");
+  put_bottleneck(t, s.bottleneck);
+  t.put("memory_bound", s.memory_bound, "bool", "the bottleneck is the DRAM's bandwidth (bottleneck_kind)");
   t.empty_array("units");
   for (const auto& u : s.units) {
     Fields j = t.item("units");
@@ -318,9 +327,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
   t.put("frame_time_us", double(s.total_cycles) / (s.hw.clock.frequency_ghz * 1e3), "µs", "total_cycles at the clock");
   t.put("fragments_per_clock", double(c.fragments) / total, "1/clock", "fragments over total_cycles");
   t.put("samples_per_clock", double(c.samples_tested) / total, "1/clock", "covered samples over total_cycles");
-  t.put("bottleneck", format_approx_bottleneck(s), "-",
-        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
-        "waits on its own resources most, and why");
+  put_bottleneck(t, s.bottleneck);
   put_cache_stats(t.obj("cache"), s.cache, s.listed);
   Fields dram = t.obj("dram");
   put_dram_traffic(dram, s.dram, s.listed);
@@ -362,7 +369,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
     lc.put(name, s.limiting_cycles[size_t(b)], "cycles",
            "approximate: the cycles of the epochs in which the " + name + " bound was the largest");
   }
-  a.put("limiting_bound", to_string(s.bottleneck), "-",
+  a.put("limiting_bound", to_string(s.limiting), "-",
         "approximate: the bound that was the largest over the most cycles (source, distributor, unit, latency, "
         "scoreboard, dram, hazard)");
   a.put("busiest_unit", s.busiest_unit, "-", "approximate: the unit kind whose demand made most of the unit bound");
@@ -409,10 +416,8 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   d.put("bytes_written", s.dram_bytes_written.value, "bytes",
         "sampled: estimate of the DRAM bytes written, every buffer (the units' lines made dirty, each written once)");
   d.put("bytes_written_ci95", ci(s.dram_bytes_written), "bytes", "sampled: its 95 % confidence interval [low, high]");
-  t.put("bottleneck", format_bottleneck(s.stats), "-",
-        "one line: memory-bound (the busiest DRAM channel >= 80 % busy), source-bound, or the unit kind that works or "
-        "waits on its own resources most, and why");
-  t.put("memory_bound", s.stats.memory_bound, "bool", "the busiest DRAM channel's utilization >= 0.8");
+  put_bottleneck(t, s.stats.bottleneck);
+  t.put("memory_bound", s.stats.memory_bound, "bool", "the bottleneck is the DRAM's bandwidth (bottleneck_kind)");
   t.empty_array("units");
   for (const auto& u : s.stats.units) {
     Fields j = t.item("units");
@@ -474,6 +479,7 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
                      lib.params.unit_fragments, s.fragments_detailed, lib.fragments,
                      lib.fragments ? 100.0 * double(s.fragments_detailed) / double(lib.fragments) : 0.0);
   out += "  " + format_bottleneck(s.stats) + " (estimated)\n";
+  out += "  bounds (cycles, estimated): " + format_bounds(s.stats.bottleneck) + "\n";
   if (reference) {
     const CompareResult cr = compare_images(lib.image, *reference);
     out += fmt::format("  vs reference: RMSE {:.3f} (8-bit units), PSNR {:.2f} dB\n", cr.rmse_8bit, cr.psnr_db);
@@ -508,8 +514,9 @@ std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run, 
   std::string bounds;
   for (int b = 0; b < kApproxBounds; ++b)
     bounds += fmt::format("{}{} {:.0f}", b ? ", " : "", to_string(ApproxBound(b)), s.bound_cycles[size_t(b)]);
-  out += "  bounds (cycles): " + bounds + "\n";
-  out += "  " + format_approx_bottleneck(s) + "\n";
+  out += "  model bounds (cycles, summed over the epochs): " + bounds + "\n";
+  out += "  " + format_bottleneck(s.bottleneck) + "\n";
+  out += "  bounds (cycles): " + format_bounds(s.bottleneck) + "\n";
   return out;
 }
 
@@ -611,6 +618,7 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
     out += fmt::format("  pass {}: {} cycles; DRAM {} B read, {} B written\n", p.name, p.total_cycles,
                        p.dram.total_bytes_read(), p.dram.total_bytes_written());
   out += "  " + format_bottleneck(s) + "\n";
+  out += "  bounds (cycles): " + format_bounds(s.bottleneck) + "\n";
   out += fmt::format("  host: {:.3f} s simulated, {:.2f} M fragments/s\n", run.sim_seconds,
                      run.sim_seconds > 0 ? run.counters.fragments / run.sim_seconds / 1e6 : 0.0);
   return out;

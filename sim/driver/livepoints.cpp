@@ -467,6 +467,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     r.window_lines_dirtied = w1 - w0;
     r.tail_lines_dirtied = dirtied() - w1;
     r.dram_max_channel_busy = fin.max_channel_busy;
+    r.dram_max_channel_service = fin.max_channel_service;
     for (const auto& u : top->units())
       r.units.push_back(UnitReport{u.unit->name(), u.kind, u.rop, u.unit->stats(), {}});
   }
@@ -497,6 +498,7 @@ namespace {
 struct UnitFigures {
   uint64_t window_cycles = 0, window_bytes_read = 0, window_lines_dirtied = 0;
   uint64_t tail_cycles = 0, tail_bytes_read = 0, tail_lines_dirtied = 0, total_cycles = 0, dram_max_channel_busy = 0;
+  uint64_t dram_max_channel_service = 0;
   uint64_t fragments = 0;  ///< of its live-point
   uint64_t warming_used = 0, warming_short = 0;
   std::vector<UnitReport> units;
@@ -512,6 +514,7 @@ UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
   f.tail_lines_dirtied = r.tail_lines_dirtied;
   f.total_cycles = r.total_cycles;
   f.dram_max_channel_busy = r.dram_max_channel_busy;
+  f.dram_max_channel_service = r.dram_max_channel_service;
   f.fragments = fragments;
   f.warming_used = r.warming_used;
   f.warming_short = r.warming_short;
@@ -531,9 +534,9 @@ void put_str(std::string& m, const std::string& s) {
 
 std::string encode_figures(uint64_t unit, const UnitFigures& f) {
   std::string m;
-  for (uint64_t v :
-       {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles, f.tail_bytes_read,
-        f.total_cycles, f.dram_max_channel_busy, f.fragments, f.warming_used, f.warming_short})
+  for (uint64_t v : {unit, f.window_cycles, f.window_bytes_read, f.window_lines_dirtied, f.tail_cycles,
+                     f.tail_bytes_read, f.total_cycles, f.dram_max_channel_busy, f.dram_max_channel_service,
+                     f.fragments, f.warming_used, f.warming_short})
     put64(m, v);
   put64(m, f.units.size());
   for (const UnitReport& u : f.units) {
@@ -571,9 +574,9 @@ UnitFigures decode_figures(const std::string& m, uint64_t& unit) {
   MessageReader r{m};
   UnitFigures f;
   unit = r.u64();
-  for (uint64_t* v :
-       {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles, &f.tail_bytes_read,
-        &f.total_cycles, &f.dram_max_channel_busy, &f.fragments, &f.warming_used, &f.warming_short})
+  for (uint64_t* v : {&f.window_cycles, &f.window_bytes_read, &f.window_lines_dirtied, &f.tail_cycles,
+                      &f.tail_bytes_read, &f.total_cycles, &f.dram_max_channel_busy, &f.dram_max_channel_service,
+                      &f.fragments, &f.warming_used, &f.warming_short})
     *v = r.u64();
   f.units.resize(size_t(r.u64()));
   for (UnitReport& u : f.units) {
@@ -827,10 +830,11 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
 
   // Activities: each unit instance's share of the units' cycles, over their
   // whole runs, scaled to the estimated total.
-  uint64_t all_cycles = 0, all_busy = 0;
+  uint64_t all_cycles = 0, all_busy = 0, all_service = 0;
   for (const UnitFigures& f : figs) {
     all_cycles += f.total_cycles;
     all_busy += f.dram_max_channel_busy;
+    all_service += f.dram_max_channel_service;
   }
   const double scale = all_cycles ? out.total_cycles.value / double(all_cycles) : 0.0;
   out.units_estimated = figs.front().units;
@@ -852,12 +856,16 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   s.total_cycles = uint64_t(std::llround(std::max(0.0, out.total_cycles.value)));
   s.units = out.units_estimated;
   s.dram_utilization = all_cycles ? double(all_busy) / double(all_cycles) : 0.0;
-  s.memory_bound = s.dram_utilization >= 0.8;
+  // The busiest channels' cycles, as the units' activities: their share of
+  // the units' cycles times the estimated total.
+  s.dram.max_channel_busy = uint64_t(std::llround(double(all_busy) * scale));
+  s.dram.max_channel_service = uint64_t(std::llround(double(all_service) * scale));
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
   s.dram_peak_gbps = double(hw.dram.channels) * hw.dram.bytes_per_clock * hw.clock.frequency_ghz;
   const double bytes = out.dram_bytes_read.value + out.dram_bytes_written.value;
   s.dram_achieved_gbps = s.frame_time_us > 0 ? bytes / (s.frame_time_us * 1e3) : 0.0;
   s.bottleneck = classify_bottleneck(s);
+  s.memory_bound = s.bottleneck.kind == Bottleneck::Kind::kBandwidth;
 
   out.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.cpu_seconds = process_cpu_seconds() - cpu0 + worker_cpu;

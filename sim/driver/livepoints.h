@@ -170,9 +170,10 @@ struct UnitRun {
   uint64_t warming_used = 0;  ///< touches that warmed the caches tag-only (at most the live-point's)
   bool warming_short =
       false;  ///< the reach was not met within the live-point's touches, and the input had more before them
-  uint64_t dram_max_channel_busy = 0;  ///< the busiest DRAM channel's busy cycles, whole unit run
-  std::vector<UnitReport> units;       ///< every unit instance's activity over the whole unit run (no extras)
-  std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
+  uint64_t dram_max_channel_busy = 0;     ///< the busiest DRAM channel's busy cycles, whole unit run
+  uint64_t dram_max_channel_service = 0;  ///< the busiest DRAM channel's service cycles (dram.h), whole unit run
+  std::vector<UnitReport> units;          ///< every unit instance's activity over the whole unit run (no extras)
+  std::unique_ptr<SampleStore> state;     ///< the state after it (the pre-state's tiles, updated)
 };
 UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw);
 

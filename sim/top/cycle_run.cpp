@@ -1,5 +1,6 @@
 #include "cycle_run.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -15,51 +16,38 @@
 
 namespace ropsim {
 
-Bottleneck classify_bottleneck(const CycleStats& s) {
-  Bottleneck b;
-  if (s.memory_bound) {
-    b.kind = Bottleneck::Kind::kMemory;
-    return b;
+std::vector<ResourceBound> cycle_bounds(const CycleStats& s) {
+  // An instance is its kind and ROP: a multi-pass method has one per pass,
+  // and the passes run one after another, so their busy cycles add up.
+  struct Instance {
+    std::string kind;
+    int rop;
+    uint64_t busy;
+  };
+  std::vector<Instance> inst;
+  for (const auto& u : s.units) {
+    const uint64_t busy = u.stats.cycles[size_t(Activity::kBusy)];
+    auto it =
+        std::find_if(inst.begin(), inst.end(), [&](const Instance& i) { return i.kind == u.kind && i.rop == u.rop; });
+    if (it == inst.end())
+      inst.push_back({u.kind, u.rop, busy});
+    else
+      it->busy += busy;
   }
-  // The unit kind whose instances spend the most cycles working or waiting on
-  // their own resources (busy, memory, pixel hazard) rather than on their
-  // neighbours (starved, blocked): the stage that sets the pace.
-  std::vector<std::string> kinds;
-  for (const auto& u : s.units)
-    if (std::find(kinds.begin(), kinds.end(), u.kind) == kinds.end()) kinds.push_back(u.kind);
-  double best_own = -1, parts[3] = {0, 0, 0};
-  const double total = double(std::max<uint64_t>(1, s.total_cycles));
-  for (const auto& k : kinds) {
-    double p[3] = {0, 0, 0};
-    uint64_t span = 0;  // the instances' cycles: each one's activities add up to its pass's cycles
-    for (const auto& u : s.units)
-      if (u.kind == k) {
-        p[0] += double(u.stats.cycles[size_t(Activity::kBusy)]);
-        p[1] += double(u.stats.cycles[size_t(Activity::kMemory)]);
-        p[2] += double(u.stats.cycles[size_t(Activity::kHazard)]);
-        for (uint64_t c : u.stats.cycles) span += c;
-      }
-    // One pass: span = instances x total_cycles. Several: each instance
-    // counts over its own pass, so the fractions are of the cycles it existed.
-    for (double& x : p) x /= span ? double(span) : total;
-    if (p[0] + p[1] + p[2] > best_own) {
-      best_own = p[0] + p[1] + p[2];
-      b.unit_kind = k;
-      std::copy(p, p + 3, parts);
-    }
+  std::vector<ResourceBound> b;
+  for (const Instance& i : inst) {  // the units' order: the pipeline's
+    auto it = std::find_if(b.begin(), b.end(), [&](const ResourceBound& r) { return r.name == i.kind; });
+    if (it == b.end())
+      b.push_back({i.kind, ResourceBound::Kind::kThroughput, double(i.busy)});
+    else
+      it->cycles = std::max(it->cycles, double(i.busy));
   }
-  b.busy = parts[0];
-  b.memory = parts[1];
-  b.hazard = parts[2];
-  if (b.unit_kind == "trace_source") {
-    b.kind = Bottleneck::Kind::kSource;
-  } else {
-    b.kind = Bottleneck::Kind::kUnit;
-    b.reason = parts[1] >= parts[0] && parts[1] >= parts[2] ? "memory latency"
-               : parts[2] >= parts[0]                       ? "pixel hazards"
-                                                            : "throughput";
-  }
+  b.push_back({"dram", ResourceBound::Kind::kBandwidth, double(s.dram.max_channel_service)});
   return b;
+}
+
+Bottleneck classify_bottleneck(const CycleStats& s) {
+  return classify_bottleneck(cycle_bounds(s), double(s.total_cycles));
 }
 
 const std::vector<StatDesc>& tile_map_descs() {
@@ -106,6 +94,7 @@ void add_dram(DramStats& a, const DramStats& b) {
   a.row_misses += b.row_misses;
   a.busy_cycles += b.busy_cycles;
   a.max_channel_busy += b.max_channel_busy;  // passes run one after another
+  a.max_channel_service += b.max_channel_service;
 }
 
 }  // namespace
@@ -337,8 +326,8 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   const uint64_t bytes = s.dram.total_bytes_read() + s.dram.total_bytes_written();
   s.dram_achieved_gbps = s.frame_time_us > 0 ? double(bytes) / (s.frame_time_us * 1e3) : 0.0;
   s.dram_utilization = double(s.dram.max_channel_busy) / cyc;
-  s.memory_bound = s.dram_utilization >= 0.8;
   s.bottleneck = classify_bottleneck(s);
+  s.memory_bound = s.bottleneck.kind == Bottleneck::Kind::kBandwidth;
 
   run.image = rop->resolve();
   run.state_bytes = rop->store().state_bytes();

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "attribution.h"
+#include "bottleneck.h"
 #include "breakdown.h"
 #include "compressibility.h"
 #include "counters.h"
@@ -52,18 +53,6 @@ struct UnitReport {
   std::vector<Unit::Extra> extras;
 };
 
-/// What limits the frame: the DRAM, the trace source, or the unit kind whose
-/// instances spend the most cycles working or waiting on their own resources.
-struct Bottleneck {
-  enum class Kind { kMemory, kSource, kUnit };
-  Kind kind = Kind::kUnit;
-  std::string unit_kind;  ///< the pacing unit kind (kSource: "trace_source")
-  /// kUnit: "throughput", "memory latency" or "pixel hazards", whichever of
-  /// busy, memory and hazard is largest.
-  std::string reason;
-  double busy = 0, memory = 0, hazard = 0;  ///< fractions of total_cycles, averaged over the kind's instances
-};
-
 /// One pass of a multi-pass method: its cycles and its memory traffic. Each
 /// pass ends with the caches flushed (the render targets are complete before
 /// the next pass reads them); the next pass starts at the cycle after.
@@ -92,8 +81,8 @@ struct CycleStats {
   double dram_peak_gbps = 0;      ///< channels x bytes/clock x GHz (GB/s = 1e9 B/s)
   double dram_achieved_gbps = 0;  ///< bytes moved / frame time
   double dram_utilization = 0;    ///< busiest channel's busy cycles / total cycles
-  bool memory_bound = false;      ///< dram_utilization >= 0.8
-  Bottleneck bottleneck;          ///< what limits the frame (the report formats it)
+  bool memory_bound = false;      ///< the bottleneck is the DRAM's bandwidth (bottleneck.kind)
+  Bottleneck bottleneck;          ///< what bounds the frame (bottleneck.h; the report formats it)
   uint64_t activations = 0;       ///< SystemC process activations: cycles in which some unit ran (host cost)
   uint64_t unit_runs = 0;         ///< unit activations summed over the units (decoupled units run inside others')
   bool decoupled = false;         ///< units without timed shared state ran ahead of SystemC time
@@ -107,7 +96,12 @@ struct CycleStats {
   bool lists(int b) const { return (listed >> b) & 1u; }
 };
 
-/// What limits the frame (s.memory_bound, s.units and s.total_cycles set).
+/// The cycle model's bounds (s.units, s.dram and s.total_cycles set): per
+/// unit kind the largest busy cycles of one instance (a ROP's, summed over
+/// the passes), and the DRAM's busiest channel's service cycles
+/// (DramStats::max_channel_service).
+std::vector<ResourceBound> cycle_bounds(const CycleStats& s);
+/// classify_bottleneck(cycle_bounds(s), s.total_cycles).
 Bottleneck classify_bottleneck(const CycleStats& s);
 
 struct CycleRun {

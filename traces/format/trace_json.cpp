@@ -42,7 +42,9 @@ std::string fragment_to_json(const TraceHeader& h, const Fragment& f, uint64_t i
   }
   float z[64];
   fragment_sample_depths(h, f, z);
-  auto zs = nlohmann::json::object();
+  // Keyed by the sample's index, in increasing sample order (an ordered
+  // object: a plain one would sort the keys as strings, "11" before "2").
+  auto zs = nlohmann::ordered_json::object();
   for (uint64_t m = f.coverage; m; m &= m - 1) {
     int i = __builtin_ctzll(m);
     zs[std::to_string(i)] = z[i];
