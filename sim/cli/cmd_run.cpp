@@ -18,6 +18,7 @@
 #include "hw_config.h"
 #include "image_io.h"
 #include "livepoint_file.h"
+#include "memory_estimate.h"
 #include "report.h"
 #include "slab.h"
 
@@ -232,6 +233,15 @@ std::string gtkw_path(const std::string& vcd) {
   return p.replace_extension(".gtkw").string();
 }
 
+/// Refuses, before any work, a design whose model does not fit in
+/// --memory-limit (memory_estimate.h; the model charges it again as it is
+/// built). copies: the pipelines alive at once (sampled workers).
+void check_design_memory(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, MemoryModel model,
+                         uint32_t copies = 1) {
+  const TraceHeader h = open_fragments(in)->header();
+  check_model_memory(hw, estimate_memory(hw, MemoryShape{h.width, h.height, h.spp, cfg.method, copies}, model));
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                   uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
                   const std::string& report, const std::string& cmdline) {
@@ -250,6 +260,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   }
   std::optional<Image> reference;
   if (o.vs_reference) {
+    check_design_memory(in, cfg, hw, MemoryModel::kCycle);  // before the reference's run
     GoldenConfig rc = cfg;
     rc.method = Method::kReference;
     reference = run_functional(in, rc).image;
@@ -304,6 +315,10 @@ int cmd_run_sampled(const RunOpts& o, CLI::App& sub, const InputSpec& in, const 
     run_cfg.numerics = hw.numerics;  // the design's: a library serves designs of its numerics
     check_library_method(lib, o.livepoints, run_cfg);
   } else {
+    // Before the library is recorded: the workers' pipelines must fit.
+    const int jobs = o.jobs > 0 ? o.jobs : available_cores();
+    check_design_memory(in, cfg, hw, MemoryModel::kCycle,
+                        uint32_t(std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(jobs), o.sampling.units))));
     lib = record_livepoints(in, cfg, o.sampling);
   }
   from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
