@@ -65,26 +65,8 @@ uint64_t unit_bytes() {
   return heap_chunk(sizeof(U)) + kSystemCModuleBytes + kSchedulerBytesPerUnit;
 }
 
-/// The bytes of one sample of each surface the method's passes touch, and a
-/// pixel's tracker state (lk).
-uint64_t surface_bytes_per_pixel(const HwConfig& hw, const MemoryShape& s) {
-  uint64_t per_sample = kDepthSampleBytes + kColorSampleBytes;
-  if (uses_transmittance(s.method)) per_sample += sample_bytes(hw.blend.formats.transmittance);
-  if (uses_accum(s.method)) per_sample += sample_bytes(hw.blend.formats.accum);
-  const uint64_t tracker = traits(selection_of(s.method)).tracker ? ceil_div<uint64_t>(uint64_t(s.spp) + 32, 8) : 0;
-  return per_sample * uint64_t(s.spp) + tracker;
-}
-
 /// The pixels of the screen padded to whole 8 x 8 address-map tiles.
 uint64_t padded_pixels(const MemoryShape& s) { return uint64_t(ceil_div(s.width, 8u)) * ceil_div(s.height, 8u) * 64; }
-
-/// The lines DRAM holds (line_set.h): at most every line of every surface, a
-/// bit each, in pages of 4096 lines (and a hash-map node per page).
-uint64_t line_set_bytes(const HwConfig& hw, const MemoryShape& s) {
-  const uint64_t lines = ceil_div<uint64_t>(padded_pixels(s) * surface_bytes_per_pixel(hw, s), hw.cache.line_bytes);
-  const uint64_t pages = ceil_div<uint64_t>(lines, 4096) + 4;  // + a partial page per surface
-  return pages * (heap_chunk(4096 / 8) + heap_chunk(sizeof(uint64_t) + 2 * sizeof(void*)) + sizeof(void*));
-}
 
 /// The pipeline of one pass (rop_pipeline.cpp): its terms per ROP, and the
 /// shared ones. Multi-pass methods build one pass's pipeline at a time.
@@ -176,8 +158,9 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
                                               "depth_test.fifo_depth",  "tracker.fifo_depth",
                                               "sorter.fifo_depth",      "alpha_ref.fifo_depth",
                                               "source.fifo_depth"};
-  std::vector<std::string> kTokenKeys = kFifoKeys;
-  kTokenKeys.insert(kTokenKeys.begin(), {"depth_test.max_outstanding", "ordering.window"});
+  // Most first: the depth test's window and the input FIFO hold the most tokens.
+  const std::vector<std::string> kTokenKeys = {"depth_test.max_outstanding", "distributor.fifo_depth",
+                                               "source.fifo_depth", "ordering.window"};
   if (model == MemoryModel::kCycle) {
     add(e, "cache_tags", kCacheKeys, "ROP cache: per line (way) its tag and LRU time (cache_tags.h)",
         ways * CacheTags::bytes_per_way(), 0);
@@ -224,9 +207,6 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
         worst.units_shared);
     add(e, "dram", {"dram.channels", "dram.banks"}, "DRAM model: per bank its open row and the cycle it is free", 0,
         Dram::bytes_for(hw.dram) + sizeof(Dram));
-    add(e, "lines_in_dram", {"cache.line_bytes"},
-        "the lines DRAM holds (fast clear): a bit per line of the screen's surfaces, at most", 0,
-        line_set_bytes(hw, shape));
   } else {
     add(e, "cache_tags", kCacheKeys, "tag-only ROP cache: per line (way) its tag and LRU time (cache_tags.h)",
         ways * CacheTags::bytes_per_way(), 0);
@@ -241,9 +221,6 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
         padded_pixels(shape) * sizeof(double));
     add(e, "fragment_records", {}, "the functional pass's fragment records: two batches handed to the model", 0,
         2 * kApproxBatchRecords * kApproxRecordBytes);
-    add(e, "lines_in_dram", {"cache.line_bytes"},
-        "the lines DRAM holds (fast clear): a bit per line of the screen's surfaces, at most", 0,
-        line_set_bytes(hw, shape));
   }
   for (const MemoryTerm& t : e.terms) {
     e.per_rop_bytes += t.per_rop_bytes;
@@ -264,7 +241,7 @@ std::vector<std::string> MemoryEstimate::costliest_keys(size_t n) const {
   bool per_rop = false;
   for (size_t i = 0; i < by_size.size() && i < n; ++i) {
     for (const std::string& k : by_size[i]->keys)
-      if (std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
+      if (keys.size() < 4 && std::find(keys.begin(), keys.end(), k) == keys.end()) keys.push_back(k);
     per_rop = per_rop || by_size[i]->per_rop_bytes > 0;
   }
   if (per_rop && rops > 1) keys.push_back("distributor.rop_units");
@@ -293,7 +270,7 @@ void check_model_memory(const HwConfig& hw, const MemoryEstimate& e) {
   if (e.shape.copies > 1) copies = " x " + std::to_string(e.shape.copies) + " workers";
   std::string key_list;
   for (const std::string& k : keys) key_list += (key_list.empty() ? "" : ", ") + k;
-  throw UserError(where + ": the " + to_string(e.model) + " model of this design needs " +
+  throw UserError("memory limit: " + where + ": the " + to_string(e.model) + " model of this design needs " +
                   format_bytes(e.total_bytes) + " (" + std::to_string(e.rops) + " ROPs x " +
                   format_bytes(e.per_rop_bytes) + " + " + format_bytes(e.shared_bytes) + " shared" + copies + "; " +
                   parts + "), over what --memory-limit " + format_bytes(b.limit()) + " leaves (" +

@@ -9,7 +9,9 @@
 // The estimate is of the model alone: the functional ROP's per-sample state,
 // the image and the input are charged to --memory-limit by their own owners
 // as they grow (sample_store.h, image.h), and the process's own code and
-// libraries are not counted. run_cycle (and the approximate and sampled
+// libraries are not counted. Nor are the lines DRAM holds (line_set.h), a bit
+// per line of the touched surfaces, which grow with the scene as the
+// surfaces do (1/512 of their bytes at 64-byte lines). run_cycle (and the approximate and sampled
 // fidelities) charge it to --memory-limit before they build anything, and
 // refuse a design that does not fit (check_model_memory).
 #pragma once
@@ -61,8 +63,9 @@ struct MemoryEstimate {
   uint64_t model_bytes = 0;       ///< one copy: per_rop_bytes x ROPs + shared_bytes
   uint64_t total_bytes = 0;       ///< every copy: model_bytes x shape.copies (what is charged)
   uint64_t tokens = 0;            ///< cycle: fragment tokens of the largest pass (RopPipeline::token_bound)
-  /// The design keys of the terms that cost the most (most first, at most
-  /// `n` terms' keys, each key once): what to change to make it smaller.
+  /// The design keys of the terms that cost the most (most first, the keys
+  /// of at most `n` terms, at most four, each once; and distributor.rop_units
+  /// when a per-ROP term is among them): what to change to make it smaller.
   std::vector<std::string> costliest_keys(size_t n = 2) const;
 };
 
