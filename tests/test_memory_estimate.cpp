@@ -18,8 +18,8 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <csignal>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -89,7 +89,8 @@ Child run_child(const fs::path& dir, const std::string& args) {
     int deliver = 0;
     if (WSTOPSIG(st) == SIGTRAP && (st >> 16) == PTRACE_EVENT_EXIT) {
       const std::string status = "\n" + slurp("/proc/" + std::to_string(pid) + "/status");
-      const uint64_t hwm = status_kb(status, "VmHWM"), files = status_kb(status, "RssFile") + status_kb(status, "RssShmem");
+      const uint64_t hwm = status_kb(status, "VmHWM"),
+                     files = status_kb(status, "RssFile") + status_kb(status, "RssShmem");
       if (hwm > files) c.anon_peak_bytes = hwm - files;
     } else if (WSTOPSIG(st) == SIGTRAP && (st >> 16) == 0 && c.status == -1) {
       ::ptrace(PTRACE_SETOPTIONS, pid, nullptr, reinterpret_cast<void*>(long(PTRACE_O_TRACEEXIT)));  // the exec's stop
@@ -230,7 +231,8 @@ TEST(MemoryEstimate, RefusesADesignOverTheLimit) {
     EXPECT_EQ(r.status, 1) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "not one line: " << r.err;
     EXPECT_EQ(r.err.rfind("ropsim: error: ", 0), 0u) << r.err;
-    for (const std::string& n : named) EXPECT_NE(r.err.find(n), std::string::npos) << "does not name " << n << ": " << r.err;
+    for (const std::string& n : named)
+      EXPECT_NE(r.err.find(n), std::string::npos) << "does not name " << n << ": " << r.err;
     EXPECT_FALSE(fs::exists(s.dir / "refused.json")) << "a refused run wrote its report";
   };
   const uint64_t limit = e.value("memory_limit_bytes", uint64_t{0});
@@ -254,6 +256,7 @@ TEST(MemoryEstimate, RefusesADesignOverTheLimit) {
                  {"--hw-set cache.size_bytes=268435456", "256.0 MiB", "cache.line_bytes"});
   expect_refused("--memory-limit 256M run --fidelity sampled --scene smoke --spp 4 --jobs 1 " + big,
                  {"--hw-set cache.size_bytes=268435456"});
-  const Ran fits = ropsim(s.dir, "--memory-limit 256M run --fidelity cycle --scene smoke --spp 4 --quiet --report ok.json", 120);
+  const Ran fits =
+      ropsim(s.dir, "--memory-limit 256M run --fidelity cycle --scene smoke --spp 4 --quiet --report ok.json", 120);
   EXPECT_EQ(fits.status, 0) << "the default design fits in 256 MiB: " << fits.err;
 }

@@ -44,7 +44,8 @@ std::vector<Design> designs() {
   for (const char* f : {"default", "narrow", "wide", "current-gpu"})
     d.push_back({f, load_hw_config(std::string(ROPSIM_SOURCE_DIR) + "/configs/" + f + ".toml")});
   d.push_back({"64 ROPs", resolve_hw_config("", {"distributor.rop_units=64"})});
-  d.push_back({"1 MiB caches of 16-byte lines", resolve_hw_config("", {"cache.size_bytes=1048576", "cache.line_bytes=16"})});
+  d.push_back(
+      {"1 MiB caches of 16-byte lines", resolve_hw_config("", {"cache.size_bytes=1048576", "cache.line_bytes=16"})});
   return d;
 }
 
@@ -76,8 +77,7 @@ TEST(MemoryEstimateModel, BuiltPipelineHeapMatchesTheEstimate) {
     FunctionalRop rop(header, method);
     rop.begin_pass(0);
     LineSet in_dram(d.hw.cache.line_bytes);
-    const MemoryEstimate e =
-        estimate_memory(d.hw, MemoryShape{header.width, header.height, header.spp, Method::kLk});
+    const MemoryEstimate e = estimate_memory(d.hw, MemoryShape{header.width, header.height, header.spp, Method::kLk});
     FreshSimContext sim;
     const uint64_t before = heap_in_use();
     std::unique_ptr<CompressionModel> comp;

@@ -67,9 +67,7 @@ class CacheTags {
   /// The ways of a cache of cfg (over every set), and the host bytes each
   /// takes here: its tag and its last use (memory_estimate.h).
   static uint64_t ways_of(const HwConfig::Cache& cfg) { return cfg.size_bytes / cfg.line_bytes; }
-  static uint64_t bytes_per_way() {
-    return sizeof(decltype(tags_)::value_type) + sizeof(decltype(lru_)::value_type);
-  }
+  static uint64_t bytes_per_way() { return sizeof(decltype(tags_)::value_type) + sizeof(decltype(lru_)::value_type); }
 
  private:
   uint32_t ways_;

@@ -131,8 +131,9 @@ nlohmann::ordered_json estimate_to_json(const MemoryEstimate& cycle, const Memor
 
 /// The estimate as TOML comments (the output still loads as the design).
 void print_estimate(const MemoryEstimate& e, const MemoryEstimate& approx) {
-  fmt::print("\n# memory estimate of the cycle model (a run of {}x{} at {} spp, {}; docs/config.md \"Memory estimate\"):\n",
-             e.shape.width, e.shape.height, e.shape.spp, to_string(e.shape.method));
+  fmt::print(
+      "\n# memory estimate of the cycle model (a run of {}x{} at {} spp, {}; docs/config.md \"Memory estimate\"):\n",
+      e.shape.width, e.shape.height, e.shape.spp, to_string(e.shape.method));
   fmt::print("#   {} = {} ROPs x {} + {} shared ({} bytes)\n", format_bytes(e.total_bytes), e.rops,
              format_bytes(e.per_rop_bytes), format_bytes(e.shared_bytes), e.total_bytes);
   for (const MemoryTerm& t : e.terms) {
@@ -193,8 +194,10 @@ VerbRunner add_config_command(CLI::App& app) {
   md->excludes(cfgc->get_option("--hw-set"));
   auto* si = cfgc->add_flag("--silicon", o->silicon,
                             "Print the silicon cost of the design's LK units (docs/rtl.md \"Cost of a design\")");
-  cfgc->add_option("--spp", o->spp, "Samples per pixel of the run the silicon cost and memory estimate assume (default 16)");
-  cfgc->add_option("--width", o->width, "Screen width in pixels the silicon cost and memory estimate assume (default 1024)")
+  cfgc->add_option("--spp", o->spp,
+                   "Samples per pixel of the run the silicon cost and memory estimate assume (default 16)");
+  cfgc->add_option("--width", o->width,
+                   "Screen width in pixels the silicon cost and memory estimate assume (default 1024)")
       ->check(CLI::Range(1, 32768));
   cfgc->add_option("--height", o->height,
                    "Screen height in pixels the silicon cost and memory estimate assume (default 1024)")

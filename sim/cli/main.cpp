@@ -56,8 +56,8 @@ int main(int argc, char** argv) {
   std::string memory_limit;
   app.add_option("--memory-limit", memory_limit,
                  "Most memory the run's growing state may take (the touched tiles' buffers, the image, the "
-                 "A-buffer reference): bytes with K, M, G or T (binary), a percentage of physical memory, or none; "
-                 "default 80%. Going over is a one-line error")
+                 "A-buffer reference, the timing model's structures): bytes with K, M, G or T (binary), a percentage "
+                 "of physical memory, or none; default 80%. Going over is a one-line error")
       ->type_name("SIZE");
   int threads = 0;
   app.add_option("--threads", threads,

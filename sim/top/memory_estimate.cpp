@@ -33,18 +33,19 @@ uint64_t heap_chunk(uint64_t n) { return std::max<uint64_t>(32, (n + 8 + 15) / 1
 
 /// What SystemC allocates for one sc_module beyond the object itself (its
 /// name and its entries in the object manager and its parent's child list).
-/// Measured: the heap growth of building the 64-ROP pipeline less every other
-/// term (its rings at their first size), per unit: 111 bytes
-/// (MemoryEstimateModel.BuiltPipelineHeapMatchesTheEstimate prints the heap
-/// growth of each design it builds).
+/// Measured (MemoryEstimateModel.BuiltPipelineHeapMatchesTheEstimate prints
+/// each design's heap growth): with this at 0, building the 64-ROP pipeline
+/// took 104 KB less heap than the other terms, which count the units' rings
+/// 147 KB above their first size; the 43 KB left over its 386 units is 111
+/// bytes a unit.
 constexpr uint64_t kSystemCModuleBytes = 112;
 
 /// The scheduler's bookkeeping per unit (scheduler.h): its pointer, its wake
 /// list's header and a few requested cycles, its earliest cycle, its waiting
 /// entry and its due bit; and the pipeline's UnitEntry and owner pointer.
-constexpr uint64_t kSchedulerBytesPerUnit =
-    sizeof(Unit*) + sizeof(std::vector<uint64_t>) + 4 * sizeof(uint64_t) + sizeof(uint64_t) + sizeof(uint32_t) + 1 +
-    sizeof(RopPipeline::UnitEntry) + sizeof(std::unique_ptr<Unit>);
+constexpr uint64_t kSchedulerBytesPerUnit = sizeof(Unit*) + sizeof(std::vector<uint64_t>) + 4 * sizeof(uint64_t) +
+                                            sizeof(uint64_t) + sizeof(uint32_t) + 1 + sizeof(RopPipeline::UnitEntry) +
+                                            sizeof(std::unique_ptr<Unit>);
 
 /// A SortedRing (sorted_ring.h) of elements of `elem` bytes that holds up to
 /// n: a power of two >= max(16, n).
@@ -88,8 +89,8 @@ PassCost pass_cost(const HwConfig& hw, const MemoryShape& s, PassKind pass) {
                  flat_set_bytes(hw.ordering.pixels_in_flight) +
                  ring_bytes(2 * sizeof(uint64_t), hw.ordering.pixels_in_flight);
   // The depth test's fragments waiting for their data: (ready, seq, token, killed).
-  c.units_rop += unit_bytes<DepthTest>() +
-                 ring_bytes(2 * sizeof(uint64_t) + sizeof(FragToken*) + sizeof(uint64_t), hw.depth_test.max_outstanding);
+  c.units_rop += unit_bytes<DepthTest>() + ring_bytes(2 * sizeof(uint64_t) + sizeof(FragToken*) + sizeof(uint64_t),
+                                                      hw.depth_test.max_outstanding);
   if (blend) {
     c.units_rop += unit_bytes<BlendUnit>();
   } else {
@@ -126,8 +127,8 @@ PassCost pass_cost(const HwConfig& hw, const MemoryShape& s, PassKind pass) {
   c.fifos_shared = fifo_bytes(src_cap);
   c.tokens_shared = (uint64_t(src_cap) + 1) * token;
   c.token_count_shared = uint64_t(src_cap) + 1;
-  c.units_shared = unit_bytes<TraceSource>() + unit_bytes<Distributor>() +
-                   uint64_t(hw.distributor.rop_units) * sizeof(TokenFifo*);
+  c.units_shared =
+      unit_bytes<TraceSource>() + unit_bytes<Distributor>() + uint64_t(hw.distributor.rop_units) * sizeof(TokenFifo*);
   return c;
 }
 
@@ -154,9 +155,8 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
   e.rops = hw.distributor.rop_units;
   const uint64_t ways = CacheTags::ways_of(hw.cache);
   const std::vector<std::string> kCacheKeys = {"cache.size_bytes", "cache.line_bytes"};
-  const std::vector<std::string> kFifoKeys = {"distributor.fifo_depth", "ordering.fifo_depth",
-                                              "depth_test.fifo_depth",  "tracker.fifo_depth",
-                                              "sorter.fifo_depth",      "alpha_ref.fifo_depth",
+  const std::vector<std::string> kFifoKeys = {"distributor.fifo_depth", "ordering.fifo_depth", "depth_test.fifo_depth",
+                                              "tracker.fifo_depth",     "sorter.fifo_depth",   "alpha_ref.fifo_depth",
                                               "source.fifo_depth"};
   // Most first: the depth test's window and the input FIFO hold the most tokens.
   const std::vector<std::string> kTokenKeys = {"depth_test.max_outstanding", "distributor.fifo_depth",
@@ -174,7 +174,8 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
     // The surfaces whose tiles the compression model tracks (compression_model.cpp).
     uint64_t tracked = 0;
     if (hw.compression.depth || hw.hiz.enable) ++tracked;
-    if (hw.compression.color) tracked += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);
+    if (hw.compression.color)
+      tracked += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);
     const uint64_t tiles = comp ? CompressionModel::screen_tiles(hw, shape.width, shape.height) : 0;
     add(e, "compression_tile_state", {"compression.depth", "compression.color", "compression.tile_pixels"},
         "compression: per memory tile of the screen and tracked surface its compressed size, state bits and "
@@ -203,8 +204,8 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
         "fragment tokens (each a fragment and its work record), one per fragment the FIFOs and units can hold",
         worst.tokens_rop, worst.tokens_shared);
     add(e, "units", {"ordering.pixels_in_flight", "depth_test.max_outstanding"},
-        "the units (SystemC modules and their scheduling), the pixel scoreboard and the waiting fragments", worst.units_rop,
-        worst.units_shared);
+        "the units (SystemC modules and their scheduling), the pixel scoreboard and the waiting fragments",
+        worst.units_rop, worst.units_shared);
     add(e, "dram", {"dram.channels", "dram.banks"}, "DRAM model: per bank its open row and the cycle it is free", 0,
         Dram::bytes_for(hw.dram) + sizeof(Dram));
   } else {
@@ -273,8 +274,7 @@ void check_model_memory(const HwConfig& hw, const MemoryEstimate& e) {
   throw UserError("memory limit: " + where + ": the " + to_string(e.model) + " model of this design needs " +
                   format_bytes(e.total_bytes) + " (" + std::to_string(e.rops) + " ROPs x " +
                   format_bytes(e.per_rop_bytes) + " + " + format_bytes(e.shared_bytes) + " shared" + copies + "; " +
-                  parts + "), over what --memory-limit " + format_bytes(b.limit()) + " leaves (" +
-                  format_bytes(left) +
+                  parts + "), over what --memory-limit " + format_bytes(b.limit()) + " leaves (" + format_bytes(left) +
                   "); the keys that cost the most: " + key_list);
 }
 

@@ -45,12 +45,12 @@ struct MemoryShape {
 
 /// One structure of the model.
 struct MemoryTerm {
-  std::string name;         ///< "cache_tags", ...
-  std::string meaning;      ///< one line
+  std::string name;               ///< "cache_tags", ...
+  std::string meaning;            ///< one line
   std::vector<std::string> keys;  ///< the design keys it grows with ("cache.size_bytes", "cache.line_bytes")
-  uint64_t per_rop_bytes = 0;  ///< in each ROP (0: a shared structure)
-  uint64_t shared_bytes = 0;   ///< once for the design, not per ROP
-  uint64_t bytes = 0;          ///< one copy of the model: per_rop_bytes x ROPs + shared_bytes
+  uint64_t per_rop_bytes = 0;     ///< in each ROP (0: a shared structure)
+  uint64_t shared_bytes = 0;      ///< once for the design, not per ROP
+  uint64_t bytes = 0;             ///< one copy of the model: per_rop_bytes x ROPs + shared_bytes
 };
 
 struct MemoryEstimate {
