@@ -1234,6 +1234,8 @@ TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
   expect_ok(r, "config --json");
   nlohmann::json cfg;
   ASSERT_NO_THROW(cfg = nlohmann::json::parse(r.out)) << r.describe();
+  ASSERT_TRUE(cfg["memory_estimate"]["total_bytes"].is_number_unsigned()) << r.out;
+  cfg.erase("memory_estimate");  // the design's model, not a parameter (tests/test_memory_estimate.cpp)
   EXPECT_EQ(cfg["dram"]["channels"], 2);
   EXPECT_EQ(cfg["numerics"]["alpha_bits"], 8);
   EXPECT_EQ(cfg["sorter"]["kind"], "bitonic");

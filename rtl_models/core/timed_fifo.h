@@ -215,6 +215,11 @@ class TimedFifo {
   }
   /// The unit that reads the FIFO (connect).
   Unit* consumer() const { return consumer_; }
+  /// The host bytes a FIFO of `capacity` entries allocates: its ring and its
+  /// occupancy statistics' push and pop times (memory_estimate.h).
+  static uint64_t bytes_for(uint32_t capacity) {
+    return uint64_t(capacity) * sizeof(Entry) + 2 * uint64_t(next_pow2(size_t{capacity})) * sizeof(uint64_t);
+  }
 
  private:
   struct Entry {

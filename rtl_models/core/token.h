@@ -59,8 +59,20 @@ auto run_stage(Stage& stage, FragToken& t) {
 }
 
 /// Tokens are recycled: their number is bounded by the FIFOs and windows.
+/// The pipeline allocates that many up front (reserve), so that the model's
+/// memory is what its estimate charged before it was built (memory_estimate.h);
+/// a pool that runs dry still allocates another.
 class TokenPool {
  public:
+  /// Allocates tokens until the pool holds n.
+  void reserve(size_t n) {
+    all_.reserve(n);
+    free_.reserve(n);
+    while (all_.size() < n) {
+      all_.push_back(std::make_unique<FragToken>());
+      free_.push_back(all_.back().get());
+    }
+  }
   FragToken* get() {
     if (free_.empty()) {
       all_.push_back(std::make_unique<FragToken>());

@@ -64,6 +64,10 @@ class CacheTags {
   void invalidate(size_t way) { tags_[way] = kInvalid; }
   uint64_t tag(size_t way) const { return tags_[way]; }
   size_t size() const { return tags_.size(); }  ///< ways over every set
+  /// The ways of a cache of cfg (over every set), and the host bytes each
+  /// takes here: its tag and its last use (memory_estimate.h).
+  static uint64_t ways_of(const HwConfig::Cache& cfg) { return cfg.size_bytes / cfg.line_bytes; }
+  static uint64_t bytes_per_way() { return sizeof(decltype(tags_)::value_type) + sizeof(decltype(lru_)::value_type); }
 
  private:
   uint32_t ways_;

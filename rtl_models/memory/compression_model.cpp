@@ -36,6 +36,16 @@ HwConfig::Cache meta_cache_shape(const HwConfig& hw) {
 }
 }  // namespace
 
+uint64_t CompressionModel::metadata_cache_bytes(const HwConfig& hw) {
+  const uint64_t lines = CacheTags::ways_of(meta_cache_shape(hw));
+  return lines * (CacheTags::bytes_per_way() + sizeof(decltype(MetaCache::dirty)::value_type) +
+                  sizeof(decltype(MetaCache::ready)::value_type) + sizeof(decltype(MetaCache::draw)::value_type));
+}
+
+uint64_t CompressionModel::screen_tiles(const HwConfig& hw, uint32_t width, uint32_t height) {
+  return uint64_t(ceil_div(width, 8u)) * ceil_div(height, 8u) * (64u / hw.compression.tile_pixels);
+}
+
 CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t height, int spp,
                                    const std::array<uint32_t, kBuffers>& bps, float clear_depth, uint32_t rops)
     : cfg_(hw.compression),

@@ -124,6 +124,18 @@ class CompressionModel {
   bool hiz() const { return hiz_; }
   const CompressionTraffic& stats() const { return s_; }
 
+  /// Host bytes (memory_estimate.h): one ROP's metadata cache of hw (tags,
+  /// LRU, dirty bit, ready cycle and draw per line); the memory tiles of a
+  /// width x height screen; per tile, a compressed (or Hi-Z bound) surface's
+  /// state (memo, its validity, the stored state bits, its pending writes)
+  /// and Hi-Z's farthest depth.
+  static uint64_t metadata_cache_bytes(const HwConfig& hw);
+  static uint64_t screen_tiles(const HwConfig& hw, uint32_t width, uint32_t height);
+  static uint64_t tile_state_bytes() {
+    return sizeof(TileInfo) + 2 * sizeof(uint8_t) + sizeof(decltype(pending_count_)::value_type::value_type);
+  }
+  static uint64_t hiz_bytes_per_tile() { return sizeof(decltype(zmax_)::value_type); }
+
  private:
   uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
   TileInfo info(Buffer b, uint64_t tile);

@@ -121,6 +121,10 @@ class Dram {
   /// Charges the bytes moved since the last charge_to to its draw: access()
   /// itself does no attribution work (the bytes are its statistics' growth).
   void settle_attribution();
+  /// The host bytes the channels and banks of a DRAM of cfg take (memory_estimate.h).
+  static uint64_t bytes_for(const HwConfig::Dram& cfg) {
+    return uint64_t(cfg.channels) * (sizeof(Channel) + 2 * uint64_t(cfg.banks) * sizeof(uint64_t));
+  }
 
  private:
   Attribution* attr_ = nullptr;

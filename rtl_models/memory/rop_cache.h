@@ -146,6 +146,8 @@ class RopCache {
   /// Stores the compressed surfaces through comp (compression_model.h).
   void compress_with(CompressionModel* comp) { comp_ = comp; }
   CompressionModel* compression() const { return comp_; }
+  /// The host bytes a way's state takes apart from its tag (CacheTags::bytes_per_way), per way (memory_estimate.h).
+  static uint64_t way_state_bytes() { return sizeof(Way); }
 
  private:
   IntervalLog* log_ = nullptr;

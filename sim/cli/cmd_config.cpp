@@ -1,7 +1,8 @@
 // `ropsim config [FILE] [--hw-set K=V]... [--json]`: print the hardware design
-// resolved (as TOML, or --json as section -> key -> value), or --markdown the
-// parameter table (docs/config.md); --silicon the design's silicon cost and
-// --silicon-check its models' held-out errors (docs/rtl.md).
+// resolved (as TOML, or --json as section -> key -> value) with its memory
+// estimate (memory_estimate.h), or --markdown the parameter table
+// (docs/config.md); --silicon the design's silicon cost and --silicon-check
+// its models' held-out errors (docs/rtl.md).
 #include <fmt/format.h>
 
 #include <cmath>
@@ -13,6 +14,8 @@
 #include "cycle_report.h"
 #include "errors.h"
 #include "hw_config.h"
+#include "memory_budget.h"
+#include "memory_estimate.h"
 #include "rtl_cost.h"
 
 namespace ropsim {
@@ -89,6 +92,68 @@ int print_silicon_check() {
   return 0;
 }
 
+/// The design's memory estimate for a run of o's screen (docs/config.md "Memory estimate").
+MemoryShape shape_of(const ConfigOpts& o) {
+  if (!is_valid_spp(o.spp)) throw UserError("--spp " + std::to_string(o.spp) + ": expected 1, 2, 4, ..., 64");
+  MemoryShape s;
+  s.width = uint32_t(o.width);
+  s.height = uint32_t(o.height);
+  s.spp = o.spp;
+  return s;
+}
+
+nlohmann::ordered_json estimate_to_json(const MemoryEstimate& cycle, const MemoryEstimate& approx) {
+  nlohmann::ordered_json j;
+  j["unit"] = "bytes";
+  j["model"] = to_string(cycle.model);
+  j["assumes"] = {{"width", cycle.shape.width},
+                  {"height", cycle.shape.height},
+                  {"spp", cycle.shape.spp},
+                  {"method", to_string(cycle.shape.method)}};
+  j["rop_units"] = cycle.rops;
+  j["total_bytes"] = cycle.total_bytes;
+  j["per_rop_bytes"] = cycle.per_rop_bytes;
+  j["shared_bytes"] = cycle.shared_bytes;
+  nlohmann::ordered_json parts = nlohmann::ordered_json::object();
+  for (const MemoryTerm& t : cycle.terms)
+    parts[t.name] = {{"bytes", t.bytes},
+                     {"per_rop_bytes", t.per_rop_bytes},
+                     {"shared_bytes", t.shared_bytes},
+                     {"keys", t.keys},
+                     {"meaning", t.meaning}};
+  j["parts"] = parts;
+  j["approximate_total_bytes"] = approx.total_bytes;
+  const MemoryBudget& b = memory_budget();
+  j["memory_limit_bytes"] = b.limit();
+  j["fits_memory_limit"] = b.limit() == 0 || cycle.total_bytes <= b.limit();
+  return j;
+}
+
+/// The estimate as TOML comments (the output still loads as the design).
+void print_estimate(const MemoryEstimate& e, const MemoryEstimate& approx) {
+  fmt::print(
+      "\n# memory estimate of the cycle model (a run of {}x{} at {} spp, {}; docs/config.md \"Memory estimate\"):\n",
+      e.shape.width, e.shape.height, e.shape.spp, to_string(e.shape.method));
+  fmt::print("#   {} = {} ROPs x {} + {} shared ({} bytes)\n", format_bytes(e.total_bytes), e.rops,
+             format_bytes(e.per_rop_bytes), format_bytes(e.shared_bytes), e.total_bytes);
+  for (const MemoryTerm& t : e.terms) {
+    if (t.bytes == 0) continue;
+    std::string keys;
+    for (const std::string& k : t.keys) keys += (keys.empty() ? "" : ", ") + k;
+    fmt::print("#   {:<24} {:>10}{}  {}\n", t.name, format_bytes(t.bytes),
+               t.per_rop_bytes ? fmt::format(" ({} a ROP)", format_bytes(t.per_rop_bytes)) : std::string(),
+               keys.empty() ? std::string("(the screen)") : keys);
+  }
+  fmt::print("#   approximate model: {}\n", format_bytes(approx.total_bytes));
+  const MemoryBudget& b = memory_budget();
+  if (b.limit() != 0 && e.total_bytes > b.limit()) {
+    std::string keys;
+    for (const std::string& k : e.costliest_keys()) keys += (keys.empty() ? "" : ", ") + k;
+    fmt::print("#   over --memory-limit {}: a cycle run of this design is refused; the keys that cost the most: {}\n",
+               format_bytes(b.limit()), keys);
+  }
+}
+
 int cmd_config(const ConfigOpts& o) {
   if (o.markdown) {
     std::fputs(hw_params_markdown().c_str(), stdout);
@@ -97,13 +162,19 @@ int cmd_config(const ConfigOpts& o) {
   if (o.silicon_check) return print_silicon_check();
   const HwConfig c = resolve_hw_config(o.file, o.hw_sets);
   if (o.silicon) return print_silicon(c, o);
+  const MemoryShape shape = shape_of(o);
+  const MemoryEstimate cycle = estimate_memory(c, shape, MemoryModel::kCycle);
+  const MemoryEstimate approx = estimate_memory(c, shape, MemoryModel::kApproximate);
   if (o.json) {
-    fmt::print("{}\n", hw_config_to_json(c).dump(2));
+    nlohmann::ordered_json j = hw_config_to_json(c);
+    j["memory_estimate"] = estimate_to_json(cycle, approx);
+    fmt::print("{}\n", j.dump(2));
     return 0;
   }
   fmt::print("# ropsim hardware config: {}\n", c.name);
   for (const auto& a : c.overrides) fmt::print("# --hw-set {}\n", a);
   fmt::print("{}", hw_config_to_toml(c));
+  print_estimate(cycle, approx);
   return 0;
 }
 
@@ -123,12 +194,13 @@ VerbRunner add_config_command(CLI::App& app) {
   md->excludes(cfgc->get_option("--hw-set"));
   auto* si = cfgc->add_flag("--silicon", o->silicon,
                             "Print the silicon cost of the design's LK units (docs/rtl.md \"Cost of a design\")");
-  cfgc->add_option("--spp", o->spp, "With --silicon: samples per pixel (default 16)")->needs(si);
-  cfgc->add_option("--width", o->width, "With --silicon: screen width in pixels (default 1024)")
-      ->needs(si)
+  cfgc->add_option("--spp", o->spp,
+                   "Samples per pixel of the run the silicon cost and memory estimate assume (default 16)");
+  cfgc->add_option("--width", o->width,
+                   "Screen width in pixels the silicon cost and memory estimate assume (default 1024)")
       ->check(in_range(1, 32768));
-  cfgc->add_option("--height", o->height, "With --silicon: screen height in pixels (default 1024)")
-      ->needs(si)
+  cfgc->add_option("--height", o->height,
+                   "Screen height in pixels the silicon cost and memory estimate assume (default 1024)")
       ->check(in_range(1, 32768));
   auto* sc = cfgc->add_flag("--silicon-check", o->silicon_check,
                             "Print each cost model's largest error on the sweep rows held out from its fit");

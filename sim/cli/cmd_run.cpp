@@ -18,6 +18,7 @@
 #include "hw_config.h"
 #include "image_io.h"
 #include "livepoint_file.h"
+#include "memory_estimate.h"
 #include "report.h"
 #include "slab.h"
 #include "trace.h"
@@ -315,6 +316,15 @@ void check_outputs(const RunOpts& o, const std::vector<std::string>& outs, const
   plan.check();
 }
 
+/// Refuses, before any work, a design whose model does not fit in
+/// --memory-limit (memory_estimate.h; the model charges it again as it is
+/// built). copies: the pipelines alive at once (sampled workers).
+void check_design_memory(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, MemoryModel model,
+                         uint32_t copies = 1) {
+  const TraceHeader h = open_fragments(in)->header();
+  check_model_memory(hw, estimate_memory(hw, MemoryShape{h.width, h.height, h.spp, cfg.method, copies}, model));
+}
+
 int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw,
                   uint64_t vcd_first, uint64_t vcd_last, const std::vector<std::string>& outs,
                   const std::string& report, const std::string& cmdline) {
@@ -333,6 +343,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   }
   std::optional<Image> reference;
   if (o.vs_reference) {
+    check_design_memory(in, cfg, hw, MemoryModel::kCycle);  // before the reference's run
     GoldenConfig rc = cfg;
     rc.method = Method::kReference;
     reference = run_functional(in, rc).image;
@@ -395,8 +406,13 @@ int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& r
   LivePoints recorded;
   if (library)
     from.path = o.livepoints;
-  else
+  else {
+    // Before the library is recorded: the workers' pipelines must fit.
+    const int jobs = o.jobs > 0 ? o.jobs : available_cores();
+    check_design_memory(in, run_cfg, hw, MemoryModel::kCycle,
+                        uint32_t(std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(jobs), o.sampling.units))));
     recorded = record_livepoints(in, run_cfg, o.sampling);
+  }
   const LivePoints& lib = library ? *library : recorded;
   from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const SampledRun s = run_sampled(lib, hw, o.jobs > 0 ? o.jobs : available_cores());

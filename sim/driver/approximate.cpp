@@ -11,6 +11,8 @@
 #include "errors.h"
 #include "functional_rop.h"
 #include "line_set.h"
+#include "memory_budget.h"
+#include "memory_estimate.h"
 #include "progress.h"
 #include "rop_ownership.h"
 #include "sort_algorithm.h"
@@ -231,6 +233,7 @@ class TagOnlyCache {
     tags_.install(victim, line);
     return victim;
   }
+  static_assert(sizeof(Way) == kApproxWayBytes, "memory_estimate.h's kApproxWayBytes is a tag-only way's size");
   uint64_t window_, seq_ = 0;
   uint32_t pixel_ = 0;
   HwConfig::Cache cfg_;
@@ -270,6 +273,7 @@ struct FragRec {
   bool slab_kept = false;                          ///< slab: its layers were rewritten
   bool killed() const { return m == 0; }
 };
+static_assert(sizeof(FragRec) == kApproxRecordBytes, "memory_estimate.h's kApproxRecordBytes is a FragRec's size");
 
 class Model {
  public:
@@ -522,6 +526,12 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   ApproxRun run;
   std::unique_ptr<FragmentSource> src = open_fragments(in);
   run.header = src->header();
+  // The tag-only model's structures, charged before any is built (memory_estimate.h).
+  const MemoryEstimate estimate = estimate_memory(
+      hw, MemoryShape{run.header.width, run.header.height, run.header.spp, method.method}, MemoryModel::kApproximate);
+  check_model_memory(hw, estimate);
+  BudgetShare model_memory;
+  model_memory.add(estimate.total_bytes, "the approximate model's structures");
   auto rop = std::make_unique<FunctionalRop>(run.header, method);
   ApproxStats& s = run.stats;
   s.hw = hw;
@@ -547,6 +557,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     // caches and DRAM, the epochs) consumes the previous batch on a second
     // thread meanwhile, in order, so the result does not depend on it.
     constexpr size_t kBatch = size_t{1} << 15;
+    static_assert(kBatch == kApproxBatchRecords, "memory_estimate.h counts two batches of kApproxBatchRecords");
     std::vector<FragRec> batch, spare;
     batch.reserve(kBatch);
     spare.reserve(kBatch);

@@ -21,6 +21,8 @@
 #include "host_threads.h"
 #include "line_set.h"
 #include "livepoint_file.h"
+#include "memory_budget.h"
+#include "memory_estimate.h"
 #include "progress.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
@@ -772,6 +774,13 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   const size_t k = lib.points.size();
   jobs = int(std::max<size_t>(1, std::min<size_t>(size_t(std::max(jobs, 1)), k)));
   out.jobs = jobs;
+  // Every worker builds a unit's pipeline at a time: `jobs` pipelines at
+  // once, charged before any is built (memory_estimate.h).
+  const MemoryEstimate pipelines = estimate_memory(
+      hw, MemoryShape{lib.header.width, lib.header.height, lib.header.spp, lib.method.method, uint32_t(jobs)});
+  check_model_memory(hw, pipelines);
+  BudgetShare model_memory;
+  model_memory.add(pipelines.total_bytes, "the sampled workers' pipelines");
   std::vector<UnitFigures> figs;
   double worker_cpu = 0;
   if (jobs > 1) {

@@ -160,8 +160,9 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   host.put("peak_rss_bytes", peak_rss_bytes(), "bytes", "peak resident set of the process (VmHWM)");
   host.put("memory_limit_bytes", memory_budget().limit(), "bytes",
            "--memory-limit: the most the growing state may take (default 80 % of physical memory; 0: none)");
-  host.put("memory_charged_peak_bytes", memory_budget().peak(), "bytes",
-           "peak of the state charged against --memory-limit in this process: touched tiles, image, A-buffer");
+  host.put(
+      "memory_charged_peak_bytes", memory_budget().peak(), "bytes",
+      "peak of the state charged against --memory-limit in this process: touched tiles, image, A-buffer, timing model");
   if (run.reference) {
     const CompareResult c = compare_images(run.image, *run.reference);
     Fields v = r.obj("vs_reference");

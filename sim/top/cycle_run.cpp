@@ -10,6 +10,8 @@
 #include "compression_model.h"
 #include "depth.h"
 #include "line_set.h"
+#include "memory_budget.h"
+#include "memory_estimate.h"
 #include "output_file.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
@@ -132,6 +134,13 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   // is one pipeline in its own SystemC context over a fresh read of the input.
   std::unique_ptr<FragmentSource> input = open_fragments(in);
   run.header = input->header();
+  // The model's structures, charged to --memory-limit before any is built
+  // (memory_estimate.h); a design that does not fit is refused here.
+  const MemoryEstimate estimate =
+      estimate_memory(hw, MemoryShape{run.header.width, run.header.height, run.header.spp, method.method});
+  check_model_memory(hw, estimate);
+  BudgetShare model_memory;
+  model_memory.add(estimate.total_bytes, "the cycle model's structures");
   auto rop = std::make_unique<FunctionalRop>(run.header, method);
   LineSet in_dram(hw.cache.line_bytes);
   // Surface compression and Hi-Z: the stored state bits and Hi-Z bounds

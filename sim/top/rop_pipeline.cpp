@@ -104,6 +104,15 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
                                                 cache, *link));
     link->connect(prev, wb);
   }
+  pool_.reserve(token_bound());
+}
+
+size_t RopPipeline::token_bound() const {
+  // A fragment in flight is in a FIFO, in a pixel ordering window or waiting
+  // in a depth test; and one more the trace source holds.
+  size_t n = 1 + size_t(hw_.distributor.rop_units) * (hw_.ordering.window + hw_.depth_test.max_outstanding);
+  for (const auto& f : fifos_) n += f->capacity();
+  return n;
 }
 
 void RopPipeline::log_to(IntervalLog* log) {

@@ -73,6 +73,11 @@ class RopPipeline : public sc_core::sc_module {
   FunctionalRop& functional() { return rop_; }
   Retirement& retirement() { return retirement_; }
   const TokenPool& tokens() const { return pool_; }
+  /// The most fragments the pipeline can hold at once: its FIFOs' capacities,
+  /// the ordering windows and the depth tests' outstanding fragments, and
+  /// the source's. The pool holds this many tokens from the start
+  /// (memory_estimate.h charges them).
+  size_t token_bound() const;
   const Clock& clock() const { return clk_; }
   TraceSource& source() { return *source_; }
   const HwConfig& hw() const { return hw_; }
