@@ -31,7 +31,7 @@ struct StudyOpts {
   size_t index = 0;
   bool retry_failed = false, quiet = false;
   bool force = false, extend = false;  ///< study run: the folder holds another study's results
-  bool recorded_ok = false;  ///< study task: a failure whose error is recorded exits 0
+  bool recorded_ok = false;            ///< study task: a failure whose error is recorded exits 0
   std::string executor = "local";
   bool wait = false;
   StudySlurm slurm;  ///< --slurm-* (empty: the study file's)

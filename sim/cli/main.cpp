@@ -60,7 +60,8 @@ int main(int argc, char** argv) {
   CLI::Option* opt_memory_limit =
       app.add_option("--memory-limit", memory_limit,
                      "Most memory the run's growing state may take (the touched tiles' buffers, the image, the "
-                     "A-buffer reference, the timing model's structures): bytes with K, M, G or T (binary), a percentage of physical memory, or "
+                     "A-buffer reference, the timing model's structures): bytes with K, M, G or T (binary), a "
+                     "percentage of physical memory, or "
                      "none for no limit (0 and an empty value are refused); default 80%. Going over is a one-line "
                      "error")
           ->type_name("SIZE");

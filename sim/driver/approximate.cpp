@@ -634,9 +634,9 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     for (const auto& r : rop_demand) most = std::max(most, r[size_t(k)]);
     bounds.push_back({kUnitNames[k], ResourceBound::Kind::kThroughput, most});
   }
-  bounds.push_back({"dram", ResourceBound::Kind::kBandwidth,
-                    std::max(double(s.dram_service_cycles),
-                             s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
+  bounds.push_back(
+      {"dram", ResourceBound::Kind::kBandwidth,
+       std::max(double(s.dram_service_cycles), s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
   s.bottleneck = classify_bottleneck(std::move(bounds), double(s.total_cycles));
   run.counters = rop->counters();
   run.image = rop->resolve();
