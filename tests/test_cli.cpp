@@ -541,7 +541,7 @@ TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
     expect_ok(box.run(args + " -o ck.trace"), args);
     const std::string ck = slurp(box.path("ck.trace"));
     ASSERT_GT(ck.size(), 48u);
-    EXPECT_EQ(ck[10], 1) << args << ": the default trace must carry the checksum flag";
+    EXPECT_EQ(ck[10], 3) << args << ": the default trace must carry the checksum and header check flags";
     const CliResult r = box.run("trace info ck.trace --json");
     expect_ok(r, "trace info --json");
     const auto j = nlohmann::json::parse(r.out);
@@ -920,6 +920,39 @@ TEST(CliCycle, SampledRunWritesTheGoldenImageAndEstimatesWithIntervals) {
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 1 --vcd w.vcd", {"--vcd", "sampled"});
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --method lk+ac", {"lk+ac"});
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --sample-size 0", {"--sample-size"});
+}
+
+// A trace whose header claims more fragments than its payload can hold --
+// 2^48 - 2, or the count with one bit of byte 47 flipped -- is refused by
+// `livepoints` and by `run --fidelity sampled --trace` when it is opened,
+// exit 1, one line naming the file and the field, within --memory-limit 512M
+// (not by the allocator, after growing in proportion to the claim). A
+// checksummed trace's header check finds the flip; a trace without one
+// (--no-checksum, older writers) is bounded by its size.
+TEST(CliCycle, AFragmentCountThePayloadCannotHoldIsRefused) {
+  CliSandbox box;
+  expect_ok(box.run("scene smoke --spp 4 -o checked.rtr"), "scene");
+  expect_ok(box.run("scene smoke --spp 4 --no-checksum -o plain.rtr"), "scene --no-checksum");
+  for (const std::string base : {"checked.rtr", "plain.rtr"}) {
+    const std::string bytes = slurp(box.work() / base);
+    ASSERT_GT(bytes.size(), 48u);
+    EXPECT_EQ(bytes[10], base == "checked.rtr" ? 3 : 0) << base << ": flags";
+    uint64_t field = 0;
+    for (int i = 0; i < 6; ++i) field |= uint64_t(uint8_t(bytes[size_t(42 + i)])) << (8 * i);
+    for (const uint64_t lie : {(uint64_t{1} << 48) - 1, field ^ (uint64_t{1} << 47)}) {
+      SCOPED_TRACE(base + ", bytes 42..47 = " + std::to_string(lie));
+      std::string forged = bytes;
+      for (int i = 0; i < 6; ++i) forged[size_t(42 + i)] = char(uint8_t(lie >> (8 * i)));
+      std::ofstream(box.path("lie.rtr"), std::ios::binary) << forged;
+      for (const std::string args :
+           {"--memory-limit 512M livepoints lie.rtr -o L.rlp", "--memory-limit 512M run --fidelity sampled --trace "
+                                                                 "lie.rtr --quiet --out o.exr"}) {
+        const CliResult r = box.run(args);
+        EXPECT_EQ(r.code, 1) << args << "\n" << r.describe();
+        expect_cli_error(box, args, {"lie.rtr: header: ", "bytes 42..47"});
+      }
+    }
+  }
 }
 
 // `ropsim livepoints` records once; `run --fidelity sampled --livepoints LIB`
