@@ -91,12 +91,16 @@ TEST(FuzzMutators, TraceCountMutationsKeepTheHeaderCheck) {
     std::string msg;
     try {
       TraceReader r(path);
-      if (seed % 6 == 0) EXPECT_FALSE(r.recorded_fragments().has_value());
+      if (seed % 6 == 0) {
+        EXPECT_FALSE(r.recorded_fragments().has_value());
+      }
     } catch (const TraceError& e) {
       msg = e.what();
     }
     EXPECT_EQ(msg.find("header check mismatch"), std::string::npos) << msg;
-    if (seed % 6 == 1) EXPECT_NE(msg.find("fragment count (bytes 42..47) 281474976710654"), std::string::npos) << msg;
+    if (seed % 6 == 1) {
+      EXPECT_NE(msg.find("fragment count (bytes 42..47) 281474976710654"), std::string::npos) << msg;
+    }
   }
   fs::remove(path);
 }

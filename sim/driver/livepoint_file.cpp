@@ -298,7 +298,7 @@ void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m
   const size_t spp = size_t(h.spp);
   pre.tracker = g.flag();
   pre.slab_bits = int(g.u32());
-  if (pre.tracker != traits(selection_of(m.method)).tracker)
+  if (pre.tracker != traits(m.method).tracker)  // as FunctionalRop sets its store up
     g.fail(std::string("the tracker flag is not method ") + to_string(m.method) + "'s");
   if (pre.slab_bits != (m.method == Method::kSlab ? m.slab_bits : 0))
     g.fail("SLAB bits " + std::to_string(pre.slab_bits) + " are not the method's");
