@@ -372,7 +372,8 @@ void TraceReader::check_recorded_count(FILE* f, uint64_t header_bytes) {
   if (n > most)
     throw TraceError(path_ + ": header: fragment count (bytes 42..47) " + std::to_string(n) + " is more than " + how +
                      " can hold (at most " + std::to_string(most) + " records of " +
-                     std::to_string(fragment_record_bytes(h, 1)) + " bytes or more)");
+                     std::to_string(fragment_record_bytes(h, 1)) +
+                     " bytes or more): the header is damaged or the file truncated");
 }
 
 uint64_t max_fragments_in_payload(const TraceHeader& h, uint64_t payload_bytes) {
