@@ -64,9 +64,13 @@ if [ ! -d "$seeds" ]; then
                 --depth "$d" --color "$([ $((i % 2)) = 0 ] && echo rgb-f32 || echo rgb-unorm8)" \
                 $([ $k = no-checksum ] && echo --no-checksum) -o "$seeds.tmp/$s-$c-$d-$k.rtrace" >/dev/null
             done
-            # Through a pipe: the writer cannot seek back, so the count stays 0 (not recorded).
+            # Through a FIFO: the writer cannot seek back, so the count stays 0 (not recorded).
+            mkfifo "$seeds.tmp/fifo"
+            cat "$seeds.tmp/fifo" >"$seeds.tmp/$s-$c-$d-unrecorded.rtrace" &
             ASAN_OPTIONS=detect_leaks=0 "$b/ropsim" scene "$s" --width 12 --height 10 --spp "$spp" --compression "$c" \
-              --depth "$d" -o /dev/stdout | cat >"$seeds.tmp/$s-$c-$d-unrecorded.rtrace"
+              --depth "$d" -o "$seeds.tmp/fifo" >/dev/null
+            wait
+            rm "$seeds.tmp/fifo"
           done
         done
       done
