@@ -1,7 +1,9 @@
 #include "fuzz_targets.h"
 
 #include <unistd.h>
+#include <xxhash.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -14,6 +16,7 @@
 #include "golden_model.h"
 #include "hw_config.h"
 #include "livepoint_file.h"
+#include "numerics.h"
 #include "scene_file.h"
 #include "study.h"
 #include "trace.h"
@@ -125,6 +128,92 @@ int fuzz_study(const uint8_t* data, size_t size) {
   });
 }
 
+namespace {
+
+/// The oracle of the livepoints target: the first field of a library that
+/// read but lies outside the ranges docs/livepoints.md gives, or "". Written
+/// from the document, apart from the reader's own checks.
+std::string library_out_of_range(const ropsim::LivePoints& lib) {
+  using namespace ropsim;
+  const InputSpec& in = lib.input.spec;
+  const TraceHeader& h = lib.header;
+  const SamplingParams& s = lib.params;
+  const MethodConfig& m = lib.method;
+  const uint64_t n = lib.fragments;
+  if (in.repeat < 1 || in.repeat > 1000) return "repeat " + std::to_string(in.repeat);
+  if (!validate_header(h).empty()) return "the trace header: " + validate_header(h);
+  if (m.slab_layers < 1 || m.slab_layers > 16) return "SLAB k " + std::to_string(m.slab_layers);
+  if (m.slab_bits < 1 || m.slab_bits > 64) return "SLAB b " + std::to_string(m.slab_bits);
+  if (n >= (uint64_t{1} << 48) * in.repeat) return "N " + std::to_string(n);
+  if (s.units != lib.points.size() || s.units < 1) return "K " + std::to_string(s.units);
+  if (lib.whole ? s.unit_fragments != n : (s.unit_fragments < 1 || s.unit_fragments > n / s.units))
+    return "U " + std::to_string(s.unit_fragments);
+  if (lib.counters.fragments != n) return "the fragments counter";
+  bool counters_ok = true;
+  lib.counters.for_each([&](const char*, uint64_t v) {
+    if (v / (16 * 64 + 289) > n) counters_ok = false;
+  });
+  if (!counters_ok) return "a counter over N (16 x 64 + 289)";
+  uint64_t end = 0;
+  for (const LivePoint& p : lib.points) {
+    if (p.window != s.unit_fragments || p.first < end || p.warmup + p.window > p.fragments.size() ||
+        p.first + p.fragments.size() > n)
+      return "a live-point's fragments";
+    end = p.first + p.fragments.size();
+    if (p.warming.size() > s.warming_fragments || p.warming.size() > p.first) return "a live-point's touches";
+    for (float z : p.pre.depth)
+      if (!(z >= 0.0f && z <= 1.0f)) return "a pre-state depth";
+    for (const SlabPixel& sp : p.pre.slabs)
+      if (sp.count > m.slab_layers) return "a slab pixel's layers";
+  }
+  if (end != n) return "the last live-point does not end the input";
+  if (uint64_t(h.width) * h.height <= kMaxRowsPixels) {
+    std::vector<float> row(size_t(h.width) * 3);
+    for (uint32_t y = 0; y < h.height; ++y) {
+      lib.image.row(y, row.data());
+      for (float c : row)
+        if (!(c >= 0.0f) || (std::isinf(c) && h.color_format == ColorFormat::kRgbUnorm8 &&
+                              !std::isinf(lib.image.background()[0]) && !std::isinf(lib.image.background()[1]) &&
+                              !std::isinf(lib.image.background()[2])))
+          return "image row " + std::to_string(y) + " holds " + std::to_string(c);
+    }
+  }
+  return "";
+}
+
+uint64_t get_le(const uint8_t* p, int n) {
+  uint64_t v = 0;
+  for (int i = 0; i < n; ++i) v |= uint64_t(p[i]) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+void fix_trace_header_check(uint8_t* data, size_t size) {
+  if (size < 48 || std::memcmp(data, ropsim::kTraceMagic, 8) != 0 || !(get_le(data + 10, 2) & ropsim::kTraceFlagHeaderCheck))
+    return;
+  const size_t head = 48 + 2 * size_t(data[20]) + size_t(get_le(data + 40, 2));
+  if (size < head + ropsim::kHeaderCheckBytes) return;
+  const uint64_t c = XXH3_64bits(data, head);
+  for (int i = 0; i < 8; ++i) data[head + size_t(i)] = uint8_t(c >> (8 * i));
+}
+
+void mutate_trace_count(uint8_t* data, size_t size, uint32_t seed) {
+  if (size < 48) return;
+  const uint64_t field = get_le(data + 42, 6), mask48 = (uint64_t{1} << 48) - 1;
+  uint64_t v = field;
+  switch (seed % 6) {
+    case 0: v = 0; break;                                          // not recorded
+    case 1: v = mask48; break;                                     // 2^48 - 1 fragments + 1
+    case 2: v = field ^ (uint64_t{1} << (seed / 6 % 48)); break;  // one bit flipped
+    case 3: v = field + 1 + seed / 6 % 3; break;                   // a few more
+    case 4: v = field > 1 ? field - 1 : field + 1; break;          // one fewer
+    default: v = (uint64_t(seed) * 0x9E3779B97F4A7C15ull) & mask48; break;
+  }
+  for (int i = 0; i < 6; ++i) data[42 + i] = uint8_t((v & mask48) >> (8 * i));
+  fix_trace_header_check(data, size);
+}
+
 int fuzz_livepoints(const uint8_t* data, size_t size) {
   std::vector<uint8_t> file;
   if (size >= 8 && std::memcmp(data, "ROPSIMLP", 8) == 0) {
@@ -135,6 +224,11 @@ int fuzz_livepoints(const uint8_t* data, size_t size) {
   const std::string path = input_file(file.data(), file.size(), ".rlp");
   return expect_input_errors([&] {
     const ropsim::LivePoints lib = ropsim::read_livepoints(path);
+    // What reads has every field in range.
+    if (const std::string why = library_out_of_range(lib); !why.empty()) {
+      std::fprintf(stderr, "a library with a field out of range was accepted: %s\n", why.c_str());
+      std::abort();
+    }
     // What reads, writes and reads back to the same bytes.
     const std::string again = path + ".again.rlp", third = path + ".third.rlp";
     ropsim::write_livepoints(again, lib);

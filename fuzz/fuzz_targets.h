@@ -29,9 +29,19 @@ int fuzz_study(const uint8_t* data, size_t size);
 /// A live-point library (docs/livepoints.md): an input that starts with the
 /// magic is the file as it is; any other is taken as the payload and wrapped
 /// in a valid header, checksum and zstd frame, so that the fuzzer reaches the
-/// payload's parser. A library that reads is written and read again, and must
-/// give the same bytes.
+/// payload's parser. A library that reads must have every field in range (an
+/// oracle written from docs/livepoints.md), and is written and read again,
+/// and must give the same bytes.
 int fuzz_livepoints(const uint8_t* data, size_t size);
+
+/// The trace target's custom mutation (libfuzzer_entry.cpp): rewrites the
+/// header's fragment count (bytes 42..47) by `seed` -- 0, 2^48 - 1, one bit
+/// flipped, a few more or one fewer, a random count -- and recomputes the
+/// header check, so that mutated counts reach the reader's bound on the
+/// payload instead of stopping at the check.
+void mutate_trace_count(uint8_t* data, size_t size, uint32_t seed);
+/// Recomputes the header check of a trace whose header flags one (bit 1).
+void fix_trace_header_check(uint8_t* data, size_t size);
 
 struct Target {
   const char* name;

@@ -6,8 +6,11 @@
 # Builds the libFuzzer executables with clang, ASan and UBSan in build-fuzz/
 # (installing clang and its fuzzer runtime if missing), generates a seed corpus
 # from the project's own files (built-in scenes as traces in both payload
-# encodings, the mesh scene files, the designs in configs/, the studies in
-# studies/), adds the kept inputs of fuzz/regressions/TARGET/, and fuzzes.
+# encodings, with the fragment count recorded and not; the mesh scene files;
+# the designs in configs/; the studies in studies/; small libraries, their
+# payloads and forgeries of them, fuzz/forge_livepoints.py), adds the kept
+# inputs of fuzz/regressions/TARGET/, and fuzzes. The trace target's custom
+# mutator also rewrites the header's fragment count (fuzz_targets.h).
 # With RUNS, stops after that many executions instead (the time limit still
 # holds). Prints the number of executions; exits 1 on any crash, leak,
 # sanitizer report or timeout, naming the input to keep as a regression:
@@ -61,6 +64,13 @@ if [ ! -d "$seeds" ]; then
                 --depth "$d" --color "$([ $((i % 2)) = 0 ] && echo rgb-f32 || echo rgb-unorm8)" \
                 $([ $k = no-checksum ] && echo --no-checksum) -o "$seeds.tmp/$s-$c-$d-$k.rtrace" >/dev/null
             done
+            # Through a FIFO: the writer cannot seek back, so the count stays 0 (not recorded).
+            mkfifo "$seeds.tmp/fifo"
+            cat "$seeds.tmp/fifo" >"$seeds.tmp/$s-$c-$d-unrecorded.rtrace" &
+            ASAN_OPTIONS=detect_leaks=0 "$b/ropsim" scene "$s" --width 12 --height 10 --spp "$spp" --compression "$c" \
+              --depth "$d" -o "$seeds.tmp/fifo" >/dev/null
+            wait
+            rm "$seeds.tmp/fifo"
           done
         done
       done
@@ -79,6 +89,11 @@ if [ ! -d "$seeds" ]; then
           --method "$m" --sample-units 3 --sample-size 16 --sample-warmup 8 --sample-cooldown 8 --sample-warming 16 \
           --threads 1 --quiet -o "$seeds.tmp/$m.rlp"
         tail -c +33 "$seeds.tmp/$m.rlp" | zstd -q -d -c >"$seeds.tmp/$m.payload"
+        # Forgeries: one field out of range each, as bare payloads (the target
+        # wraps them with a valid checksum, so they reach the range checks).
+        /usr/bin/python3 "$root/fuzz/forge_livepoints.py" "$seeds.tmp/$m.payload" "$seeds.tmp/forged-$m"
+        for f in "$seeds.tmp/forged-$m"/*; do mv "$f" "$seeds.tmp/$m-$(basename "$f")"; done
+        rmdir "$seeds.tmp/forged-$m"
       done
       ;;
   esac

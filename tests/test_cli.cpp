@@ -238,10 +238,21 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   expect_ok(box.run("scene cloth --spp 4 --compression none -o fullck.trace"), "scene --compression none");
   expect_ok(box.run("scene enderton-1 --spp 4 -o z.trace"), "scene enderton-1");
   {
+    // Cut in half, a trace whose header records its count is refused at
+    // open (half the payload cannot hold it); with the count zeroed (not
+    // recorded, as a writer into a pipe leaves it) the reader reaches the cut
+    // and names its record or block. The checked trace's header check covers
+    // the count: it is zeroed in the unchecked layout (flags 1, no check).
     const std::string full = slurp(box.path("full.trace"));
-    std::ofstream(box.path("truncated.trace"), std::ios::binary) << full.substr(0, full.size() / 2 + 3);
+    std::ofstream(box.path("counted.trace"), std::ios::binary) << full.substr(0, full.size() / 2 + 3);
+    const std::string unrecorded = full.substr(0, 42) + std::string(6, '\0') + full.substr(48);
+    std::ofstream(box.path("truncated.trace"), std::ios::binary) << unrecorded.substr(0, unrecorded.size() / 2 + 3);
     const std::string fullck = slurp(box.path("fullck.trace"));
-    std::ofstream(box.path("truncatedck.trace"), std::ios::binary) << fullck.substr(0, fullck.size() / 2 + 3);
+    ASSERT_EQ(fullck[10], 3) << "checksummed and checked";
+    const size_t ck_head = 48 + 2 * 4 + size_t(uint8_t(fullck[40]));  // 4 spp, the scene name's length
+    std::string oldck = fullck.substr(0, 10) + std::string("\x01\0", 2) + fullck.substr(12, 30) + std::string(6, '\0') +
+                        fullck.substr(48, ck_head - 48) + fullck.substr(ck_head + 8);
+    std::ofstream(box.path("truncatedck.trace"), std::ios::binary) << oldck.substr(0, oldck.size() / 2 + 3);
     fs::remove(box.path("fullck.trace"));
     const std::string z = slurp(box.path("z.trace"));
     std::ofstream(box.path("zcut.trace"), std::ios::binary) << z.substr(0, z.size() - 1);
@@ -255,6 +266,7 @@ TEST(Cli, BadInputsFailInOneLineAndLeaveNoOutput) {
   ASSERT_FALSE(zcut_rec.empty()) << "the library accepts a compressed trace missing its last byte";
 
   const std::string outs = " --out o.png --out o.exr --report r.json";
+  expect_cli_error(box, "run --trace counted.trace" + outs, {"counted.trace: header: ", "bytes 42..47", "truncated"});
   expect_cli_error(box, "run --trace truncated.trace" + outs, {"truncated.trace", trunc_rec + ":"});
   expect_cli_error(box, "run --trace zcut.trace" + outs, {"zcut.trace", zcut_rec + ":"});
   expect_cli_error(box, "trace validate truncated.trace", {"truncated.trace", trunc_rec + ":"});
@@ -502,9 +514,14 @@ TEST(Cli, DumpLimitReadsNoFurtherThanItPrints) {
     header_bytes = 48 + 2 * size_t(r.header().spp) + r.header().scene_name.size();
     record_bytes = ropsim::fragment_record_bytes(r.header(), 1);  // plane depth: any coverage
   }
-  // Records 0..2 complete, record 3 cut short.
+  // Records 0..2 complete, record 3 cut short. With its fragment count the
+  // cut trace is refused at open (the payload cannot hold it); with the
+  // count zeroed (not recorded, as from a pipe) it is read record by record.
   const std::string full = slurp(box.path("e.trace"));
-  std::ofstream(box.path("cut.trace"), std::ios::binary) << full.substr(0, header_bytes + 3 * record_bytes + 5);
+  const std::string cut = full.substr(0, header_bytes + 3 * record_bytes + 5);
+  std::ofstream(box.path("counted.trace"), std::ios::binary) << cut;
+  expect_cli_error(box, "trace dump counted.trace --limit 3", {"counted.trace: header: ", "bytes 42..47"});
+  std::ofstream(box.path("cut.trace"), std::ios::binary) << cut.substr(0, 42) + std::string(6, '\0') + cut.substr(48);
   const CliResult r = box.run("trace dump cut.trace --limit 3");
   expect_ok(r, "trace dump --limit 3 of a trace whose record 3 is cut");
   EXPECT_EQ(lines_of(r.out).size(), 4u) << r.describe();
@@ -667,7 +684,7 @@ TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
     expect_ok(box.run(args + " -o ck.trace"), args);
     const std::string ck = slurp(box.path("ck.trace"));
     ASSERT_GT(ck.size(), 48u);
-    EXPECT_EQ(ck[10], 1) << args << ": the default trace must carry the checksum flag";
+    EXPECT_EQ(ck[10], 3) << args << ": the default trace must carry the checksum and header check flags";
     const CliResult r = box.run("trace info ck.trace --json");
     expect_ok(r, "trace info --json");
     const auto j = nlohmann::json::parse(r.out);
@@ -1074,6 +1091,39 @@ TEST(CliCycle, SampledRunWritesTheGoldenImageAndEstimatesWithIntervals) {
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 1 --vcd w.vcd", {"--vcd", "sampled"});
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --method lk+ac", {"lk+ac"});
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --sample-size 0", {"--sample-size"});
+}
+
+// A trace whose header claims more fragments than its payload can hold --
+// 2^48 - 2, or the count with one bit of byte 47 flipped -- is refused by
+// `livepoints` and by `run --fidelity sampled --trace` when it is opened,
+// exit 1, one line naming the file and the field, within --memory-limit 512M
+// (not by the allocator, after growing in proportion to the claim). A
+// checksummed trace's header check finds the flip; a trace without one
+// (--no-checksum, older writers) is bounded by its size.
+TEST(CliCycle, AFragmentCountThePayloadCannotHoldIsRefused) {
+  CliSandbox box;
+  expect_ok(box.run("scene smoke --spp 4 -o checked.rtr"), "scene");
+  expect_ok(box.run("scene smoke --spp 4 --no-checksum -o plain.rtr"), "scene --no-checksum");
+  for (const std::string base : {"checked.rtr", "plain.rtr"}) {
+    const std::string bytes = slurp(box.work() / base);
+    ASSERT_GT(bytes.size(), 48u);
+    EXPECT_EQ(bytes[10], base == "checked.rtr" ? 3 : 0) << base << ": flags";
+    uint64_t field = 0;
+    for (int i = 0; i < 6; ++i) field |= uint64_t(uint8_t(bytes[size_t(42 + i)])) << (8 * i);
+    for (const uint64_t lie : {(uint64_t{1} << 48) - 1, field ^ (uint64_t{1} << 47)}) {
+      SCOPED_TRACE(base + ", bytes 42..47 = " + std::to_string(lie));
+      std::string forged = bytes;
+      for (int i = 0; i < 6; ++i) forged[size_t(42 + i)] = char(uint8_t(lie >> (8 * i)));
+      std::ofstream(box.path("lie.rtr"), std::ios::binary) << forged;
+      for (const std::string args :
+           {"--memory-limit 512M livepoints lie.rtr -o L.rlp", "--memory-limit 512M run --fidelity sampled --trace "
+                                                                 "lie.rtr --quiet --out o.exr"}) {
+        const CliResult r = box.run(args);
+        EXPECT_EQ(r.code, 1) << args << "\n" << r.describe();
+        expect_cli_error(box, args, {"lie.rtr: header: ", "bytes 42..47"});
+      }
+    }
+  }
 }
 
 // `ropsim livepoints` records once; `run --fidelity sampled --livepoints LIB`

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <zstd.h>
 
 #include <cerrno>
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
@@ -1919,6 +1921,7 @@ TEST(LivePointLibrary, TheHeaderCountPlacesTheUnitsAsCountingDoes) {
   SceneParams sp;
   sp.name = "smoke";
   sp.spp = 8;
+  sp.checksum = false;  // no header check: the count is edited below as an older writer's would read
   const std::string counted = ::testing::TempDir() + "/lp_counted.rtr", plain = ::testing::TempDir() + "/lp_plain.rtr",
                     lying = ::testing::TempDir() + "/lp_lying.rtr";
   write_scene_trace(sp, counted);
@@ -2020,6 +2023,183 @@ TEST(LivePointLibrary, RefusesWhatIsNotItsOwn) {
   EXPECT_THROW(check_library_method(lib, path, other), UserError);
   std::filesystem::remove(path);
   std::filesystem::remove(bad);
+}
+
+namespace {
+
+/// A library's payload (the zstd frame after the 32-byte header), decompressed.
+std::string library_payload(const std::string& file) {
+  const unsigned long long n = ZSTD_getFrameContentSize(file.data() + 32, file.size() - 32);
+  std::string out;
+  if (n != ZSTD_CONTENTSIZE_UNKNOWN && n != ZSTD_CONTENTSIZE_ERROR) {
+    out.resize(size_t(n));
+    const size_t r = ZSTD_decompress(out.data(), out.size(), file.data() + 32, file.size() - 32);
+    if (!ZSTD_isError(r)) return out;
+  }
+  // Streamed: decode piecewise.
+  out.clear();
+  ZSTD_DCtx* d = ZSTD_createDCtx();
+  ZSTD_inBuffer in{file.data() + 32, file.size() - 32, 0};
+  std::vector<char> buf(1 << 16);
+  while (in.pos < in.size) {
+    ZSTD_outBuffer o{buf.data(), buf.size(), 0};
+    const size_t r = ZSTD_decompressStream(d, &o, &in);
+    EXPECT_FALSE(ZSTD_isError(r)) << ZSTD_getErrorName(r);
+    if (ZSTD_isError(r)) break;
+    out.append(buf.data(), o.pos);
+  }
+  ZSTD_freeDCtx(d);
+  return out;
+}
+
+/// The payload offsets of the fields the forgeries edit, walked from the
+/// layout of docs/livepoints.md ("File format").
+struct PayloadFields {
+  size_t repeat = 0, slab_k = 0, slab_b = 0, unit_fragments = 0, fragments = 0;
+  std::vector<std::pair<std::string, size_t>> counters;  ///< name, offset of the value
+  size_t image_rows = 0, first_row = 0, row_bytes = 0;
+};
+
+PayloadFields walk_payload(const std::string& p) {
+  PayloadFields f;
+  size_t at = 0;
+  auto u64 = [&](size_t o) {
+    uint64_t v = 0;
+    std::memcpy(&v, p.data() + o, 8);
+    return v;
+  };
+  auto str = [&] { at += 8 + size_t(u64(at)); };
+  str();                   // trace path
+  str();                   // scene name
+  at += 4 + 4 + 4 + 8;     // spp, width, height, seed
+  f.repeat = at;
+  at += 4;
+  str();                   // description
+  at += 1 + 8;             // from-trace, digest
+  uint32_t width = 0;
+  std::memcpy(&width, p.data() + at, 4);
+  at += 4 + 4 + 4 + 3 + 12 + 4 + 128;  // the trace header: w, h, spp, modes, clear colour and depth, positions
+  str();                               // its scene name
+  at += 1;                             // checksummed
+  str();                               // method name
+  at += 4 + 4 + 4 + 8;                 // numerics, seed
+  f.slab_k = at;
+  f.slab_b = at + 4;
+  at += 8 + 3;
+  f.unit_fragments = at;
+  at += 5 * 8 + 8 + 1;  // U, W, C, K, T, R, whole
+  f.fragments = at;
+  at += 8;
+  const uint64_t n_counters = u64(at);
+  at += 8;
+  for (uint64_t i = 0; i < n_counters; ++i) {
+    const size_t len = size_t(u64(at));
+    const std::string name = p.substr(at + 8, len);
+    at += 8 + len;
+    f.counters.emplace_back(name, at);
+    at += 8;
+  }
+  at += 4 + 4 + 12;  // the image: width, height, background
+  f.image_rows = at;
+  f.first_row = at + 8;
+  f.row_bytes = 4 + size_t(width) * 12;
+  return f;
+}
+
+template <class T>
+void poke(std::string& p, size_t at, T v) {
+  std::memcpy(p.data() + at, &v, sizeof v);
+}
+
+}  // namespace
+
+// A library whose checksum matches but whose fields lie outside the ranges
+// the trace format, the CLI and the recording give is refused, in one line
+// naming the file and the field: each forgery edits one field of a valid
+// library's payload and wraps it again with a new checksum.
+TEST(LivePointLibrary, RefusesEveryOutOfRangeField) {
+  SamplingParams p;
+  p.units = 3;
+  p.unit_fragments = 200;
+  p.warmup_fragments = 300;
+  p.cooldown_fragments = 100;  // not a whole input: the units are sampled
+  InputSpec unorm = scene_input("cloth", 4);
+  unorm.scene.color_format = ColorFormat::kRgbUnorm8;  // no colour overflows binary16: +inf cannot be resolved
+  GoldenConfig slab;
+  slab.method = Method::kSlab;
+  const std::string path = temp_path("forged.rlp");
+  auto payload_of = [&](const LivePoints& lib) {
+    write_livepoints(path, lib);
+    return library_payload(read_bytes(path));
+  };
+  const std::string lk = payload_of(record_livepoints(unorm, GoldenConfig{}, p));
+  const std::string sl = payload_of(record_livepoints(scene_input("eight-layers", 4), slab, p));
+  auto write_payload = [&](const std::string& payload) {
+    const std::vector<uint8_t> file =
+        wrap_livepoint_payload(reinterpret_cast<const uint8_t*>(payload.data()), payload.size());
+    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(file.data()), std::streamsize(file.size()));
+  };
+  for (const std::string* valid : {&lk, &sl}) {  // the walker and the wrapping are right
+    write_payload(*valid);
+    EXPECT_NO_THROW(read_livepoints(path));
+  }
+  auto refused = [&](const std::string& what, const std::string& needle) {
+    SCOPED_TRACE(what);
+    try {
+      read_livepoints(path);
+      ADD_FAILURE() << "accepted a library with " << what;
+    } catch (const UserError& e) {
+      const std::string msg = e.what();
+      EXPECT_EQ(msg.rfind(path + ": ", 0), 0u) << "names the file: " << msg;
+      EXPECT_NE(msg.find(needle), std::string::npos) << "names the field (" << needle << "): " << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << "one line: " << msg;
+    }
+  };
+  auto forge = [&](const std::string& base, const std::string& what, const std::string& needle,
+                   const std::function<void(std::string&, const PayloadFields&)>& edit) {
+    std::string f = base;
+    edit(f, walk_payload(base));
+    write_payload(f);
+    refused(what, needle);
+  };
+  forge(lk, "N = 2^60", "N 1152921504606846976", [](std::string& b, const PayloadFields& at) {
+    poke(b, at.fragments, uint64_t{1} << 60);
+  });
+  forge(lk, "U = 0", "U 0 fragments", [](std::string& b, const PayloadFields& at) {
+    poke(b, at.unit_fragments, uint64_t{0});
+  });
+  for (uint32_t r : {0u, 5000u})
+    forge(lk, "repeat " + std::to_string(r), "repeat " + std::to_string(r) + " is not in [1, 1000]",
+          [r](std::string& b, const PayloadFields& at) { poke(b, at.repeat, r); });
+  for (float v : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -1.0f})
+    forge(lk, "a pixel of " + std::to_string(v), "not a resolved binary16 value",
+          [v](std::string& b, const PayloadFields& at) { poke(b, at.first_row + 4, v); });
+  forge(lk, "a row given twice", "out of order or given twice", [](std::string& b, const PayloadFields& at) {
+    uint64_t rows = 0;
+    std::memcpy(&rows, b.data() + at.image_rows, 8);
+    ASSERT_GE(rows, 1u);
+    poke(b, at.image_rows, rows + 1);
+    b.insert(at.first_row + at.row_bytes, b.substr(at.first_row, at.row_bytes));
+  });
+  forge(sl, "SLAB k = 0", "SLAB layers k 0", [](std::string& b, const PayloadFields& at) {
+    poke(b, at.slab_k, uint32_t{0});
+  });
+  forge(sl, "SLAB b = 100", "SLAB bits b 100", [](std::string& b, const PayloadFields& at) {
+    poke(b, at.slab_b, uint32_t{100});
+  });
+  for (size_t i = 0; i < walk_payload(lk).counters.size(); ++i) {
+    const std::string name = walk_payload(lk).counters[i].first;
+    forge(lk, name + " = 2^64 - 1", name + " 18446744073709551615", [i](std::string& b, const PayloadFields& at) {
+      poke(b, at.counters[i].second, ~uint64_t{0});
+    });
+  }
+  // The file header's reserved field (bytes 12..15) is outside the payload.
+  write_payload(lk);
+  std::string file = read_bytes(path);
+  file[13] = 1;
+  std::ofstream(path, std::ios::binary) << file;
+  refused("a reserved field of 256", "the reserved header field, bytes 12..15, is 256");
+  std::filesystem::remove(path);
 }
 
 // Units simulated in worker processes give every figure of the run exactly as

@@ -5,13 +5,18 @@
 // input error again fails here.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <vector>
 
 #include "fuzz_targets.h"
+#include "sample_patterns.h"
+#include "trace.h"
 
 #ifndef ROPSIM_SOURCE_DIR
 #error "ROPSIM_SOURCE_DIR must name the source tree (tests/CMakeLists.txt)"
@@ -52,5 +57,52 @@ TEST_P(FuzzRegressions, EveryKeptInputIsAnInputErrorOrRunsClean) {
 
 INSTANTIATE_TEST_SUITE_P(Targets, FuzzRegressions, ::testing::ValuesIn(ropsim_fuzz::targets()),
                          [](const auto& info) { return std::string(info.param.name); });
+
+TEST(FuzzMutators, TraceCountMutationsKeepTheHeaderCheck) {
+  // The trace target's mutator rewrites bytes 42..47 and recomputes the
+  // header check, so a checked trace's mutated count passes the check and
+  // meets the reader's bound on the payload: 2^48 - 1 (seed 1) is refused by
+  // the bound, a count of 0 (seed 0) reads as "not recorded".
+  using namespace ropsim;
+  const std::string path = (fs::temp_directory_path() / ("ropsim-mutator-" + std::to_string(::getpid()) + ".trace")).string();
+  TraceHeader h;
+  h.width = h.height = 8;
+  h.spp = 4;
+  h.positions = standard_sample_positions(4);
+  {
+    TraceWriter w(path, h);
+    Fragment f;
+    f.coverage = 0xF;
+    f.z0 = 0.5f;
+    for (int i = 0; i < 10; ++i) w.write(f);
+    w.finish();
+  }
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<uint8_t> file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(file[10], 3) << "a checked, checksummed trace";
+  for (uint32_t seed = 0; seed < 60; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::vector<uint8_t> m = file;
+    ropsim_fuzz::mutate_trace_count(m.data(), m.size(), seed);
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_TRUE(f != nullptr);
+    std::fwrite(m.data(), 1, m.size(), f);
+    std::fclose(f);
+    std::string msg;
+    try {
+      TraceReader r(path);
+      if (seed % 6 == 0) {
+        EXPECT_FALSE(r.recorded_fragments().has_value());
+      }
+    } catch (const TraceError& e) {
+      msg = e.what();
+    }
+    EXPECT_EQ(msg.find("header check mismatch"), std::string::npos) << msg;
+    if (seed % 6 == 1) {
+      EXPECT_NE(msg.find("fragment count (bytes 42..47) 281474976710654"), std::string::npos) << msg;
+    }
+  }
+  fs::remove(path);
+}
 
 }  // namespace

@@ -120,13 +120,14 @@ void put64(std::vector<uint8_t>& o, uint64_t v) {
 }
 void putf(std::vector<uint8_t>& o, float f) { put32(o, bits(f)); }
 
-/// Header bytes (fixed 48-byte part, 2 * spp position bytes, scene name);
+/// Header bytes (fixed 48-byte part, 2 * spp position bytes, scene name,
+/// then with `check` the header check: the XXH3-64 of the bytes before it);
 /// with `count`, the fragment count recorded in bytes 42..47 (count + 1).
-std::vector<uint8_t> encode_header(const TraceHeader& h, std::optional<uint64_t> count = std::nullopt) {
+std::vector<uint8_t> encode_header_with(const TraceHeader& h, std::optional<uint64_t> count, bool check) {
   std::vector<uint8_t> o;
   for (char c : kTraceMagic) o.push_back(uint8_t(c));                                 // 0: magic
   put16(o, kTraceVersion);                                                            // 8: version
-  put16(o, h.checksummed ? 1 : 0);                                                    // 10: flags (bit 0: checksummed)
+  put16(o, uint16_t((h.checksummed ? 1 : 0) | (check ? 2 : 0)));  // 10: flags (bit 0: checksummed, 1: header check)
   put32(o, h.width);                                                                  // 12
   put32(o, h.height);                                                                 // 16
   put8(o, uint8_t(h.spp));                                                            // 20
@@ -143,7 +144,13 @@ std::vector<uint8_t> encode_header(const TraceHeader& h, std::optional<uint64_t>
     put8(o, h.positions[i].y);
   }
   o.insert(o.end(), h.scene_name.begin(), h.scene_name.end());
+  if (check) put64(o, XXH3_64bits(o.data(), o.size()));
   return o;
+}
+
+/// The header as TraceWriter writes it: checked when the payload is checksummed.
+std::vector<uint8_t> encode_header(const TraceHeader& h, std::optional<uint64_t> count = std::nullopt) {
+  return encode_header_with(h, count, h.checksummed);
 }
 
 /// One fragment record, without any validation.
@@ -508,11 +515,16 @@ TEST(TraceFormat, TheHeaderRecordsTheFragmentCount) {
 
 TEST(TraceFormat, AHeaderCountThatDisagreesWithTheRecordsIsRefused) {
   // Three fragments; the header claims two (the third record is refused,
-  // naming it) or four (the end record is refused).
+  // naming it) or four (the end record is refused: per-sample records of
+  // every sample, 46 bytes, leave room for four of the smallest, 34 bytes, so
+  // the count passes the bound at open).
   TempDir tmp;
-  const TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  const TraceHeader h = make_header(4, DepthMode::kPerSample, ColorFormat::kRgbF32, Compression::kNone);
   std::vector<uint8_t> payload;
-  for (const auto& f : make_fragments(h, 3, 4)) encode_fragment(payload, h, f);
+  for (auto f : make_fragments(h, 3, 4)) {
+    f.coverage = spp_mask(4);
+    encode_fragment(payload, h, f);
+  }
   encode_end(payload, 3);
   for (uint64_t claimed : {uint64_t(2), uint64_t(4)}) {
     const std::string path = tmp.path("claims-" + std::to_string(claimed) + ".trace");
@@ -940,6 +952,9 @@ TEST(TraceReaderRefuses, TruncatedCompressed) {
     EXPECT_EQ(msg.rfind(path, 0), 0u) << "error does not name the file: " << msg;
     if (at < H) {
       EXPECT_NE(msg.find("header"), std::string::npos) << msg;
+    } else if (frags.size() > max_fragments_in_payload(h, (at - H) * kZstdMaxRatio)) {
+      // Too few bytes left for the count the header records: refused at open.
+      EXPECT_NE(msg.find(": header: fragment count (bytes 42..47) 20000 is more than"), std::string::npos) << msg;
     } else {
       const long long rec = record_in(msg);
       EXPECT_GE(rec, 0) << "error does not name a record: " << msg;
@@ -1367,7 +1382,7 @@ TEST(ChecksumFormat, WriterBytesMatchTheSpecification) {
           EXPECT_EQ(writer_blocks, b.block_offsets.size());
           const std::vector<uint8_t> got = read_file(path);
           ASSERT_GE(got.size(), b.header.size());
-          EXPECT_EQ(got[10], 1) << "header flags (offset 10) must be 1: the payload is checksummed";
+          EXPECT_EQ(got[10], 3) << "header flags (offset 10) must be 3: the payload is checksummed, the header checked";
           EXPECT_EQ(got[11], 0);
           const std::vector<uint8_t> header = encode_header(h, frags.size());
           EXPECT_TRUE(std::equal(header.begin(), header.end(), got.begin())) << "header bytes differ";
@@ -1661,14 +1676,14 @@ TEST(ChecksumReaderRefuses, UnknownHeaderFlags) {
   TempDir tmp;
   const TraceHeader h = make_ck_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
   const CkBuilt b = build_checksummed(h, make_fragments(h, 3, 1));
-  for (uint16_t flags : {uint16_t(0x0002), uint16_t(0x0003), uint16_t(0x8000), uint16_t(0xFFFF)}) {
+  for (uint16_t flags : {uint16_t(0x0004), uint16_t(0x0007), uint16_t(0x8000), uint16_t(0xFFFF)}) {
     std::vector<uint8_t> file = assemble(b.h, b.payload);
     file[10] = uint8_t(flags);
     file[11] = uint8_t(flags >> 8);
     const std::string path = tmp.path("flags.trace");
     write_file(path, file);
     char want[64];
-    std::snprintf(want, sizeof want, "header: unknown flags 0x%04x", unsigned(flags & ~1u));
+    std::snprintf(want, sizeof want, "header: unknown flags 0x%04x", unsigned(flags & ~3u));
     expect_trace_error(path, -1, want, "flags " + std::to_string(flags));
   }
 }
@@ -1719,6 +1734,204 @@ TEST(ChecksumFormat, KeptRegressionInputs) {
   const std::string msg = read_until_error(flipped, handed);
   EXPECT_EQ(msg.rfind(flipped + ": block 0 (records from 0, payload byte 0): checksum mismatch", 0), 0u) << msg;
   EXPECT_EQ(handed, 0u);
+}
+
+// ------------------------------------------------------------------ the header's fragment count
+
+/// Bytes 42..47 of a trace file set to `field` (the count + 1), the header check left as it is.
+std::vector<uint8_t> with_count_field(std::vector<uint8_t> file, uint64_t field) {
+  for (int i = 0; i < 6; ++i) file[size_t(42 + i)] = uint8_t(field >> (8 * i));
+  return file;
+}
+
+uint64_t count_field(const std::vector<uint8_t>& file) {
+  uint64_t v = 0;
+  for (int i = 0; i < 6; ++i) v |= uint64_t(file[size_t(42 + i)]) << (8 * i);
+  return v;
+}
+
+/// The message of the TraceError the reader's constructor throws, or "" (and
+/// a failure) when the trace opens.
+std::string open_error(const std::string& path) {
+  try {
+    TraceReader r(path);
+    ADD_FAILURE() << path << ": opened, recording " << (r.recorded_fragments() ? *r.recorded_fragments() : 0)
+                  << " fragments";
+  } catch (const TraceError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TraceHeaderCount, ACountThePayloadCannotHoldIsRefusedAtOpen) {
+  // 2^48 - 2 fragments (the field's largest value, 2^48 - 1), and the count
+  // with bit 47 (the top bit of byte 47) flipped: in traces without a header
+  // check (older traces, --no-checksum) only the file's size bounds them.
+  // They are refused when the reader opens the trace, before anything is
+  // sized from them, in one line naming the file and the field.
+  TempDir tmp;
+  for (Compression z : {Compression::kNone, Compression::kZstd})
+    for (bool checksummed : {false, true}) {
+      TraceHeader h = make_header(16, DepthMode::kPlane, ColorFormat::kRgbF32, z);
+      h.checksummed = checksummed;
+      const std::string good = tmp.path("good.trace");
+      {
+        TraceWriter w(good, h);
+        for (const auto& f : make_fragments(h, 500, 5)) w.write(f);
+        w.finish();
+      }
+      std::vector<uint8_t> file = read_file(good);
+      if (checksummed) {  // the same trace as a writer before the header check wrote it
+        std::vector<uint8_t> old = encode_header_with(h, 500, false);
+        const size_t checked = old.size() + kHeaderCheckBytes;
+        old.insert(old.end(), file.begin() + long(checked), file.end());
+        file = old;
+      }
+      for (uint64_t field : {(uint64_t{1} << 48) - 1, count_field(file) ^ (uint64_t{1} << 47)}) {
+        SCOPED_TRACE(std::string(to_string(z)) + (checksummed ? ", checksummed" : "") + ", field " +
+                     std::to_string(field));
+        const std::string path = tmp.path("lie.trace");
+        write_file(path, with_count_field(file, field));
+        const std::string msg = open_error(path);
+        expect_one_line_from(msg, path);
+        EXPECT_NE(msg.find(": header: fragment count (bytes 42..47) " + std::to_string(field - 1) + " is more than"),
+                  std::string::npos)
+            << msg;
+      }
+    }
+}
+
+TEST(TraceHeaderCount, TheBoundIsThePayloadsRoomForItsSmallestRecords) {
+  // An uncompressed payload of n plane records (43 bytes at 16 spp) and the
+  // end record holds exactly n: a count of n opens (and is held to the
+  // records), n + 1 is refused at open. A zstd frame recording its content
+  // size (ZSTD_compress does) bounds the count the same way; one that does not
+  // (TraceWriter streams) by 32768 decompressed bytes per compressed byte.
+  TempDir tmp;
+  const TraceHeader h = make_header(16, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+  ASSERT_EQ(fragment_record_bytes(h, 1), 43u);
+  std::vector<uint8_t> payload;
+  const auto frags = make_fragments(h, 200, 9);
+  for (const auto& f : frags) encode_fragment(payload, h, f);
+  encode_end(payload, frags.size());
+  EXPECT_EQ(max_fragments_in_payload(h, payload.size()), 200u);
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    TraceHeader hz = h;
+    hz.compression = z;
+    const std::string path = tmp.path("bound.trace");
+    write_file(path, assemble(hz, payload, 200));
+    EXPECT_EQ(TraceReader(path).recorded_fragments(), std::optional<uint64_t>(200)) << to_string(z);
+    write_file(path, assemble(hz, payload, 201));
+    const std::string msg = open_error(path);
+    EXPECT_NE(msg.find("fragment count (bytes 42..47) 201 is more than"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("at most 200 records of 43 bytes or more"), std::string::npos) << msg;
+    if (z == Compression::kZstd) {
+      EXPECT_NE(msg.find("the content size of its zstd frame"), std::string::npos) << msg;
+    }
+  }
+  // Streamed zstd, no content size: C compressed bytes bound the payload to 32768 C.
+  TraceHeader hs = h;
+  hs.compression = Compression::kZstd;
+  const std::string streamed = tmp.path("streamed.trace");
+  {
+    TraceWriter w(streamed, hs);
+    for (const auto& f : make_fragments(hs, 4000, 10)) w.write(f);  // 172,009 bytes: more than one 128 KiB piece
+    w.finish();
+  }
+  const std::vector<uint8_t> file = read_file(streamed);
+  const size_t header_bytes = 48 + 2 * 16 + h.scene_name.size();
+  ASSERT_EQ(ZSTD_getFrameContentSize(file.data() + header_bytes, file.size() - header_bytes), ZSTD_CONTENTSIZE_UNKNOWN)
+      << "a streamed frame records no content size";
+  const uint64_t most = max_fragments_in_payload(hs, (file.size() - header_bytes) * kZstdMaxRatio);
+  const std::string path = tmp.path("streamed-lie.trace");
+  write_file(path, with_count_field(file, most + 1));
+  EXPECT_EQ(TraceReader(path).recorded_fragments(), std::optional<uint64_t>(most)) << "the largest count the bound allows";
+  EXPECT_NE(read_all_error(path).find("the header records " + std::to_string(most)), std::string::npos)
+      << "and the records hold it to the truth";
+  write_file(path, with_count_field(file, most + 2));
+  const std::string msg = open_error(path);
+  EXPECT_NE(msg.find("the compressed payload's " + std::to_string(file.size() - header_bytes) + " bytes"),
+            std::string::npos)
+      << msg;
+}
+
+TEST(TraceHeaderCheck, EveryBitOfTheCountIsCovered) {
+  // A checksummed trace carries the header check (flags bit 1): the XXH3-64
+  // of the header's bytes, right after the scene name. Each of the 48 bits of
+  // the count flipped, and any other header byte changed, fails it at open.
+  TempDir tmp;
+  for (Compression z : {Compression::kNone, Compression::kZstd}) {
+    const TraceHeader h = make_ck_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, z);
+    const std::string good = tmp.path("checked.trace");
+    {
+      TraceWriter w(good, h);
+      for (const auto& f : make_fragments(h, 50, 2)) w.write(f);
+      w.finish();
+    }
+    const std::vector<uint8_t> file = read_file(good);
+    const std::vector<uint8_t> want = encode_header(h, 50);
+    ASSERT_EQ(want.size(), 48 + 2 * 4 + h.scene_name.size() + 8);
+    EXPECT_TRUE(std::equal(want.begin(), want.end(), file.begin())) << "the header and its check, as specified";
+    EXPECT_TRUE(TraceReader(good).header_checked());
+    const std::string path = tmp.path("flipped.trace");
+    for (int bit = 0; bit < 48; ++bit) {
+      std::vector<uint8_t> f = file;
+      f[size_t(42 + bit / 8)] ^= uint8_t(1u << (bit % 8));
+      write_file(path, f);
+      const std::string msg = open_error(path);
+      expect_one_line_from(msg, path);
+      EXPECT_NE(msg.find(": header: header check mismatch"), std::string::npos) << "bit " << bit << ": " << msg;
+    }
+    for (size_t at : {size_t(24), size_t(48), want.size() - 9, want.size() - 1}) {  // clear colour, a position, the name, the check
+      std::vector<uint8_t> f = file;
+      f[at] ^= 0x01;
+      write_file(path, f);
+      EXPECT_NE(open_error(path).find("header check mismatch"), std::string::npos) << "byte " << at;
+    }
+  }
+}
+
+TEST(TraceHeaderCheck, TracesWithoutTheCheckStillRead) {
+  // A checksummed trace of a writer before the header check (flags 1) and an
+  // unchecksummed one (flags 0, what --no-checksum writes) both read, count
+  // and all; the kept regression trace of flags 1 too.
+  TempDir tmp;
+  for (bool checksummed : {false, true}) {
+    TraceHeader h = make_header(4, DepthMode::kPlane, ColorFormat::kRgbF32, Compression::kNone);
+    h.checksummed = checksummed;
+    const auto frags = make_fragments(h, 40, 8);
+    std::vector<uint8_t> payload;
+    if (checksummed) {
+      payload = build_checksummed(h, frags).payload;
+    } else {
+      for (const auto& f : frags) encode_fragment(payload, h, f);
+      encode_end(payload, frags.size());
+    }
+    std::vector<uint8_t> file = encode_header_with(h, frags.size(), false);
+    EXPECT_EQ(file[10], checksummed ? 1 : 0);
+    file.insert(file.end(), payload.begin(), payload.end());
+    const std::string path = tmp.path("old.trace");
+    write_file(path, file);
+    TraceReader r(path);
+    EXPECT_FALSE(r.header_checked());
+    EXPECT_EQ(r.recorded_fragments(), std::optional<uint64_t>(40));
+    Fragment f;
+    uint64_t n = 0;
+    while (r.next(f)) ++n;
+    EXPECT_EQ(n, 40u);
+    if (!checksummed) {  // the writer's --no-checksum layout is that one
+      const std::string w = tmp.path("w.trace");
+      {
+        TraceWriter tw(w, h);
+        for (const auto& x : frags) tw.write(x);
+        tw.finish();
+      }
+      EXPECT_EQ(read_file(w), file);
+    }
+  }
+  const fs::path kept = fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace" / "eight-layers-8x8-none-checksummed.rtrace";
+  EXPECT_EQ(read_file(kept.string())[10], 1) << "the kept trace predates the header check";
+  EXPECT_FALSE(TraceReader(kept.string()).header_checked());
 }
 
 }  // namespace

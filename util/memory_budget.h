@@ -27,6 +27,7 @@ class MemoryBudget {
   /// Takes bytes for `what` ("the A-buffer reference"); throws UserError if
   /// that would exceed the limit (nothing is taken then).
   void charge(uint64_t bytes, const char* what);
+  void charge(uint64_t bytes, const std::string& what) { charge(bytes, what.c_str()); }
   void release(uint64_t bytes) { used_.fetch_sub(bytes, std::memory_order_relaxed); }
   /// Refuses a run whose estimated need (bytes, for `what`) is over the limit.
   void check_estimate(uint64_t bytes, const std::string& what) const;
@@ -75,6 +76,7 @@ class BudgetShare {
     memory_budget().charge(bytes, what);
     bytes_ += bytes;
   }
+  void add(uint64_t bytes, const std::string& what) { add(bytes, what.c_str()); }
   void reset() {
     if (bytes_) memory_budget().release(bytes_);
     bytes_ = 0;

@@ -689,7 +689,7 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
       ->type_name("N");
   run->add_option("--stats-csv", ro->stats_csv, "cycle: the CSV file of --stats-interval")->type_name("FILE");
   run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
-      ->check(in_range(1u, 1000u));
+      ->check(in_range(1u, kMaxRepeat));
   run->add_flag("--vs-reference", ro->vs_reference,
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--per-draw", ro->per_draw,

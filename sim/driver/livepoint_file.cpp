@@ -5,15 +5,19 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
 #include <memory>
 #include <string_view>
 
+#include "bits.h"
 #include "errors.h"
+#include "half.h"
 #include "memory_budget.h"
 #include "output_file.h"
+#include "utf8.h"
 
 namespace ropsim {
 
@@ -25,6 +29,15 @@ static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the library format is 
 constexpr char kMagic[8] = {'R', 'O', 'P', 'S', 'I', 'M', 'L', 'P'};
 constexpr size_t kFileHeaderBytes = 8 + 4 + 4 + 8 + 8;  // magic, version, reserved, payload bytes, XXH3-64
 constexpr uint64_t kMaxCount = uint64_t{1} << 40;       // any count read beyond this is corrupt
+/// The most fragments one drawing of an input holds: a trace's header
+/// count field is 48 bits (the count + 1).
+constexpr uint64_t kMaxInputFragments = (uint64_t{1} << 48) - 2;
+/// A byte counter counts at most this many bytes per fragment: 16 per sample
+/// (a blend target's RGBA32F) and a slab pixel's 16 layers (16 (4 + 6 + 8) + 1).
+constexpr uint64_t kMaxCounterBytesPerSample = 16, kMaxCounterBytesPerFragment = 289;
+
+/// A mask with no bit at or above `bits`.
+bool within(uint64_t mask, int bits) { return bits >= 64 || (mask >> bits) == 0; }
 
 // ------------------------------------------------------------------ encoding
 
@@ -170,6 +183,7 @@ TraceHeader get_header(Get& g) {
   h.checksummed = g.flag();
   const std::string why = validate_header(h);
   if (!why.empty()) g.fail("the trace header: " + why);
+  if (!is_valid_utf8(h.scene_name)) g.fail("the trace header: scene name is not valid UTF-8");
   return h;
 }
 
@@ -238,6 +252,14 @@ MethodConfig get_method(Get& g) {
   m.formats.transmittance = TargetFormat(tf);
   m.formats.accum = TargetFormat(af);
   m.enderton_selection = EndertonSelection(es);
+  // k and b as --slab-layers and --slab-bits take them (for every method, as the CLI checks them).
+  if (m.slab_layers < 1 || m.slab_layers > kMaxSlabLayers)
+    g.fail("SLAB layers k " + std::to_string(m.slab_layers) + " is not in [1, " + std::to_string(kMaxSlabLayers) +
+           "]");
+  if (m.slab_bits < 1 || m.slab_bits > 64) g.fail("SLAB bits b " + std::to_string(m.slab_bits) + " is not in [1, 64]");
+  // What record_livepoints records: one pass, no blend targets, not the reference.
+  if (m.method == Method::kReference || passes_of(m.method).count != 1 || has_blend_pass(m.method))
+    g.fail(std::string("method ") + to_string(m.method) + " has no live-points (several passes or blend targets)");
   return m;
 }
 
@@ -266,12 +288,24 @@ void put_pre(Put& p, const PrePixels& pre, int spp) {
   }
 }
 
-void get_pre(Get& g, PrePixels& pre, const TraceHeader& h) {
+/// Checks a depth the store can hold: the clear depth or a canonical one, in [0, 1].
+void check_depth(Get& g, float z, const char* what) {
+  if (!(z >= 0.0f && z <= 1.0f)) g.fail(std::string(what) + " is not in [0, 1]");
+}
+
+void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m, uint64_t fragments,
+             BudgetShare& mem, const std::string& what) {
   const size_t spp = size_t(h.spp);
   pre.tracker = g.flag();
   pre.slab_bits = int(g.u32());
-  if (pre.slab_bits > 64) g.fail("slab bits over 64");
+  if (pre.tracker != traits(m.method).tracker)  // as FunctionalRop sets its store up
+    g.fail(std::string("the tracker flag is not method ") + to_string(m.method) + "'s");
+  if (pre.slab_bits != (m.method == Method::kSlab ? m.slab_bits : 0))
+    g.fail("SLAB bits " + std::to_string(pre.slab_bits) + " are not the method's");
   const uint64_t n = g.count(4 + 10 * spp);
+  if (n > fragments) g.fail("more pre-state pixels than the live-point's fragments touch");
+  mem.add(n * (4 + 10 * spp + (pre.tracker ? sizeof(TrackerState) : 0) + (pre.slab_bits ? sizeof(SlabPixel) : 0)),
+          what);
   pre.x.resize(size_t(n));
   pre.y.resize(size_t(n));
   pre.depth.resize(size_t(n) * spp);
@@ -287,19 +321,25 @@ void get_pre(Get& g, PrePixels& pre, const TraceHeader& h) {
       g.fail("a pre-state pixel off the screen or out of order");
     prev = key;
     g.array(&pre.depth[i * spp], spp);
+    for (size_t j = 0; j < spp; ++j) check_depth(g, pre.depth[i * spp + j], "a pre-state sample's depth");
     g.array(&pre.rgb[3 * i * spp], 3 * spp);
     if (pre.tracker) {
       pre.trackers[i].covered = g.u64();
       pre.trackers[i].surface_id = g.u32();
+      if (!within(pre.trackers[i].covered, h.spp)) g.fail("a pre-state tracker covers samples past spp");
     }
     if (pre.slab_bits > 0) {
       SlabPixel& sp = pre.slabs[i];
       sp.count = g.u8();
-      if (sp.count > kMaxSlabLayers) g.fail("a slab pixel with " + std::to_string(sp.count) + " layers");
+      if (sp.count > m.slab_layers)
+        g.fail("a slab pixel with " + std::to_string(sp.count) + " layers, more than k = " +
+               std::to_string(m.slab_layers));
       for (int l = 0; l < sp.count; ++l) {
         sp.depth[l] = g.f32();
         sp.mask[l] = g.u64();
         for (int c = 0; c < 3; ++c) sp.rgb[l][c] = g.u16();
+        check_depth(g, sp.depth[l], "a slab layer's depth");
+        if (!within(sp.mask[l], pre.slab_bits)) g.fail("a slab layer's mask has bits past b");
       }
     }
   }
@@ -348,19 +388,84 @@ Image get_image(Get& g, const TraceHeader& h) {
   if (w != h.width || ht != h.height) g.fail("the image's size is not the screen's");
   std::array<float, 3> bg;
   for (float& c : bg) c = g.f32();
+  // The background is the clear colour as the store holds it (binary16).
+  for (int c = 0; c < 3; ++c) {
+    const float want = half_to_float(float_to_half(h.clear_color[size_t(c)]));
+    if (std::memcmp(&bg[size_t(c)], &want, sizeof want) != 0) g.fail("the background is not the clear colour");
+  }
+  // A pixel is a resolve of binary16 samples: in [0, 65504], or +inf where
+  // a sample can overflow binary16 (an rgb-f32 colour, a clear colour of
+  // 65520 or more). Never NaN, never negative.
+  const bool may_overflow = h.color_format == ColorFormat::kRgbF32 || std::isinf(bg[0]) || std::isinf(bg[1]) ||
+                            std::isinf(bg[2]);
   Image img(w, ht, bg);
   const uint64_t rows = g.count(4 + uint64_t(w) * 12);
+  if (rows > ht) g.fail(std::to_string(rows) + " written rows, more than the image's " + std::to_string(ht));
+  int64_t prev = -1;
   for (uint64_t r = 0; r < rows; ++r) {
     const uint32_t y = g.u32();
     if (y >= ht) g.fail("an image row off the screen");
+    if (int64_t(y) <= prev) g.fail("image row " + std::to_string(y) + " out of order or given twice");
+    prev = y;
     for (uint32_t x = 0; x < w; ++x) {
       float c[3];
-      for (float& v : c) v = g.f32();
+      for (float& v : c) {
+        v = g.f32();
+        if (!(v >= 0.0f && (v <= 65504.0f || (may_overflow && std::isinf(v)))))
+          g.fail("pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") holds " + std::to_string(v) +
+                 ", not a resolved binary16 value");
+      }
       // Only pixels other than the background take a tile, as in the resolve.
       if (std::memcmp(c, bg.data(), sizeof c) != 0) std::memcpy(img.at(x, y), c, sizeof c);
     }
   }
   return img;
+}
+
+/// The sampling parameters as record_livepoints leaves them, over N fragments.
+void check_sampling(Get& g, const LivePoints& lib) {
+  const SamplingParams& s = lib.params;
+  const uint64_t n = lib.fragments, max_n = kMaxInputFragments * lib.input.spec.repeat;
+  auto bad = [&](const std::string& why) { g.fail(why); };
+  if (n > max_n)
+    bad("N " + std::to_string(n) + " fragments, more than an input can hold (" + std::to_string(max_n) + ": 2^48 - 2 " +
+        "per drawing)");
+  if (lib.whole) {
+    if (s.units != 1 || s.unit_fragments != n || s.warmup_fragments != 0 || s.cooldown_fragments != 0)
+      bad("a whole-input library must have K = 1, U = N, W = 0 and C = 0 (K " + std::to_string(s.units) + ", U " +
+          std::to_string(s.unit_fragments) + ", W " + std::to_string(s.warmup_fragments) + ", C " +
+          std::to_string(s.cooldown_fragments) + ", N " + std::to_string(n) + ")");
+    return;
+  }
+  if (s.units < 1 || s.units > n) bad("K " + std::to_string(s.units) + " units is not in [1, N = " + std::to_string(n) + "]");
+  const uint64_t period = n / s.units;
+  if (s.unit_fragments < 1 || s.unit_fragments > period)
+    bad("U " + std::to_string(s.unit_fragments) + " fragments is not in [1, N / K = " + std::to_string(period) + "]");
+  if (s.cooldown_fragments > period - s.unit_fragments)
+    bad("C " + std::to_string(s.cooldown_fragments) + " fragments is more than N / K - U = " +
+        std::to_string(period - s.unit_fragments));
+}
+
+/// Every counter within what N fragments of the header's spp can produce.
+void check_counters(Get& g, const LivePoints& lib) {
+  const uint64_t n = lib.fragments, spp = uint64_t(lib.header.spp);
+  if (lib.counters.fragments != n)
+    g.fail("fragments " + std::to_string(lib.counters.fragments) + " is not N = " + std::to_string(n));
+  // SLAB counts the mask bits of its layers (b of them) as samples.
+  const uint64_t per_sample = std::max<uint64_t>(spp, lib.method.method == Method::kSlab ? uint64_t(lib.method.slab_bits) : 0);
+  const uint64_t tiles = uint64_t(ceil_div(lib.header.width, 8u)) * ceil_div(lib.header.height, 8u);
+  const std::vector<StatDesc>& descs = counter_descs();
+  size_t i = 0;
+  lib.counters.for_each([&](const char* name, uint64_t v) {
+    const std::string unit = descs[i++].unit;
+    unsigned __int128 most = n;  // fragments, events
+    if (unit == "samples") most = (unsigned __int128)n * per_sample;
+    if (unit == "bytes") most = (unsigned __int128)n * (kMaxCounterBytesPerSample * spp + kMaxCounterBytesPerFragment);
+    if (unit == "tiles") most = tiles;
+    if (v > most)
+      g.fail(std::string(name) + " " + std::to_string(v) + " " + unit + " is more than " + std::to_string(n) +
+             " fragments at " + std::to_string(spp) + " spp can produce");
+  });
 }
 
 // ------------------------------------------------------------------ the file
@@ -439,9 +544,19 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
   lib.input.description = g.str();
   lib.input.from_trace = g.flag();
   lib.input.digest = g.u64();
+  if (in.repeat < 1 || in.repeat > kMaxRepeat)
+    g.fail("repeat " + std::to_string(in.repeat) + " is not in [1, " + std::to_string(kMaxRepeat) + "]");
+  if (lib.input.from_trace != in.from_trace()) g.fail("the from-trace flag is not the input's");
+  if (!in.from_trace() && (!is_valid_spp(in.scene.spp) || in.scene.width > kMaxScreenSide ||
+                           in.scene.height > kMaxScreenSide || in.scene.name.empty()))
+    g.fail("the scene's name, spp or screen is out of range");
+  if (lib.input.description != in.describe()) g.fail("the description is not the input's");
   g.at("the trace header");
   lib.header = get_header(g);
   const TraceHeader& h = lib.header;
+  if (!in.from_trace() && (h.spp != in.scene.spp || (in.scene.width && in.scene.width != h.width) ||
+                           (in.scene.height && in.scene.height != h.height)))
+    g.fail("the screen or spp is not the scene's");
   g.at("the method");
   lib.method = get_method(g);
   g.at("the sampling parameters");
@@ -452,6 +567,7 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
   if (!(s.warming_reach >= 0 && s.warming_reach <= 1e6)) g.fail("the warming reach is out of range");
   lib.whole = g.flag();
   lib.fragments = g.u64();
+  check_sampling(g, lib);
   g.at("the counters");
   uint64_t n_counters = 0;
   lib.counters.for_each([&](const char*, uint64_t) { ++n_counters; });
@@ -470,40 +586,58 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
     ROPSIM_COUNTERS(ROPSIM_X)
 #undef ROPSIM_X
   }
+  check_counters(g, lib);
   g.at("the image");
   lib.image = get_image(g, h);
   g.at("the live-points");
   const uint64_t k = g.count(8);
   if (k != lib.params.units) g.fail("the unit count is not the sampling parameters'");
+  // Each point's vectors are charged before they are allocated (the payload's
+  // bytes bound them, but a fragment takes more memory than its bytes).
+  const std::string what = path + ": the live-point library's points";
+  lib.mem.add(k * sizeof(LivePoint), what);
   lib.points.resize(size_t(k));
   uint64_t prev_end = 0;
-  for (LivePoint& lp : lib.points) {
+  for (size_t kk = 0; kk < lib.points.size(); ++kk) {
+    LivePoint& lp = lib.points[kk];
     lp.first = g.u64();
     lp.warmup = g.u64();
     lp.window = g.u64();
     const uint64_t n = g.count(36);
-    if (lp.first < prev_end || lp.warmup + lp.window > n || n > lib.fragments || lp.first > lib.fragments - n)
-      g.fail("a live-point's fragments are out of order or off the input");
-    prev_end = lp.first + n;
+    // Where the recording placed unit kk (the sampling parameters are in range).
+    const UnitSpan span = unit_span(lib.fragments, lib.params, kk, prev_end);
+    if (lp.first != span.first || lp.warmup != span.start - span.first || lp.window != lib.params.unit_fragments ||
+        n != span.end - span.first)
+      g.fail("live-point " + std::to_string(kk) + " (fragments " + std::to_string(lp.first) + " + " +
+             std::to_string(n) + ", warm-up " + std::to_string(lp.warmup) + ", window " + std::to_string(lp.window) +
+             ") is not where the sampling parameters place it (fragments " + std::to_string(span.first) + " + " +
+             std::to_string(span.end - span.first) + ", warm-up " + std::to_string(span.start - span.first) + ")");
+    prev_end = span.end;
+    lib.mem.add(n * sizeof(Fragment), what);
     lp.fragments.reserve(size_t(n));
     for (uint64_t i = 0; i < n; ++i) lp.fragments.push_back(get_fragment(g, h));
-    get_pre(g, lp.pre, h);
+    get_pre(g, lp.pre, h, lib.method, n, lib.mem, what);
     const uint64_t res = g.count(13);
+    lib.mem.add(res * sizeof(Resident), what);
     lp.resident.resize(size_t(res));
     for (Resident& r : lp.resident) {
       r.written = g.u64();
       r.x = g.u16();
       r.y = g.u16();
       const uint8_t fl = g.u8();
-      if (fl > 3 || r.x >= h.width || r.y >= h.height) g.fail("a resident pixel");
+      if (fl > 3 || r.x >= h.width || r.y >= h.height || !within(r.written, h.spp)) g.fail("a resident pixel");
       r.tracker = fl & 1;
       r.layers = fl & 2;
     }
     const uint64_t t = g.count(21);
+    if (t > lib.params.warming_fragments || t > lp.first)
+      g.fail(std::to_string(t) + " warming touches, more than T or the fragments before the live-point");
+    lib.mem.add(t * sizeof(Touch), what);
     lp.warming.resize(size_t(t));
     for (Touch& x : lp.warming) {
       x = get_touch(g);
       if (x.x >= h.width || x.y >= h.height) g.fail("a touch off the screen");
+      if (!within(x.covered, h.spp) || !within(x.written, h.spp)) g.fail("a touch's samples past spp");
     }
   }
   if (!g.done()) g.fail("bytes after the last live-point");
@@ -659,6 +793,9 @@ LivePoints read_livepoints(const std::string& path) {
   if (version != kLivePointFileVersion)
     throw UserError(path + ": live-point library version " + std::to_string(version) + ", this ropsim reads " +
                     std::to_string(kLivePointFileVersion) + " (rebuild it with `ropsim livepoints`)");
+  if (const uint32_t reserved = uint32_t(get_le(head + 12, 4)))
+    throw UserError(path + ": not a valid live-point library (the reserved header field, bytes 12..15, is " +
+                    std::to_string(reserved) + ", not 0)");
   const uint64_t size = get_le(head + 16, 8), sum = get_le(head + 24, 8);
   if (size > kMaxCount)
     throw UserError(path + ": not a valid live-point library (a payload of " + std::to_string(size) + " bytes)");
@@ -688,7 +825,7 @@ LivePoints read_livepoints(const std::string& path) {
         throw UserError(path + ": not a valid live-point library (the payload is longer than its header says)");
       if (payload.size() + ob.pos > charged) {
         const uint64_t more = std::max<uint64_t>(payload.size() + ob.pos - charged, uint64_t{16} << 20);
-        mem.add(2 * more, "the live-point library");
+        mem.add(2 * more, path + ": the live-point library's payload");
         charged += more;
       }
       payload.insert(payload.end(), obuf.begin(), obuf.begin() + std::ptrdiff_t(ob.pos));
@@ -700,9 +837,7 @@ LivePoints read_livepoints(const std::string& path) {
                     std::to_string(size) + " payload bytes)");
   if (XXH3_64bits(payload.data(), payload.size()) != sum)
     throw UserError(path + ": not a valid live-point library (the payload's checksum does not match)");
-  LivePoints lib = decode(payload, path);
-  lib.charge();
-  return lib;
+  return decode(payload, path);  // its points charged as they are decoded
 }
 
 void check_library_input(const LivePoints& lib, const std::string& lib_path, const InputSpec& in) {

@@ -242,20 +242,35 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   const uint64_t period = k_units ? n / k_units : 0;  // >= u
   lib.params.unit_fragments = u;
   lib.params.units = k_units;
-  // Window k starts at n - u - (K - 1 - k) period: the last one ends the input.
-  // Each but the last has C fragments of cool-down after it, within the
+  // Each unit but the last has C fragments of cool-down after it, within the
   // period (the recording reads a live-point's fragments once).
-  const uint64_t cool = std::min<uint64_t>(p.cooldown_fragments, period - u);
+  lib.params.cooldown_fragments = std::min<uint64_t>(p.cooldown_fragments, period - u);
+  if (lib.whole) lib.params.warmup_fragments = 0;
+  // The plan below grows with N and K, which a trace's header gives: charged
+  // first, so a header that claims too much is refused by --memory-limit
+  // naming the input, not met by the allocator.
+  constexpr size_t kBatch = 4096;
+  struct Segment {
+    uint64_t first, count;
+    size_t point;   // k of the live-point, or kPlain
+    bool observed;  // within a live-point's warming (or one)
+  };
+  const size_t ring_size = size_t(std::min<uint64_t>(p.warming_fragments, n));
+  // Segments: the K points, and the batches of the K + 1 gaps between them,
+  // each gap cut at most twice more than its length in batches.
+  const uint64_t max_segments = n / kBatch + 3 * (k_units + 1);
+  BudgetShare plan_mem;
+  plan_mem.add(3 * k_units * sizeof(uint64_t) + max_segments * sizeof(Segment) + ring_size * sizeof(Touch),
+               "the live-points' placement and warming ring, for " + in.describe());
   std::vector<uint64_t> starts(k_units), firsts(k_units), ends(k_units);
   uint64_t prev_end = 0;
   for (uint64_t k = 0; k < k_units; ++k) {
-    starts[k] = n - u - (k_units - 1 - k) * period;
-    firsts[k] = starts[k] - std::min<uint64_t>(lib.whole ? 0 : p.warmup_fragments, starts[k] - prev_end);
-    ends[k] = starts[k] + u + (k + 1 < k_units ? cool : 0);
+    const UnitSpan span = unit_span(n, lib.params, k, prev_end);
+    starts[k] = span.start;
+    firsts[k] = span.first;
+    ends[k] = span.end;
     prev_end = ends[k];
   }
-  lib.params.cooldown_fragments = cool;
-  if (lib.whole) lib.params.warmup_fragments = 0;
 
   // The golden model on `threads` threads (golden_model.h: the same state
   // for every thread count), drawn in batches that end where a live-point
@@ -269,7 +284,6 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   // The last T fragments' touches, a ring, written in place by the observer:
   // of a batch of m, fragment i >= m - T goes to slot ring_at + i - skip
   // (distinct slots, so the lanes' threads never write one twice).
-  const size_t ring_size = size_t(std::min<uint64_t>(p.warming_fragments, n));
   std::vector<Touch> ring(ring_size);
   size_t ring_at = 0, ring_fill = 0, skip = 0;
   const bool slab = method.method == Method::kSlab;
@@ -311,14 +325,9 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   // warming (T fragments before it) does, and the live-points' fragments.
   // While the model draws one segment (on its threads), this thread reads the
   // next.
-  constexpr size_t kBatch = 4096;
-  struct Segment {
-    uint64_t first, count;
-    size_t point;   // k of the live-point, or kPlain
-    bool observed;  // within a live-point's warming (or one)
-  };
   constexpr size_t kPlain = ~size_t{0};
   std::vector<Segment> segments;
+  segments.reserve(size_t(max_segments));
   for (uint64_t at = 0, kk = 0; at < n || kk < k_units;) {
     const uint64_t stop = kk < k_units ? firsts[kk] : n;
     const uint64_t warm = kk < k_units ? stop - std::min<uint64_t>(stop, ring_size) : n;
@@ -386,6 +395,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
     cur.swap(next);
   }
   invariant(k == k_units && i == n && !src->next(f), "every live-point is recorded in one pass over the input");
+  invariant(segments.size() <= max_segments, "the plan holds no more segments than it was charged for");
   progress.update(1.0, n);
   progress.finish();
   model.set_observer({});
@@ -475,6 +485,15 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
   }
   r.state = std::make_unique<SampleStore>(std::move(rop->store()));
   return r;
+}
+
+UnitSpan unit_span(uint64_t n, const SamplingParams& p, uint64_t k, uint64_t prev_end) {
+  const uint64_t units = p.units, u = p.unit_fragments, period = units ? n / units : 0;
+  UnitSpan s;
+  s.start = n - u - (units - 1 - k) * period;
+  s.first = s.start - std::min<uint64_t>(p.warmup_fragments, s.start - prev_end);
+  s.end = s.start + u + (k + 1 < units ? p.cooldown_fragments : 0);
+  return s;
 }
 
 double student_t975(uint64_t dof) {

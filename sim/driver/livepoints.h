@@ -149,6 +149,18 @@ struct LivePoints {
   }
 };
 
+/// Where a unit lies in the input: its first fragment (the warm-up's), its
+/// window's first (start), and the end of its fragments (after the cool-down).
+struct UnitSpan {
+  uint64_t first = 0, start = 0, end = 0;
+};
+/// Unit k of K placed over n fragments by p as a library records it (U, K,
+/// C and W final: W 0 for a whole input), the unit before it ending at
+/// prev_end: window k starts at n - U - (K - 1 - k) (n / K), the last one
+/// ending the input. Needs 1 <= K, U <= n / K, C <= n / K - U (or, whole, K
+/// = 1 and U = n).
+UnitSpan unit_span(uint64_t n, const SamplingParams& p, uint64_t k, uint64_t prev_end);
+
 /// One functional pass over the input, recording K live-points, on `threads`
 /// host threads (0: host_threads(), --threads; the library is the same for
 /// every count). Throws UserError for a method with several passes or bad

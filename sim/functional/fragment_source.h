@@ -16,6 +16,9 @@
 namespace ropsim {
 
 /// Where fragments come from: a trace file, or a scene rasterized on the fly.
+/// The most times an input is drawn into one frame (`--repeat`).
+inline constexpr uint32_t kMaxRepeat = 1000;
+
 struct InputSpec {
   std::string trace_path;  ///< non-empty: read this trace
   SceneParams scene;       ///< otherwise: build this scene

@@ -21,7 +21,17 @@ inline constexpr uint8_t kTagChecksum = 0x02;
 inline constexpr uint8_t kTagEnd = 0xFF;
 /// Header flags (u16 at offset 10). Bit 0: the payload is checksummed (section 2.3).
 inline constexpr uint16_t kTraceFlagChecksum = 0x0001;
-inline constexpr uint16_t kTraceKnownFlags = kTraceFlagChecksum;
+/// Bit 1: the header is followed by its check, the XXH3-64 of every header
+/// byte before it (section 1.4), so that the fragment count (bytes 42..47),
+/// which the payload's checksums do not cover, is verified at open.
+inline constexpr uint16_t kTraceFlagHeaderCheck = 0x0002;
+inline constexpr uint16_t kTraceKnownFlags = kTraceFlagChecksum | kTraceFlagHeaderCheck;
+/// The header check: a u64 right after the scene name.
+inline constexpr size_t kHeaderCheckBytes = 8;
+/// A zstd payload decompresses to at most this many bytes per compressed byte
+/// (RFC 8878: a block holds at most 128 KiB, and the densest block, an RLE
+/// block, takes 4 bytes: a 3-byte block header and the byte repeated).
+inline constexpr uint64_t kZstdMaxRatio = 32768;
 /// Checksummed payloads: the writer closes a block before it would exceed this
 /// many record bytes; a reader accepts blocks of 1 .. kMaxChecksumBlockBytes.
 inline constexpr uint32_t kChecksumBlockBytes = 65536;
@@ -53,7 +63,9 @@ struct TraceHeader {
   std::array<SamplePos, 64> positions{};  ///< first spp entries are used
   std::string scene_name;
   /// Header flag bit 0: the fragment records are grouped into blocks, each
-  /// preceded by a checksum record (XXH3-64). The writer's default.
+  /// preceded by a checksum record (XXH3-64). The writer's default; a writer
+  /// that checksums the payload also checks the header (flag bit 1), so that
+  /// unset gives the layout every version 1 reader reads.
   bool checksummed = true;
 };
 
@@ -114,13 +126,18 @@ class TraceReader {
   /// The number of fragments the header records (reserved bytes 42..47:
   /// count + 1), or none when they are 0 (not recorded). The reader holds
   /// the payload to it: more records, or an end record counting otherwise,
-  /// is an error.
+  /// is an error. A count the payload cannot hold (given the file's size)
+  /// is refused at open.
   std::optional<uint64_t> recorded_fragments() const { return recorded_fragments_; }
+  /// The header carries its check (flag bit 1), verified at open.
+  bool header_checked() const { return header_checked_; }
   /// The share of the file's bytes read so far, in [0, 1] (read-ahead
   /// included: for progress, not for positions).
   double file_fraction() const;
 
  private:
+  /// Refuses a recorded count the payload cannot hold (a regular file's size).
+  void check_recorded_count(FILE* f, uint64_t header_bytes);
   [[noreturn]] void fail(const std::string& what) const;
   [[noreturn]] void fail_block(const std::string& what) const;
   void read_exact(void* dst, size_t n, const char* what);
@@ -147,7 +164,13 @@ class TraceReader {
   uint64_t block_offset_ = 0;        ///< payload byte offset of the block's checksum record
   bool at_end_record_ = false;       ///< reading the end record (errors name its position)
   std::optional<uint64_t> recorded_fragments_;
+  bool header_checked_ = false;
 };
+
+/// The most fragment records a payload of payload_bytes can hold, given the
+/// header (its smallest record, the end record, a checksum record when the
+/// payload is checksummed). payload_bytes counts decompressed bytes.
+uint64_t max_fragments_in_payload(const TraceHeader& h, uint64_t payload_bytes);
 
 /// Writes a trace through an OutputFile (util/output_file.h): a unique
 /// temporary file renamed onto PATH on finish() after every write succeeded
@@ -181,6 +204,7 @@ class TraceWriter {
   uint64_t raw_bytes_ = 0;
   uint64_t blocks_ = 0;
   std::vector<uint8_t> block_;  ///< the block being gathered (checksummed traces)
+  std::vector<uint8_t> head_;   ///< the header's bytes, its check excluded (patched by finish())
   bool finished_ = false;
 };
 

@@ -285,7 +285,8 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   if (flags & ~kTraceKnownFlags) {
     char hex[8];
     std::snprintf(hex, sizeof hex, "0x%04x", unsigned(flags & ~kTraceKnownFlags));
-    throw TraceError(path + ": header: unknown flags " + hex + " (this reader knows bit 0, checksummed payload)");
+    throw TraceError(path + ": header: unknown flags " + hex +
+                     " (this reader knows bit 0, checksummed payload, and bit 1, header check)");
   }
   TraceHeader& h = header_;
   h.checksummed = (flags & kTraceFlagChecksum) != 0;
@@ -309,6 +310,30 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   if (name_len && std::fread(h.scene_name.data(), 1, name_len, f) != name_len)
     throw TraceError(path + ": header: truncated in the scene name");
   if (!is_valid_utf8(h.scene_name)) throw TraceError(path + ": header: scene name is not valid UTF-8");
+  uint64_t header_bytes = kFixedHeaderBytes + 2 * size_t(h.spp) + name_len;
+  if (flags & kTraceFlagHeaderCheck) {
+    // The check covers every header byte before it: the fixed part, the
+    // positions and the name, as read.
+    uint8_t c[kHeaderCheckBytes];
+    if (std::fread(c, 1, sizeof c, f) != sizeof c) throw TraceError(path + ": header: truncated in the header check");
+    std::vector<uint8_t> head(fixed, fixed + sizeof fixed);
+    head.insert(head.end(), pos, pos + 2 * size_t(h.spp));
+    head.insert(head.end(), h.scene_name.begin(), h.scene_name.end());
+    const uint64_t stored = get_u64(c), computed = XXH3_64bits(head.data(), head.size());
+    if (stored != computed) {
+      char m[160];
+      std::snprintf(m, sizeof m,
+                    ": header: header check mismatch (stored 0x%016" PRIx64 ", computed 0x%016" PRIx64
+                    "): a header byte, the fragment count (bytes 42..47) included, is damaged",
+                    stored, computed);
+      throw TraceError(path + m);
+    }
+    header_checked_ = true;
+    header_bytes += kHeaderCheckBytes;
+  }
+  struct stat sb;
+  if (::fstat(fileno(f), &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size > 0) file_size_ = uint64_t(sb.st_size);
+  if (recorded_fragments_ && file_size_ > 0) check_recorded_count(f, header_bytes);
   std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
   if (h.compression == Compression::kZstd)
     src_ = std::make_unique<ZstdSource>(f);
@@ -316,8 +341,50 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     src_ = std::make_unique<FileSource>(f);
   guard.release();
   file_ = f;
-  struct stat sb;
-  if (::fstat(fileno(f), &sb) == 0 && sb.st_size > 0) file_size_ = uint64_t(sb.st_size);
+}
+
+void TraceReader::check_recorded_count(FILE* f, uint64_t header_bytes) {
+  const TraceHeader& h = header_;
+  const uint64_t n = *recorded_fragments_;
+  const uint64_t stored = file_size_ > header_bytes ? file_size_ - header_bytes : 0;
+  // What the payload decompresses to at most: itself when stored as is; for
+  // zstd, the content size when the frame header records it (zstd refuses a
+  // frame whose content differs), else kZstdMaxRatio bytes per byte.
+  uint64_t decoded = stored;
+  std::string how = "the payload's " + std::to_string(stored) + " bytes";
+  if (h.compression == Compression::kZstd) {
+    constexpr size_t kFrameHeaderMax = 18;  // ZSTD_FRAMEHEADERSIZE_MAX
+    uint8_t fh[kFrameHeaderMax];
+    const off_t at = ::ftello(f);
+    const size_t got = std::fread(fh, 1, sizeof fh, f);
+    if (at < 0 || ::fseeko(f, at, SEEK_SET) != 0) throw TraceError(path_ + ": cannot seek: " + std::strerror(errno));
+    const unsigned long long content = ZSTD_getFrameContentSize(fh, got);
+    if (content != ZSTD_CONTENTSIZE_UNKNOWN && content != ZSTD_CONTENTSIZE_ERROR) {
+      decoded = content;
+      how = "the payload's " + std::to_string(decoded) + " bytes (the content size of its zstd frame)";
+    } else {
+      decoded = stored > UINT64_MAX / kZstdMaxRatio ? UINT64_MAX : stored * kZstdMaxRatio;
+      how = "the compressed payload's " + std::to_string(stored) + " bytes (at most " + std::to_string(decoded) +
+            " decompressed, " + std::to_string(kZstdMaxRatio) + " per compressed byte)";
+    }
+  }
+  const uint64_t most = max_fragments_in_payload(h, decoded);
+  if (n > most)
+    throw TraceError(path_ + ": header: fragment count (bytes 42..47) " + std::to_string(n) + " is more than " + how +
+                     " can hold (at most " + std::to_string(most) + " records of " +
+                     std::to_string(fragment_record_bytes(h, 1)) +
+                     " bytes or more): the header is damaged or the file truncated");
+}
+
+uint64_t max_fragments_in_payload(const TraceHeader& h, uint64_t payload_bytes) {
+  constexpr uint64_t kEndRecordBytes = 9;
+  if (payload_bytes < kEndRecordBytes) return 0;
+  uint64_t room = payload_bytes - kEndRecordBytes;
+  if (h.checksummed) {  // a fragment record lies in a block, after its checksum record
+    if (room < kChecksumRecordBytes) return 0;
+    room -= kChecksumRecordBytes;
+  }
+  return room / fragment_record_bytes(h, 1);
 }
 
 double TraceReader::file_fraction() const {
@@ -509,7 +576,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   uint8_t fixed[kFixedHeaderBytes] = {};
   std::memcpy(fixed, kTraceMagic, 8);
   put_u16(fixed + 8, kTraceVersion);
-  put_u16(fixed + 10, header_.checksummed ? kTraceFlagChecksum : 0);
+  put_u16(fixed + 10, header_.checksummed ? kTraceFlagChecksum | kTraceFlagHeaderCheck : 0);
   put_u32(fixed + 12, header_.width);
   put_u32(fixed + 16, header_.height);
   fixed[20] = uint8_t(header_.spp);
@@ -519,14 +586,20 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header_.clear_color[i]);
   put_f32(fixed + 36, header_.clear_depth);
   put_u16(fixed + 40, uint16_t(header_.scene_name.size()));
+  head_.assign(fixed, fixed + sizeof fixed);
+  for (int i = 0; i < header_.spp; ++i) {
+    head_.push_back(header_.positions[i].x);
+    head_.push_back(header_.positions[i].y);
+  }
+  head_.insert(head_.end(), header_.scene_name.begin(), header_.scene_name.end());
   // A failure here destroys out_, which removes the temporary file.
   FileSink raw(f, path);
-  raw.write(fixed, sizeof fixed);
-  for (int i = 0; i < header_.spp; ++i) {
-    uint8_t p[2] = {header_.positions[i].x, header_.positions[i].y};
-    raw.write(p, 2);
+  raw.write(head_.data(), head_.size());
+  if (header_.checksummed) {
+    uint8_t c[kHeaderCheckBytes];
+    put_u64(c, XXH3_64bits(head_.data(), head_.size()));
+    raw.write(c, sizeof c);
   }
-  raw.write(header_.scene_name.data(), header_.scene_name.size());
   if (header_.compression == Compression::kZstd)
     sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
   else
@@ -615,9 +688,15 @@ void TraceWriter::finish() {
   // The fragment count in the header's reserved bytes (count + 1; 0 =
   // not recorded), so a reader knows it without reading the payload. An
   // output that cannot seek (a FIFO, a device, stdout) keeps 0.
-  uint8_t c[6];
-  put_u48(c, count_ + 1);
-  if (count_ + 1 < (uint64_t{1} << 48)) out_->patch(kHeaderCountOffset, c, sizeof c);
+  // The header check covers the count: it is patched with it.
+  if (count_ + 1 < (uint64_t{1} << 48)) {
+    put_u48(head_.data() + kHeaderCountOffset, count_ + 1);
+    if (out_->patch(kHeaderCountOffset, head_.data() + kHeaderCountOffset, 6) && header_.checksummed) {
+      uint8_t c[kHeaderCheckBytes];
+      put_u64(c, XXH3_64bits(head_.data(), head_.size()));
+      out_->patch(head_.size(), c, sizeof c);
+    }
+  }
   out_->commit();  // flush, fsync, close, rename: UserError on any failure
   finished_ = true;
 }
