@@ -1115,9 +1115,9 @@ TEST(CliCycle, AFragmentCountThePayloadCannotHoldIsRefused) {
       std::string forged = bytes;
       for (int i = 0; i < 6; ++i) forged[size_t(42 + i)] = char(uint8_t(lie >> (8 * i)));
       std::ofstream(box.path("lie.rtr"), std::ios::binary) << forged;
-      for (const std::string args :
-           {"--memory-limit 512M livepoints lie.rtr -o L.rlp", "--memory-limit 512M run --fidelity sampled --trace "
-                                                                 "lie.rtr --quiet --out o.exr"}) {
+      for (const std::string args : {"--memory-limit 512M livepoints lie.rtr -o L.rlp",
+                                     "--memory-limit 512M run --fidelity sampled --trace "
+                                     "lie.rtr --quiet --out o.exr"}) {
         const CliResult r = box.run(args);
         EXPECT_EQ(r.code, 1) << args << "\n" << r.describe();
         expect_cli_error(box, args, {"lie.rtr: header: ", "bytes 42..47"});

@@ -2069,13 +2069,13 @@ PayloadFields walk_payload(const std::string& p) {
     return v;
   };
   auto str = [&] { at += 8 + size_t(u64(at)); };
-  str();                   // trace path
-  str();                   // scene name
-  at += 4 + 4 + 4 + 8;     // spp, width, height, seed
+  str();                // trace path
+  str();                // scene name
+  at += 4 + 4 + 4 + 8;  // spp, width, height, seed
   f.repeat = at;
   at += 4;
-  str();                   // description
-  at += 1 + 8;             // from-trace, digest
+  str();        // description
+  at += 1 + 8;  // from-trace, digest
   uint32_t width = 0;
   std::memcpy(&width, p.data() + at, 4);
   at += 4 + 4 + 4 + 3 + 12 + 4 + 128;  // the trace header: w, h, spp, modes, clear colour and depth, positions
@@ -2137,7 +2137,8 @@ TEST(LivePointLibrary, RefusesEveryOutOfRangeField) {
   auto write_payload = [&](const std::string& payload) {
     const std::vector<uint8_t> file =
         wrap_livepoint_payload(reinterpret_cast<const uint8_t*>(payload.data()), payload.size());
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(file.data()), std::streamsize(file.size()));
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(file.data()), std::streamsize(file.size()));
   };
   for (const std::string* valid : {&lk, &sl}) {  // the walker and the wrapping are right
     write_payload(*valid);
@@ -2162,12 +2163,10 @@ TEST(LivePointLibrary, RefusesEveryOutOfRangeField) {
     write_payload(f);
     refused(what, needle);
   };
-  forge(lk, "N = 2^60", "N 1152921504606846976", [](std::string& b, const PayloadFields& at) {
-    poke(b, at.fragments, uint64_t{1} << 60);
-  });
-  forge(lk, "U = 0", "U 0 fragments", [](std::string& b, const PayloadFields& at) {
-    poke(b, at.unit_fragments, uint64_t{0});
-  });
+  forge(lk, "N = 2^60", "N 1152921504606846976",
+        [](std::string& b, const PayloadFields& at) { poke(b, at.fragments, uint64_t{1} << 60); });
+  forge(lk, "U = 0", "U 0 fragments",
+        [](std::string& b, const PayloadFields& at) { poke(b, at.unit_fragments, uint64_t{0}); });
   for (uint32_t r : {0u, 5000u})
     forge(lk, "repeat " + std::to_string(r), "repeat " + std::to_string(r) + " is not in [1, 1000]",
           [r](std::string& b, const PayloadFields& at) { poke(b, at.repeat, r); });
@@ -2181,17 +2180,14 @@ TEST(LivePointLibrary, RefusesEveryOutOfRangeField) {
     poke(b, at.image_rows, rows + 1);
     b.insert(at.first_row + at.row_bytes, b.substr(at.first_row, at.row_bytes));
   });
-  forge(sl, "SLAB k = 0", "SLAB layers k 0", [](std::string& b, const PayloadFields& at) {
-    poke(b, at.slab_k, uint32_t{0});
-  });
-  forge(sl, "SLAB b = 100", "SLAB bits b 100", [](std::string& b, const PayloadFields& at) {
-    poke(b, at.slab_b, uint32_t{100});
-  });
+  forge(sl, "SLAB k = 0", "SLAB layers k 0",
+        [](std::string& b, const PayloadFields& at) { poke(b, at.slab_k, uint32_t{0}); });
+  forge(sl, "SLAB b = 100", "SLAB bits b 100",
+        [](std::string& b, const PayloadFields& at) { poke(b, at.slab_b, uint32_t{100}); });
   for (size_t i = 0; i < walk_payload(lk).counters.size(); ++i) {
     const std::string name = walk_payload(lk).counters[i].first;
-    forge(lk, name + " = 2^64 - 1", name + " 18446744073709551615", [i](std::string& b, const PayloadFields& at) {
-      poke(b, at.counters[i].second, ~uint64_t{0});
-    });
+    forge(lk, name + " = 2^64 - 1", name + " 18446744073709551615",
+          [i](std::string& b, const PayloadFields& at) { poke(b, at.counters[i].second, ~uint64_t{0}); });
   }
   // The file header's reserved field (bytes 12..15) is outside the payload.
   write_payload(lk);

@@ -4,7 +4,6 @@
 // the sanitizer build: an input that crashes, aborts or throws anything but an
 // input error again fails here.
 #include <gtest/gtest.h>
-
 #include <unistd.h>
 
 #include <algorithm>
@@ -64,7 +63,8 @@ TEST(FuzzMutators, TraceCountMutationsKeepTheHeaderCheck) {
   // meets the reader's bound on the payload: 2^48 - 1 (seed 1) is refused by
   // the bound, a count of 0 (seed 0) reads as "not recorded".
   using namespace ropsim;
-  const std::string path = (fs::temp_directory_path() / ("ropsim-mutator-" + std::to_string(::getpid()) + ".trace")).string();
+  const std::string path =
+      (fs::temp_directory_path() / ("ropsim-mutator-" + std::to_string(::getpid()) + ".trace")).string();
   TraceHeader h;
   h.width = h.height = 8;
   h.spp = 4;

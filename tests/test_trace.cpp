@@ -125,18 +125,18 @@ void putf(std::vector<uint8_t>& o, float f) { put32(o, bits(f)); }
 /// with `count`, the fragment count recorded in bytes 42..47 (count + 1).
 std::vector<uint8_t> encode_header_with(const TraceHeader& h, std::optional<uint64_t> count, bool check) {
   std::vector<uint8_t> o;
-  for (char c : kTraceMagic) o.push_back(uint8_t(c));                                 // 0: magic
-  put16(o, kTraceVersion);                                                            // 8: version
+  for (char c : kTraceMagic) o.push_back(uint8_t(c));             // 0: magic
+  put16(o, kTraceVersion);                                        // 8: version
   put16(o, uint16_t((h.checksummed ? 1 : 0) | (check ? 2 : 0)));  // 10: flags (bit 0: checksummed, 1: header check)
-  put32(o, h.width);                                                                  // 12
-  put32(o, h.height);                                                                 // 16
-  put8(o, uint8_t(h.spp));                                                            // 20
-  put8(o, uint8_t(h.depth_mode));                                                     // 21
-  put8(o, uint8_t(h.color_format));                                                   // 22
-  put8(o, uint8_t(h.compression));                                                    // 23
-  for (float c : h.clear_color) putf(o, c);                                           // 24, 28, 32
-  putf(o, h.clear_depth);                                                             // 36
-  put16(o, uint16_t(h.scene_name.size()));                                            // 40
+  put32(o, h.width);                                              // 12
+  put32(o, h.height);                                             // 16
+  put8(o, uint8_t(h.spp));                                        // 20
+  put8(o, uint8_t(h.depth_mode));                                 // 21
+  put8(o, uint8_t(h.color_format));                               // 22
+  put8(o, uint8_t(h.compression));                                // 23
+  for (float c : h.clear_color) putf(o, c);                       // 24, 28, 32
+  putf(o, h.clear_depth);                                         // 36
+  put16(o, uint16_t(h.scene_name.size()));                        // 40
   for (int i = 0; i < 6; ++i) put8(o, count ? uint8_t((*count + 1) >> (8 * i)) : 0);  // 42: fragments + 1, or 0
   EXPECT_EQ(o.size(), 48u);
   for (int i = 0; i < h.spp; ++i) {
@@ -1845,7 +1845,8 @@ TEST(TraceHeaderCount, TheBoundIsThePayloadsRoomForItsSmallestRecords) {
   const uint64_t most = max_fragments_in_payload(hs, (file.size() - header_bytes) * kZstdMaxRatio);
   const std::string path = tmp.path("streamed-lie.trace");
   write_file(path, with_count_field(file, most + 1));
-  EXPECT_EQ(TraceReader(path).recorded_fragments(), std::optional<uint64_t>(most)) << "the largest count the bound allows";
+  EXPECT_EQ(TraceReader(path).recorded_fragments(), std::optional<uint64_t>(most))
+      << "the largest count the bound allows";
   EXPECT_NE(read_all_error(path).find("the header records " + std::to_string(most)), std::string::npos)
       << "and the records hold it to the truth";
   write_file(path, with_count_field(file, most + 2));
@@ -1882,7 +1883,8 @@ TEST(TraceHeaderCheck, EveryBitOfTheCountIsCovered) {
       expect_one_line_from(msg, path);
       EXPECT_NE(msg.find(": header: header check mismatch"), std::string::npos) << "bit " << bit << ": " << msg;
     }
-    for (size_t at : {size_t(24), size_t(48), want.size() - 9, want.size() - 1}) {  // clear colour, a position, the name, the check
+    for (size_t at :
+         {size_t(24), size_t(48), want.size() - 9, want.size() - 1}) {  // clear colour, a position, the name, the check
       std::vector<uint8_t> f = file;
       f[at] ^= 0x01;
       write_file(path, f);
@@ -1929,7 +1931,8 @@ TEST(TraceHeaderCheck, TracesWithoutTheCheckStillRead) {
       EXPECT_EQ(read_file(w), file);
     }
   }
-  const fs::path kept = fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace" / "eight-layers-8x8-none-checksummed.rtrace";
+  const fs::path kept =
+      fs::path(ROPSIM_SOURCE_DIR) / "fuzz" / "regressions" / "trace" / "eight-layers-8x8-none-checksummed.rtrace";
   EXPECT_EQ(read_file(kept.string())[10], 1) << "the kept trace predates the header check";
   EXPECT_FALSE(TraceReader(kept.string()).header_checked());
 }

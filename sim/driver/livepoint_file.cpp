@@ -254,8 +254,7 @@ MethodConfig get_method(Get& g) {
   m.enderton_selection = EndertonSelection(es);
   // k and b as --slab-layers and --slab-bits take them (for every method, as the CLI checks them).
   if (m.slab_layers < 1 || m.slab_layers > kMaxSlabLayers)
-    g.fail("SLAB layers k " + std::to_string(m.slab_layers) + " is not in [1, " + std::to_string(kMaxSlabLayers) +
-           "]");
+    g.fail("SLAB layers k " + std::to_string(m.slab_layers) + " is not in [1, " + std::to_string(kMaxSlabLayers) + "]");
   if (m.slab_bits < 1 || m.slab_bits > 64) g.fail("SLAB bits b " + std::to_string(m.slab_bits) + " is not in [1, 64]");
   // What record_livepoints records: one pass, no blend targets, not the reference.
   if (m.method == Method::kReference || passes_of(m.method).count != 1 || has_blend_pass(m.method))
@@ -293,8 +292,8 @@ void check_depth(Get& g, float z, const char* what) {
   if (!(z >= 0.0f && z <= 1.0f)) g.fail(std::string(what) + " is not in [0, 1]");
 }
 
-void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m, uint64_t fragments,
-             BudgetShare& mem, const std::string& what) {
+void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m, uint64_t fragments, BudgetShare& mem,
+             const std::string& what) {
   const size_t spp = size_t(h.spp);
   pre.tracker = g.flag();
   pre.slab_bits = int(g.u32());
@@ -332,8 +331,8 @@ void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m
       SlabPixel& sp = pre.slabs[i];
       sp.count = g.u8();
       if (sp.count > m.slab_layers)
-        g.fail("a slab pixel with " + std::to_string(sp.count) + " layers, more than k = " +
-               std::to_string(m.slab_layers));
+        g.fail("a slab pixel with " + std::to_string(sp.count) +
+               " layers, more than k = " + std::to_string(m.slab_layers));
       for (int l = 0; l < sp.count; ++l) {
         sp.depth[l] = g.f32();
         sp.mask[l] = g.u64();
@@ -396,8 +395,8 @@ Image get_image(Get& g, const TraceHeader& h) {
   // A pixel is a resolve of binary16 samples: in [0, 65504], or +inf where
   // a sample can overflow binary16 (an rgb-f32 colour, a clear colour of
   // 65520 or more). Never NaN, never negative.
-  const bool may_overflow = h.color_format == ColorFormat::kRgbF32 || std::isinf(bg[0]) || std::isinf(bg[1]) ||
-                            std::isinf(bg[2]);
+  const bool may_overflow =
+      h.color_format == ColorFormat::kRgbF32 || std::isinf(bg[0]) || std::isinf(bg[1]) || std::isinf(bg[2]);
   Image img(w, ht, bg);
   const uint64_t rows = g.count(4 + uint64_t(w) * 12);
   if (rows > ht) g.fail(std::to_string(rows) + " written rows, more than the image's " + std::to_string(ht));
@@ -437,13 +436,14 @@ void check_sampling(Get& g, const LivePoints& lib) {
           std::to_string(s.cooldown_fragments) + ", N " + std::to_string(n) + ")");
     return;
   }
-  if (s.units < 1 || s.units > n) bad("K " + std::to_string(s.units) + " units is not in [1, N = " + std::to_string(n) + "]");
+  if (s.units < 1 || s.units > n)
+    bad("K " + std::to_string(s.units) + " units is not in [1, N = " + std::to_string(n) + "]");
   const uint64_t period = n / s.units;
   if (s.unit_fragments < 1 || s.unit_fragments > period)
     bad("U " + std::to_string(s.unit_fragments) + " fragments is not in [1, N / K = " + std::to_string(period) + "]");
   if (s.cooldown_fragments > period - s.unit_fragments)
-    bad("C " + std::to_string(s.cooldown_fragments) + " fragments is more than N / K - U = " +
-        std::to_string(period - s.unit_fragments));
+    bad("C " + std::to_string(s.cooldown_fragments) +
+        " fragments is more than N / K - U = " + std::to_string(period - s.unit_fragments));
 }
 
 /// Every counter within what N fragments of the header's spp can produce.
@@ -452,7 +452,8 @@ void check_counters(Get& g, const LivePoints& lib) {
   if (lib.counters.fragments != n)
     g.fail("fragments " + std::to_string(lib.counters.fragments) + " is not N = " + std::to_string(n));
   // SLAB counts the mask bits of its layers (b of them) as samples.
-  const uint64_t per_sample = std::max<uint64_t>(spp, lib.method.method == Method::kSlab ? uint64_t(lib.method.slab_bits) : 0);
+  const uint64_t per_sample =
+      std::max<uint64_t>(spp, lib.method.method == Method::kSlab ? uint64_t(lib.method.slab_bits) : 0);
   const uint64_t tiles = uint64_t(ceil_div(lib.header.width, 8u)) * ceil_div(lib.header.height, 8u);
   const std::vector<StatDesc>& descs = counter_descs();
   size_t i = 0;
