@@ -175,18 +175,33 @@ fail() {
   exit 1
 }
 
-install_packages() {
-  local missing=()
+missing_packages() {
+  local p
   for p in slurm-wlm munge; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || echo "$p"
   done
-  [ ${#missing[@]} -eq 0 ] && return 0
-  echo "slurm_local.sh: installing ${missing[*]}" >&2
-  local sudo=""
-  [ "$(id -u)" -ne 0 ] && sudo="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $sudo apt-get update -q >&2
-  $sudo apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+}
+
+install_packages() {
+  [ -z "$(missing_packages)" ] && return 0
+  # Tests start clusters in parallel (ctest -j): on a fresh machine one
+  # installs while the others wait for it (a second apt-get at once fails on
+  # apt's lock), then find the packages there.
+  local lock="${TMPDIR:-/tmp}/ropsim-slurm-install.lock"
+  exec 9>"$lock"
+  flock 9
+  local missing
+  mapfile -t missing < <(missing_packages)
+  if [ ${#missing[@]} -gt 0 ]; then
+    echo "slurm_local.sh: installing ${missing[*]}" >&2
+    local sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    export DEBIAN_FRONTEND=noninteractive
+    $sudo apt-get update -q >&2
+    $sudo apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+  fi
+  flock -u 9
+  exec 9>&-
 }
 
 free_port() {

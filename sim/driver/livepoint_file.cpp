@@ -874,23 +874,27 @@ void check_library_method(const LivePoints& lib, const std::string& lib_path, co
 
 void check_library_sampling(const LivePoints& lib, const std::string& lib_path, const SamplingParams& p) {
   const SamplingParams& l = lib.params;
+  // What a recording of this input places when p is asked for (a small input
+  // is one whole unit): the library must hold that.
+  const SamplingParams asked = p;
+  const SamplingParams placed = placed_sampling(asked, lib.fragments);
   auto fail = [&](const char* what, const std::string& lib_v, const std::string& run_v) {
     throw UserError(lib_path + ": the library was recorded with " + what + " " + lib_v + ", the run asks for " + run_v +
                     " (a library serves one sampling; build another with `ropsim livepoints`)");
   };
   const std::pair<const char*, std::pair<uint64_t, uint64_t>> counts[] = {
-      {"K (units)", {l.units, p.units}},
-      {"U (unit fragments)", {l.unit_fragments, p.unit_fragments}},
-      {"W (warm-up fragments)", {l.warmup_fragments, p.warmup_fragments}},
-      {"C (cool-down fragments)", {l.cooldown_fragments, p.cooldown_fragments}},
-      {"T (warming fragments)", {l.warming_fragments, p.warming_fragments}},
+      {"K (units)", {l.units, placed.units}},
+      {"U (unit fragments)", {l.unit_fragments, placed.unit_fragments}},
+      {"W (warm-up fragments)", {l.warmup_fragments, placed.warmup_fragments}},
+      {"C (cool-down fragments)", {l.cooldown_fragments, placed.cooldown_fragments}},
+      {"T (warming fragments)", {l.warming_fragments, placed.warming_fragments}},
   };
   for (const auto& [what, v] : counts)
     if (v.first != v.second) fail(what, std::to_string(v.first), std::to_string(v.second));
-  if (l.warming_reach != p.warming_reach) {
+  if (l.warming_reach != placed.warming_reach) {
     char a[32], b[32];
     std::snprintf(a, sizeof a, "%g", l.warming_reach);
-    std::snprintf(b, sizeof b, "%g", p.warming_reach);
+    std::snprintf(b, sizeof b, "%g", placed.warming_reach);
     fail("R (warming reach)", a, b);
   }
 }

@@ -228,24 +228,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.header = src->header();
   lib.input = input_identity(in);
   const uint64_t n = lib.fragments;
-  uint64_t u = std::min<uint64_t>(p.unit_fragments, std::max<uint64_t>(n, 1));
-  uint64_t k_units = std::max<uint64_t>(1, std::min<uint64_t>(p.units, n / u));
-  // An input so small that the units would simulate a large share of it in
-  // detail anyway is simulated whole, as one unit without warm-up: exactly
-  // the full cycle run, faster than sampling it.
-  const double detailed = double(k_units) * double(p.warmup_fragments + u + p.cooldown_fragments);
-  lib.whole = n == 0 || detailed >= p.max_detailed_share * double(n);
-  if (lib.whole) {
-    u = n;
-    k_units = 1;
-  }
-  const uint64_t period = k_units ? n / k_units : 0;  // >= u
-  lib.params.unit_fragments = u;
-  lib.params.units = k_units;
-  // Each unit but the last has C fragments of cool-down after it, within the
-  // period (the recording reads a live-point's fragments once).
-  lib.params.cooldown_fragments = std::min<uint64_t>(p.cooldown_fragments, period - u);
-  if (lib.whole) lib.params.warmup_fragments = 0;
+  lib.params = placed_sampling(p, n, &lib.whole);
+  const uint64_t k_units = lib.params.units;
   // The plan below grows with N and K, which a trace's header gives: charged
   // first, so a header that claims too much is refused by --memory-limit
   // naming the input, not met by the allocator.
@@ -371,7 +355,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
       LivePoint lp;
       lp.first = firsts[kk];
       lp.warmup = starts[kk] - firsts[kk];
-      lp.window = u;
+      lp.window = lib.params.unit_fragments;
       lp.fragments = std::move(cur);
       lp.pre.tracker = st0.has_tracker();
       lp.pre.slab_bits = st0.targets().slab_bits;
@@ -494,6 +478,30 @@ UnitSpan unit_span(uint64_t n, const SamplingParams& p, uint64_t k, uint64_t pre
   s.first = s.start - std::min<uint64_t>(p.warmup_fragments, s.start - prev_end);
   s.end = s.start + u + (k + 1 < units ? p.cooldown_fragments : 0);
   return s;
+}
+
+SamplingParams placed_sampling(const SamplingParams& p, uint64_t n, bool* whole_out) {
+  SamplingParams placed = p;
+  uint64_t u = std::min<uint64_t>(p.unit_fragments, std::max<uint64_t>(n, 1));
+  uint64_t k_units = std::max<uint64_t>(1, std::min<uint64_t>(p.units, n / u));
+  // An input so small that the units would simulate a large share of it in
+  // detail anyway is simulated whole, as one unit without warm-up: exactly
+  // the full cycle run, faster than sampling it.
+  const double detailed = double(k_units) * double(p.warmup_fragments + u + p.cooldown_fragments);
+  const bool whole = n == 0 || detailed >= p.max_detailed_share * double(n);
+  if (whole) {
+    u = n;
+    k_units = 1;
+  }
+  const uint64_t period = k_units ? n / k_units : 0;  // >= u
+  placed.unit_fragments = u;
+  placed.units = k_units;
+  // Each unit but the last has C fragments of cool-down after it, within the
+  // period (the recording reads a live-point's fragments once).
+  placed.cooldown_fragments = std::min<uint64_t>(p.cooldown_fragments, period - u);
+  if (whole) placed.warmup_fragments = 0;
+  if (whole_out) *whole_out = whole;
+  return placed;
 }
 
 double student_t975(uint64_t dof) {

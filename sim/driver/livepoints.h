@@ -161,6 +161,13 @@ struct UnitSpan {
 /// = 1 and U = n).
 UnitSpan unit_span(uint64_t n, const SamplingParams& p, uint64_t k, uint64_t prev_end);
 
+/// The sampling a library of an n-fragment input holds when p is asked for:
+/// U at most n, K at most n / U, C within the period; an input whose units
+/// would simulate at least p.max_detailed_share of it in detail is one whole
+/// unit without warm-up (*whole set). The recording places its units by it,
+/// and a library is checked against a run's sampling through it.
+SamplingParams placed_sampling(const SamplingParams& p, uint64_t n, bool* whole = nullptr);
+
 /// One functional pass over the input, recording K live-points, on `threads`
 /// host threads (0: host_threads(), --threads; the library is the same for
 /// every count). Throws UserError for a method with several passes or bad
