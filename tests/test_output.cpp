@@ -702,7 +702,11 @@ TEST(Output, AReaderThatClosesEarlyIsAnErrorNotASignal) {
   // Each output is far larger than a pipe's buffer (64 KiB).
   const std::vector<Case> cases = {
       {"vcd", {"run", "--fidelity", "cycle", "--trace", "t.trace", "--vcd", "v.vcd", "--quiet"}, "v.vcd"},
-      {"exr", {"run", "--trace", "t.trace", "--out", "x.exr", "--quiet"}, "x.exr"},
+      // 512 x 512: about 130 KiB of EXR (the 4-spp testcard trace's is 22 KiB,
+      // which the pipe's buffer could take whole before the reader closes).
+      {"exr",
+       {"run", "--scene", "testcard", "--spp", "4", "--width", "512", "--height", "512", "--out", "x.exr", "--quiet"},
+       "x.exr"},
       {"trace dump", {"trace", "dump", "t.trace", "-o", "d.jsonl"}, "d.jsonl"},
   };
   for (const auto& c : cases) {
