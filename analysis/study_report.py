@@ -224,6 +224,37 @@ def plain_ticks(ax):
                 axis.set_minor_formatter(ticker.NullFormatter())
 
 
+def thin_ticks(fig):
+    """Drops the tick labels that would overlap their neighbours (with a 4 px
+    gap), after a first draw has placed them: an axis keeps every k-th label
+    for the smallest k whose labels are clear of each other. An axis whose
+    ticks the figure fixed (categories) is left as it is."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        if not ax.axison:
+            continue
+        for axis, lo_of, hi_of in ((ax.xaxis, "x0", "x1"), (ax.yaxis, "y0", "y1")):
+            if isinstance(axis.get_major_locator(), ticker.FixedLocator):
+                continue
+            v0, v1 = sorted(axis.get_view_interval())
+            ticks = [(t.get_loc(), t.label1) for t in axis.get_major_ticks()
+                     if t.label1.get_visible() and t.label1.get_text().strip() and v0 <= t.get_loc() <= v1]
+            if len(ticks) < 2:
+                continue
+            spans = sorted((getattr(lab.get_window_extent(renderer), lo_of),
+                            getattr(lab.get_window_extent(renderer), hi_of), loc) for loc, lab in ticks)
+            for step in range(1, len(spans) + 1):
+                kept = spans[::step]
+                if all(b[0] >= a[1] + 4 for a, b in zip(kept, kept[1:])):
+                    break
+            kept = [loc for _, _, loc in kept]
+            if len(kept) < len(spans):
+                fmt = axis.get_major_formatter()
+                axis.set_major_locator(ticker.FixedLocator(kept))
+                axis.set_major_formatter(fmt)
+
+
 def panel_grid(n, ncols, panel_w=3.4, panel_h=2.9, legend=True, sharey=False):
     """A figure of n panels in rows of ncols and, with legend, a column at the
     right for the legend. Returns (figure, panels, legend axes or None)."""
@@ -276,6 +307,7 @@ def render(fig, name):
 
     for ax in fig.axes:
         plain_ticks(ax)
+    thin_ticks(fig)
     mtext.Text.draw = recording
     try:
         buf = io.BytesIO()
