@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "draw_state.h"
+
 namespace ropsim {
 
 inline constexpr char kTraceMagic[8] = {'R', 'O', 'P', 'T', 'R', 'A', 'C', 'E'};
@@ -67,6 +69,9 @@ struct TraceHeader {
   /// that checksums the payload also checks the header (flag bit 1), so that
   /// unset gives the layout every version 1 reader reads.
   bool checksummed = true;
+  /// Version 2: the draw states (draw_state.h), written after the scene name.
+  /// Empty (every version 1 trace): each draw has default_draw_state().
+  DrawTable draws;
 };
 
 /// One fragment: a pixel's worth of samples from one primitive.
