@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -363,6 +364,26 @@ opacity = 0.4
   size_t traces = 0;
   for (const auto& e : fs::directory_iterator(s.dir / "st" / "traces")) traces += e.path().extension() == ".rtr";
   EXPECT_EQ(traces, 1u) << "the capture did not find the mesh in --mesh-dir";
+}
+
+// ropsim ignores SIGPIPE (its writers report EPIPE themselves), and an
+// ignored signal survives exec: the cluster's commands must start with it at
+// its default, or a pipeline inside them would not end when its reader does.
+TEST(StudySpec, TheClustersCommandsStartWithSigpipeAtItsDefault) {
+  Scratch s;
+  fs::create_directories(s.dir / "bin");
+  s.put("bin/sbatch", "#!/bin/sh\ngrep SigIgn /proc/$$/status > '" + s.dir.string() + "/sigign'\necho 1\n");
+  s.put("bin/squeue", "#!/bin/sh\nexit 0\n");
+  for (const char* t : {"sbatch", "squeue"}) fs::permissions(s.dir / "bin" / t, fs::perms::owner_all);
+  s.put("m.toml", "[inputs]\nscenes = [\"smoke\"]\n[axes]\nspp = 4\n");
+  const Ran r = shell(s.dir, "env PATH='" + (s.dir / "bin").string() +
+                                 ":/usr/bin:/bin' '" ROPSIM_BINARY "' study run m.toml --out st --executor slurm");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::string line = slurp(s.dir / "sigign");
+  ASSERT_EQ(line.rfind("SigIgn:", 0), 0u) << "sbatch did not run: " << line;
+  const unsigned long long ignored = std::stoull(line.substr(7), nullptr, 16);
+  EXPECT_EQ(ignored & (1ull << (SIGPIPE - 1)), 0u) << "sbatch started with SIGPIPE ignored: " << line;
+  EXPECT_EQ(ignored & (1ull << (SIGXFSZ - 1)), 0u) << "sbatch started with SIGXFSZ ignored: " << line;
 }
 
 // A glTF's external buffer is one of its mesh's files.
