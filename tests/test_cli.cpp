@@ -1093,6 +1093,21 @@ TEST(CliCycle, SampledRunWritesTheGoldenImageAndEstimatesWithIntervals) {
   expect_cli_error(box, "run --fidelity sampled --scene testcard --spp 4 --sample-size 0", {"--sample-size"});
 }
 
+// The per-draw table and the per-pixel maps come from the functional and the
+// cycle runs; the approximate and the sampled fidelities make neither, so the
+// flags are refused there rather than ignored.
+TEST(CliCycle, BreakdownFlagsAreRefusedWhereTheFidelityHasNoBreakdown) {
+  CliSandbox box;
+  for (const char* fidelity : {"approximate", "sampled"})
+    for (const char* flag : {"--per-draw", "--draw-csv d.csv", "--maps m"}) {
+      const std::string f = flag;
+      expect_cli_error(box, std::string("run --fidelity ") + fidelity + " --scene testcard --spp 4 " + f,
+                       {f.substr(0, f.find(' ')), fidelity});
+    }
+  EXPECT_FALSE(std::filesystem::exists(box.work() / "d.csv"));
+  EXPECT_FALSE(std::filesystem::exists(box.work() / "m"));
+}
+
 // A trace whose header claims more fragments than its payload can hold --
 // 2^48 - 2, or the count with one bit of byte 47 flipped -- is refused by
 // `livepoints` and by `run --fidelity sampled --trace` when it is opened,

@@ -443,11 +443,12 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
   }
   if (approximate)
-    for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference"})
+    for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference",
+                          "--per-draw", "--draw-csv", "--maps"})
       if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity approximate");
   if (sampled) {
-    for (const char* f :
-         {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference", "--repeat"})
+    for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv", "--vs-reference",
+                          "--repeat", "--per-draw", "--draw-csv", "--maps"})
       if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity sampled");
   }
   if (!cycle && !sampled && !approximate) {
