@@ -152,20 +152,20 @@ RawDrawRecord raw_of(const DrawState& s) {
 }
 
 void encode_draw_record(std::vector<uint8_t>& o, const RawDrawRecord& r) {
-  put32(o, r.draw_id);     // +0
-  put8(o, r.flags);        // +4
-  put8(o, r.eq_rgb);       // +5
-  put8(o, r.eq_alpha);     // +6
-  put8(o, r.src_rgb);      // +7
-  put8(o, r.dst_rgb);      // +8
-  put8(o, r.src_alpha);    // +9
-  put8(o, r.dst_alpha);    // +10
-  put8(o, r.depth_func);   // +11
-  put8(o, r.color_mask);   // +12
-  put8(o, r.encoding);     // +13
-  for (float c : r.blend_color) putf(o, c);  // +14, 18, 22, 26
+  put32(o, r.draw_id);                                                    // +0
+  put8(o, r.flags);                                                       // +4
+  put8(o, r.eq_rgb);                                                      // +5
+  put8(o, r.eq_alpha);                                                    // +6
+  put8(o, r.src_rgb);                                                     // +7
+  put8(o, r.dst_rgb);                                                     // +8
+  put8(o, r.src_alpha);                                                   // +9
+  put8(o, r.dst_alpha);                                                   // +10
+  put8(o, r.depth_func);                                                  // +11
+  put8(o, r.color_mask);                                                  // +12
+  put8(o, r.encoding);                                                    // +13
+  for (float c : r.blend_color) putf(o, c);                               // +14, 18, 22, 26
   put8(o, uint8_t(r.name_len < 0 ? r.name.size() : size_t(r.name_len)));  // +30
-  o.insert(o.end(), r.name.begin(), r.name.end());                         // +31
+  o.insert(o.end(), r.name.begin(), r.name.end());                        // +31
 }
 
 /// A version 2 header: version 1's fixed part (version 2), positions, name,
@@ -520,8 +520,8 @@ TEST(TraceV2Refuses, EachBadFieldWithOneLineThroughTheCli) {
     const CliResult r = run_ropsim(tmp, "trace validate '" + path + "'");
     EXPECT_EQ(r.code, 1) << c.what << "\n" << r.describe();
     EXPECT_EQ(r.out, "") << c.what;
-    const std::string want = "ropsim: error: " + path + ": header: draw state 1 (draw " + std::to_string(b.draw_id) +
-                             "): " + c.message;
+    const std::string want =
+        "ropsim: error: " + path + ": header: draw state 1 (draw " + std::to_string(b.draw_id) + "): " + c.message;
     EXPECT_EQ(r.err.rfind(want, 0), 0u) << c.what << ": expected " << want << "\n" << r.describe();
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << c.what << ": one line\n" << r.err;
   }
@@ -803,12 +803,13 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   other.eq_rgb = BlendEquation::kMin;
   DrawState unused = default_draw_state(5);
   h.draws = DrawTable({opaque, over, premul, add, other, unused});
-  const DrawKind kinds[] = {DrawKind::kOpaque, DrawKind::kSrcOver, DrawKind::kPremultipliedOver, DrawKind::kAdditive,
-                            DrawKind::kOther, DrawKind::kSrcOver};
+  const DrawKind kinds[] = {DrawKind::kOpaque,   DrawKind::kSrcOver, DrawKind::kPremultipliedOver,
+                            DrawKind::kAdditive, DrawKind::kOther,   DrawKind::kSrcOver};
   for (uint32_t d = 0; d < 6; ++d) ASSERT_EQ(draw_kind(*h.draws.find(d)), kinds[d]) << "draw " << d;
   const uint64_t masks[] = {0x1, 0x3, 0x7, 0xF, 0x6, 0x9, 0x8};
   std::vector<Fragment> frags;
-  for (int i = 0; i < 37; ++i) frags.push_back(frag(uint32_t(i % 5), uint16_t(i % 4), uint16_t(i / 4 % 2), masks[i % 7]));
+  for (int i = 0; i < 37; ++i)
+    frags.push_back(frag(uint32_t(i % 5), uint16_t(i % 4), uint16_t(i / 4 % 2), masks[i % 7]));
   const std::string path = tmp.path("kinds.trace");
   {
     TraceWriter w(path, h);
@@ -855,8 +856,7 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   EXPECT_DOUBLE_EQ(t["fragments_per_pixel"]["mean"].get<double>(), double(see_frags) / double(per_pixel.size()));
   EXPECT_EQ(t["fragments_per_pixel"]["max"], see_max);
   EXPECT_EQ(t["samples"], see_samples);
-  EXPECT_DOUBLE_EQ(t["fragments_per_covered_sample"]["mean"].get<double>(),
-                   double(see_covered) / double(see_samples));
+  EXPECT_DOUBLE_EQ(t["fragments_per_covered_sample"]["mean"].get<double>(), double(see_covered) / double(see_samples));
   EXPECT_EQ(j["header"]["draws"].size(), 6u) << "the header's table";
   // The text output: a line per kind and the transparent share.
   const CliResult text = run_ropsim(tmp, "trace info '" + path + "'");

@@ -99,8 +99,8 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
       see_samples += uint64_t(__builtin_popcountll(t.covered[i]));
     }
   });
-  const uint64_t see_covered = kind_covered[size_t(DrawKind::kSrcOver)] +
-                               kind_covered[size_t(DrawKind::kPremultipliedOver)];
+  const uint64_t see_covered =
+      kind_covered[size_t(DrawKind::kSrcOver)] + kind_covered[size_t(DrawKind::kPremultipliedOver)];
   const double see_share = covered ? double(see_covered) / double(covered) : 0.0;
   const double see_per_pixel = see_pixels ? double(see_fragments) / double(see_pixels) : 0.0;
   const double see_per_sample = see_samples ? double(see_covered) / double(see_samples) : 0.0;

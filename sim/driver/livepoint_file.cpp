@@ -170,9 +170,9 @@ void put_header(Put& p, const TraceHeader& h) {
     p.u8(s.blend);
     p.u8(s.depth_test);
     p.u8(s.depth_write);
-    for (uint8_t v : {uint8_t(s.eq_rgb), uint8_t(s.eq_alpha), uint8_t(s.src_rgb), uint8_t(s.dst_rgb),
-                      uint8_t(s.src_alpha), uint8_t(s.dst_alpha), uint8_t(s.depth_func), s.color_mask,
-                      uint8_t(s.encoding)})
+    for (uint8_t v :
+         {uint8_t(s.eq_rgb), uint8_t(s.eq_alpha), uint8_t(s.src_rgb), uint8_t(s.dst_rgb), uint8_t(s.src_alpha),
+          uint8_t(s.dst_alpha), uint8_t(s.depth_func), s.color_mask, uint8_t(s.encoding)})
       p.u8(v);
     for (float c : s.blend_color) p.f32(c);
     p.str(s.name);

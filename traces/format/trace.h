@@ -1,6 +1,6 @@
 // ropsim fragment trace format, versions 1 and 2 (docs/trace-format.md): what
-// a rasterizer hands the ROP, in API order; version 2 adds the draw states. Reader and writer stream: memory does not grow
-// with the trace length. No SystemC here.
+// a rasterizer hands the ROP, in API order; version 2 adds the draw states. Reader and writer stream: memory does not
+// grow with the trace length. No SystemC here.
 #pragma once
 #include <array>
 #include <cstdint>

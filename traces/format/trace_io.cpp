@@ -329,7 +329,8 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   if (got < sizeof fixed) throw TraceError(path + ": header: truncated (" + std::to_string(got) + " of 48 bytes)");
   const uint16_t version = get_u16(fixed + 8);
   if (version != kTraceVersion && version != kTraceVersionDraws)
-    throw TraceError(path + ": header: unsupported version " + std::to_string(version) + " (this reader reads 1 and 2)");
+    throw TraceError(path + ": header: unsupported version " + std::to_string(version) +
+                     " (this reader reads 1 and 2)");
   version_ = version;
   const uint16_t flags = get_u16(fixed + 10);
   if (flags & ~kTraceKnownFlags) {
