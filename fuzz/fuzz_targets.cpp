@@ -31,6 +31,8 @@ namespace {
 constexpr uint64_t kMaxRowsPixels = uint64_t{1} << 20;
 /// Fragments read from one input (a fuzzed header may promise billions).
 constexpr uint64_t kMaxFuzzFragments = 1u << 16;
+/// Fragments of a trace the oracle writes and reads back (check_accepted_trace).
+constexpr uint64_t kMaxRoundTripFragments = 1u << 12;
 /// Studies expanded in full (a fuzzed study may ask for 100,000 points).
 constexpr uint64_t kMaxFuzzStudyPoints = 4096;
 
@@ -55,6 +57,42 @@ std::string input_file(const uint8_t* data, size_t size, const char* suffix) {
   return path;
 }
 
+/// The trace target's oracle for what the reader accepts: a header whose
+/// draw table is valid, fragments of the table's draws, and a trace that the
+/// writer takes as it is and that reads back with the same header. Aborts
+/// otherwise.
+void check_accepted_trace(const std::string& path, const ropsim::TraceHeader& h,
+                          const std::vector<ropsim::Fragment>& frags) {
+  auto fail = [](const std::string& why) {
+    std::fprintf(stderr, "the trace reader accepted %s\n", why.c_str());
+    std::abort();
+  };
+  if (const std::string why = ropsim::validate_header(h); !why.empty()) fail("an invalid header: " + why);
+  if (h.version() == ropsim::kTraceVersion && !h.draws.empty()) fail("draw states in a version 1 header");
+  for (const ropsim::Fragment& f : frags)
+    if (!h.draws.empty() && !h.draws.find(f.draw_id))
+      fail("a fragment of draw " + std::to_string(f.draw_id) + ", which the table lacks");
+  const std::string again = path + ".again.rtrace";
+  try {
+    {
+      ropsim::TraceWriter w(again, h);
+      for (const ropsim::Fragment& f : frags) w.write(f);
+      w.finish();
+    }
+    ropsim::TraceReader r(again);
+    if (ropsim::header_to_json(r.header()) != ropsim::header_to_json(h) || !(r.header().draws == h.draws))
+      fail("a header that does not read back the same:\n" + ropsim::header_to_json(h) + "\n" +
+           ropsim::header_to_json(r.header()));
+    ropsim::Fragment f;
+    size_t n = 0;
+    while (r.next(f)) ++n;
+    if (n != frags.size()) fail("fragments that do not read back");
+  } catch (const std::runtime_error& e) {
+    fail(std::string("a trace that does not write and read back: ") + e.what());
+  }
+  std::remove(again.c_str());
+}
+
 int fuzz_trace(const uint8_t* data, size_t size) {
   const std::string path = input_file(data, size, ".rtrace");
   return expect_input_errors([&] {
@@ -64,7 +102,18 @@ int fuzz_trace(const uint8_t* data, size_t size) {
     cfg.method = ropsim::Method::kLk;
     ropsim::StochasticModel model(h, cfg);
     ropsim::Fragment f;
-    for (uint64_t n = 0; n < kMaxFuzzFragments && r.next(f); ++n) model.draw(f);
+    std::vector<ropsim::Fragment> frags;
+    bool complete = false;
+    for (uint64_t n = 0; n < kMaxFuzzFragments; ++n) {
+      if (!r.next(f)) {
+        complete = true;
+        break;
+      }
+      model.draw(f);
+      if (frags.size() < kMaxRoundTripFragments) frags.push_back(f);
+    }
+    // A trace read to its end, whole: the oracle (on the fragments it kept).
+    if (complete && r.records_read() <= kMaxRoundTripFragments) check_accepted_trace(path, h, frags);
     const ropsim::Image img = model.resolve();
     if (img.width != h.width || img.height != h.height) std::abort();
     if (img.tiles() > model.store().tiles()) std::abort();  // the image holds only touched tiles
@@ -189,11 +238,25 @@ uint64_t get_le(const uint8_t* p, int n) {
 
 }  // namespace
 
+size_t trace_header_bytes(const uint8_t* data, size_t size) {
+  if (size < 48 || std::memcmp(data, ropsim::kTraceMagic, 8) != 0) return 0;
+  size_t head = 48 + 2 * size_t(data[20]) + size_t(get_le(data + 40, 2));
+  if (get_le(data + 8, 2) != ropsim::kTraceVersionDraws) return head;
+  if (size < head + 4) return 0;
+  const uint64_t n = get_le(data + head, 4);
+  head += 4;
+  for (uint64_t i = 0; i < n; ++i) {
+    if (size < head + ropsim::kDrawRecordFixedBytes) return 0;
+    head += ropsim::kDrawRecordFixedBytes + data[head + ropsim::kDrawRecordFixedBytes - 1];
+  }
+  return head <= size ? head : 0;
+}
+
 void fix_trace_header_check(uint8_t* data, size_t size) {
   if (size < 48 || std::memcmp(data, ropsim::kTraceMagic, 8) != 0 || !(get_le(data + 10, 2) & ropsim::kTraceFlagHeaderCheck))
     return;
-  const size_t head = 48 + 2 * size_t(data[20]) + size_t(get_le(data + 40, 2));
-  if (size < head + ropsim::kHeaderCheckBytes) return;
+  const size_t head = trace_header_bytes(data, size);
+  if (head == 0 || size < head + ropsim::kHeaderCheckBytes) return;
   const uint64_t c = XXH3_64bits(data, head);
   for (int i = 0; i < 8; ++i) data[head + size_t(i)] = uint8_t(c >> (8 * i));
 }
@@ -211,6 +274,39 @@ void mutate_trace_count(uint8_t* data, size_t size, uint32_t seed) {
     default: v = (uint64_t(seed) * 0x9E3779B97F4A7C15ull) & mask48; break;
   }
   for (int i = 0; i < 6; ++i) data[42 + i] = uint8_t((v & mask48) >> (8 * i));
+  fix_trace_header_check(data, size);
+}
+
+void mutate_trace_draws(uint8_t* data, size_t size, uint32_t seed) {
+  if (trace_header_bytes(data, size) == 0 || get_le(data + 8, 2) != ropsim::kTraceVersionDraws) return;
+  const size_t table = 48 + 2 * size_t(data[20]) + size_t(get_le(data + 40, 2));
+  const uint64_t n = get_le(data + table, 4);
+  if (n == 0) return;
+  size_t at = table + 4;  // the record seed picks
+  for (uint64_t i = 0, pick = seed % n; i < pick; ++i) at += ropsim::kDrawRecordFixedBytes + data[at + ropsim::kDrawRecordFixedBytes - 1];
+  seed /= uint32_t(n);
+  // A field (record offset, bytes) and a value for it: the valid range's
+  // ends, one past them, and the byte's ends.
+  static const struct {
+    size_t offset, bytes;
+    uint32_t last;  ///< the field's largest valid value
+  } fields[] = {{0, 4, 0xFFFFFFFFu}, {4, 1, 7}, {5, 1, 4}, {6, 1, 4}, {7, 1, 14}, {8, 1, 14}, {9, 1, 14},
+                {10, 1, 14},         {11, 1, 7}, {12, 1, 15}, {13, 1, 2}, {14, 4, 0}, {26, 4, 0}};
+  const auto& fl = fields[seed % (sizeof fields / sizeof fields[0])];
+  seed /= uint32_t(sizeof fields / sizeof fields[0]);
+  uint32_t v;
+  if (fl.offset >= 14) {  // a blend colour channel: NaN, infinity, -0, a large finite value
+    const uint32_t pats[] = {0x7FC00000u, 0x7F800000u, 0x80000000u, 0x7F7FFFFFu, 0x3F800000u};
+    v = pats[seed % 5];
+  } else if (fl.offset == 0) {  // a draw id: the next record's, the previous one's, one more, 0
+    const uint32_t id = uint32_t(get_le(data + at, 4));
+    const uint32_t ids[] = {id + 1, id - 1, 0, 0xFFFFFFFFu};
+    v = ids[seed % 4];
+  } else {
+    const uint32_t vals[] = {0, fl.last, fl.last + 1, 0xFF};
+    v = vals[seed % 4];
+  }
+  for (size_t i = 0; i < fl.bytes; ++i) data[at + fl.offset + i] = uint8_t(v >> (8 * i));
   fix_trace_header_check(data, size);
 }
 

@@ -16,8 +16,10 @@
 
 namespace ropsim_fuzz {
 
-/// A trace file (either payload encoding) read record by record into the lk
-/// golden model, then resolved.
+/// A trace file (either payload encoding, version 1 or 2) read record by
+/// record into the lk golden model, then resolved. A trace that reads whole
+/// (up to 4096 fragments) must have a valid header and draw table, fragments
+/// of the table's draws, and write and read back with the same header.
 int fuzz_trace(const uint8_t* data, size_t size);
 /// A mesh scene file, parsed and checked (the meshes it names are not loaded).
 int fuzz_scene(const uint8_t* data, size_t size);
@@ -40,8 +42,18 @@ int fuzz_livepoints(const uint8_t* data, size_t size);
 /// header check, so that mutated counts reach the reader's bound on the
 /// payload instead of stopping at the check.
 void mutate_trace_count(uint8_t* data, size_t size, uint32_t seed);
-/// Recomputes the header check of a trace whose header flags one (bit 1).
+/// Recomputes the header check of a trace whose header flags one (bit 1),
+/// over the header's bytes (version 2: its draw table included).
 void fix_trace_header_check(uint8_t* data, size_t size);
+/// The trace target's mutation of the draw table (version 2): one field of
+/// one draw record, chosen by `seed`, set to an end of its valid range, one
+/// past it or the byte's ends (a draw id to its neighbours'; a blend colour
+/// channel to NaN, infinity, -0...), and the header check recomputed, so that
+/// mutated tables reach DrawTable::validate() instead of stopping at the check.
+void mutate_trace_draws(uint8_t* data, size_t size, uint32_t seed);
+/// The header's bytes before its check (version 2: the draw table included),
+/// or 0 when the input is too short to hold them.
+size_t trace_header_bytes(const uint8_t* data, size_t size);
 
 struct Target {
   const char* name;

@@ -105,4 +105,44 @@ TEST(FuzzMutators, TraceCountMutationsKeepTheHeaderCheck) {
   fs::remove(path);
 }
 
+TEST(FuzzMutators, TraceDrawMutationsKeepTheHeaderCheckAndReachTheFieldChecks) {
+  // The draw-record mutator (version 2) sets one field of one record and
+  // recomputes the header check over the table: no mutation stops at the
+  // check, and some reach DrawTable::validate()'s or the reader's field checks.
+  using namespace ropsim;
+  const std::string seed_file =
+      std::string(ROPSIM_SOURCE_DIR) + "/fuzz/regressions/trace/v2-testcard-8x8-zstd-checksummed.rtrace";
+  std::ifstream in(seed_file, std::ios::binary);
+  const std::vector<uint8_t> file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(file.size(), 48u) << seed_file;
+  ASSERT_EQ(file[8], 2) << "a version 2 seed";
+  const std::string path =
+      (fs::temp_directory_path() / ("ropsim-draw-mutator-" + std::to_string(::getpid()) + ".trace")).string();
+  int field_errors = 0, changed = 0;
+  for (uint32_t seed = 0; seed < 400; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::vector<uint8_t> m = file;
+    ropsim_fuzz::mutate_trace_draws(m.data(), m.size(), seed);
+    changed += m != file;
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_TRUE(f != nullptr);
+    std::fwrite(m.data(), 1, m.size(), f);
+    std::fclose(f);
+    std::string msg;
+    try {
+      TraceReader r(path);
+      Fragment frag;
+      while (r.next(frag)) {
+      }
+    } catch (const TraceError& e) {
+      msg = e.what();
+    }
+    EXPECT_EQ(msg.find("header check mismatch"), std::string::npos) << msg;
+    field_errors += msg.find(": draw state ") != std::string::npos;
+  }
+  EXPECT_GT(changed, 200) << "the mutator changed too few inputs";
+  EXPECT_GT(field_errors, 50) << "too few mutations reached the draw records' checks";
+  fs::remove(path);
+}
+
 }  // namespace

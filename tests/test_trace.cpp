@@ -1002,7 +1002,7 @@ TEST(TraceReaderRefuses, BadHeaders) {
         {"wrong magic", 0, {'R', 'O', 'P', 'T', 'R', 'A', 'C', 'X'}, "magic"},
         {"lower-case magic", 0, {'r'}, "magic"},
         {"version 0", 8, {0, 0}, "version 0"},
-        {"version 2", 8, {2, 0}, "version 2"},
+        {"version 3", 8, {3, 0}, "unsupported version 3 (this reader reads 1 and 2)"},
         {"version 256", 8, {0, 1}, "version 256"},
         {"spp 0", 20, {0}, "samples per pixel 0"},
         {"spp 3", 20, {3}, "samples per pixel 3"},

@@ -27,6 +27,9 @@ struct TraceOpts {
   uint64_t seed = 1;
 };
 
+/// The kinds that are transparent to `trace info`: the over operators.
+bool transparent(DrawKind k) { return k == DrawKind::kSrcOver || k == DrawKind::kPremultipliedOver; }
+
 int cmd_trace_info(const std::string& path, bool validate_only, bool json = false) {
   TraceReader r(path);
   Fragment f;
@@ -37,21 +40,70 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     std::array<uint32_t, 64> n{};
   };
   TileMap<Counts> counts(r.header().width, r.header().height);
+  // The transparent fragments (DrawKind src-over and premultiplied-over) per
+  // pixel, and the union of their coverage, in sparse 8x8 tiles.
+  struct TransparentCounts {
+    std::array<uint32_t, 64> n{};
+    std::array<uint64_t, 64> covered{};
+  };
+  TileMap<TransparentCounts> see_through(r.header().width, r.header().height);
+  // Per kind: fragments and covered samples. The table's kinds by its order
+  // (an empty table: every draw is default_draw_state()'s kind).
+  const DrawTable& table = r.header().draws;
+  std::vector<DrawKind> kind_of;
+  for (const DrawState& s : table.states()) kind_of.push_back(draw_kind(s));
+  const DrawKind default_kind = draw_kind(default_draw_state(0));
+  std::array<uint64_t, kDrawKinds> kind_fragments{}, kind_covered{};
   while (r.next(f)) {
-    covered += __builtin_popcountll(f.coverage);
+    const int c = __builtin_popcountll(f.coverage);
+    covered += uint64_t(c);
     max_draw = std::max(max_draw, f.draw_id);
-    if (!validate_only)
-      ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); })
-            .n[(f.y & 7u) * 8 + (f.x & 7u)];
+    if (validate_only) continue;
+    ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); })
+          .n[(f.y & 7u) * 8 + (f.x & 7u)];
+    const DrawKind k = table.empty() ? default_kind : kind_of[size_t(table.find(f.draw_id) - table.states().data())];
+    ++kind_fragments[size_t(k)];
+    kind_covered[size_t(k)] += uint64_t(c);
+    if (transparent(k)) {
+      TransparentCounts& t =
+          see_through.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<TransparentCounts>(); });
+      const size_t i = (f.y & 7u) * 8 + (f.x & 7u);
+      ++t.n[i];
+      t.covered[i] |= f.coverage;
+    }
   }
   const uint64_t n = r.records_read();
   if (validate_only) {
+    const std::string draws =
+        r.version() >= kTraceVersionDraws ? fmt::format(", {} draw states", table.size()) : std::string();
     if (r.header().checksummed)
-      fmt::print("{}: valid, {} fragments, {} checksummed blocks verified\n", path, n, r.blocks_read());
+      fmt::print("{}: valid, {} fragments{}, {} checksummed blocks verified\n", path, n, draws, r.blocks_read());
     else
-      fmt::print("{}: valid, {} fragments (no checksum)\n", path, n);
+      fmt::print("{}: valid, {} fragments{} (no checksum)\n", path, n, draws);
     return 0;
   }
+  // Draws per kind: the table's states, or (no table) every draw id up to
+  // the largest, each of the default state's kind.
+  std::array<uint64_t, kDrawKinds> kind_draws{};
+  if (table.empty())
+    kind_draws[size_t(default_kind)] = n ? uint64_t(max_draw) + 1 : 0;
+  else
+    for (DrawKind k : kind_of) ++kind_draws[size_t(k)];
+  uint64_t see_pixels = 0, see_fragments = 0, see_max = 0, see_samples = 0;
+  see_through.for_each([&](uint32_t, uint32_t, const TransparentCounts& t) {
+    for (size_t i = 0; i < 64; ++i) {
+      if (!t.n[i]) continue;
+      ++see_pixels;
+      see_fragments += t.n[i];
+      see_max = std::max<uint64_t>(see_max, t.n[i]);
+      see_samples += uint64_t(__builtin_popcountll(t.covered[i]));
+    }
+  });
+  const uint64_t see_covered =
+      kind_covered[size_t(DrawKind::kSrcOver)] + kind_covered[size_t(DrawKind::kPremultipliedOver)];
+  const double see_share = covered ? double(see_covered) / double(covered) : 0.0;
+  const double see_per_pixel = see_pixels ? double(see_fragments) / double(see_pixels) : 0.0;
+  const double see_per_sample = see_samples ? double(see_covered) / double(see_samples) : 0.0;
   const auto& h = r.header();
   const auto file_bytes = std::filesystem::file_size(path);
   // The full histogram: touched pixels by their exact number of fragments.
@@ -95,6 +147,20 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     nlohmann::ordered_json hj = nlohmann::ordered_json::object();
     for (const auto& [k, c] : hist) hj[std::to_string(k)] = c;
     j["depth_complexity_histogram_pixels"] = hj;
+    // Draws, fragments and covered samples by the draws' kind (DrawKind).
+    nlohmann::ordered_json kj = nlohmann::ordered_json::object();
+    for (int k = 0; k < kDrawKinds; ++k)
+      kj[to_string(DrawKind(k))] = {{"draws", kind_draws[size_t(k)]},
+                                    {"fragments", kind_fragments[size_t(k)]},
+                                    {"covered_samples", kind_covered[size_t(k)]}};
+    j["draw_kinds"] = kj;
+    j["transparent"] = {{"kinds", {to_string(DrawKind::kSrcOver), to_string(DrawKind::kPremultipliedOver)}},
+                        {"covered_samples", see_covered},
+                        {"covered_samples_share", see_share},
+                        {"pixels", see_pixels},
+                        {"fragments_per_pixel", {{"mean", see_per_pixel}, {"max", see_max}}},
+                        {"samples", see_samples},
+                        {"fragments_per_covered_sample", {{"mean", see_per_sample}}}};
     fmt::print("{}\n", j.dump(2));
     return 0;
   }
@@ -123,6 +189,16 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     line += item;
   }
   if (line.size() > 3) fmt::print("{}\n", line);
+  fmt::print("  draws by kind ({}): draws, fragments, covered samples (share of all)\n",
+             table.empty() ? "no draw states: every draw is src-over" : fmt::format("{} draw states", table.size()));
+  for (int k = 0; k < kDrawKinds; ++k)
+    fmt::print("    {:<19} {} draws, {} fragments, {} covered samples ({:.2f}%)\n", to_string(DrawKind(k)),
+               kind_draws[size_t(k)], kind_fragments[size_t(k)], kind_covered[size_t(k)],
+               covered ? 100.0 * double(kind_covered[size_t(k)]) / double(covered) : 0.0);
+  fmt::print(
+      "  transparent (src-over, premultiplied-over): {:.2f}% of the covered samples; {} pixels, fragments per "
+      "pixel: mean {:.2f}, max {}; fragments per covered sample: mean {:.2f}\n",
+      100.0 * see_share, see_pixels, see_per_pixel, see_max, see_per_sample);
   return 0;
 }
 

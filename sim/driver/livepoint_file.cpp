@@ -163,7 +163,24 @@ void put_header(Put& p, const TraceHeader& h) {
   }
   p.str(h.scene_name);
   p.u8(h.checksummed);
+  // The draw table (trace format version 2), in draw-id order.
+  p.u64(h.draws.size());
+  for (const DrawState& s : h.draws.states()) {
+    p.u32(s.draw_id);
+    p.u8(s.blend);
+    p.u8(s.depth_test);
+    p.u8(s.depth_write);
+    for (uint8_t v :
+         {uint8_t(s.eq_rgb), uint8_t(s.eq_alpha), uint8_t(s.src_rgb), uint8_t(s.dst_rgb), uint8_t(s.src_alpha),
+          uint8_t(s.dst_alpha), uint8_t(s.depth_func), s.color_mask, uint8_t(s.encoding)})
+      p.u8(v);
+    for (float c : s.blend_color) p.f32(c);
+    p.str(s.name);
+  }
 }
+
+/// A draw state's bytes in the payload before its name's.
+constexpr uint64_t kDrawStateBytes = 4 + 3 + 9 + 16 + 8;
 
 TraceHeader get_header(Get& g) {
   TraceHeader h;
@@ -181,7 +198,29 @@ TraceHeader get_header(Get& g) {
   }
   h.scene_name = g.str();
   h.checksummed = g.flag();
-  const std::string why = validate_header(h);
+  const uint64_t n_draws = g.count(kDrawStateBytes);
+  std::vector<DrawState> states(static_cast<size_t>(n_draws));
+  for (DrawState& s : states) {
+    s.draw_id = g.u32();
+    s.blend = g.flag();
+    s.depth_test = g.flag();
+    s.depth_write = g.flag();
+    s.eq_rgb = BlendEquation(g.u8());
+    s.eq_alpha = BlendEquation(g.u8());
+    s.src_rgb = BlendFactor(g.u8());
+    s.dst_rgb = BlendFactor(g.u8());
+    s.src_alpha = BlendFactor(g.u8());
+    s.dst_alpha = BlendFactor(g.u8());
+    s.depth_func = DepthFunc(g.u8());
+    s.color_mask = g.u8();
+    s.encoding = TargetEncoding(g.u8());
+    for (float& c : s.blend_color) c = g.f32();
+    s.name = g.str();
+    if (&s != states.data() && s.draw_id <= (&s - 1)->draw_id)
+      g.fail("the trace header: the draw states are not in increasing draw-id order");
+  }
+  h.draws = DrawTable(std::move(states));
+  const std::string why = validate_header(h);  // the draw table's fields included
   if (!why.empty()) g.fail("the trace header: " + why);
   if (!is_valid_utf8(h.scene_name)) g.fail("the trace header: scene name is not valid UTF-8");
   return h;

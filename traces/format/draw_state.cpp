@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "utf8.h"
+
 namespace ropsim {
 
 const char* to_string(DrawKind k) {
@@ -116,6 +118,7 @@ std::string DrawTable::validate() const {
     if (s.encoding > kLastTargetEncoding) return at + "target encoding out of range";
     if (s.color_mask > 0xF) return at + "colour mask above 15";
     if (s.name.size() > 255) return at + "name longer than 255 bytes";
+    if (!is_valid_utf8(s.name)) return at + "name is not valid UTF-8";
     for (float c : s.blend_color)
       if (!std::isfinite(c)) return at + "blend colour not finite";
   }

@@ -97,7 +97,8 @@ class DrawTable {
   /// Throws std::out_of_range for an id the non-empty table lacks.
   const DrawState& at(uint32_t draw_id) const;
   /// "" when the table is valid (distinct ids, enumerations in range, mask in
-  /// 0..15, a name of at most 255 bytes, finite blend colour), else the reason.
+  /// 0..15, a UTF-8 name of at most 255 bytes, finite blend colour), else the
+  /// reason, naming the state ("draw state i (draw d): ...").
   std::string validate() const;
   bool operator==(const DrawTable& o) const;
 

@@ -1,6 +1,6 @@
-// ropsim fragment trace format v1 (docs/trace-format.md): what a rasterizer
-// hands the ROP, in API order. Reader and writer stream: memory does not grow
-// with the trace length. No SystemC here.
+// ropsim fragment trace format, versions 1 and 2 (docs/trace-format.md): what
+// a rasterizer hands the ROP, in API order; version 2 adds the draw states. Reader and writer stream: memory does not
+// grow with the trace length. No SystemC here.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -12,11 +12,24 @@
 #include <vector>
 
 #include "draw_state.h"
+#include "memory_budget.h"
 
 namespace ropsim {
 
 inline constexpr char kTraceMagic[8] = {'R', 'O', 'P', 'T', 'R', 'A', 'C', 'E'};
+/// The version of a trace without draw states (every trace whose
+/// TraceHeader::draws is empty is written as version 1, byte for byte).
 inline constexpr uint16_t kTraceVersion = 1;
+/// The version of a trace with draw states: version 1's header followed, after
+/// the scene name, by the draw table (section 1.5).
+inline constexpr uint16_t kTraceVersionDraws = 2;
+/// A draw-state record's bytes before its name (section 1.5): draw id (4),
+/// flags (1), nine enumeration, mask and encoding bytes, blend colour (16),
+/// name length (1).
+inline constexpr size_t kDrawRecordFixedBytes = 31;
+/// The draw record's flags byte: bit 0 blend, bit 1 depth test, bit 2 depth write.
+inline constexpr uint8_t kDrawFlagBlend = 0x01, kDrawFlagDepthTest = 0x02, kDrawFlagDepthWrite = 0x04;
+inline constexpr uint8_t kDrawKnownFlags = kDrawFlagBlend | kDrawFlagDepthTest | kDrawFlagDepthWrite;
 inline constexpr uint32_t kMaxScreenSide = 32768;
 inline constexpr uint8_t kTagFragment = 0x01;
 inline constexpr uint8_t kTagChecksum = 0x02;
@@ -28,7 +41,7 @@ inline constexpr uint16_t kTraceFlagChecksum = 0x0001;
 /// which the payload's checksums do not cover, is verified at open.
 inline constexpr uint16_t kTraceFlagHeaderCheck = 0x0002;
 inline constexpr uint16_t kTraceKnownFlags = kTraceFlagChecksum | kTraceFlagHeaderCheck;
-/// The header check: a u64 right after the scene name.
+/// The header check: a u64 right after the scene name (version 2: after the draw table).
 inline constexpr size_t kHeaderCheckBytes = 8;
 /// A zstd payload decompresses to at most this many bytes per compressed byte
 /// (RFC 8878: a block holds at most 128 KiB, and the densest block, an RLE
@@ -70,8 +83,11 @@ struct TraceHeader {
   /// unset gives the layout every version 1 reader reads.
   bool checksummed = true;
   /// Version 2: the draw states (draw_state.h), written after the scene name.
-  /// Empty (every version 1 trace): each draw has default_draw_state().
+  /// Empty (every version 1 trace): each draw has default_draw_state(). The
+  /// writer writes version 2 exactly when it is not empty.
   DrawTable draws;
+  /// The format version this header is written as: 1 without draw states, 2 with.
+  uint16_t version() const { return draws.empty() ? kTraceVersion : kTraceVersionDraws; }
 };
 
 /// One fragment: a pixel's worth of samples from one primitive.
@@ -95,7 +111,8 @@ class TraceError : public std::runtime_error {
 
 /// Validates a header; returns "" when valid, otherwise the reason.
 std::string validate_header(const TraceHeader& h);
-/// Validates one fragment against its header; returns "" or the reason.
+/// Validates one fragment against its header (its draw_id among the draw
+/// states when the table is not empty); returns "" or the reason.
 std::string validate_fragment(const TraceHeader& h, const Fragment& f);
 
 /// Bytes of one fragment record before compression (tag byte included).
@@ -136,11 +153,16 @@ class TraceReader {
   std::optional<uint64_t> recorded_fragments() const { return recorded_fragments_; }
   /// The header carries its check (flag bit 1), verified at open.
   bool header_checked() const { return header_checked_; }
+  /// The version the file declares (1 or 2).
+  uint16_t version() const { return version_; }
   /// The share of the file's bytes read so far, in [0, 1] (read-ahead
   /// included: for progress, not for positions).
   double file_fraction() const;
 
  private:
+  /// Reads the draw table (version 2) that starts at file byte `at` into
+  /// header_.draws, and its bytes into `bytes` (for the header check).
+  void read_draw_table(FILE* f, uint64_t at, bool checked, std::vector<uint8_t>& bytes);
   /// Refuses a recorded count the payload cannot hold (a regular file's size).
   void check_recorded_count(FILE* f, uint64_t header_bytes);
   [[noreturn]] void fail(const std::string& what) const;
@@ -170,6 +192,8 @@ class TraceReader {
   bool at_end_record_ = false;       ///< reading the end record (errors name its position)
   std::optional<uint64_t> recorded_fragments_;
   bool header_checked_ = false;
+  uint16_t version_ = kTraceVersion;
+  BudgetShare draws_mem_;  ///< the draw table's bytes in the memory budget (--memory-limit)
 };
 
 /// The most fragment records a payload of payload_bytes can hold, given the
@@ -215,6 +239,11 @@ class TraceWriter {
 
 /// One fragment as a JSON object on one line (for `ropsim trace dump`).
 std::string fragment_to_json(const TraceHeader& h, const Fragment& f, uint64_t index);
+/// The header as one JSON object: its fields, the version it is written as and
+/// the draw table ("draws": draw_state_to_json() of each state; [] for none).
 std::string header_to_json(const TraceHeader& h);
+/// One draw state as a JSON object: its fields by name (GL's enumerant names
+/// without GL_) and its kind (draw_kind()).
+std::string draw_state_to_json(const DrawState& s);
 
 }  // namespace ropsim

@@ -1,4 +1,4 @@
-// Trace v1 reader and writer (docs/trace-format.md).
+// Trace reader and writer, versions 1 and 2 (docs/trace-format.md).
 #include <sys/stat.h>
 #include <xxhash.h>
 #include <zstd.h>
@@ -61,6 +61,52 @@ float get_f32(const uint8_t* p) {
 }
 
 int coverage_bytes(int spp) { return int(ceil_div(unsigned(spp), 8u)); }
+
+/// Appends the draw table (section 1.5): the count, then each state's record.
+void encode_draw_table(std::vector<uint8_t>& o, const DrawTable& t) {
+  uint8_t c[4];
+  put_u32(c, uint32_t(t.size()));
+  o.insert(o.end(), c, c + 4);
+  for (const DrawState& s : t.states()) {
+    uint8_t r[kDrawRecordFixedBytes];
+    put_u32(r, s.draw_id);
+    r[4] = uint8_t((s.blend ? kDrawFlagBlend : 0) | (s.depth_test ? kDrawFlagDepthTest : 0) |
+                   (s.depth_write ? kDrawFlagDepthWrite : 0));
+    r[5] = uint8_t(s.eq_rgb);
+    r[6] = uint8_t(s.eq_alpha);
+    r[7] = uint8_t(s.src_rgb);
+    r[8] = uint8_t(s.dst_rgb);
+    r[9] = uint8_t(s.src_alpha);
+    r[10] = uint8_t(s.dst_alpha);
+    r[11] = uint8_t(s.depth_func);
+    r[12] = s.color_mask;
+    r[13] = uint8_t(s.encoding);
+    for (int i = 0; i < 4; ++i) put_f32(r + 14 + 4 * i, s.blend_color[size_t(i)]);
+    r[30] = uint8_t(s.name.size());  // validate(): at most 255 bytes
+    o.insert(o.end(), r, r + sizeof r);
+    o.insert(o.end(), s.name.begin(), s.name.end());
+  }
+}
+
+/// Decodes one draw-state record's fixed part (the name follows it).
+DrawState decode_draw_record(const uint8_t* r) {
+  DrawState s;
+  s.draw_id = get_u32(r);
+  s.blend = (r[4] & kDrawFlagBlend) != 0;
+  s.depth_test = (r[4] & kDrawFlagDepthTest) != 0;
+  s.depth_write = (r[4] & kDrawFlagDepthWrite) != 0;
+  s.eq_rgb = BlendEquation(r[5]);
+  s.eq_alpha = BlendEquation(r[6]);
+  s.src_rgb = BlendFactor(r[7]);
+  s.dst_rgb = BlendFactor(r[8]);
+  s.src_alpha = BlendFactor(r[9]);
+  s.dst_alpha = BlendFactor(r[10]);
+  s.depth_func = DepthFunc(r[11]);
+  s.color_mask = r[12];
+  s.encoding = TargetEncoding(r[13]);
+  for (int i = 0; i < 4; ++i) s.blend_color[size_t(i)] = get_f32(r + 14 + 4 * i);
+  return s;
+}
 
 }  // namespace
 
@@ -226,10 +272,13 @@ std::string validate_header(const TraceHeader& h) {
   if (!(h.clear_depth >= 0.0f && h.clear_depth <= 1.0f)) return "clear depth must be in [0, 1]";
   if (h.scene_name.size() > 65535) return "scene name longer than 65535 bytes";
   if (!is_valid_utf8(h.scene_name)) return "scene name is not valid UTF-8";
-  return "";
+  return h.draws.validate();
 }
 
 std::string validate_fragment(const TraceHeader& h, const Fragment& f) {
+  if (!h.draws.empty() && !h.draws.find(f.draw_id))
+    return "draw " + std::to_string(f.draw_id) + " has no state in the header's draw table (" +
+           std::to_string(h.draws.size()) + " states)";
   if (f.x >= h.width || f.y >= h.height)
     return "pixel (" + std::to_string(f.x) + ", " + std::to_string(f.y) + ") is outside the " +
            std::to_string(h.width) + "x" + std::to_string(h.height) + " screen";
@@ -278,9 +327,11 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   if (std::memcmp(fixed, kTraceMagic, std::min<size_t>(got, 8)) != 0)
     throw TraceError(path + ": header: not a ropsim trace (bad magic)");
   if (got < sizeof fixed) throw TraceError(path + ": header: truncated (" + std::to_string(got) + " of 48 bytes)");
-  uint16_t version = get_u16(fixed + 8);
-  if (version != kTraceVersion)
-    throw TraceError(path + ": header: unsupported version " + std::to_string(version) + " (this reader reads 1)");
+  const uint16_t version = get_u16(fixed + 8);
+  if (version != kTraceVersion && version != kTraceVersionDraws)
+    throw TraceError(path + ": header: unsupported version " + std::to_string(version) +
+                     " (this reader reads 1 and 2)");
+  version_ = version;
   const uint16_t flags = get_u16(fixed + 10);
   if (flags & ~kTraceKnownFlags) {
     char hex[8];
@@ -288,6 +339,10 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     throw TraceError(path + ": header: unknown flags " + hex +
                      " (this reader knows bit 0, checksummed payload, and bit 1, header check)");
   }
+  if (version == kTraceVersionDraws && (flags & kTraceFlagChecksum) && !(flags & kTraceFlagHeaderCheck))
+    throw TraceError(path +
+                     ": header: a version 2 trace with a checksummed payload (flag bit 0) must check its header "
+                     "(flag bit 1), which covers the draw table");
   TraceHeader& h = header_;
   h.checksummed = (flags & kTraceFlagChecksum) != 0;
   h.width = get_u32(fixed + 12);
@@ -311,14 +366,22 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     throw TraceError(path + ": header: truncated in the scene name");
   if (!is_valid_utf8(h.scene_name)) throw TraceError(path + ": header: scene name is not valid UTF-8");
   uint64_t header_bytes = kFixedHeaderBytes + 2 * size_t(h.spp) + name_len;
+  struct stat sb;
+  if (::fstat(fileno(f), &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size > 0) file_size_ = uint64_t(sb.st_size);
+  std::vector<uint8_t> table;  // version 2: the draw table's bytes as read (the header check covers them)
+  if (version == kTraceVersionDraws) {
+    read_draw_table(f, header_bytes, (flags & kTraceFlagHeaderCheck) != 0, table);
+    header_bytes += table.size();
+  }
   if (flags & kTraceFlagHeaderCheck) {
     // The check covers every header byte before it: the fixed part, the
-    // positions and the name, as read.
+    // positions, the name and (version 2) the draw table, as read.
     uint8_t c[kHeaderCheckBytes];
     if (std::fread(c, 1, sizeof c, f) != sizeof c) throw TraceError(path + ": header: truncated in the header check");
     std::vector<uint8_t> head(fixed, fixed + sizeof fixed);
     head.insert(head.end(), pos, pos + 2 * size_t(h.spp));
     head.insert(head.end(), h.scene_name.begin(), h.scene_name.end());
+    head.insert(head.end(), table.begin(), table.end());
     const uint64_t stored = get_u64(c), computed = XXH3_64bits(head.data(), head.size());
     if (stored != computed) {
       char m[160];
@@ -331,8 +394,6 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     header_checked_ = true;
     header_bytes += kHeaderCheckBytes;
   }
-  struct stat sb;
-  if (::fstat(fileno(f), &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size > 0) file_size_ = uint64_t(sb.st_size);
   if (recorded_fragments_ && file_size_ > 0) check_recorded_count(f, header_bytes);
   std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
   if (h.compression == Compression::kZstd)
@@ -341,6 +402,58 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     src_ = std::make_unique<FileSource>(f);
   guard.release();
   file_ = f;
+}
+
+void TraceReader::read_draw_table(FILE* f, uint64_t at, bool checked, std::vector<uint8_t>& bytes) {
+  const std::string where = path_ + ": header: ";
+  uint8_t c[4];
+  if (std::fread(c, 1, sizeof c, f) != sizeof c) throw TraceError(where + "truncated in the draw count");
+  bytes.assign(c, c + 4);
+  const uint32_t n = get_u32(c);
+  const uint64_t per_state = sizeof(DrawState) + kDrawRecordFixedBytes;  // the state and its record's bytes
+  if (file_size_ > 0) {
+    // A regular file: the count is bounded by what follows it, n records of
+    // kDrawRecordFixedBytes or more, the header check and the end record.
+    const uint64_t after = at + 4 + (checked ? kHeaderCheckBytes : 0) + 9;
+    const uint64_t room = file_size_ > after ? file_size_ - after : 0, most = room / kDrawRecordFixedBytes;
+    if (n > most)
+      throw TraceError(where + "draw count " + std::to_string(n) + " is more than the file's " + std::to_string(room) +
+                       " bytes after it can hold (at most " + std::to_string(most) + " records of " +
+                       std::to_string(kDrawRecordFixedBytes) +
+                       " bytes or more): the header is damaged or the file truncated");
+    draws_mem_.add(n * per_state, "the draw table of " + path_);
+    bytes.reserve(4 + size_t(n) * kDrawRecordFixedBytes);
+  }
+  std::vector<DrawState> states;
+  if (file_size_ > 0) states.reserve(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    const std::string rec = "draw state " + std::to_string(i);
+    uint8_t r[kDrawRecordFixedBytes];
+    if (std::fread(r, 1, sizeof r, f) != sizeof r) throw TraceError(where + "truncated in " + rec);
+    DrawState s = decode_draw_record(r);
+    const std::string at_rec = rec + " (draw " + std::to_string(s.draw_id) + "): ";
+    if (r[4] & ~kDrawKnownFlags) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "0x%02x", unsigned(r[4] & ~kDrawKnownFlags));
+      throw TraceError(where + at_rec + "unknown flags " + hex +
+                       " (bit 0 blend, bit 1 depth test, bit 2 depth write; the others are 0)");
+    }
+    if (!states.empty() && s.draw_id < states.back().draw_id)
+      throw TraceError(where + at_rec + "draw ids out of order (after draw " + std::to_string(states.back().draw_id) +
+                       "; the table is sorted by draw id)");
+    const uint8_t len = r[30];
+    s.name.resize(len);
+    if (len && std::fread(s.name.data(), 1, len, f) != len) throw TraceError(where + "truncated in " + rec + "'s name");
+    draws_mem_.add((file_size_ > 0 ? 0 : per_state) + 2 * uint64_t(len), "the draw table of " + path_);
+    bytes.insert(bytes.end(), r, r + sizeof r);
+    bytes.insert(bytes.end(), s.name.begin(), s.name.end());
+    states.push_back(std::move(s));
+  }
+  // The records are in draw-id order, so validate()'s "draw state i" is the
+  // i-th record of the file.
+  header_.draws = DrawTable(std::move(states));
+  const std::string err = header_.draws.validate();
+  if (!err.empty()) throw TraceError(where + err);
 }
 
 void TraceReader::check_recorded_count(FILE* f, uint64_t header_bytes) {
@@ -575,7 +688,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   FILE* f = out_->stream();
   uint8_t fixed[kFixedHeaderBytes] = {};
   std::memcpy(fixed, kTraceMagic, 8);
-  put_u16(fixed + 8, kTraceVersion);
+  put_u16(fixed + 8, header_.version());
   put_u16(fixed + 10, header_.checksummed ? kTraceFlagChecksum | kTraceFlagHeaderCheck : 0);
   put_u32(fixed + 12, header_.width);
   put_u32(fixed + 16, header_.height);
@@ -592,6 +705,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
     head_.push_back(header_.positions[i].y);
   }
   head_.insert(head_.end(), header_.scene_name.begin(), header_.scene_name.end());
+  if (!header_.draws.empty()) encode_draw_table(head_, header_.draws);  // version 2 (section 1.5)
   // A failure here destroys out_, which removes the temporary file.
   FileSink raw(f, path);
   raw.write(head_.data(), head_.size());

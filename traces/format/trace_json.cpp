@@ -8,7 +8,7 @@ namespace ropsim {
 std::string header_to_json(const TraceHeader& h) {
   nlohmann::ordered_json j;
   j["format"] = "ropsim-trace";
-  j["version"] = kTraceVersion;
+  j["version"] = h.version();
   j["scene"] = h.scene_name;
   j["width"] = h.width;
   j["height"] = h.height;
@@ -22,6 +22,32 @@ std::string header_to_json(const TraceHeader& h) {
   auto pos = nlohmann::json::array();
   for (int i = 0; i < h.spp; ++i) pos.push_back({h.positions[i].x, h.positions[i].y});
   j["sample_positions_256ths"] = pos;
+  // The draw table (version 2), in draw-id order; empty: every draw has
+  // default_draw_state().
+  auto draws = nlohmann::ordered_json::array();
+  for (const DrawState& s : h.draws.states()) draws.push_back(nlohmann::ordered_json::parse(draw_state_to_json(s)));
+  j["draws"] = draws;
+  return j.dump();
+}
+
+std::string draw_state_to_json(const DrawState& s) {
+  nlohmann::ordered_json j;
+  j["draw"] = s.draw_id;
+  j["name"] = s.name;
+  j["kind"] = to_string(draw_kind(s));
+  j["blend"] = s.blend;
+  j["equation_rgb"] = to_string(s.eq_rgb);
+  j["equation_alpha"] = to_string(s.eq_alpha);
+  j["src_rgb"] = to_string(s.src_rgb);
+  j["dst_rgb"] = to_string(s.dst_rgb);
+  j["src_alpha"] = to_string(s.src_alpha);
+  j["dst_alpha"] = to_string(s.dst_alpha);
+  j["blend_color"] = s.blend_color;
+  j["depth_test"] = s.depth_test;
+  j["depth_func"] = to_string(s.depth_func);
+  j["depth_write"] = s.depth_write;
+  j["color_mask"] = s.color_mask;
+  j["encoding"] = to_string(s.encoding);
   return j.dump();
 }
 
