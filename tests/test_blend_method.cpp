@@ -295,8 +295,8 @@ TEST(BlendMethod, DiffersFromTheReferenceOnlyByOrder) {
     const auto m = run_blend(h, frags);
     ReferenceModel ref(h);
     for (const Fragment& f : frags) ref.draw(f);
-    const float* b = m->resolve().at(0, 0);
-    const float* a = ref.resolve().at(0, 0);
+    const Image bi = m->resolve(), ai = ref.resolve();
+    const float *b = bi.at(0, 0), *a = ai.at(0, 0);
     // Hand over-composite: far to near for the reference; submission order for blend.
     const double sorted[3] = {0.5 * 0.5 * 0.1 + 0.5 * 0.5 * 1.0, 0.5 * 0.5 * 0.2 + 0.5, 0.5 * 0.5 * 0.9};
     const double submitted[3] = {0.5 * 0.5 * 0.1 + 0.5, 0.5 * 0.5 * 0.2 + 0.5 * 0.5, 0.5 * 0.5 * 0.9};
@@ -360,7 +360,8 @@ TEST(BlendMethod, AnEmptyDrawTableBlendsSrcOverInFloatInSubmissionOrder) {
   TraceHeader h = header(1, 1, 1, {});
   h.clear_color = {0, 0, 1};
   const auto m = run_blend(h, {frag(0, 0, 0, 0.2f, {1, 0, 0, 0.5f}), frag(1, 0, 0, 0.9f, {0, 1, 0, 0.25f})});
-  const float* px = m->resolve().at(0, 0);
+  const Image img = m->resolve();
+  const float* px = img.at(0, 0);
   // ((0,0,1) over-ed by red at 0.5, then green at 0.25; depth is never written).
   EXPECT_NEAR(px[0], 0.5 * 0.75, 1e-7);
   EXPECT_NEAR(px[1], 0.25, 1e-7);
