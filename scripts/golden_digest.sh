@@ -17,7 +17,7 @@ tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 for scene in cloth eight-layers smoke; do
   for m in lk enderton naive a2c opaque reference hashed hashed-a2c slab wboit lk+ac lk+depth lk+depth+ac \
-    enderton+ac enderton+depth enderton+depth+ac; do
+    enderton+ac enderton+depth enderton+depth+ac blend; do
     for spp in 4 16; do
       "$ROPSIM" run --scene "$scene" --spp "$spp" --method "$m" --vs-reference --quiet \
         --out "$tmp/o.png" --report "$tmp/r.json"

@@ -2,7 +2,7 @@
 # Prints one line per cycle-model run -- config, method, trace, total cycles and
 # a digest of every timing figure in the report (host figures and the
 # bottleneck's classification aside) -- over
-# configs/*.toml x {lk, opaque, enderton, naive, a2c} x {cloth 16 spp, cloth 4
+# configs/*.toml x {lk, opaque, enderton, naive, a2c, blend} x {cloth 16 spp, cloth 4
 # spp, eight-layers 16 spp}. A refactor that must not change the model leaves
 # this output unchanged: the ctest TimingDigest.MatchesTheCommittedDigest
 # compares it with tests/data/timing_digest.expected. Extra args go to every
@@ -21,7 +21,7 @@ trap 'rm -rf "$tmp"' EXIT
 "$b" scene cloth --spp 4 -o "$tmp/cloth4.rtr" >/dev/null
 "$b" scene eight-layers --spp 16 -o "$tmp/layers16.rtr" >/dev/null
 for cfg in "$root"/configs/*.toml; do
-  for m in lk opaque enderton naive a2c; do
+  for m in lk opaque enderton naive a2c blend; do
     for tr in cloth16 cloth4 layers16; do
       "$b" run --fidelity cycle --hw "$cfg" --trace "$tmp/$tr.rtr" --method "$m" --quiet \
         --out "$tmp/o.png" --report "$tmp/r.json" "$@"

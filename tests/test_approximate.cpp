@@ -43,7 +43,7 @@ HwConfig design(const std::string& name) { return load_hw_config(kSource + "/con
 // The image comes from the functional pass: the golden image, bit for bit,
 // with the golden model's counters, for single- and multi-pass methods.
 TEST(Approximate, WritesTheGoldenImageBitForBit) {
-  for (Method m : {Method::kLk, Method::kSlab, Method::kLkDepthAc, Method::kWboit}) {
+  for (Method m : {Method::kLk, Method::kSlab, Method::kLkDepthAc, Method::kWboit, Method::kBlend}) {
     for (const char* s : {"cloth", "smoke"}) {
       const std::string what = std::string(s) + " 8 spp " + to_string(m);
       const InputSpec in = scene(s, 8);

@@ -1228,4 +1228,7 @@ TEST(TraceVectors, EveryRowIsTheUnitFunctionAndEveryCallIsARow) {
   EXPECT_THROW(make_trace_vectors("half", req, [](std::string_view) {}), std::invalid_argument);
   e.method.method = Method::kSlab;
   EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), std::invalid_argument);
+  // blend tests depth with each draw's function, not the unit's LESS_EQUAL.
+  e.method.method = Method::kBlend;
+  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), std::invalid_argument);
 }

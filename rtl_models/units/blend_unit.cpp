@@ -11,10 +11,12 @@ BlendUnit::BlendUnit(const sc_core::sc_module_name& name, const Clock& clk, Func
 uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
   const PassKind p = rop_.pass();
   // What the blend replaces in the targets the compressor tracks (pixel_snapshot.h).
-  PixelSnapshot trans, accum;
+  PixelSnapshot trans, accum, depth;
+  const bool fb = p == PassKind::kFramebuffer;
   if (CompressionModel* cm = cache_.compression()) {
     if (pass_blends_transmittance(p)) trans.take(cm, amap_, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
     if (pass_blends_accum(p)) accum.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
+    if (fb) depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
   }
   const uint32_t n = run_stage(rop_.blend(), *t);
   const Owner o = t->owner();
@@ -26,6 +28,11 @@ uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
   if (pass_blends_accum(p))
     amap_.for_each_sample_line(Buffer::kAccum, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
       cache_.post_write(line, Buffer::kAccum, now, o, accum.patch(line));
+    });
+  // blend: the depth of the samples its draw writes.
+  if (fb)
+    amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->depth_written, [&](uint64_t line) {
+      cache_.post_write(line, Buffer::kDepth, now, o, depth.patch(line));
     });
   return n;
 }

@@ -1,7 +1,9 @@
 // Blend unit (the blend passes of wboit, alpha correction and depth-based
-// accumulation): the functional ROP's blend stage (multiplicative into the
-// transmittance target, additive into the accumulation target, blend.h) and
-// the render-target writes through the ROP cache. The destination was read
+// accumulation, and blend's framebuffer pass): the functional ROP's blend
+// stage (multiplicative into the transmittance target, additive into the
+// accumulation target, blend.h; blend: the draw's blend into the framebuffer
+// and its depth write, framebuffer_blend.h) and the render-target (and
+// depth) writes through the ROP cache. The destination was read
 // with the depth at the depth test (read-modify-write); samples_per_clock
 // blends per clock; after the latency the fragment retires and its pixel
 // leaves the scoreboard. Its cache writes are posted (PostedWrites,
@@ -41,6 +43,9 @@ class BlendUnit : public DecoupledUnit {
 
 /// The render targets a blend pass reads and writes (none for other passes).
 inline bool pass_blends_transmittance(PassKind p) { return p == PassKind::kTotalAlpha || p == PassKind::kWboit; }
-inline bool pass_blends_accum(PassKind p) { return p == PassKind::kAccumulate || p == PassKind::kWboit; }
+/// (blend's framebuffer pass: the accumulation target holds the framebuffer.)
+inline bool pass_blends_accum(PassKind p) {
+  return p == PassKind::kAccumulate || p == PassKind::kWboit || p == PassKind::kFramebuffer;
+}
 
 }  // namespace ropsim

@@ -24,8 +24,10 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   }
   // Hierarchical Z: a fragment whose tested samples all lie beyond its
   // tile's farthest stored depth fails them all; it reads nothing and
-  // retires here (compression_model.h gives the update rule).
-  if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered) {
+  // retires here (compression_model.h gives the update rule). Not for blend:
+  // its draws' depth functions are not all LESS or LEQUAL.
+  if (CompressionModel* cm = cache_.compression();
+      cm && cm->hiz() && t->covered && rop_.setup().cfg.method != Method::kBlend) {
     float zmin = 1.0f;
     for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);
     if (cm->hiz_rejects(t->f->x, t->f->y, zmin)) {

@@ -303,7 +303,8 @@ class Model {
     color_ = stochastic_writes_color(rop.setup().cfg.method);
     const PassKind p = rop.pass();
     trans_ = p == PassKind::kTotalAlpha || p == PassKind::kWboit;
-    accum_ = p == PassKind::kAccumulate || p == PassKind::kWboit;
+    accum_ = p == PassKind::kAccumulate || p == PassKind::kWboit || p == PassKind::kFramebuffer;
+    framebuffer_ = p == PassKind::kFramebuffer;
     const auto& d = hw.distributor;
     const auto& o = hw.ordering;
     epoch_ = uint64_t(d.rop_units) * (d.fifo_depth + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles +
@@ -356,6 +357,9 @@ class Model {
         if (accum_)
           amap_.for_each_sample_line(Buffer::kAccum, f.x, f.y, w.survivors,
                                      [&](uint64_t l) { c.write(l, Buffer::kAccum); });
+        if (framebuffer_)  // blend: `written` holds the samples whose depth its draw wrote
+          amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.written,
+                                     [&](uint64_t l) { c.write(l, Buffer::kDepth); });
       } else {
         if (tracker_unit_) {
           e.demand[kTracker] += 1;
@@ -503,7 +507,7 @@ class Model {
   std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
   std::vector<size_t> window_at_;
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
-  bool slab_ = false, color_ = true, trans_ = false, accum_ = false;
+  bool slab_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
   uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
   double t_ = 0;                 // the pipeline's cycles so far (the epochs')
   std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start
@@ -536,7 +540,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   ApproxStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;
-  s.hw.blend.formats = method.formats;
+  s.hw.blend.formats = target_formats(method);
   if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
   if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
@@ -592,7 +596,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
           r.examined = uint16_t(rop->write().run(w));
           r.slab_kept = method.method == Method::kSlab && w.slab.kept;
         }
-        r.written = w.written;
+        r.written = rop->pass() == PassKind::kFramebuffer ? w.depth_written : w.written;
       }
       batch.push_back(r);
       if (batch.size() == kBatch) {

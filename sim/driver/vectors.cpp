@@ -502,6 +502,9 @@ std::string calls_unit(Method m, const std::string& unit) {
   if (!traits(m).pipeline) return std::string("the ") + name + " method has no ROP pipeline";
   if (unit == "depth-test" && m == Method::kSlab)
     return "slab has no per-sample depth test (its layers hold the depth)";
+  if (unit == "depth-test" && m == Method::kBlend)
+    return "blend tests depth with each draw's own function; the depth-test unit's rule (rop_depth_compare) is "
+           "LEQUAL";
   if ((unit == "tracker" && !t.tracker) || (unit == "sorter" && !t.sorter) ||
       ((unit == "alpha-ref" || unit == "hilbert") && selection_of(m) != Method::kLk) ||
       (unit == "opacity" && selection_of(m) != Method::kLk && m != Method::kNaive))

@@ -1,6 +1,9 @@
 #include "composite.h"
 
+#include <cstring>
+
 #include "depth.h"
+#include "framebuffer_blend.h"
 #include "half.h"
 
 namespace ropsim {
@@ -52,6 +55,35 @@ Image composite(const SampleStore& store, Method m) {
       }
       float* o = img.at(x, y);
       for (int c = 0; c < 3; ++c) o[c] = float(out[c]);
+    }
+  });
+  return img;
+}
+
+namespace {
+/// Linear light of a resolved framebuffer value of encoding e.
+float framebuffer_light(TargetEncoding e, float v) {
+  return e == TargetEncoding::kFloat ? v : fb::srgb_decode_code(fb::code_of(v));
+}
+}  // namespace
+
+Image framebuffer_image(const SampleStore& store) {
+  const TraceHeader& h = store.header();
+  const TargetEncoding e = frame_encoding(h.draws);
+  const std::array<float, 4>& clear = store.targets().accum_clear;
+  Image img(h.width, h.height,
+            {framebuffer_light(e, clear[0]), framebuffer_light(e, clear[1]), framebuffer_light(e, clear[2])});
+  const int spp = h.spp;
+  store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+      if (x >= img.width || y >= img.height) continue;
+      const PixelView v = store.view(x, y);
+      float samples[64 * 4], rgb[3];
+      std::memcpy(samples, v.accum, size_t(spp) * 16);
+      framebuffer_resolve_pixel(e, samples, spp, rgb);
+      float* o = img.at(x, y);
+      for (int c = 0; c < 3; ++c) o[c] = framebuffer_light(e, rgb[c]);
     }
   });
   return img;

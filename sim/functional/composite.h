@@ -8,6 +8,7 @@
 //   +depth     C = mean_s accum_s.rgb  +  (S - R) / S * background
 //   +depth+ac  C = A * sum_s accum_s.rgb / sum_s accum_s.a  +  mean_s(T_s) * background
 //   wboit      C = mean_s [ accum_s.rgb / clamp(accum_s.a) * (1 - T_s) + T_s * background ]
+//   blend      the framebuffer (accum, RGBA) resolved in its encoding (framebuffer_image)
 //
 // T_s is the transmittance target (the product of 1 - alpha over the
 // fragments at sample s), accum_s the accumulation target; a written sample
@@ -23,5 +24,13 @@ namespace ropsim {
 
 /// The image of a method with blend passes from its final state.
 Image composite(const SampleStore& store, Method m);
+
+/// blend's image: each pixel's framebuffer samples resolved in the frame's
+/// encoding (framebuffer_resolve_pixel, frame_encoding), as linear light. An
+/// 8-bit target's resolved bytes are display code values, so the image holds
+/// their sRGB decoding, which an sRGB PNG stores back as exactly those bytes
+/// (the PNG of a unorm8 or srgb8 target is its bytes as stored); a float
+/// target's values are the image's.
+Image framebuffer_image(const SampleStore& store);
 
 }  // namespace ropsim

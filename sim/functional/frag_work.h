@@ -52,6 +52,10 @@ struct FragWork {
   // Opacity test and write.
   uint64_t written = 0;  ///< samples whose depth and colour were written
 
+  // blend (the framebuffer pass).
+  const DrawState* draw = nullptr;  ///< the fragment's draw state (the depth test looks it up)
+  uint64_t depth_written = 0;       ///< samples whose depth the blend wrote (the draw's depth mask)
+
   /// No sample survived the depth test: the fragment leaves the ROP there.
   bool killed() const { return m == 0; }
 };

@@ -10,7 +10,11 @@ namespace ropsim {
 
 RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
     : header(h),
-      cfg(c),
+      cfg([&c] {
+        MethodConfig r = c;
+        r.formats = target_formats(c);
+        return r;
+      }()),
       traits(ropsim::traits(c.method)),
       selection(selection_of(c.method)),
       passes(passes_of(c.method)),
@@ -31,13 +35,20 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   }
 }
 
+StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
+  StoreTargets t{uses_transmittance(cfg.method), uses_accum(cfg.method), target_formats(cfg),
+                 {0.0f, 0.0f, 0.0f, 0.0f}, cfg.method == Method::kSlab ? cfg.slab_bits : 0};
+  if (traits(cfg.method).framebuffer) t.accum_clear = framebuffer_clear(frame_encoding(h.draws), h.clear_color);
+  return t;
+}
+
 // ------------------------------------------------------------ FunctionalRop
 
 template <Method M>
 void FunctionalRop::process_as(FragWork& w) {
   constexpr MethodTraits kT = ropsim::traits(selection_of(M));
   fetch(w);
-  if constexpr (passes_of(M).count > 1 || ropsim::traits(M).wboit) {
+  if constexpr (has_blend_pass(M)) {
     if (is_blend_pass(setup_.pass)) {
       // The targets' samples are read-modify-written once the depth test has
       // run: ask for their cache lines now, so the loads overlap the test.
@@ -58,9 +69,7 @@ void FunctionalRop::process_as(FragWork& w) {
 
 FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
     : setup_(h, cfg),
-      store_(h, setup_.traits.tracker,
-             StoreTargets{uses_transmittance(cfg.method), uses_accum(cfg.method), cfg.formats,
-                          cfg.method == Method::kSlab ? cfg.slab_bits : 0}),
+      store_(h, setup_.traits.tracker, store_targets(h, cfg)),
       depth_(setup_),
       track_(setup_),
       sort_(setup_),
@@ -103,6 +112,7 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
       ROPSIM_CASE(Method::kEndertonAc)
       ROPSIM_CASE(Method::kEndertonDepth)
       ROPSIM_CASE(Method::kEndertonDepthAc)
+      ROPSIM_CASE(Method::kBlend)
 #undef ROPSIM_CASE
     case Method::kReference:
       throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
@@ -144,6 +154,7 @@ void FunctionalRop::begin_pass(int i) {
 }
 
 Image FunctionalRop::resolve() const {
+  if (setup_.traits.framebuffer) return framebuffer_image(store_);
   if (setup_.passes.count == 1 && !setup_.traits.wboit) return store_.resolve();
   return composite(store_, setup_.cfg.method);
 }

@@ -58,6 +58,10 @@ inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) 
                         offset_y.data(), f.z.data(), [z](int i, float zi) { z[i] = zi; });
 }
 
+/// The per-pixel buffers a run of cfg on a trace of header h keeps beyond
+/// depth and colour (the golden model's and the cycle model's store).
+StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg);
+
 /// A stage's counters; a run's are the sum over the stages.
 class Stage {
  public:

@@ -5,6 +5,7 @@
 #include "alpha_ref.h"
 #include "blend.h"
 #include "depth.h"
+#include "framebuffer_blend.h"
 #include "hilbert.h"
 #include "method_kernels.h"
 #include "opacity.h"
@@ -56,6 +57,8 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
       return call<Method::kEndertonDepth>(w);   \
     case Method::kEndertonDepthAc:              \
       return call<Method::kEndertonDepthAc>(w); \
+    case Method::kBlend:                        \
+      return call<Method::kBlend>(w);           \
     case Method::kReference:                    \
       break;                                    \
   }                                             \
@@ -70,7 +73,28 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   c_.samples_tested += covered;
   uint64_t tested = f.coverage;
   // Blend passes: the plain test, no coverage selection, no tracker.
-  [[maybe_unused]] const bool stochastic = !(passes_of(M).count > 1 || traits(M).wboit) || !is_blend_pass(s_.pass);
+  [[maybe_unused]] const bool stochastic = !has_blend_pass(M) || !is_blend_pass(s_.pass);
+  if constexpr (M == Method::kBlend) {
+    // The draw's own test (framebuffer_blend.h): its function, or every
+    // covered sample when its test is off. Each covered sample's depth is read.
+    const DrawState& d = s_.header.draws.at(f.draw_id);
+    w.draw = &d;
+    c_.depth_bytes_read += kDepthSampleBytes * covered;
+    uint64_t S = 0;
+    const float* stored = w.px.depth;
+    float* z = w.z;
+    for_each_sample_depth(f.coverage, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy,
+                          s_.offset_x.data(), s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
+                            z[i] = zi;
+                            S |= uint64_t{!d.depth_test || depth_func_passes(d.depth_func, zi, stored[i])} << i;
+                          });
+    w.covered = f.coverage;
+    w.survivors = S;
+    w.m = uint32_t(__builtin_popcountll(S));
+    c_.samples_depth_passed += w.m;
+    if (s_.observer) s_.observer->depth_tested(w);
+    return covered;
+  }
   if constexpr (kT.coverage_select) {
     // The opacity decision as a sample mask, made before the depth test.
     const uint64_t a = memo_.fixed_alpha(f.alpha);
@@ -344,6 +368,33 @@ inline void add_survivors(const FragWork& w) {
 inline uint32_t BlendStage::run(FragWork& w) {
   const BlendFormats& fmt = s_.cfg.formats;
   const PassKind pass = s_.pass;
+  if (pass == PassKind::kFramebuffer) {
+    // blend: each survivor's framebuffer sample (RGBA binary32, read,
+    // blended, written) and, as the draw's depth mask says, its depth.
+    const DrawState& d = *w.draw;
+    const Fragment& f = *w.f;
+    const float src[4] = {f.rgb[0], f.rgb[1], f.rgb[2], f.alpha};
+    const bool zw = draw_writes_depth(d);
+    for (uint64_t s = w.survivors; s; s &= s - 1) {
+      const int i = __builtin_ctzll(s);
+      uint8_t* p = w.px.accum + size_t(i) * 16;
+      float dst[4];
+      std::memcpy(dst, p, sizeof dst);
+      framebuffer_blend(d, src, dst);
+      std::memcpy(p, dst, sizeof dst);
+      if (zw) w.px.depth[i] = w.z[i];
+    }
+    const uint32_t n = w.m;
+    w.written = w.survivors;
+    w.depth_written = zw ? w.survivors : 0;
+    c_.samples_blended += n;
+    c_.target_bytes_read += uint64_t(n) * 16;
+    c_.target_bytes_written += uint64_t(n) * 16;
+    const uint32_t nz = zw ? n : 0;
+    c_.samples_written += nz;
+    c_.depth_bytes_written += kDepthSampleBytes * nz;
+    return n;
+  }
   const bool trans = pass == PassKind::kTotalAlpha || pass == PassKind::kWboit;
   const bool accum = pass == PassKind::kAccumulate || pass == PassKind::kWboit;
   // The two targets are separate buffers: blending one, then the other, is

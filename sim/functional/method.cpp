@@ -35,6 +35,8 @@ const char* to_string(PassKind p) {
       return "accumulate";
     case PassKind::kWboit:
       return "wboit";
+    case PassKind::kFramebuffer:
+      return "framebuffer";
   }
   return "?";
 }

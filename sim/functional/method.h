@@ -32,9 +32,12 @@ enum class Method {
   kEndertonAc,
   kEndertonDepth,
   kEndertonDepthAc,
+  // What today's GPUs execute: every fragment blended in submission order
+  // with its draw's own blend and depth state (traces/format/draw_state.h).
+  kBlend,
 };
 /// The last enumerator (method.cpp checks that every one has its row).
-inline constexpr Method kLastMethod = Method::kEndertonDepthAc;
+inline constexpr Method kLastMethod = Method::kBlend;
 
 /// What one pass over the input does (docs/methods.md):
 /// - kTotalAlpha: non-writing depth test, transmittance *= 1 - alpha;
@@ -43,8 +46,10 @@ inline constexpr Method kLastMethod = Method::kEndertonDepthAc;
 /// - kAccumulate: non-writing depth test against the stochastic depth,
 ///   accum += (alpha c, alpha);
 /// - kWboit: non-writing depth test, accum += (alpha c w, alpha w) and
-///   transmittance *= 1 - alpha.
-enum class PassKind : uint8_t { kTotalAlpha, kStochastic, kAccumulate, kWboit };
+///   transmittance *= 1 - alpha;
+/// - kFramebuffer: the draw's depth test (and write, as its mask says), then
+///   the draw's blend into the framebuffer (framebuffer_blend.h).
+enum class PassKind : uint8_t { kTotalAlpha, kStochastic, kAccumulate, kWboit, kFramebuffer };
 const char* to_string(PassKind p);
 /// Does the pass blend into the render targets (the blend unit) rather than
 /// write through the stochastic path (tracker, sorter, references, writeback)?
@@ -66,6 +71,7 @@ struct MethodTraits {
   bool total_alpha = false;  ///< +ac: a total-alpha pass first; the composite corrects to its alpha
   bool depth_based = false;  ///< +depth: the stochastic pass writes depth only; then an accumulation pass
   bool wboit = false;        ///< wboit: one blend pass into accum and transmittance
+  bool framebuffer = false;  ///< blend: one pass blending into the framebuffer with each draw's state
 };
 
 /// The traits of every method, in the order of method_names().
@@ -107,6 +113,9 @@ inline constexpr MethodTraits kMethodTable[] = {
     {Method::kEndertonDepthAc, "enderton+depth+ac",
      "enderton depth-based with alpha correction: total alpha, depth, accumulation", true, false, false, false, true,
      int(Method::kEnderton), true, true, false},
+    {Method::kBlend, "blend",
+     "what GPUs execute: each fragment in submission order, with its draw's blend and depth state", true, false,
+     false, false, false, -1, false, false, false, true},
 };
 
 /// The traits of a method (usable at compile time).
@@ -132,6 +141,10 @@ constexpr PassList passes_of(Method m) {
     p.pass[p.count++] = PassKind::kWboit;
     return p;
   }
+  if (t.framebuffer) {
+    p.pass[p.count++] = PassKind::kFramebuffer;
+    return p;
+  }
   if (t.total_alpha) p.pass[p.count++] = PassKind::kTotalAlpha;
   p.pass[p.count++] = PassKind::kStochastic;
   if (t.depth_based) p.pass[p.count++] = PassKind::kAccumulate;
@@ -139,7 +152,8 @@ constexpr PassList passes_of(Method m) {
 }
 /// Does the method use the transmittance (accumulation) render target?
 constexpr bool uses_transmittance(Method m) { return traits(m).total_alpha || traits(m).wboit; }
-constexpr bool uses_accum(Method m) { return traits(m).depth_based || traits(m).wboit; }
+/// (blend: the accumulation target, in RGBA binary32, holds the framebuffer.)
+constexpr bool uses_accum(Method m) { return traits(m).depth_based || traits(m).wboit || traits(m).framebuffer; }
 /// Does the method have a blend pass (the blend unit, the render targets)?
 constexpr bool has_blend_pass(Method m) { return uses_transmittance(m) || uses_accum(m); }
 /// Does its stochastic pass write colour (not for depth-based methods)?
@@ -172,6 +186,15 @@ struct MethodConfig {
   /// reports the final buffers' compressibility; it never changes the state.
   CompressionSetup compression;
 };
+/// The formats of the blend targets a run of c uses: the design's, except that
+/// blend's framebuffer is always RGBA binary32 (it holds 8-bit code values
+/// exactly and float targets unrounded).
+inline BlendFormats target_formats(const MethodConfig& c) {
+  BlendFormats f = c.formats;
+  if (traits(c.method).framebuffer) f.accum = TargetFormat::kRGBA32F;
+  return f;
+}
+
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;
 

@@ -62,14 +62,15 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
     if (tile->tracker) std::uninitialized_value_construct_n(tile->tracker, 64);
     if (tile->slab) std::uninitialized_value_construct_n(tile->slab, 64);
     // The clear value encoded once, then copied to every sample.
-    auto clear_target = [n](uint8_t* buf, TargetFormat f, float v) {
+    auto clear_target = [n](uint8_t* buf, TargetFormat f, const float* v) {
       const uint32_t b = sample_bytes(f);
       uint8_t one[16];
-      target_clear(f, one, v);
+      for (int c = 0; c < channels(f); ++c) target_store(f, one, c, v[c]);
       for (size_t i = 0; i < n; ++i) std::memcpy(buf + i * b, one, b);
     };
-    if (tile->trans) clear_target(tile->trans, targets_.formats.transmittance, 1.0f);
-    if (tile->accum) clear_target(tile->accum, targets_.formats.accum, 0.0f);
+    const float one = 1.0f;
+    if (tile->trans) clear_target(tile->trans, targets_.formats.transmittance, &one);
+    if (tile->accum) clear_target(tile->accum, targets_.formats.accum, targets_.accum_clear.data());
     return tile;
   });
   return in_tile(t.base(), x, y);
@@ -188,7 +189,8 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
   if (a.has_tracker() != b.has_tracker()) return "one store tracks surfaces, the other does not";
   if (a.has_slab() != b.has_slab()) return "one store holds SLAB layers, the other does not";
   const StoreTargets &ta_ = a.targets(), &tb_ = b.targets();
-  if (ta_.transmittance != tb_.transmittance || ta_.accum != tb_.accum || !(ta_.formats == tb_.formats))
+  if (ta_.transmittance != tb_.transmittance || ta_.accum != tb_.accum || !(ta_.formats == tb_.formats) ||
+      ta_.accum_clear != tb_.accum_clear)
     return "the stores have different render targets";
   const int spp = h.spp;
   const float clear_z = canonical_depth(h.clear_depth);
@@ -216,11 +218,11 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
       }
       // Render targets: every byte (an untouched pixel has no bytes to compare
       // unless the other one is touched; the clear values are then compared).
-      auto check_target = [&](const char* name, TargetFormat f, float clear, const uint8_t* pa,
+      auto check_target = [&](const char* name, TargetFormat f, const float* clear, const uint8_t* pa,
                               const uint8_t* pb) -> bool {
         const uint32_t bytes = sample_bytes(f);
         std::vector<uint8_t> ca(bytes), cb(bytes);
-        target_clear(f, ca.data(), clear);
+        for (int c = 0; c < channels(f); ++c) target_store(f, ca.data(), c, clear[c]);
         cb = ca;
         for (int s = 0; s < spp; ++s) {
           const uint8_t* sa = pa ? pa + size_t(s) * bytes : ca.data();
@@ -233,9 +235,11 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
         }
         return true;
       };
-      if (ta_.transmittance && !check_target("transmittance", ta_.formats.transmittance, 1.0f, va.trans, vb.trans))
+      const float one = 1.0f;
+      if (ta_.transmittance && !check_target("transmittance", ta_.formats.transmittance, &one, va.trans, vb.trans))
         return false;
-      if (ta_.accum && !check_target("accum", ta_.formats.accum, 0.0f, va.accum, vb.accum)) return false;
+      if (ta_.accum && !check_target("accum", ta_.formats.accum, ta_.accum_clear.data(), va.accum, vb.accum))
+        return false;
       if (a.has_tracker()) {
         const TrackerState ta = va.tracker ? *va.tracker : TrackerState{},
                            tb = vb.tracker ? *vb.tracker : TrackerState{};

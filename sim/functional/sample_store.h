@@ -3,6 +3,7 @@
 // tiles allocated on first touch. Shared by the golden model and the SystemC
 // pipeline, so their final states can be compared sample for sample.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <new>
@@ -54,8 +55,11 @@ static_assert(std::is_trivially_destructible_v<TrackerState> && std::is_triviall
 /// only when used).
 struct StoreTargets {
   bool transmittance = false;  ///< one channel, cleared to 1
-  bool accum = false;          ///< RGBA, cleared to 0
+  bool accum = false;          ///< RGBA, cleared to accum_clear
   BlendFormats formats;
+  /// The accumulation target's clear value per channel (blend: the
+  /// framebuffer's clear colour, framebuffer_blend.h).
+  std::array<float, 4> accum_clear{0.0f, 0.0f, 0.0f, 0.0f};
   int slab_bits = 0;  ///< slab: b, the bits of each layer's mask (0: no SLAB layers)
 };
 

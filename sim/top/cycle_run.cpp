@@ -124,6 +124,11 @@ class StoreTileSource : public TileSource {
 }  // namespace
 
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
+  return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
+}
+
+CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_input, const GoldenConfig& method,
+                   const HwConfig& hw, const CycleOptions& opt) {
   if (method.method == Method::kReference)
     throw std::invalid_argument("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
   if (const char* err = validate(method.numerics)) throw std::invalid_argument(err);
@@ -132,7 +137,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   CycleRun run;
   // The functional ROP and the lines DRAM holds outlive the passes; each pass
   // is one pipeline in its own SystemC context over a fresh read of the input.
-  std::unique_ptr<FragmentSource> input = open_fragments(in);
+  std::unique_ptr<FragmentSource> input = open_input();
   run.header = input->header();
   // The model's structures, charged to --memory-limit before any is built
   // (memory_estimate.h); a design that does not fit is refused here.
@@ -153,7 +158,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
     bps[size_t(Buffer::kColor)] = kColorSampleBytes;
     if (uses_transmittance(method.method))
       bps[size_t(Buffer::kTransmittance)] = sample_bytes(method.formats.transmittance);
-    if (uses_accum(method.method)) bps[size_t(Buffer::kAccum)] = sample_bytes(method.formats.accum);
+    if (uses_accum(method.method)) bps[size_t(Buffer::kAccum)] = sample_bytes(target_formats(method).accum);
     comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
                                               canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
@@ -166,7 +171,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   CycleStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
-  s.hw.blend.formats = method.formats;
+  s.hw.blend.formats = target_formats(method);
   s.decoupled = decoupled;
   if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
   if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
@@ -204,7 +209,7 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
   std::vector<Retired> retired;
   for (int pass = 0; pass < n_passes; ++pass) {
     rop->begin_pass(pass);
-    if (pass > 0) input = open_fragments(in);
+    if (pass > 0) input = open_input();
     FreshSimContext sim;
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);

@@ -135,5 +135,10 @@ const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
 /// Throws std::invalid_argument for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt = {});
+/// The same over the input open_input returns (called once per pass, each
+/// call a fresh read of the same fragments: fragments_from() for a frame held
+/// in memory).
+CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_input, const GoldenConfig& method,
+                   const HwConfig& hw, const CycleOptions& opt = {});
 
 }  // namespace ropsim
