@@ -249,13 +249,6 @@ class FfProgram : public ::testing::Test {
     Image img;
     img.rgba.resize(size_t(kW) * kH * 4);
     glReadPixels(0, 0, kW, kH, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
-    if (const char* dir = getenv("ROPSIM_FF_DUMP")) {
-      static int k = 0;
-      FILE* fp = fopen((std::string(dir) + "/" + std::to_string(k++) + ".ppm").c_str(), "wb");
-      fprintf(fp, "P6 %d %d 255\n", kW, kH);
-      for (int p = 0; p < kW * kH; ++p) fwrite(&img.rgba[size_t(p) * 4], 1, 3, fp);
-      fclose(fp);
-    }
     if (prog) {
       UseProgram(0);
       DeleteProgram(prog);
@@ -388,7 +381,7 @@ class FfProgram : public ::testing::Test {
 };
 
 // Vertex colour from a colour array, smooth and flat, with and without the
-// colour sum; and from glColor in immediate mode.
+// colour sum, with a user clip plane; and from glColor in immediate mode.
 TEST_F(FfProgram, VertexColourMatchesFixedFunction) {
   const Image smooth = expect_match("smooth, colour array");
   glShadeModel(GL_FLAT);
@@ -401,6 +394,20 @@ TEST_F(FfProgram, VertexColourMatchesFixedFunction) {
   const Image sum = expect_match("smooth, colour sum");
   expect_differs(smooth, sum, 0.5, "GL_COLOR_SUM");
   glDisable(GL_COLOR_SUM);
+  // A user clip plane (in eye coordinates) through the middle of the grid.
+  glPushMatrix();
+  glLoadIdentity();
+  const double plane[] = {1, 0.4, 0, 0.1};
+  glClipPlane(GL_CLIP_PLANE0, plane);
+  glPopMatrix();
+  glEnable(GL_CLIP_PLANE0);
+  EXPECT_EQ(read().clip_planes, 1u);
+  const Image clipped = render(nullptr);
+  const FixedFunctionState s = read();
+  const Comparison c = compare(clipped, render(&s), 1);
+  EXPECT_GE(c.within, 0.999) << "GL_CLIP_PLANE0: max diff " << c.max_diff;
+  expect_differs(smooth, clipped, 0.3, "GL_CLIP_PLANE0");
+  glDisable(GL_CLIP_PLANE0);
   expect_match("immediate mode", 1, [] {
     glBegin(GL_TRIANGLES);
     for (int t = 0; t < 12; ++t) {
