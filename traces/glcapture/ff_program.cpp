@@ -411,9 +411,9 @@ bool any_light(const FixedFunctionState& s) {
   return std::any_of(s.lights.begin(), s.lights.end(), [](const LightState& l) { return l.enabled; });
 }
 
-/// The lit front colour (GL 4.6 compatibility, 12.2.1): the scene colour
-/// plus, per enabled light, attenuation x spot x (ambient + diffuse +
-/// specular), per vertex; alpha is the diffuse material's.
+/// The lit front colour (GL 4.6 compatibility profile, "Lighting"): the
+/// scene colour plus, per enabled light, attenuation x spot x (ambient +
+/// diffuse + specular), per vertex; alpha is the diffuse material's.
 void emit_lighting(const FixedFunctionState& s, std::string& v) {
   using P = ColorMaterialParameter;
   auto material = [&](P p, const char* member) {
@@ -485,8 +485,9 @@ void emit_lighting(const FixedFunctionState& s, std::string& v) {
   }
 }
 
-/// The texture environment of unit u on `color` (GL 4.6 compatibility,
-/// tables 16.1 and 16.2), clamped to [0, 1] as every stage's result is.
+/// The texture environment of unit u on `color` (GL 4.6 compatibility
+/// profile, "Texture Environments and Texture Functions"), clamped to [0, 1]
+/// as every stage's result is.
 void emit_texture_env(const TextureUnitState& t, int u, std::string& f) {
   const std::string tex = "t" + std::to_string(u);
   f += "  vec4 " + tex + " = textureProj(ff_texture" + std::to_string(u) + ", ff_texcoord" + std::to_string(u) + ");\n";

@@ -45,8 +45,9 @@ struct GlGetters {
 enum class TexTarget : uint8_t { kNone, k1D, k2D, k3D, kCubeMap, kRectangle };
 
 /// The base internal format of the unit's texture image, which selects the
-/// texture environment's equation (GL 4.6 compatibility, tables 16.1-16.2).
-/// RED and RG images count as kRgb (their missing components read 0, alpha 1).
+/// texture environment's equation (GL 4.6 compatibility profile, "Texture
+/// Environments and Texture Functions"). RED and RG images count as kRgb
+/// (their missing components read 0, alpha 1).
 enum class TexBaseFormat : uint8_t { kAlpha, kLuminance, kLuminanceAlpha, kIntensity, kRgb, kRgba, kDepth };
 
 /// GL_TEXTURE_ENV_MODE. kOther: a mode this module does not name.
@@ -106,6 +107,7 @@ struct FixedFunctionState {
   bool two_sided = false;                    ///< GL_LIGHT_MODEL_TWO_SIDE (unsupported)
   bool separate_specular = false;            ///< GL_SEPARATE_SPECULAR_COLOR: specular added after texturing
   bool color_material = false;               ///< GL_COLOR_MATERIAL on a face that includes the front
+  /// GL_COLOR_MATERIAL_PARAMETER (meaningful with color_material)
   ColorMaterialParameter color_material_parameter = ColorMaterialParameter::kAmbientAndDiffuse;
   bool normalize = false;       ///< GL_NORMALIZE: eye normals normalised
   bool rescale_normal = false;  ///< GL_RESCALE_NORMAL (without GL_NORMALIZE): eye normals scaled by gl_NormalScale
@@ -120,8 +122,9 @@ struct FixedFunctionState {
   float alpha_ref = 0;                            ///< GL_ALPHA_TEST_REF, clamped to [0, 1] by GL
   /// The precision of the comparison: 0 compares the float alpha with the
   /// float reference; N (1..8) compares both rounded to N-bit unsigned
-  /// normalised values, as GL's fixed-point alpha test and llvmpipe on a
-  /// colour buffer of <= 8 bits per component do (GL_RED_BITS of the draw framebuffer).
+  /// normalised values (ties to even), as llvmpipe does on a colour buffer
+  /// of <= 8 bits per component. Read from GL_RED_BITS of the framebuffer
+  /// bound for drawing: read the state while the application's is bound.
   int alpha_test_bits = 0;
   bool fog = false;                                  ///< GL_FOG: colour mixed towards gl_Fog.color
   FogMode fog_mode = FogMode::kLinear;               ///< GL_FOG_MODE
