@@ -654,6 +654,59 @@ TEST_F(FfProgram, TheComparisonDetectsAWrongProgram) {
   expect_caught("flat for smooth shading", w);
 }
 
+// Programs of states across the subset compile and link: 256 states from a
+// fixed-seed generator over every field the generator reads.
+TEST_F(FfProgram, ProgramsOfManyStatesCompile) {
+  uint32_t x = 12345;
+  auto next = [&](uint32_t n) {
+    x = x * 1664525u + 1013904223u;
+    return (x >> 8) % n;
+  };
+  for (int k = 0; k < 256; ++k) {
+    FixedFunctionState s;
+    s.flat_shading = next(2);
+    s.lighting = next(2);
+    s.color_sum = !s.lighting && next(2);
+    if (s.lighting) {
+      for (auto& l : s.lights) {
+        l.enabled = next(3) == 0;
+        if (!l.enabled) continue;
+        l.directional = next(2);
+        l.attenuated = !l.directional && next(2);
+        l.spot = next(2);
+      }
+      s.local_viewer = next(2);
+      s.separate_specular = next(2);
+      s.color_material = next(2);
+      s.color_material_parameter = ColorMaterialParameter(next(5));
+      s.normalize = next(2);
+      s.rescale_normal = !s.normalize && next(2);
+    }
+    for (auto& t : s.units) {
+      if (next(2)) continue;
+      t.target = TexTarget::k2D;
+      t.complete = true;
+      t.base = TexBaseFormat(next(6));
+      t.env = TexEnvMode(next(5));
+      if (t.env == TexEnvMode::kDecal) t.base = next(2) ? TexBaseFormat::kRgb : TexBaseFormat::kRgba;
+    }
+    s.alpha_test = next(2);
+    if (s.alpha_test) {
+      s.alpha_func = CompareFunc(next(7));
+      s.alpha_ref = float(next(1000)) / 999;
+      s.alpha_test_bits = next(2) ? 8 : 0;
+    }
+    s.fog = next(2);
+    s.fog_mode = FogMode(next(3));
+    s.fog_source = FogSource(next(2));
+    s.clip_planes = uint8_t(next(4));
+    ASSERT_EQ(unsupported_reason(s), "") << "state " << k;
+    const GLuint prog = link(fixed_function_program(s));
+    ASSERT_NE(prog, 0u) << "state " << k;
+    DeleteProgram(prog);
+  }
+}
+
 // Features outside the subset are named, read from a real context.
 TEST_F(FfProgram, UnsupportedFeaturesAreNamed) {
   texture(GL_RGBA8, GL_RGBA);
