@@ -227,7 +227,7 @@ struct UniformCopy {
 struct Instrumented {
   GLuint program = 0;
   std::string error;  ///< "" or why it cannot be made ("program N: ...")
-  GLint loc_offset = -1, loc_capacity = -1;
+  GLint loc_offset = -1, loc_capacity = -1, loc_upside_down = -1;
   std::vector<UniformCopy> uniforms;
   std::vector<std::pair<GLuint, GLuint>> uniform_blocks, storage_blocks;  ///< (application's, ours)
 };
@@ -302,9 +302,9 @@ class Session final : public CaptureSession {
   void build_instrumented(GLuint program, Instrumented& ins);
   void copy_uniforms(GLuint program, const Instrumented& ins) const;
   void capture_draw(GLuint program, const std::vector<DrawCallPart>& parts, DrawRecord& d);
-  void reference_draw(const std::function<void()>& app);
+  void reference_draw(GLuint program, const std::vector<DrawCallPart>& parts);
   void finish_frame();
-  std::vector<uint8_t> read_target(GLint fbo, bool presented, int w, int h) const;
+  std::vector<uint8_t> read_target(GLint fbo, bool presented, int w, int h, bool upside_down = false) const;
 
   // Configuration (the environment).
   std::string dir_, out_;
@@ -338,7 +338,7 @@ class Session final : public CaptureSession {
   GLuint capture_fbo_ = 0, record_buffer_ = 0, query_ = 0;
   GLint binding_ = 0;
   uint64_t capacity_ = 0, max_capacity_ = 0;
-  GLuint msaa_fbo_ = 0;
+  GLuint msaa_fbo_ = 0, reference_buffer_ = 0;
   std::vector<PassRecord> records_;
   std::vector<uint32_t> raw_;
 };
@@ -566,6 +566,8 @@ void Session::use_target(const FramebufferInfo& fb) {
     g.NamedFramebufferRenderbuffer(msaa_fbo_, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb[1]);
     if (g.CheckNamedFramebufferStatus(msaa_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       fail("the 4x multisampled reference framebuffer is not complete");
+    g.CreateBuffers(1, &reference_buffer_);
+    g.NamedBufferData(reference_buffer_, kRecordHeaderWords * 4 + kRecordWords * 4, nullptr, GL_DYNAMIC_COPY);
   }
 }
 
@@ -740,7 +742,8 @@ void Session::build_instrumented(GLuint program, Instrumented& ins) {
   const GLuint q = ins.program;
   ins.loc_offset = g.GetUniformLocation(q, "ropsim_offset");
   ins.loc_capacity = g.GetUniformLocation(q, "ropsim_capacity");
-  if (ins.loc_capacity < 0 || ins.loc_offset < 0) {
+  ins.loc_upside_down = g.GetUniformLocation(q, "ropsim_upside_down");
+  if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;
   }
@@ -918,14 +921,19 @@ void Session::capture_draw(GLuint program, const std::vector<DrawCallPart>& part
   g.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   g.UseProgram(ins.program);
   copy_uniforms(program, ins);
+  g.ProgramUniform1i(ins.program, ins.loc_upside_down, 0);
   GLint vp[4] = {};
   g.GetIntegerv(GL_VIEWPORT, vp);
   const std::array<SamplePos, 64> positions = standard_sample_positions(spp_);
   const uint64_t record_bytes = kRecordWords * 4, head = kRecordHeaderWords * 4;
   records_.clear();
   uint64_t passed = 0;
-  for (int s = 0; s < spp_; ++s) {
-    const std::array<float, 2> off = sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
+  const int passes = spp_ + (needs_centre_pass(positions, spp_) ? 1 : 0);
+  for (int pass = 0; pass < passes; ++pass) {
+    const int s = pass < spp_ ? pass : kCentrePass;
+    const std::array<float, 2> off =
+        s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
+                         : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
     g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
     for (size_t k = 0; k < parts.size(); ++k) {
       for (;;) {
@@ -933,6 +941,7 @@ void Session::capture_draw(GLuint program, const std::vector<DrawCallPart>& part
                           GLsizeiptr(head + capacity_ * record_bytes));
         g.ProgramUniform1ui(ins.program, ins.loc_capacity, GLuint(capacity_));
         const uint32_t zero[kRecordHeaderWords] = {};
+        g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous pass's writes before the reset
         g.NamedBufferSubData(record_buffer_, 0, sizeof zero, zero);
         if (count) g.BeginQuery(GL_SAMPLES_PASSED, query_);
         parts[k].replay();
@@ -975,14 +984,62 @@ void Session::capture_draw(GLuint program, const std::vector<DrawCallPart>& part
   d.samples_passed = passed;
 }
 
-void Session::reference_draw(const std::function<void()>& app) {
-  if (!msaa_fbo_) return;
+/// The GL state the upside-down reference draw changes, restored after it.
+struct FlippedState {
+  GLint viewport[4] = {}, scissor[4] = {}, front_face = GL_CCW, draw_fbo = 0;
+
+  void flip(GLuint fbo, int height) {
+    const GlFunctions& g = real_gl();
+    g.GetIntegerv(GL_VIEWPORT, viewport);
+    g.GetIntegerv(GL_SCISSOR_BOX, scissor);
+    g.GetIntegerv(GL_FRONT_FACE, &front_face);
+    g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_fbo);
+    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, fbo);
+    g.Viewport(viewport[0], height - viewport[1] - viewport[3], viewport[2], viewport[3]);
+    g.Scissor(scissor[0], height - scissor[1] - scissor[3], scissor[2], scissor[3]);
+    g.FrontFace(front_face == GL_CCW ? GL_CW : GL_CCW);  // the y flip mirrors the winding
+  }
+  void restore() const {
+    const GlFunctions& g = real_gl();
+    g.Viewport(viewport[0], viewport[1], viewport[2], viewport[3]);
+    g.Scissor(scissor[0], scissor[1], scissor[2], scissor[3]);
+    g.FrontFace(GLenum(front_face));
+    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(draw_fbo));
+  }
+};
+
+void Session::reference_draw(GLuint program, const std::vector<DrawCallPart>& parts) {
+  // The application's state but the framebuffer, drawn upside down with the
+  // instrumented program writing no record (capacity 0): GL window row y is
+  // then trace row y, and llvmpipe's 4 sample positions are the header's.
   const GlFunctions& g = real_gl();
-  GLint fb = 0;
-  g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fb);
-  g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, msaa_fbo_);
-  app();
-  g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(fb));
+  Instrumented& ins = instrumented(program);
+  if (!ins.error.empty()) fail(ins.error);
+  GLint current = 0, generic = 0, bound = 0;
+  GLint64 start = 0, size = 0;
+  g.GetIntegerv(GL_CURRENT_PROGRAM, &current);
+  g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic);
+  g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, GLuint(binding_), &bound);
+  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, GLuint(binding_), &start);
+  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, GLuint(binding_), &size);
+  FlippedState flipped;
+  flipped.flip(msaa_fbo_, target_.height);
+  g.UseProgram(ins.program);
+  copy_uniforms(program, ins);
+  g.ProgramUniform2f(ins.program, ins.loc_offset, 0.0f, 0.0f);
+  g.ProgramUniform1i(ins.program, ins.loc_upside_down, 1);
+  g.ProgramUniform1ui(ins.program, ins.loc_capacity, 0);
+  // A buffer of its own (the count alone), so that its increments never
+  // meet the capture's records.
+  g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), reference_buffer_);
+  for (const DrawCallPart& p : parts) p.replay();
+  flipped.restore();
+  g.UseProgram(GLuint(current));
+  if (size > 0)
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound), GLintptr(start), GLsizeiptr(size));
+  else
+    g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound));
+  g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic));
 }
 
 void Session::draw(const std::function<void()>& app, const std::vector<DrawCallPart>& parts) {
@@ -1011,7 +1068,6 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
     draws_.push_back(d);
     return;
   }
-  reference_draw(app);
   if (unsupported.empty() && program == 0) {
     g.GetIntegerv(GL_PROGRAM_PIPELINE_BINDING, &pipeline);
     if (pipeline != 0) {
@@ -1030,8 +1086,9 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
   if (unsupported.empty() && g.IsEnabled(GL_RASTERIZER_DISCARD)) unsupported.clear();  // draws nothing: no fragments
   if (!unsupported.empty()) {
     unsupported_.push_back({d.index, d.name, unsupported});
-  } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD) && !list_only_) {
-    capture_draw(GLuint(program), parts, d);
+  } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {
+    if (msaa_fbo_) reference_draw(GLuint(program), parts);
+    if (!list_only_) capture_draw(GLuint(program), parts, d);
   }
   draws_.push_back(std::move(d));
 }
@@ -1084,13 +1141,14 @@ void Session::clear(GLbitfield mask) {
     depth_cleared_ = true;
   }
   if (msaa_fbo_) {
-    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, msaa_fbo_);
+    FlippedState flipped;
+    flipped.flip(msaa_fbo_, target_.height);
     g.Clear(mask);
-    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(fbo));
+    flipped.restore();
   }
 }
 
-std::vector<uint8_t> Session::read_target(GLint fbo, bool presented, int w, int h) const {
+std::vector<uint8_t> Session::read_target(GLint fbo, bool presented, int w, int h, bool upside_down) const {
   const GlFunctions& g = real_gl();
   g.BindFramebuffer(GL_READ_FRAMEBUFFER, GLuint(fbo));
   if (presented) {
@@ -1109,6 +1167,7 @@ std::vector<uint8_t> Session::read_target(GLint fbo, bool presented, int w, int 
   g.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, up.data());
   // GL's rows run bottom-up; the files' run top-down, as the trace's.
   const size_t row = size_t(w) * 4;
+  if (upside_down) return up;  // drawn upside down: GL's rows already run top-down
   for (int y = 0; y < h; ++y) std::memcpy(&down[size_t(y) * row], &up[size_t(h - 1 - y) * row], row);
   return down;
 }
@@ -1138,7 +1197,7 @@ void Session::finish_frame() {
     g.NamedFramebufferRenderbuffer(resolved, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb);
     g.BlitNamedFramebuffer(msaa_fbo_, resolved, 0, 0, target_.width, target_.height, 0, 0, target_.width,
                            target_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-    const std::vector<uint8_t> ref = read_target(GLint(resolved), false, target_.width, target_.height);
+    const std::vector<uint8_t> ref = read_target(GLint(resolved), false, target_.width, target_.height, true);
     if (!write_file_atomic(dir_ + "/frame-msaa4.rgba", ref.data(), ref.size(), err)) fail(err);
   }
   if (!list_only_) {

@@ -41,6 +41,12 @@ std::array<float, 2> sample_clip_offset(SamplePos p, int viewport_w, int viewpor
   return {float(-2.0 * dx / double(viewport_w)), float(-2.0 * dy / double(viewport_h))};
 }
 
+bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp) {
+  for (int i = 0; i < spp; ++i)
+    if (positions[size_t(i)].x == 128 && positions[size_t(i)].y == 128) return false;
+  return true;
+}
+
 std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, uint32_t height, uint32_t part,
                            int sample, std::vector<PassRecord>& out) {
   out.reserve(out.size() + count);
@@ -98,18 +104,30 @@ std::string build_fragments(std::vector<PassRecord>& records, uint32_t draw_id, 
     const auto key = pixel_key(records[i]);
     CapturedFragment f;
     f.draw_id = draw_id;
+    const PassRecord *centre = nullptr, *lowest = nullptr;
+    for (; j < records.size() && pixel_key(records[j]) == key; ++j) {
+      const PassRecord& r = records[j];
+      if (r.sample == kCentrePass) {
+        if (!centre) centre = &r;  // a repeat: the smallest depth came first
+        continue;
+      }
+      const uint64_t bit = uint64_t(1) << r.sample;
+      if (f.coverage & bit) continue;
+      if (!lowest) lowest = &r;
+      f.coverage |= bit;
+      f.z.push_back(r.z);
+    }
+    if (f.coverage == 0) {
+      i = j;
+      continue;
+    }
+    const PassRecord* colour = centre ? centre : lowest;
     const PassRecord& first = records[i];
     f.prim_id = uint32_t(base[first.part] + uint64_t(first.instance) * per_instance[first.part] + first.prim);
     f.x = first.x;
     f.y = first.y;
     for (size_t c = 0; c < 4; ++c)
-      f.rgba[c] = clamp || c == 3 ? clamp_unit(first.rgba[c]) : clamp_non_negative(first.rgba[c]);
-    for (; j < records.size() && pixel_key(records[j]) == key; ++j) {
-      const uint64_t bit = uint64_t(1) << records[j].sample;
-      if (f.coverage & bit) continue;  // a repeat: the smallest depth came first
-      f.coverage |= bit;
-      f.z.push_back(records[j].z);
-    }
+      f.rgba[c] = clamp || c == 3 ? clamp_unit(colour->rgba[c]) : clamp_non_negative(colour->rgba[c]);
     out.push_back(std::move(f));
     i = j;
   }

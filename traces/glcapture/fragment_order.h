@@ -19,13 +19,22 @@ namespace ropsim::glcapture {
 /// down); GL's window y points up. viewport_w/h: glViewport's size.
 std::array<float, 2> sample_clip_offset(SamplePos p, int viewport_w, int viewport_h);
 
+/// The pass at the pixel centre (PassRecord::sample): it gives the colour of
+/// the fragments whose centre it covers, and no coverage.
+inline constexpr int kCentrePass = 64;
+
+/// Whether the capture makes a centre pass at `spp`: unless a sample lies at
+/// the centre (1 spp), so that colour is shaded where GL's multisampling
+/// shades it.
+bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp);
+
 /// One record a pass appended (glsl_rewrite.h kRecordWords), decoded.
 struct PassRecord {
   uint16_t x = 0, y = 0;  ///< pixel in trace coordinates (row 0 at the top)
   uint32_t prim = 0;      ///< gl_PrimitiveID
   uint32_t instance = 0;  ///< gl_InstanceID
   uint32_t part = 0;      ///< the sub-draw (glMultiDraw*), 0 otherwise
-  uint8_t sample = 0;     ///< the pass: the sample position it samples
+  uint8_t sample = 0;     ///< the pass: the sample position it samples, or kCentrePass
   float z = 0;            ///< gl_FragCoord.z
   std::array<float, 4> rgba{};
 };
@@ -55,8 +64,10 @@ struct CapturedFragment {
 /// The fragments of one draw in API order: by part, then instance, then
 /// primitive (prim_id = the parts' primitives before it + instance *
 /// primitives per instance + gl_PrimitiveID), then row, then column. Every
-/// pass contributes its sample's coverage bit and depth; the colour is the
-/// one of the lowest covered sample. clamp: colour and alpha clamped to
+/// sample pass contributes its sample's coverage bit and depth; the colour is
+/// the centre pass's where it covers the pixel, else the lowest covered
+/// sample's (a centre the primitive misses is not shaded). A primitive and
+/// pixel with a centre record but no covered sample makes no fragment. clamp: colour and alpha clamped to
 /// [0, 1] (unorm and sRGB targets); otherwise alpha is clamped to [0, 1]
 /// and colour to >= 0 (what a trace holds). The records are sorted in place;
 /// the result does not depend on their order (a record that repeats a

@@ -82,7 +82,11 @@ using PfnGlEnd = decltype(&::glEnd);
   X(decltype(&::glReadPixels), ReadPixels)                                                      \
   X(decltype(&::glReadBuffer), ReadBuffer)                                                      \
   X(decltype(&::glPixelStorei), PixelStorei)                                                    \
-  X(decltype(&::glFinish), Finish)                                                              \
+  X(decltype(&::glFinish), Finish)                                                        \
+  X(decltype(&::glViewport), Viewport)                                                    \
+  X(decltype(&::glScissor), Scissor)                                                      \
+  X(decltype(&::glFrontFace), FrontFace)                                                  \
+  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                                              \
   X(PFNGLCREATEFRAMEBUFFERSPROC, CreateFramebuffers)                                      \
   X(PFNGLNAMEDFRAMEBUFFERPARAMETERIPROC, NamedFramebufferParameteri)                      \
   X(PFNGLCHECKNAMEDFRAMEBUFFERSTATUSPROC, CheckNamedFramebufferStatus)                    \

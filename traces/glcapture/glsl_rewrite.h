@@ -32,8 +32,10 @@ std::string strip_comments(const std::string& src);
 /// The vertex shader: its `main` renamed, and a new `main` after it that
 /// calls it, passes gl_InstanceID to the fragment shader (flat) and moves
 /// gl_Position by `ropsim_offset` (a uniform vec2, in normalised device
-/// coordinates, scaled by w). A shader object without `main` only has its
-/// #version replaced.
+/// coordinates, scaled by w); with the uniform bool `ropsim_upside_down` it
+/// also negates gl_Position.y (the 4x reference, drawn upside down so that
+/// GL's sample positions fall where the trace header's are). A shader object
+/// without `main` only has its #version replaced.
 Rewritten instrument_vertex_shader(const std::string& src, GlslProfile profile);
 
 /// The colour the fragment shader writes, as a GLSL expression read after
