@@ -299,10 +299,14 @@ class Session final : public CaptureSession {
   DrawState read_state(uint32_t index, const FramebufferInfo& fb, std::string& unsupported) const;
   std::string program_name(GLuint program) const;
   Instrumented& instrumented(GLuint program);
-  void build_instrumented(GLuint program, Instrumented& ins);
+  /// program 0: the fixed-function draw's equivalent program (`src`).
+  void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who,
+                          Instrumented& ins);
+  /// The fixed-function state's program, instrumented; or the reason it is not captured.
+  Instrumented* fixed_function(std::string& unsupported);
   void copy_uniforms(GLuint program, const Instrumented& ins) const;
-  void capture_draw(GLuint program, const std::vector<DrawCallPart>& parts, DrawRecord& d);
-  void reference_draw(GLuint program, const std::vector<DrawCallPart>& parts);
+  void capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts, DrawRecord& d);
+  void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
   void finish_frame();
   std::vector<uint8_t> read_target(GLint fbo, bool presented, int w, int h, bool upside_down = false) const;
 
@@ -324,6 +328,7 @@ class Session final : public CaptureSession {
   std::set<const void*> contexts_;
   std::map<GLuint, std::vector<ShaderSource>> sources_;
   std::map<GLuint, Instrumented> instrumented_;
+  std::map<std::string, Instrumented> fixed_function_;  ///< by the generated sources
 
   // Frame N.
   std::vector<FramebufferInfo> framebuffers_;
@@ -331,6 +336,7 @@ class Session final : public CaptureSession {
   std::vector<Unsupported> unsupported_;
   std::vector<CapturedFragment> fragments_;
   bool target_known_ = false;
+  bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
   bool color_cleared_ = false, depth_cleared_ = false;
   std::array<float, 3> clear_color_{0, 0, 0};
@@ -534,6 +540,16 @@ void Session::use_target(const FramebufferInfo& fb) {
          ", not 1.." + std::to_string(kMaxScreenSide) + " pixels a side");
   target_ = fb;
   target_known_ = true;
+  // A compatibility context (GL_ALPHA_TEST exists): before 3.2, or the profile says.
+  const char* version = reinterpret_cast<const char*>(g.GetString(GL_VERSION));
+  const int major = version ? std::atoi(version) : 0;
+  const int minor = version && std::strchr(version, '.') ? std::atoi(std::strchr(version, '.') + 1) : 0;
+  compatibility_ = major < 3 || (major == 3 && minor < 2);
+  if (!compatibility_) {
+    GLint mask = 0;
+    g.GetIntegerv(GL_CONTEXT_PROFILE_MASK, &mask);
+    compatibility_ = (mask & GL_CONTEXT_COMPATIBILITY_PROFILE_BIT) != 0;
+  }
   binding_ = record_binding();
   // The capture framebuffer: the target's size, no attachments (every write
   // but the storage buffer's goes nowhere; no depth or stencil buffer, so
@@ -650,15 +666,14 @@ Instrumented& Session::instrumented(GLuint program) {
   auto it = instrumented_.find(program);
   if (it != instrumented_.end()) return it->second;
   Instrumented& ins = instrumented_[program];
-  build_instrumented(program, ins);
+  if (!sources_.count(program)) linked(program);  // linked before the library saw it (or never through glLinkProgram)
+  build_instrumented(program, sources_[program], "program " + std::to_string(program), ins);
   return ins;
 }
 
-void Session::build_instrumented(GLuint program, Instrumented& ins) {
+void Session::build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who,
+                                 Instrumented& ins) {
   const GlFunctions& g = real_gl();
-  const std::string who = "program " + std::to_string(program);
-  if (!sources_.count(program)) linked(program);  // linked before the library saw it (or never through glLinkProgram)
-  const std::vector<ShaderSource>& src = sources_[program];
   bool vertex = false, fragment = false;
   for (const ShaderSource& s : src) {
     if (s.type == GL_VERTEX_SHADER) vertex = true;
@@ -710,7 +725,7 @@ void Session::build_instrumented(GLuint program, Instrumented& ins) {
       for (GLuint sh : shaders) g.AttachShader(q, sh);
       // The application's attribute locations (bound or assigned at its link).
       GLint attribs = 0;
-      g.GetProgramiv(program, GL_ACTIVE_ATTRIBUTES, &attribs);
+      if (program) g.GetProgramiv(program, GL_ACTIVE_ATTRIBUTES, &attribs);
       for (GLint i = 0; i < attribs; ++i) {
         char name[256] = {};
         GLint size = 0;
@@ -747,6 +762,7 @@ void Session::build_instrumented(GLuint program, Instrumented& ins) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;
   }
+  if (program == 0) return;  // fixed function: built-ins and sampler bindings only
   GLint uniforms = 0;
   g.GetProgramiv(program, GL_ACTIVE_UNIFORMS, &uniforms);
   for (GLint i = 0; i < uniforms; ++i) {
@@ -786,7 +802,42 @@ void Session::build_instrumented(GLuint program, Instrumented& ins) {
   }
 }
 
+Instrumented* Session::fixed_function(std::string& unsupported) {
+#if ROPSIM_GLCAPTURE_FIXED_FUNCTION
+  const GlFunctions& g = real_gl();
+  GlGetters get;
+  get.GetIntegerv = reinterpret_cast<decltype(get.GetIntegerv)>(g.GetIntegerv);
+  get.GetFloatv = reinterpret_cast<decltype(get.GetFloatv)>(g.GetFloatv);
+  get.IsEnabled = reinterpret_cast<decltype(get.IsEnabled)>(g.IsEnabled);
+  get.GetTexEnviv = reinterpret_cast<decltype(get.GetTexEnviv)>(g.GetTexEnviv);
+  get.GetTexEnvfv = reinterpret_cast<decltype(get.GetTexEnvfv)>(g.GetTexEnvfv);
+  get.GetLightfv = reinterpret_cast<decltype(get.GetLightfv)>(g.GetLightfv);
+  get.GetTexParameteriv = reinterpret_cast<decltype(get.GetTexParameteriv)>(g.GetTexParameteriv);
+  get.GetTexLevelParameteriv = reinterpret_cast<decltype(get.GetTexLevelParameteriv)>(g.GetTexLevelParameteriv);
+  get.ActiveTexture = reinterpret_cast<decltype(get.ActiveTexture)>(g.ActiveTexture);
+  const FixedFunctionState state = read_fixed_function_state(get);
+  unsupported = unsupported_reason(state);
+  if (!unsupported.empty()) {
+    unsupported = "fixed function: " + unsupported;
+    return nullptr;
+  }
+  const GlslProgram p = fixed_function_program(state);
+  const std::string key = p.vertex + '\0' + p.fragment;
+  auto it = fixed_function_.find(key);
+  if (it == fixed_function_.end()) {
+    it = fixed_function_.emplace(key, Instrumented{}).first;
+    build_instrumented(0, {{GL_VERTEX_SHADER, p.vertex}, {GL_FRAGMENT_SHADER, p.fragment}},
+                       "the fixed-function program", it->second);
+  }
+  return &it->second;
+#else
+  unsupported = "a fixed-function draw: the library is built without the fixed-function module (ff_program.h)";
+  return nullptr;
+#endif
+}
+
 void Session::copy_uniforms(GLuint program, const Instrumented& ins) const {
+  if (program == 0) return;
   const GlFunctions& g = real_gl();
   const GLuint q = ins.program;
   for (const UniformCopy& u : ins.uniforms) {
@@ -895,10 +946,9 @@ struct SavedState {
   }
 };
 
-void Session::capture_draw(GLuint program, const std::vector<DrawCallPart>& parts, DrawRecord& d) {
+void Session::capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts,
+                           DrawRecord& d) {
   const GlFunctions& g = real_gl();
-  Instrumented& ins = instrumented(program);
-  if (!ins.error.empty()) fail(ins.error);
   for (const auto& b : ins.storage_blocks) {
     const GLenum prop = GL_BUFFER_BINDING;
     GLint binding = 0;
@@ -1008,13 +1058,11 @@ struct FlippedState {
   }
 };
 
-void Session::reference_draw(GLuint program, const std::vector<DrawCallPart>& parts) {
+void Session::reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts) {
   // The application's state but the framebuffer, drawn upside down with the
   // instrumented program writing no record (capacity 0): GL window row y is
   // then trace row y, and llvmpipe's 4 sample positions are the header's.
   const GlFunctions& g = real_gl();
-  Instrumented& ins = instrumented(program);
-  if (!ins.error.empty()) fail(ins.error);
   GLint current = 0, generic = 0, bound = 0;
   GLint64 start = 0, size = 0;
   g.GetIntegerv(GL_CURRENT_PROGRAM, &current);
@@ -1068,27 +1116,27 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
     draws_.push_back(d);
     return;
   }
+  const Instrumented* ins = nullptr;
   if (unsupported.empty() && program == 0) {
     g.GetIntegerv(GL_PROGRAM_PIPELINE_BINDING, &pipeline);
-    if (pipeline != 0) {
+    if (pipeline != 0)
       unsupported = "a separable program pipeline cannot be instrumented";
-    } else {
-#if ROPSIM_GLCAPTURE_FIXED_FUNCTION
-      unsupported = "fixed-function draws are not captured yet";
-#else
-      unsupported = "a fixed-function draw: the library is built without the fixed-function module (ff_program.h)";
-#endif
-    }
+    else
+      ins = fixed_function(unsupported);
+  } else if (unsupported.empty()) {
+    ins = &instrumented(GLuint(program));
+    if (compatibility_ && g.IsEnabled(GL_ALPHA_TEST))
+      unsupported = "the alpha test (GL_ALPHA_TEST) with a GLSL program runs after the fragment shader's record";
   }
+  if (ins && !ins->error.empty()) fail(ins->error);
   GLboolean tf = GL_FALSE;
   g.GetBooleanv(GL_TRANSFORM_FEEDBACK_ACTIVE, &tf);
   if (unsupported.empty() && tf) unsupported = "transform feedback is active (re-executing would append to it)";
-  if (unsupported.empty() && g.IsEnabled(GL_RASTERIZER_DISCARD)) unsupported.clear();  // draws nothing: no fragments
   if (!unsupported.empty()) {
     unsupported_.push_back({d.index, d.name, unsupported});
-  } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {
-    if (msaa_fbo_) reference_draw(GLuint(program), parts);
-    if (!list_only_) capture_draw(GLuint(program), parts, d);
+  } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {  // a discarded rasterizer draws nothing: no fragments
+    if (msaa_fbo_) reference_draw(GLuint(program), *ins, parts);
+    if (!list_only_) capture_draw(GLuint(program), *ins, parts, d);
   }
   draws_.push_back(std::move(d));
 }

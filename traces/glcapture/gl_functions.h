@@ -86,7 +86,14 @@ using PfnGlEnd = decltype(&::glEnd);
   X(decltype(&::glViewport), Viewport)                                                    \
   X(decltype(&::glScissor), Scissor)                                                      \
   X(decltype(&::glFrontFace), FrontFace)                                                  \
-  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                                              \
+  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                          \
+  X(decltype(&::glGetString), GetString)                                                  \
+  X(decltype(&::glGetTexEnviv), GetTexEnviv)                                              \
+  X(decltype(&::glGetTexEnvfv), GetTexEnvfv)                                              \
+  X(decltype(&::glGetLightfv), GetLightfv)                                                \
+  X(decltype(&::glGetTexParameteriv), GetTexParameteriv)                                  \
+  X(decltype(&::glGetTexLevelParameteriv), GetTexLevelParameteriv)                        \
+  X(PFNGLACTIVETEXTUREPROC, ActiveTexture)                                                              \
   X(PFNGLCREATEFRAMEBUFFERSPROC, CreateFramebuffers)                                      \
   X(PFNGLNAMEDFRAMEBUFFERPARAMETERIPROC, NamedFramebufferParameteri)                      \
   X(PFNGLCHECKNAMEDFRAMEBUFFERSTATUSPROC, CheckNamedFramebufferStatus)                    \
