@@ -29,8 +29,6 @@ float clamp_non_negative(float v) {
   return std::isinf(v) && v > 0 ? 0.0f : std::max(0.0f, v);
 }
 
-auto pixel_key(const PassRecord& r) { return std::make_tuple(r.part, r.instance, r.prim, r.y, r.x); }
-
 }  // namespace
 
 std::array<float, 2> sample_clip_offset(SamplePos p, int viewport_w, int viewport_h) {
@@ -49,7 +47,7 @@ bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp) {
 
 std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, uint32_t height, uint32_t part,
                            int sample, std::vector<PassRecord>& out) {
-  out.reserve(out.size() + count);
+  if (out.capacity() < out.size() + count) out.reserve(std::max(out.size() + count, 2 * out.capacity()));
   for (size_t i = 0; i < count; ++i) {
     const uint32_t* w = raw + i * kRecordWords;
     const uint32_t x = w[0] & 0xFFFF, gy = w[0] >> 16;
@@ -72,21 +70,12 @@ std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, ui
   return "";
 }
 
-std::string build_fragments(std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
+std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
                             bool clamp, std::vector<CapturedFragment>& out) {
-  // Full order, so that equal keys from any thread interleaving sort alike.
-  std::sort(records.begin(), records.end(), [](const PassRecord& a, const PassRecord& b) {
-    const auto ka = pixel_key(a), kb = pixel_key(b);
-    if (ka != kb) return ka < kb;
-    if (a.sample != b.sample) return a.sample < b.sample;
-    if (bits(a.z) != bits(b.z)) return bits(a.z) < bits(b.z);
-    for (size_t c = 0; c < 4; ++c)
-      if (bits(a.rgba[c]) != bits(b.rgba[c])) return bits(a.rgba[c]) < bits(b.rgba[c]);
-    return false;
-  });
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the records show more) and its instances.
-  const uint32_t nparts = records.empty() ? 0 : records.back().part + 1;
+  uint32_t nparts = 0;
+  for (const PassRecord& r : records) nparts = std::max(nparts, r.part + 1);
   std::vector<uint64_t> per_instance(std::max<size_t>(nparts, parts.size()), 0), instances(per_instance.size(), 0);
   for (size_t k = 0; k < parts.size(); ++k) per_instance[k] = parts[k].prims_per_instance;
   for (const PassRecord& r : records) {
@@ -99,14 +88,36 @@ std::string build_fragments(std::vector<PassRecord>& records, uint32_t draw_id, 
     return "draw " + std::to_string(draw_id) + " has " + std::to_string(base.back()) +
            " primitives, more than a trace's 32-bit primitive id numbers";
 
-  for (size_t i = 0; i < records.size();) {
+  // Sort keys: (prim_id, row, column), then (sample, depth bits), then the
+  // colour's bits: a full order, so that equal keys from any thread
+  // interleaving sort alike.
+  struct Key {
+    uint64_t pixel, sample_z;
+    uint32_t index;
+  };
+  std::vector<Key> keys(records.size());
+  for (size_t i = 0; i < records.size(); ++i) {
+    const PassRecord& r = records[i];
+    const uint64_t prim = base[r.part] + uint64_t(r.instance) * per_instance[r.part] + r.prim;
+    keys[i] = Key{prim << 32 | uint64_t(r.y) << 16 | r.x, uint64_t(r.sample) << 32 | bits(r.z), uint32_t(i)};
+  }
+  std::sort(keys.begin(), keys.end(), [&records](const Key& a, const Key& b) {
+    if (a.pixel != b.pixel) return a.pixel < b.pixel;
+    if (a.sample_z != b.sample_z) return a.sample_z < b.sample_z;
+    const auto& ca = records[a.index].rgba;
+    const auto& cb = records[b.index].rgba;
+    for (size_t c = 0; c < 4; ++c)
+      if (bits(ca[c]) != bits(cb[c])) return bits(ca[c]) < bits(cb[c]);
+    return false;
+  });
+
+  for (size_t i = 0; i < keys.size();) {
     size_t j = i;
-    const auto key = pixel_key(records[i]);
     CapturedFragment f;
     f.draw_id = draw_id;
     const PassRecord *centre = nullptr, *lowest = nullptr;
-    for (; j < records.size() && pixel_key(records[j]) == key; ++j) {
-      const PassRecord& r = records[j];
+    for (; j < keys.size() && keys[j].pixel == keys[i].pixel; ++j) {
+      const PassRecord& r = records[keys[j].index];
       if (r.sample == kCentrePass) {
         if (!centre) centre = &r;  // a repeat: the smallest depth came first
         continue;
@@ -117,18 +128,15 @@ std::string build_fragments(std::vector<PassRecord>& records, uint32_t draw_id, 
       f.coverage |= bit;
       f.z.push_back(r.z);
     }
-    if (f.coverage == 0) {
-      i = j;
-      continue;
+    if (f.coverage != 0) {
+      const PassRecord* colour = centre ? centre : lowest;
+      f.prim_id = uint32_t(keys[i].pixel >> 32);
+      f.x = colour->x;
+      f.y = colour->y;
+      for (size_t c = 0; c < 4; ++c)
+        f.rgba[c] = clamp || c == 3 ? clamp_unit(colour->rgba[c]) : clamp_non_negative(colour->rgba[c]);
+      out.push_back(std::move(f));
     }
-    const PassRecord* colour = centre ? centre : lowest;
-    const PassRecord& first = records[i];
-    f.prim_id = uint32_t(base[first.part] + uint64_t(first.instance) * per_instance[first.part] + first.prim);
-    f.x = first.x;
-    f.y = first.y;
-    for (size_t c = 0; c < 4; ++c)
-      f.rgba[c] = clamp || c == 3 ? clamp_unit(colour->rgba[c]) : clamp_non_negative(colour->rgba[c]);
-    out.push_back(std::move(f));
     i = j;
   }
   return "";

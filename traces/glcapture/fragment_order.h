@@ -69,11 +69,11 @@ struct CapturedFragment {
 /// sample's (a centre the primitive misses is not shaded). A primitive and
 /// pixel with a centre record but no covered sample makes no fragment. clamp: colour and alpha clamped to
 /// [0, 1] (unorm and sRGB targets); otherwise alpha is clamped to [0, 1]
-/// and colour to >= 0 (what a trace holds). The records are sorted in place;
-/// the result does not depend on their order (a record that repeats a
+/// and colour to >= 0 (what a trace holds). The result does not depend on
+/// the records' order (a record that repeats a
 /// (part, instance, primitive, pixel, sample) keeps the smallest depth, then
 /// colour, bit for bit). Returns "" or why the ids overflow 32 bits.
-std::string build_fragments(std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
+std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
                             bool clamp, std::vector<CapturedFragment>& out);
 
 /// A CapturedFragment as the trace's Fragment (DepthMode::kPerSample).
