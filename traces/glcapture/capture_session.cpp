@@ -247,7 +247,8 @@ struct FramebufferInfo {
 };
 
 struct DrawRecord {
-  uint32_t index = 0;
+  uint32_t index = 0;     ///< in the frame (every framebuffer's draws): list.json's index
+  uint32_t trace_id = 0;  ///< among the target's draws: the trace's draw_id
   std::string framebuffer;
   GLuint program = 0;
   std::string name;
@@ -335,6 +336,7 @@ class Session final : public CaptureSession {
   std::vector<DrawRecord> draws_;
   std::vector<Unsupported> unsupported_;
   std::vector<CapturedFragment> fragments_;
+  uint32_t target_draws_ = 0;  ///< draws into the target so far (the next trace draw id)
   bool target_known_ = false;
   bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
@@ -436,7 +438,9 @@ json Session::list_json() const {
               {"fragments", d.fragments},
               {"covered_samples", d.covered_samples},
               {"samples_passed", nullptr},
-              {"captured", d.target}};
+              {"captured", d.target},
+              {"trace_draw", nullptr}};
+    if (d.target) j["trace_draw"] = d.trace_id;
     if (d.counted) j["samples_passed"] = d.samples_passed;
     draws.push_back(j);
   }
@@ -1026,7 +1030,7 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
   const size_t before = fragments_.size();
   const bool clamp = target_.encoding != TargetEncoding::kFloat;
-  const std::string err = build_fragments(records_, d.index, shape, clamp, fragments_);
+  const std::string err = build_fragments(records_, d.trace_id, shape, clamp, fragments_);
   if (!err.empty()) fail(err);
   d.fragments = fragments_.size() - before;
   for (size_t i = before; i < fragments_.size(); ++i) d.covered_samples += fragments_[i].z.size();
@@ -1106,7 +1110,8 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
   if (is_target(fbo)) {
     use_target(fb);
     d.target = true;
-    d.state = read_state(d.index, fb, unsupported);
+    d.trace_id = target_draws_++;
+    d.state = read_state(d.trace_id, fb, unsupported);
     d.state.name = d.name.size() > 255 ? d.name.substr(0, 255) : d.name;
   } else {
     d.state = default_draw_state(d.index);
@@ -1157,7 +1162,8 @@ void Session::unsupported_draw(const char* reason) {
     use_target(fb);
     std::string ignored;
     d.target = true;
-    d.state = read_state(d.index, fb, ignored);
+    d.trace_id = target_draws_++;
+    d.state = read_state(d.trace_id, fb, ignored);
     d.state.name = d.name.size() > 255 ? d.name.substr(0, 255) : d.name;
     unsupported_.push_back({d.index, d.name, reason});
   } else {
