@@ -153,9 +153,9 @@ TEST(GlCaptureOrder, PrimitiveIdsNumberInstancesAndPartsOneAfterAnother) {
 // sample keeps the smaller depth.
 TEST(GlCaptureOrder, ColourFromTheCentreElseTheLowestSampleAndRepeatsKeepTheNearestDepth) {
   std::vector<PassRecord> r = {
-      rec(0, 0, 0, 1, 1, 2, 0.75f, 0.2f), rec(0, 0, 0, 1, 1, 1, 0.5f, 0.1f), rec(0, 0, 0, 1, 1, kCentrePass, 0.6f, 0.9f),
-      rec(0, 0, 0, 1, 1, 2, 0.25f, 0.3f),  // repeat of sample 2, nearer
-      rec(0, 0, 0, 2, 1, 3, 0.5f, 0.4f),  rec(0, 0, 0, 2, 1, 0, 0.5f, 0.35f),
+      rec(0, 0, 0, 1, 1, 2, 0.75f, 0.2f),          rec(0, 0, 0, 1, 1, 1, 0.5f, 0.1f),
+      rec(0, 0, 0, 1, 1, kCentrePass, 0.6f, 0.9f), rec(0, 0, 0, 1, 1, 2, 0.25f, 0.3f),  // repeat of sample 2, nearer
+      rec(0, 0, 0, 2, 1, 3, 0.5f, 0.4f),           rec(0, 0, 0, 2, 1, 0, 0.5f, 0.35f),
       rec(0, 0, 0, 3, 1, kCentrePass, 0.5f, 0.8f),  // centre only
   };
   std::vector<CapturedFragment> out;
@@ -200,8 +200,8 @@ TEST(GlslRewrite, MainIsRenamedAndTheVersionReplacedCommentsIgnored) {
   // Lines keep their numbers: the comments' newlines are kept.
   EXPECT_EQ(std::count(vs.begin(), vs.end(), '\n'),
             std::count(r.source.begin(), r.source.begin() + long(r.source.find("\n// ropsim capture")), '\n'));
-  const Rewritten none = instrument_vertex_shader("uniform float k;\nfloat helper() { return k; }\n",
-                                                  GlslProfile::kCore);
+  const Rewritten none =
+      instrument_vertex_shader("uniform float k;\nfloat helper() { return k; }\n", GlslProfile::kCore);
   EXPECT_EQ(none.source, "#version 450 core\nuniform float k;\nfloat helper() { return k; }\n");
   const Rewritten fs = instrument_fragment_shader("void main() { gl_FragColor = vec4(1.0); }", GlslProfile::kCore, 5);
   EXPECT_NE(fs.source.find("binding = 5"), std::string::npos);
@@ -213,8 +213,7 @@ TEST(GlslRewrite, TheColourIsTheOutputAtLocationZeroOrTheBuiltIns) {
   EXPECT_EQ(fragment_color_expression("out vec4 a;\nlayout(location = 0) out vec4 b;\nvoid main() {}"), "b");
   EXPECT_EQ(fragment_color_expression("layout(location=1) out highp vec4 a; out vec4 c[2]; void main() {}"), "a");
   EXPECT_EQ(fragment_color_expression("out vec4 frag[2];\nvoid main() {}"), "frag[0]");
-  EXPECT_EQ(fragment_color_expression("void main() { vec4 out_not; gl_FragData[0] = vec4(1.0); }"),
-            "gl_FragData[0]");
+  EXPECT_EQ(fragment_color_expression("void main() { vec4 out_not; gl_FragData[0] = vec4(1.0); }"), "gl_FragData[0]");
   EXPECT_EQ(fragment_color_expression("void main() { gl_FragColor = vec4(1.0); }"), "gl_FragColor");
   EXPECT_EQ(fragment_color_expression("void main() { }"), "vec4(0.0, 0.0, 0.0, 1.0)");
   // A local declared `out` parameter inside a function is not the output.

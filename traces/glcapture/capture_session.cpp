@@ -119,46 +119,96 @@ bool write_json(const std::string& path, const json& j, std::string& error) {
 
 bool map_factor(GLint v, BlendFactor& f) {
   switch (v) {
-    case GL_ZERO: f = BlendFactor::kZero; return true;
-    case GL_ONE: f = BlendFactor::kOne; return true;
-    case GL_SRC_COLOR: f = BlendFactor::kSrcColor; return true;
-    case GL_ONE_MINUS_SRC_COLOR: f = BlendFactor::kOneMinusSrcColor; return true;
-    case GL_DST_COLOR: f = BlendFactor::kDstColor; return true;
-    case GL_ONE_MINUS_DST_COLOR: f = BlendFactor::kOneMinusDstColor; return true;
-    case GL_SRC_ALPHA: f = BlendFactor::kSrcAlpha; return true;
-    case GL_ONE_MINUS_SRC_ALPHA: f = BlendFactor::kOneMinusSrcAlpha; return true;
-    case GL_DST_ALPHA: f = BlendFactor::kDstAlpha; return true;
-    case GL_ONE_MINUS_DST_ALPHA: f = BlendFactor::kOneMinusDstAlpha; return true;
-    case GL_CONSTANT_COLOR: f = BlendFactor::kConstantColor; return true;
-    case GL_ONE_MINUS_CONSTANT_COLOR: f = BlendFactor::kOneMinusConstantColor; return true;
-    case GL_CONSTANT_ALPHA: f = BlendFactor::kConstantAlpha; return true;
-    case GL_ONE_MINUS_CONSTANT_ALPHA: f = BlendFactor::kOneMinusConstantAlpha; return true;
-    case GL_SRC_ALPHA_SATURATE: f = BlendFactor::kSrcAlphaSaturate; return true;
-    default: return false;  // the dual-source factors (GL_SRC1_*)
+    case GL_ZERO:
+      f = BlendFactor::kZero;
+      return true;
+    case GL_ONE:
+      f = BlendFactor::kOne;
+      return true;
+    case GL_SRC_COLOR:
+      f = BlendFactor::kSrcColor;
+      return true;
+    case GL_ONE_MINUS_SRC_COLOR:
+      f = BlendFactor::kOneMinusSrcColor;
+      return true;
+    case GL_DST_COLOR:
+      f = BlendFactor::kDstColor;
+      return true;
+    case GL_ONE_MINUS_DST_COLOR:
+      f = BlendFactor::kOneMinusDstColor;
+      return true;
+    case GL_SRC_ALPHA:
+      f = BlendFactor::kSrcAlpha;
+      return true;
+    case GL_ONE_MINUS_SRC_ALPHA:
+      f = BlendFactor::kOneMinusSrcAlpha;
+      return true;
+    case GL_DST_ALPHA:
+      f = BlendFactor::kDstAlpha;
+      return true;
+    case GL_ONE_MINUS_DST_ALPHA:
+      f = BlendFactor::kOneMinusDstAlpha;
+      return true;
+    case GL_CONSTANT_COLOR:
+      f = BlendFactor::kConstantColor;
+      return true;
+    case GL_ONE_MINUS_CONSTANT_COLOR:
+      f = BlendFactor::kOneMinusConstantColor;
+      return true;
+    case GL_CONSTANT_ALPHA:
+      f = BlendFactor::kConstantAlpha;
+      return true;
+    case GL_ONE_MINUS_CONSTANT_ALPHA:
+      f = BlendFactor::kOneMinusConstantAlpha;
+      return true;
+    case GL_SRC_ALPHA_SATURATE:
+      f = BlendFactor::kSrcAlphaSaturate;
+      return true;
+    default:
+      return false;  // the dual-source factors (GL_SRC1_*)
   }
 }
 
 bool map_equation(GLint v, BlendEquation& e) {
   switch (v) {
-    case GL_FUNC_ADD: e = BlendEquation::kAdd; return true;
-    case GL_FUNC_SUBTRACT: e = BlendEquation::kSubtract; return true;
-    case GL_FUNC_REVERSE_SUBTRACT: e = BlendEquation::kReverseSubtract; return true;
-    case GL_MIN: e = BlendEquation::kMin; return true;
-    case GL_MAX: e = BlendEquation::kMax; return true;
-    default: return false;  // the advanced blend equations (KHR_blend_equation_advanced)
+    case GL_FUNC_ADD:
+      e = BlendEquation::kAdd;
+      return true;
+    case GL_FUNC_SUBTRACT:
+      e = BlendEquation::kSubtract;
+      return true;
+    case GL_FUNC_REVERSE_SUBTRACT:
+      e = BlendEquation::kReverseSubtract;
+      return true;
+    case GL_MIN:
+      e = BlendEquation::kMin;
+      return true;
+    case GL_MAX:
+      e = BlendEquation::kMax;
+      return true;
+    default:
+      return false;  // the advanced blend equations (KHR_blend_equation_advanced)
   }
 }
 
 DepthFunc map_depth_func(GLint v) {
   switch (v) {
-    case GL_NEVER: return DepthFunc::kNever;
-    case GL_LESS: return DepthFunc::kLess;
-    case GL_EQUAL: return DepthFunc::kEqual;
-    case GL_LEQUAL: return DepthFunc::kLequal;
-    case GL_GREATER: return DepthFunc::kGreater;
-    case GL_NOTEQUAL: return DepthFunc::kNotequal;
-    case GL_GEQUAL: return DepthFunc::kGequal;
-    default: return DepthFunc::kAlways;
+    case GL_NEVER:
+      return DepthFunc::kNever;
+    case GL_LESS:
+      return DepthFunc::kLess;
+    case GL_EQUAL:
+      return DepthFunc::kEqual;
+    case GL_LEQUAL:
+      return DepthFunc::kLequal;
+    case GL_GREATER:
+      return DepthFunc::kGreater;
+    case GL_NOTEQUAL:
+      return DepthFunc::kNotequal;
+    case GL_GEQUAL:
+      return DepthFunc::kGequal;
+    default:
+      return DepthFunc::kAlways;
   }
 }
 
@@ -188,33 +238,64 @@ struct UniformShape {
 
 UniformShape uniform_shape(GLenum type) {
   switch (type) {
-    case GL_FLOAT: return {'f', 1, 0};
-    case GL_FLOAT_VEC2: return {'f', 2, 0};
-    case GL_FLOAT_VEC3: return {'f', 3, 0};
-    case GL_FLOAT_VEC4: return {'f', 4, 0};
-    case GL_INT: case GL_BOOL: return {'i', 1, 0};
-    case GL_INT_VEC2: case GL_BOOL_VEC2: return {'i', 2, 0};
-    case GL_INT_VEC3: case GL_BOOL_VEC3: return {'i', 3, 0};
-    case GL_INT_VEC4: case GL_BOOL_VEC4: return {'i', 4, 0};
-    case GL_UNSIGNED_INT: return {'u', 1, 0};
-    case GL_UNSIGNED_INT_VEC2: return {'u', 2, 0};
-    case GL_UNSIGNED_INT_VEC3: return {'u', 3, 0};
-    case GL_UNSIGNED_INT_VEC4: return {'u', 4, 0};
-    case GL_DOUBLE: return {'d', 1, 0};
-    case GL_DOUBLE_VEC2: return {'d', 2, 0};
-    case GL_DOUBLE_VEC3: return {'d', 3, 0};
-    case GL_DOUBLE_VEC4: return {'d', 4, 0};
-    case GL_FLOAT_MAT2: return {'m', 2, 2};
-    case GL_FLOAT_MAT3: return {'m', 3, 3};
-    case GL_FLOAT_MAT4: return {'m', 4, 4};
-    case GL_FLOAT_MAT2x3: return {'m', 2, 3};
-    case GL_FLOAT_MAT2x4: return {'m', 2, 4};
-    case GL_FLOAT_MAT3x2: return {'m', 3, 2};
-    case GL_FLOAT_MAT3x4: return {'m', 3, 4};
-    case GL_FLOAT_MAT4x2: return {'m', 4, 2};
-    case GL_FLOAT_MAT4x3: return {'m', 4, 3};
-    case GL_UNSIGNED_INT_ATOMIC_COUNTER: return {'-', 0, 0};  // has no value of its own
-    default: return {'i', 1, 0};                              // samplers and images: a unit
+    case GL_FLOAT:
+      return {'f', 1, 0};
+    case GL_FLOAT_VEC2:
+      return {'f', 2, 0};
+    case GL_FLOAT_VEC3:
+      return {'f', 3, 0};
+    case GL_FLOAT_VEC4:
+      return {'f', 4, 0};
+    case GL_INT:
+    case GL_BOOL:
+      return {'i', 1, 0};
+    case GL_INT_VEC2:
+    case GL_BOOL_VEC2:
+      return {'i', 2, 0};
+    case GL_INT_VEC3:
+    case GL_BOOL_VEC3:
+      return {'i', 3, 0};
+    case GL_INT_VEC4:
+    case GL_BOOL_VEC4:
+      return {'i', 4, 0};
+    case GL_UNSIGNED_INT:
+      return {'u', 1, 0};
+    case GL_UNSIGNED_INT_VEC2:
+      return {'u', 2, 0};
+    case GL_UNSIGNED_INT_VEC3:
+      return {'u', 3, 0};
+    case GL_UNSIGNED_INT_VEC4:
+      return {'u', 4, 0};
+    case GL_DOUBLE:
+      return {'d', 1, 0};
+    case GL_DOUBLE_VEC2:
+      return {'d', 2, 0};
+    case GL_DOUBLE_VEC3:
+      return {'d', 3, 0};
+    case GL_DOUBLE_VEC4:
+      return {'d', 4, 0};
+    case GL_FLOAT_MAT2:
+      return {'m', 2, 2};
+    case GL_FLOAT_MAT3:
+      return {'m', 3, 3};
+    case GL_FLOAT_MAT4:
+      return {'m', 4, 4};
+    case GL_FLOAT_MAT2x3:
+      return {'m', 2, 3};
+    case GL_FLOAT_MAT2x4:
+      return {'m', 2, 4};
+    case GL_FLOAT_MAT3x2:
+      return {'m', 3, 2};
+    case GL_FLOAT_MAT3x4:
+      return {'m', 3, 4};
+    case GL_FLOAT_MAT4x2:
+      return {'m', 4, 2};
+    case GL_FLOAT_MAT4x3:
+      return {'m', 4, 3};
+    case GL_UNSIGNED_INT_ATOMIC_COUNTER:
+      return {'-', 0, 0};  // has no value of its own
+    default:
+      return {'i', 1, 0};  // samplers and images: a unit
   }
 }
 
@@ -266,16 +347,19 @@ struct Unsupported {
 
 const char* encoding_name(TargetEncoding e) {
   switch (e) {
-    case TargetEncoding::kUnorm8: return "unorm8";
-    case TargetEncoding::kSrgb8: return "srgb8";
-    default: return "float";
+    case TargetEncoding::kUnorm8:
+      return "unorm8";
+    case TargetEncoding::kSrgb8:
+      return "srgb8";
+    default:
+      return "float";
   }
 }
 
 class Session final : public CaptureSession {
  public:
   Session();
-  bool capturing() const override { return frames_seen_ == frame_ && !finished_; }
+  bool capturing() const override { return frames_seen_ == frame_ && !finished_ && config_error_.empty(); }
   void draw(const std::function<void()>& app, const std::vector<DrawCallPart>& parts) override;
   void unsupported_draw(const char* reason) override;
   void clear(GLbitfield mask) override;
@@ -285,12 +369,16 @@ class Session final : public CaptureSession {
   void made_current(const void* context) override {
     contexts_.insert(context);
     used_gl_ = true;
+    if (!config_error_.empty()) fail(config_error_);
   }
   void destroying_context(const void* context) override;
   void at_exit();
 
  private:
   [[noreturn]] void fail(const std::string& error);
+  void config_failure(const std::string& error) { config_error_ = error; }
+  /// Reads the ROPSIM_GL_* variables.
+  void configure();
   bool write_status(bool ok, const std::string& error);
   json list_json() const;
   FramebufferInfo& framebuffer(GLint fbo);
@@ -320,6 +408,9 @@ class Session final : public CaptureSession {
   GLuint target_fbo_ = 0;
   std::string target_text_ = "presented";
 
+  /// A bad ROPSIM_GL_* value: reported when the process first makes a context
+  /// current (a shell or server the preload also reaches is left alone).
+  std::string config_error_;
   long frames_seen_ = 0;
   bool finished_ = false;
   bool status_written_ = false;
@@ -353,29 +444,36 @@ class Session final : public CaptureSession {
 
 Session::Session() {
   dir_ = env("ROPSIM_GL_CONTROL");
+  configure();
+}
+
+void Session::configure() {
   long v = 0;
   const std::string frame = env("ROPSIM_GL_FRAME");
   if (!frame.empty()) {
-    if (!parse_int(frame, 0, 1L << 30, v)) fail("ROPSIM_GL_FRAME: '" + frame + "' is not a frame number (0 or more)");
+    if (!parse_int(frame, 0, 1L << 30, v))
+      return config_failure("ROPSIM_GL_FRAME: '" + frame + "' is not a frame number (0 or more)");
     frame_ = v;
   }
   const std::string spp = env("ROPSIM_GL_SPP");
   if (!spp.empty()) {
     if (!parse_int(spp, 1, 64, v) || (v & (v - 1)) != 0)
-      fail("ROPSIM_GL_SPP: '" + spp + "' is not 1, 2, 4, 8, 16, 32 or 64 samples per pixel");
+      return config_failure("ROPSIM_GL_SPP: '" + spp + "' is not 1, 2, 4, 8, 16, 32 or 64 samples per pixel");
     spp_ = int(v);
   }
   list_only_ = env("ROPSIM_GL_LIST_ONLY") == "1";
   count_samples_ = env("ROPSIM_GL_COUNT_SAMPLES") == "1";
   const std::string msaa = env("ROPSIM_GL_REFERENCE_MSAA");
-  if (!msaa.empty() && msaa != "4") fail("ROPSIM_GL_REFERENCE_MSAA: '" + msaa + "' is not 4 (the one reference)");
+  if (!msaa.empty() && msaa != "4")
+    return config_failure("ROPSIM_GL_REFERENCE_MSAA: '" + msaa + "' is not 4 (the one reference)");
   reference_msaa_ = msaa == "4";
   out_ = env("ROPSIM_GL_OUT");
-  if (out_.empty() && !list_only_) fail("ROPSIM_GL_OUT is not set (the trace to write)");
+  if (out_.empty() && !list_only_) return config_failure("ROPSIM_GL_OUT is not set (the trace to write)");
   const std::string target = env("ROPSIM_GL_TARGET");
   if (!target.empty() && target != "presented") {
     if (target.compare(0, 4, "fbo:") != 0 || !parse_int(target.substr(4), 1, 0xFFFFFFFFL, v))
-      fail("ROPSIM_GL_TARGET: '" + target + "' is neither presented nor fbo:N (a framebuffer object's name)");
+      return config_failure("ROPSIM_GL_TARGET: '" + target +
+                            "' is neither presented nor fbo:N (a framebuffer object's name)");
     target_presented_ = false;
     target_fbo_ = GLuint(v);
     target_text_ = target;
@@ -540,8 +638,8 @@ void Session::use_target(const FramebufferInfo& fb) {
   if (target_known_) return;
   const GlFunctions& g = real_gl();
   if (fb.width <= 0 || fb.height <= 0 || uint32_t(fb.width) > kMaxScreenSide || uint32_t(fb.height) > kMaxScreenSide)
-    fail("the target " + fb.name + " is " + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
-         ", not 1.." + std::to_string(kMaxScreenSide) + " pixels a side");
+    fail("the target " + fb.name + " is " + std::to_string(fb.width) + "x" + std::to_string(fb.height) + ", not 1.." +
+         std::to_string(kMaxScreenSide) + " pixels a side");
   target_ = fb;
   target_known_ = true;
   // A compatibility context (GL_ALPHA_TEST exists): before 3.2, or the profile says.
@@ -576,9 +674,9 @@ void Session::use_target(const FramebufferInfo& fb) {
     // The 4x reference: the frame's draws into a multisampled copy.
     GLuint rb[2];
     g.CreateRenderbuffers(2, rb);
-    const GLenum colour = fb.encoding == TargetEncoding::kFloat  ? GL_RGBA16F
+    const GLenum colour = fb.encoding == TargetEncoding::kFloat   ? GL_RGBA16F
                           : fb.encoding == TargetEncoding::kSrgb8 ? GL_SRGB8_ALPHA8
-                                                                   : GL_RGBA8;
+                                                                  : GL_RGBA8;
     g.NamedRenderbufferStorageMultisample(rb[0], 4, colour, fb.width, fb.height);
     g.NamedRenderbufferStorageMultisample(rb[1], 4, GL_DEPTH24_STENCIL8, fb.width, fb.height);
     g.CreateFramebuffers(1, &msaa_fbo_);
@@ -680,12 +778,15 @@ void Session::build_instrumented(GLuint program, const std::vector<ShaderSource>
   const GlFunctions& g = real_gl();
   bool vertex = false, fragment = false;
   for (const ShaderSource& s : src) {
-    if (s.type == GL_VERTEX_SHADER) vertex = true;
-    else if (s.type == GL_FRAGMENT_SHADER) fragment = true;
+    if (s.type == GL_VERTEX_SHADER)
+      vertex = true;
+    else if (s.type == GL_FRAGMENT_SHADER)
+      fragment = true;
     else {
       ins.error = who + ": its " +
-                  std::string(s.type == GL_GEOMETRY_SHADER ? "geometry" : s.type == GL_COMPUTE_SHADER ? "compute"
-                                                                                                      : "tessellation") +
+                  std::string(s.type == GL_GEOMETRY_SHADER  ? "geometry"
+                              : s.type == GL_COMPUTE_SHADER ? "compute"
+                                                            : "tessellation") +
                   " shader cannot be instrumented (vertex and fragment shaders only)";
       return;
     }
@@ -850,41 +951,51 @@ void Session::copy_uniforms(GLuint program, const Instrumented& ins) const {
       case 'f': {
         GLfloat v[4] = {};
         g.GetUniformfv(program, u.from, v);
-        (s.n == 1 ? g.ProgramUniform1fv : s.n == 2 ? g.ProgramUniform2fv : s.n == 3 ? g.ProgramUniform3fv
-                                                                                    : g.ProgramUniform4fv)(q, u.to, 1, v);
+        (s.n == 1   ? g.ProgramUniform1fv
+         : s.n == 2 ? g.ProgramUniform2fv
+         : s.n == 3 ? g.ProgramUniform3fv
+                    : g.ProgramUniform4fv)(q, u.to, 1, v);
         break;
       }
       case 'i': {
         GLint v[4] = {};
         g.GetUniformiv(program, u.from, v);
-        (s.n == 1 ? g.ProgramUniform1iv : s.n == 2 ? g.ProgramUniform2iv : s.n == 3 ? g.ProgramUniform3iv
-                                                                                    : g.ProgramUniform4iv)(q, u.to, 1, v);
+        (s.n == 1   ? g.ProgramUniform1iv
+         : s.n == 2 ? g.ProgramUniform2iv
+         : s.n == 3 ? g.ProgramUniform3iv
+                    : g.ProgramUniform4iv)(q, u.to, 1, v);
         break;
       }
       case 'u': {
         GLuint v[4] = {};
         g.GetUniformuiv(program, u.from, v);
-        (s.n == 1 ? g.ProgramUniform1uiv : s.n == 2 ? g.ProgramUniform2uiv : s.n == 3 ? g.ProgramUniform3uiv
-                                                                                      : g.ProgramUniform4uiv)(
-            q, u.to, 1, v);
+        (s.n == 1   ? g.ProgramUniform1uiv
+         : s.n == 2 ? g.ProgramUniform2uiv
+         : s.n == 3 ? g.ProgramUniform3uiv
+                    : g.ProgramUniform4uiv)(q, u.to, 1, v);
         break;
       }
       case 'd': {
         GLdouble v[4] = {};
         g.GetUniformdv(program, u.from, v);
-        (s.n == 1 ? g.ProgramUniform1dv : s.n == 2 ? g.ProgramUniform2dv : s.n == 3 ? g.ProgramUniform3dv
-                                                                                    : g.ProgramUniform4dv)(q, u.to, 1, v);
+        (s.n == 1   ? g.ProgramUniform1dv
+         : s.n == 2 ? g.ProgramUniform2dv
+         : s.n == 3 ? g.ProgramUniform3dv
+                    : g.ProgramUniform4dv)(q, u.to, 1, v);
         break;
       }
       case 'm': {
         GLfloat v[16] = {};
         g.GetUniformfv(program, u.from, v);
         PFNGLPROGRAMUNIFORMMATRIX4FVPROC set = nullptr;
-        if (s.n == s.rows) set = s.n == 2 ? g.ProgramUniformMatrix2fv : s.n == 3 ? g.ProgramUniformMatrix3fv
-                                                                                 : g.ProgramUniformMatrix4fv;
-        else if (s.n == 2) set = s.rows == 3 ? g.ProgramUniformMatrix2x3fv : g.ProgramUniformMatrix2x4fv;
-        else if (s.n == 3) set = s.rows == 2 ? g.ProgramUniformMatrix3x2fv : g.ProgramUniformMatrix3x4fv;
-        else set = s.rows == 2 ? g.ProgramUniformMatrix4x2fv : g.ProgramUniformMatrix4x3fv;
+        if (s.n == s.rows)
+          set = s.n == 2 ? g.ProgramUniformMatrix2fv : s.n == 3 ? g.ProgramUniformMatrix3fv : g.ProgramUniformMatrix4fv;
+        else if (s.n == 2)
+          set = s.rows == 3 ? g.ProgramUniformMatrix2x3fv : g.ProgramUniformMatrix2x4fv;
+        else if (s.n == 3)
+          set = s.rows == 2 ? g.ProgramUniformMatrix3x2fv : g.ProgramUniformMatrix3x4fv;
+        else
+          set = s.rows == 2 ? g.ProgramUniformMatrix4x2fv : g.ProgramUniformMatrix4x3fv;
         set(q, u.to, 1, GL_FALSE, v);
         break;
       }
@@ -1236,11 +1347,14 @@ void Session::finish_frame() {
     framebuffers_.push_back(target_);
   }
   std::string err;
-  const std::vector<uint8_t> frame = read_target(target_presented_ ? 0 : GLint(target_fbo_), target_presented_,
-                                                 target_.width, target_.height);
+  const std::vector<uint8_t> frame =
+      read_target(target_presented_ ? 0 : GLint(target_fbo_), target_presented_, target_.width, target_.height);
   if (!write_file_atomic(dir_ + "/frame.rgba", frame.data(), frame.size(), err)) fail(err);
-  const json frame_json = {{"width", target_.width},       {"height", target_.height}, {"format", "rgba8"},
-                           {"encoding", encoding_name(target_.encoding)}, {"rows", "top-down"}};
+  const json frame_json = {{"width", target_.width},
+                           {"height", target_.height},
+                           {"format", "rgba8"},
+                           {"encoding", encoding_name(target_.encoding)},
+                           {"rows", "top-down"}};
   if (!write_json(dir_ + "/frame.json", frame_json, err)) fail(err);
   if (msaa_fbo_) {
     GLuint rb = 0, resolved = 0;

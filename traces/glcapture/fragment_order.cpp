@@ -62,16 +62,15 @@ std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, ui
     r.part = part;
     r.sample = uint8_t(sample);
     r.z = word_float(w[3]);
-    if (!(r.z >= 0.0f && r.z <= 1.0f))
-      return "a fragment's depth " + std::to_string(r.z) + " is not in [0, 1]";
+    if (!(r.z >= 0.0f && r.z <= 1.0f)) return "a fragment's depth " + std::to_string(r.z) + " is not in [0, 1]";
     for (int c = 0; c < 4; ++c) r.rgba[size_t(c)] = word_float(w[4 + c]);
     out.push_back(r);
   }
   return "";
 }
 
-std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
-                            bool clamp, std::vector<CapturedFragment>& out) {
+std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
+                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out) {
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the records show more) and its instances.
   uint32_t nparts = 0;

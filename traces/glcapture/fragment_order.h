@@ -73,8 +73,8 @@ struct CapturedFragment {
 /// the records' order (a record that repeats a
 /// (part, instance, primitive, pixel, sample) keeps the smallest depth, then
 /// colour, bit for bit). Returns "" or why the ids overflow 32 bits.
-std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id, const std::vector<DrawPart>& parts,
-                            bool clamp, std::vector<CapturedFragment>& out);
+std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
+                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out);
 
 /// A CapturedFragment as the trace's Fragment (DepthMode::kPerSample).
 Fragment to_trace_fragment(const CapturedFragment& f);

@@ -165,10 +165,11 @@ ROPSIM_EXPORT void glDrawElementsInstancedBaseInstance(GLenum mode, GLsizei coun
 ROPSIM_EXPORT void glDrawElementsInstancedBaseVertexBaseInstance(GLenum mode, GLsizei count, GLenum type,
                                                                  const void* indices, GLsizei n, GLint base,
                                                                  GLuint base_instance) {
-  draw([=] {
-    real_gl().DrawElementsInstancedBaseVertexBaseInstance(mode, count, type, indices, n, base, base_instance);
-  },
-       primitives_per_instance(mode, count));
+  draw(
+      [=] {
+        real_gl().DrawElementsInstancedBaseVertexBaseInstance(mode, count, type, indices, n, base, base_instance);
+      },
+      primitives_per_instance(mode, count));
 }
 
 // Indirect draws: the counts are in a buffer; primitive ids come from the records.
@@ -339,7 +340,8 @@ struct Wrapper {
   void* function;
 };
 
-#define ROPSIM_WRAPPER(name) {#name, reinterpret_cast<void*>(&name)}
+#define ROPSIM_WRAPPER(name) \
+  { #name, reinterpret_cast < void*>(&name) }
 const Wrapper kWrappers[] = {
     ROPSIM_WRAPPER(glDrawArrays),
     ROPSIM_WRAPPER(glDrawElements),

@@ -124,17 +124,16 @@ Rewritten instrument_vertex_shader(const std::string& src, GlslProfile profile) 
   std::string s = set_version(strip_comments(src), profile);
   const int mains = rename_main(s);
   if (mains == 0) return {s, ""};
-  s +=
-      "\n// ropsim capture: the instance for the fragment records, the geometry moved by the pass's sample offset\n"
-      "uniform vec2 ropsim_offset;\n"
-      "uniform bool ropsim_upside_down;\n"
-      "flat out int ropsim_instance;\n"
-      "void main() {\n"
-      "  ropsim_app_main();\n"
-      "  ropsim_instance = gl_InstanceID;\n"
-      "  gl_Position.xy += ropsim_offset * gl_Position.w;\n"
-      "  if (ropsim_upside_down) gl_Position.y = -gl_Position.y;\n"
-      "}\n";
+  s += "\n// ropsim capture: the instance for the fragment records, the geometry moved by the pass's sample offset\n"
+       "uniform vec2 ropsim_offset;\n"
+       "uniform bool ropsim_upside_down;\n"
+       "flat out int ropsim_instance;\n"
+       "void main() {\n"
+       "  ropsim_app_main();\n"
+       "  ropsim_instance = gl_InstanceID;\n"
+       "  gl_Position.xy += ropsim_offset * gl_Position.w;\n"
+       "  if (ropsim_upside_down) gl_Position.y = -gl_Position.y;\n"
+       "}\n";
   return {s, ""};
 }
 
