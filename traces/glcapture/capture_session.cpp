@@ -1108,16 +1108,16 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
         const uint32_t zero[kRecordHeaderWords] = {};
         g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous pass's writes before the reset
         g.NamedBufferSubData(record_buffer_, 0, sizeof zero, zero);
-        if (count) g.BeginQuery(GL_SAMPLES_PASSED, query_);
+        if (count && s != kCentrePass) g.BeginQuery(GL_SAMPLES_PASSED, query_);
         parts[k].replay();
-        if (count) g.EndQuery(GL_SAMPLES_PASSED);
+        if (count && s != kCentrePass) g.EndQuery(GL_SAMPLES_PASSED);
         g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
         uint32_t n = 0;
         g.GetNamedBufferSubData(record_buffer_, 0, 4, &n);
         if (n <= capacity_) {
           raw_.resize(size_t(n) * kRecordWords);
           if (n) g.GetNamedBufferSubData(record_buffer_, GLintptr(head), GLsizeiptr(raw_.size() * 4), raw_.data());
-          if (count) {
+          if (count && s != kCentrePass) {  // the centre pass adds colour, no coverage
             GLuint64 r = 0;
             g.GetQueryObjectui64v(query_, GL_QUERY_RESULT, &r);
             passed += r;
