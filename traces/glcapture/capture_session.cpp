@@ -1145,6 +1145,7 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   if (!err.empty()) fail(err);
   d.fragments = fragments_.size() - before;
   for (size_t i = before; i < fragments_.size(); ++i) d.covered_samples += fragments_[i].z.size();
+  if (list_only_) fragments_.resize(before);  // counted, no trace to write
   d.counted = count;
   d.samples_passed = passed;
 }
@@ -1252,7 +1253,8 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
     unsupported_.push_back({d.index, d.name, unsupported});
   } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {  // a discarded rasterizer draws nothing: no fragments
     if (msaa_fbo_) reference_draw(GLuint(program), *ins, parts);
-    if (!list_only_) capture_draw(GLuint(program), *ins, parts, d);
+    // ROPSIM_GL_LIST_ONLY: the passes only when the counts are asked for (ROPSIM_GL_COUNT_SAMPLES)
+    if (!list_only_ || count_samples_) capture_draw(GLuint(program), *ins, parts, d);
   }
   draws_.push_back(std::move(d));
 }
