@@ -100,15 +100,34 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     const uint64_t prim = base[r.part] + uint64_t(r.instance) * per_instance[r.part] + r.prim;
     keys[i] = Key{prim << 32 | uint64_t(r.y) << 16 | r.x, uint64_t(r.sample) << 32 | bits(r.z), uint32_t(i)};
   }
-  std::sort(keys.begin(), keys.end(), [&records](const Key& a, const Key& b) {
-    if (a.pixel != b.pixel) return a.pixel < b.pixel;
+  // By pixel key: a stable least-significant-digit radix sort (a byte a
+  // pass, the bytes every key shares skipped); then each pixel's few
+  // records by (sample, depth, colour).
+  {
+    std::vector<Key> tmp(keys.size());
+    for (int shift = 0; shift < 64; shift += 8) {
+      size_t count[257] = {};
+      for (const Key& k : keys) ++count[((k.pixel >> shift) & 0xFF) + 1];
+      if (std::any_of(count + 1, count + 257, [&](size_t c) { return c == keys.size(); })) continue;
+      for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
+      for (const Key& k : keys) tmp[count[(k.pixel >> shift) & 0xFF]++] = k;
+      keys.swap(tmp);
+    }
+  }
+  auto within_pixel = [&records](const Key& a, const Key& b) {
     if (a.sample_z != b.sample_z) return a.sample_z < b.sample_z;
     const auto& ca = records[a.index].rgba;
     const auto& cb = records[b.index].rgba;
     for (size_t c = 0; c < 4; ++c)
       if (bits(ca[c]) != bits(cb[c])) return bits(ca[c]) < bits(cb[c]);
     return false;
-  });
+  };
+  for (size_t i = 0; i < keys.size();) {
+    size_t j = i + 1;
+    while (j < keys.size() && keys[j].pixel == keys[i].pixel) ++j;
+    if (j - i > 1) std::sort(keys.begin() + long(i), keys.begin() + long(j), within_pixel);
+    i = j;
+  }
 
   for (size_t i = 0; i < keys.size();) {
     size_t j = i;
