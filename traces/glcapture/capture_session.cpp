@@ -644,6 +644,9 @@ void Session::use_target(const FramebufferInfo& fb) {
   target_known_ = true;
   // A compatibility context (GL_ALPHA_TEST exists): before 3.2, or the profile says.
   const char* version = reinterpret_cast<const char*>(g.GetString(GL_VERSION));
+  if (version && std::strncmp(version, "OpenGL ES", 9) == 0)
+    fail(std::string("the context is OpenGL ES (") + version +
+         "): the capture instruments desktop OpenGL (GLSL 4.50) only");
   const int major = version ? std::atoi(version) : 0;
   const int minor = version && std::strchr(version, '.') ? std::atoi(std::strchr(version, '.') + 1) : 0;
   compatibility_ = major < 3 || (major == 3 && minor < 2);

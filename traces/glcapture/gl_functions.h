@@ -58,6 +58,8 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect)                                     \
   X(PfnGlBegin, Begin)                                                                                 \
   X(PfnGlEnd, End)                                                                                     \
+  X(decltype(&::glCallList), CallList)                                                                 \
+  X(decltype(&::glCallLists), CallLists)                                                               \
   X(decltype(&::glClear), Clear)                                                                       \
   X(PFNGLUSEPROGRAMPROC, UseProgram)                                                                   \
   X(PFNGLLINKPROGRAMPROC, LinkProgram)                                                                 \

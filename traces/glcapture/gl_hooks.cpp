@@ -264,6 +264,18 @@ ROPSIM_EXPORT void glEnd() {
   if (CaptureSession* s = active()) s->unsupported_draw("immediate mode (glBegin/glEnd) is not re-executed");
 }
 
+// Display lists: drawn as usual, listed unsupported (their contents are not
+// recorded).
+ROPSIM_EXPORT void glCallList(GLuint list) {
+  real_gl().CallList(list);
+  if (CaptureSession* s = active()) s->unsupported_draw("a display list (glCallList) is not re-executed");
+}
+
+ROPSIM_EXPORT void glCallLists(GLsizei n, GLenum type, const void* lists) {
+  real_gl().CallLists(n, type, lists);
+  if (CaptureSession* s = active()) s->unsupported_draw("display lists (glCallLists) are not re-executed");
+}
+
 // ------------------------------------------------------------------ state
 
 ROPSIM_EXPORT void glClear(GLbitfield mask) {
@@ -369,6 +381,8 @@ const Wrapper kWrappers[] = {
     ROPSIM_WRAPPER(glMultiDrawArraysIndirect),
     ROPSIM_WRAPPER(glMultiDrawElementsIndirect),
     ROPSIM_WRAPPER(glBegin),
+    ROPSIM_WRAPPER(glCallList),
+    ROPSIM_WRAPPER(glCallLists),
     ROPSIM_WRAPPER(glEnd),
     ROPSIM_WRAPPER(glClear),
     ROPSIM_WRAPPER(glUseProgram),
