@@ -323,7 +323,7 @@ struct FramebufferInfo {
   GLint fbo = 0;
   int width = 0, height = 0, samples = 0;
   TargetEncoding encoding = TargetEncoding::kUnorm8;
-  bool has_depth = false, presented = false;
+  bool has_depth = false, has_stencil = false, presented = false;
   int draws = 0;
 };
 
@@ -567,6 +567,10 @@ FramebufferInfo Session::query_framebuffer(GLint fbo) const {
     g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, GL_DEPTH, GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE,
                                           &depth_bits);
     f.has_depth = depth_bits > 0;
+    GLint stencil_bits = 0;
+    g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, GL_STENCIL, GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE,
+                                          &stencil_bits);
+    f.has_stencil = stencil_bits > 0;
     g.GetIntegerv(GL_SAMPLES, &f.samples);
     // The drawable's size from the window system; the viewport otherwise.
     unsigned w = 0, h = 0;
@@ -617,6 +621,10 @@ FramebufferInfo Session::query_framebuffer(GLint fbo) const {
     g.GetNamedFramebufferAttachmentParameteriv(fb, GL_DEPTH_ATTACHMENT, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_TYPE,
                                                &depth_type);
     f.has_depth = depth_type != GL_NONE;
+    GLint stencil_type = GL_NONE;
+    g.GetNamedFramebufferAttachmentParameteriv(fb, GL_STENCIL_ATTACHMENT, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_TYPE,
+                                               &stencil_type);
+    f.has_stencil = stencil_type != GL_NONE;
   }
   if (component == GL_FLOAT)
     f.encoding = TargetEncoding::kFloat;
@@ -732,7 +740,7 @@ DrawState Session::read_state(uint32_t index, const FramebufferInfo& fb, std::st
   s.color_mask = uint8_t((cm[0] ? 1 : 0) | (cm[1] ? 2 : 0) | (cm[2] ? 4 : 0) | (cm[3] ? 8 : 0));
   s.encoding = fb.encoding;
   if (!fb.has_depth) s.depth_func = DepthFunc::kAlways;
-  if (unsupported.empty() && fb.has_depth && g.IsEnabled(GL_STENCIL_TEST))
+  if (unsupported.empty() && fb.has_stencil && g.IsEnabled(GL_STENCIL_TEST))
     unsupported = "the stencil test has no trace equivalent";
   return s;
 }
@@ -1243,8 +1251,8 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
       unsupported = "a separable program pipeline cannot be instrumented";
     else
       ins = fixed_function(unsupported);
-  } else if (unsupported.empty()) {
-    ins = &instrumented(GLuint(program));
+  } else if (unsupported.empty() && (msaa_fbo_ || !list_only_ || count_samples_)) {
+    ins = &instrumented(GLuint(program));  // a list without counts re-executes nothing
     if (compatibility_ && g.IsEnabled(GL_ALPHA_TEST))
       unsupported = "the alpha test (GL_ALPHA_TEST) with a GLSL program runs after the fragment shader's record";
   }
