@@ -96,11 +96,16 @@ CaptureSession* active() {
   return s && s->capturing() ? s : nullptr;
 }
 
-void draw(const std::function<void()>& call, uint32_t prims) {
-  if (CaptureSession* s = active())
-    s->draw(call, {DrawCallPart{call, prims}});
-  else
+/// A draw: forwarded; during frame N also re-executed (no std::function is
+/// made outside frame N).
+template <typename Call>
+void draw(const Call& call, uint32_t prims) {
+  if (CaptureSession* s = active()) {
+    const std::function<void()> f = call;
+    s->draw(f, {DrawCallPart{f, prims}});
+  } else {
     call();
+  }
 }
 
 }  // namespace
