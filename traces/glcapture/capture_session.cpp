@@ -1054,7 +1054,10 @@ void Session::finish_frame() {
   frames_seen_ += 1;
   const GlFunctions& g = real_gl();
   if (!target_known_) {
-    // Nothing drew into the target this frame: its size from the GL.
+    if (!target_presented_)
+      fail("ROPSIM_GL_TARGET=" + target_text_ + ": frame " + std::to_string(frame_) +
+           " neither draws into nor clears framebuffer object " + std::to_string(target_fbo_));
+    // Nothing drew into the presented framebuffer this frame: its size from the window system.
     use_target(query_framebuffer(target_presented_ ? 0 : GLint(target_fbo_)));
     framebuffers_.push_back(target_);
   }
