@@ -38,7 +38,7 @@ constexpr Layer kLayers[] = {
     {"traces/raster", 11, "input: rasterizer, sample patterns"},
     {"traces/scenes", 12, "input: built-in scenes"},
     {"traces/capture", 13, "input: capture from meshes"},
-    {"traces/glcapture", 14, "input: GL capture (fixed-function emulation)"},
+    {"traces/glcapture", 14, "input: capture from OpenGL applications (the preloaded library, the fixed-function emulation)"},
     {"sim/functional", 20, "functional ROP: methods, store, stages, counters, fragment sources"},
     {"sim/golden", 21, "functional: the golden model"},
     {"rtl_models/config", 30, "models: the hardware config"},

@@ -1,0 +1,1157 @@
+#include "capture_session.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+
+#include "draw_state.h"
+#include "fragment_order.h"
+#include "gl_functions.h"
+#include "glsl_rewrite.h"
+#include "instrumented_program.h"
+#include "sample_patterns.h"
+#include "trace.h"
+
+#if ROPSIM_GLCAPTURE_FIXED_FUNCTION
+#include "ff_program.h"
+#endif
+
+namespace ropsim::glcapture {
+
+using nlohmann::json;
+
+uint32_t primitives_per_instance(GLenum mode, GLsizei count) {
+  const uint32_t n = count > 0 ? uint32_t(count) : 0;
+  switch (mode) {
+    case GL_POINTS:
+      return n;
+    case GL_LINES:
+      return n / 2;
+    case GL_LINE_STRIP:
+      return n > 1 ? n - 1 : 0;
+    case GL_LINE_LOOP:
+      return n > 1 ? n : 0;
+    case GL_TRIANGLES:
+      return n / 3;
+    case GL_TRIANGLE_STRIP:
+    case GL_TRIANGLE_FAN:
+      return n > 2 ? n - 2 : 0;
+    case GL_QUADS:
+      return n / 4;
+    case GL_QUAD_STRIP:
+      return n > 3 ? (n - 2) / 2 : 0;
+    case GL_POLYGON:
+      return n > 2 ? 1 : 0;
+    case GL_LINES_ADJACENCY:
+      return n / 4;
+    case GL_LINE_STRIP_ADJACENCY:
+      return n > 3 ? n - 3 : 0;
+    case GL_TRIANGLES_ADJACENCY:
+      return n / 6;
+    case GL_TRIANGLE_STRIP_ADJACENCY:
+      return n > 5 ? (n - 4) / 2 : 0;
+    default:
+      return 0;  // patches, or an error the application's call reports
+  }
+}
+
+namespace {
+
+// The library's own storage block binding (the last one): an application
+// program that binds a block there cannot be captured.
+GLint record_binding() {
+  GLint n = 0;
+  real_gl().GetIntegerv(GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS, &n);
+  return std::max(0, n - 1);
+}
+
+std::string env(const char* name) {
+  const char* v = std::getenv(name);
+  return v ? v : "";
+}
+
+bool parse_int(const std::string& s, long lo, long hi, long& out) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(s.c_str(), &end, 10);
+  if (errno || *end || v < lo || v > hi) return false;
+  out = v;
+  return true;
+}
+
+/// Writes `bytes` to PATH through a temporary name in the same folder.
+bool write_file_atomic(const std::string& path, const void* bytes, size_t n, std::string& error) {
+  const std::string tmp = path + ".tmp." + std::to_string(getpid());
+  FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) {
+    error = tmp + ": " + std::strerror(errno);
+    return false;
+  }
+  const bool ok = std::fwrite(bytes, 1, n, f) == n;
+  const int werr = errno;
+  if (std::fclose(f) != 0 || !ok) {
+    error = path + ": " + std::strerror(ok ? errno : werr);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    error = path + ": " + std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+bool write_json(const std::string& path, const json& j, std::string& error) {
+  const std::string s = j.dump(2) + "\n";
+  return write_file_atomic(path, s.data(), s.size(), error);
+}
+
+bool map_factor(GLint v, BlendFactor& f) {
+  switch (v) {
+    case GL_ZERO:
+      f = BlendFactor::kZero;
+      return true;
+    case GL_ONE:
+      f = BlendFactor::kOne;
+      return true;
+    case GL_SRC_COLOR:
+      f = BlendFactor::kSrcColor;
+      return true;
+    case GL_ONE_MINUS_SRC_COLOR:
+      f = BlendFactor::kOneMinusSrcColor;
+      return true;
+    case GL_DST_COLOR:
+      f = BlendFactor::kDstColor;
+      return true;
+    case GL_ONE_MINUS_DST_COLOR:
+      f = BlendFactor::kOneMinusDstColor;
+      return true;
+    case GL_SRC_ALPHA:
+      f = BlendFactor::kSrcAlpha;
+      return true;
+    case GL_ONE_MINUS_SRC_ALPHA:
+      f = BlendFactor::kOneMinusSrcAlpha;
+      return true;
+    case GL_DST_ALPHA:
+      f = BlendFactor::kDstAlpha;
+      return true;
+    case GL_ONE_MINUS_DST_ALPHA:
+      f = BlendFactor::kOneMinusDstAlpha;
+      return true;
+    case GL_CONSTANT_COLOR:
+      f = BlendFactor::kConstantColor;
+      return true;
+    case GL_ONE_MINUS_CONSTANT_COLOR:
+      f = BlendFactor::kOneMinusConstantColor;
+      return true;
+    case GL_CONSTANT_ALPHA:
+      f = BlendFactor::kConstantAlpha;
+      return true;
+    case GL_ONE_MINUS_CONSTANT_ALPHA:
+      f = BlendFactor::kOneMinusConstantAlpha;
+      return true;
+    case GL_SRC_ALPHA_SATURATE:
+      f = BlendFactor::kSrcAlphaSaturate;
+      return true;
+    default:
+      return false;  // the dual-source factors (GL_SRC1_*)
+  }
+}
+
+bool map_equation(GLint v, BlendEquation& e) {
+  switch (v) {
+    case GL_FUNC_ADD:
+      e = BlendEquation::kAdd;
+      return true;
+    case GL_FUNC_SUBTRACT:
+      e = BlendEquation::kSubtract;
+      return true;
+    case GL_FUNC_REVERSE_SUBTRACT:
+      e = BlendEquation::kReverseSubtract;
+      return true;
+    case GL_MIN:
+      e = BlendEquation::kMin;
+      return true;
+    case GL_MAX:
+      e = BlendEquation::kMax;
+      return true;
+    default:
+      return false;  // the advanced blend equations (KHR_blend_equation_advanced)
+  }
+}
+
+DepthFunc map_depth_func(GLint v) {
+  switch (v) {
+    case GL_NEVER:
+      return DepthFunc::kNever;
+    case GL_LESS:
+      return DepthFunc::kLess;
+    case GL_EQUAL:
+      return DepthFunc::kEqual;
+    case GL_LEQUAL:
+      return DepthFunc::kLequal;
+    case GL_GREATER:
+      return DepthFunc::kGreater;
+    case GL_NOTEQUAL:
+      return DepthFunc::kNotequal;
+    case GL_GEQUAL:
+      return DepthFunc::kGequal;
+    default:
+      return DepthFunc::kAlways;
+  }
+}
+
+std::string hex(GLint v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%04X", unsigned(v));
+  return b;
+}
+
+std::string blend_text(const DrawState& s) {
+  if (!s.blend) return "off";
+  return std::string(to_string(s.eq_rgb)) + "(" + to_string(s.src_rgb) + ", " + to_string(s.dst_rgb) + "), " +
+         to_string(s.eq_alpha) + "(" + to_string(s.src_alpha) + ", " + to_string(s.dst_alpha) + ")";
+}
+
+std::string depth_text(const DrawState& s) {
+  if (!s.depth_test) return "off";
+  return std::string(to_string(s.depth_func)) + (s.depth_write ? ", write" : ", no write");
+}
+
+struct FramebufferInfo {
+  std::string name;
+  GLint fbo = 0;
+  int width = 0, height = 0, samples = 0;
+  TargetEncoding encoding = TargetEncoding::kUnorm8;
+  bool has_depth = false, has_stencil = false, presented = false;
+  int draws = 0;
+};
+
+struct DrawRecord {
+  uint32_t index = 0;     ///< in the frame (every framebuffer's draws): list.json's index
+  uint32_t trace_id = 0;  ///< among the target's draws: the trace's draw_id
+  std::string framebuffer;
+  GLuint program = 0;
+  std::string name;
+  bool target = false;
+  DrawState state;
+  uint64_t fragments = 0, covered_samples = 0;
+  bool counted = false;
+  uint64_t samples_passed = 0;
+};
+
+struct Unsupported {
+  uint32_t draw;
+  std::string name, reason;
+};
+
+const char* encoding_name(TargetEncoding e) {
+  switch (e) {
+    case TargetEncoding::kUnorm8:
+      return "unorm8";
+    case TargetEncoding::kSrgb8:
+      return "srgb8";
+    default:
+      return "float";
+  }
+}
+
+class Session final : public CaptureSession {
+ public:
+  Session();
+  bool capturing() const override { return frames_seen_ == frame_ && !finished_ && config_error_.empty(); }
+  void draw(const std::function<void()>& app, const std::vector<DrawCallPart>& parts) override;
+  void unsupported_draw(const char* reason) override;
+  void clear(GLbitfield mask) override;
+  void swap() override;
+  void linked(GLuint program) override;
+  void deleting_program(GLuint program) override;
+  void made_current(const void* context) override {
+    contexts_.insert(context);
+    used_gl_ = true;
+    if (!config_error_.empty()) fail(config_error_);
+  }
+  void destroying_context(const void* context) override;
+  void at_exit();
+
+ private:
+  [[noreturn]] void fail(const std::string& error);
+  void config_failure(const std::string& error) { config_error_ = error; }
+  /// Reads the ROPSIM_GL_* variables.
+  void configure();
+  bool write_status(bool ok, const std::string& error);
+  json list_json() const;
+  FramebufferInfo& framebuffer(GLint fbo);
+  FramebufferInfo query_framebuffer(GLint fbo) const;
+  bool is_target(GLint fbo) const { return target_presented_ ? fbo == 0 : GLuint(fbo) == target_fbo_; }
+  void use_target(const FramebufferInfo& fb);
+  DrawState read_state(uint32_t index, const FramebufferInfo& fb, std::string& unsupported) const;
+  std::string program_name(GLuint program) const;
+  Instrumented& instrumented(GLuint program);
+  /// The fixed-function state's program, instrumented; or the reason it is not captured.
+  Instrumented* fixed_function(std::string& unsupported);
+  void capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts, DrawRecord& d);
+  void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
+  void finish_frame();
+  std::vector<uint8_t> read_target(GLint fbo, bool presented, int w, int h, bool upside_down = false) const;
+
+  // Configuration (the environment).
+  std::string dir_, out_;
+  long frame_ = 0;
+  int spp_ = 1;
+  bool list_only_ = false, count_samples_ = false, reference_msaa_ = false;
+  bool target_presented_ = true;
+  GLuint target_fbo_ = 0;
+  std::string target_text_ = "presented";
+
+  /// A bad ROPSIM_GL_* value: reported when the process first makes a context
+  /// current (a shell or server the preload also reaches is left alone).
+  std::string config_error_;
+  long frames_seen_ = 0;
+  bool finished_ = false;
+  bool status_written_ = false;
+  /// A context was made current in this process: only then does its exit
+  /// report (a shell or server the preload also reaches says nothing).
+  bool used_gl_ = false;
+  std::set<const void*> contexts_;
+  std::map<GLuint, std::vector<ShaderSource>> sources_;
+  std::map<GLuint, Instrumented> instrumented_;
+  std::map<std::string, Instrumented> fixed_function_;  ///< by the generated sources
+
+  // Frame N.
+  std::vector<FramebufferInfo> framebuffers_;
+  std::vector<DrawRecord> draws_;
+  std::vector<Unsupported> unsupported_;
+  std::vector<CapturedFragment> fragments_;
+  uint32_t target_draws_ = 0;  ///< draws into the target so far (the next trace draw id)
+  bool target_known_ = false;
+  bool compatibility_ = false;  ///< the context has the compatibility profile
+  FramebufferInfo target_;
+  bool color_cleared_ = false, depth_cleared_ = false;
+  std::array<float, 3> clear_color_{0, 0, 0};
+  float clear_depth_ = 1.0f;
+  GLuint capture_fbo_ = 0, record_buffer_ = 0, query_ = 0;
+  GLint binding_ = 0;
+  uint64_t capacity_ = 0, max_capacity_ = 0;
+  GLuint msaa_fbo_ = 0, reference_buffer_ = 0;
+  std::vector<PassRecord> records_;
+  std::vector<uint32_t> raw_;
+};
+
+Session::Session() {
+  dir_ = env("ROPSIM_GL_CONTROL");
+  configure();
+}
+
+void Session::configure() {
+  long v = 0;
+  const std::string frame = env("ROPSIM_GL_FRAME");
+  if (!frame.empty()) {
+    if (!parse_int(frame, 0, 1L << 30, v))
+      return config_failure("ROPSIM_GL_FRAME: '" + frame + "' is not a frame number (0 or more)");
+    frame_ = v;
+  }
+  const std::string spp = env("ROPSIM_GL_SPP");
+  if (!spp.empty()) {
+    if (!parse_int(spp, 1, 64, v) || (v & (v - 1)) != 0)
+      return config_failure("ROPSIM_GL_SPP: '" + spp + "' is not 1, 2, 4, 8, 16, 32 or 64 samples per pixel");
+    spp_ = int(v);
+  }
+  list_only_ = env("ROPSIM_GL_LIST_ONLY") == "1";
+  count_samples_ = env("ROPSIM_GL_COUNT_SAMPLES") == "1";
+  const std::string msaa = env("ROPSIM_GL_REFERENCE_MSAA");
+  if (!msaa.empty() && msaa != "4")
+    return config_failure("ROPSIM_GL_REFERENCE_MSAA: '" + msaa + "' is not 4 (the one reference)");
+  reference_msaa_ = msaa == "4";
+  out_ = env("ROPSIM_GL_OUT");
+  if (out_.empty() && !list_only_) return config_failure("ROPSIM_GL_OUT is not set (the trace to write)");
+  const std::string target = env("ROPSIM_GL_TARGET");
+  if (!target.empty() && target != "presented") {
+    if (target.compare(0, 4, "fbo:") != 0 || !parse_int(target.substr(4), 1, 0xFFFFFFFFL, v))
+      return config_failure("ROPSIM_GL_TARGET: '" + target +
+                            "' is neither presented nor fbo:N (a framebuffer object's name)");
+    target_presented_ = false;
+    target_fbo_ = GLuint(v);
+    target_text_ = target;
+  }
+}
+
+void Session::fail(const std::string& error) {
+  write_status(false, error);
+  if (!draws_.empty() || !framebuffers_.empty()) {
+    std::string ignored;
+    write_json(dir_ + "/list.json", list_json(), ignored);
+  }
+  std::fflush(stderr);
+  _exit(1);
+}
+
+bool Session::write_status(bool ok, const std::string& error) {
+  uint64_t fragments = 0;
+  for (const DrawRecord& d : draws_) fragments += d.fragments;
+  json unsupported = json::array();
+  for (const Unsupported& u : unsupported_)
+    unsupported.push_back({{"draw", u.draw}, {"name", u.name}, {"reason", u.reason}});
+  uint32_t target_draws = 0;
+  for (const DrawRecord& d : draws_) target_draws += d.target ? 1 : 0;
+  const json j = {{"ok", ok},
+                  {"error", error},
+                  {"frames_seen", frames_seen_},
+                  {"frame", frame_},
+                  {"target", target_text_},
+                  {"width", target_known_ ? target_.width : 0},
+                  {"height", target_known_ ? target_.height : 0},
+                  {"spp", spp_},
+                  {"draws", target_draws},
+                  {"fragments", fragments},
+                  {"unsupported", unsupported}};
+  std::string werr;
+  status_written_ = write_json(dir_ + "/status.json", j, werr);
+  if (!status_written_) std::fprintf(stderr, "ropsim: error: %s\n", werr.c_str());
+  return status_written_;
+}
+
+json Session::list_json() const {
+  json fbs = json::array(), draws = json::array();
+  for (const FramebufferInfo& f : framebuffers_)
+    fbs.push_back({{"name", f.name},
+                   {"width", f.width},
+                   {"height", f.height},
+                   {"samples", f.samples},
+                   {"encoding", encoding_name(f.encoding)},
+                   {"draws", f.draws},
+                   {"presented", f.presented}});
+  for (const DrawRecord& d : draws_) {
+    json j = {{"index", d.index},
+              {"framebuffer", d.framebuffer},
+              {"program", d.program},
+              {"name", d.name},
+              {"kind", to_string(draw_kind(d.state))},
+              {"blend", blend_text(d.state)},
+              {"depth", depth_text(d.state)},
+              {"fragments", d.fragments},
+              {"covered_samples", d.covered_samples},
+              {"samples_passed", nullptr},
+              {"captured", d.target},
+              {"trace_draw", nullptr}};
+    if (d.target) j["trace_draw"] = d.trace_id;
+    if (d.counted) j["samples_passed"] = d.samples_passed;
+    draws.push_back(j);
+  }
+  return {{"framebuffers", fbs}, {"draws", draws}};
+}
+
+FramebufferInfo Session::query_framebuffer(GLint fbo) const {
+  const GlFunctions& g = real_gl();
+  FramebufferInfo f;
+  f.fbo = fbo;
+  GLint type = GL_NONE, name = 0, encoding = GL_LINEAR, component = GL_UNSIGNED_NORMALIZED;
+  if (fbo == 0) {
+    f.name = "presented";
+    f.presented = true;
+    GLint bound = 0;
+    g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &bound);
+    if (bound != 0) g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    GLboolean doublebuffer = GL_TRUE;
+    g.GetBooleanv(GL_DOUBLEBUFFER, &doublebuffer);
+    const GLenum colour = doublebuffer ? GL_BACK_LEFT : GL_FRONT_LEFT;
+    g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, colour, GL_FRAMEBUFFER_ATTACHMENT_COLOR_ENCODING,
+                                          &encoding);
+    g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, colour, GL_FRAMEBUFFER_ATTACHMENT_COMPONENT_TYPE,
+                                          &component);
+    GLint depth_bits = 0;
+    g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, GL_DEPTH, GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE,
+                                          &depth_bits);
+    f.has_depth = depth_bits > 0;
+    GLint stencil_bits = 0;
+    g.GetFramebufferAttachmentParameteriv(GL_DRAW_FRAMEBUFFER, GL_STENCIL, GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE,
+                                          &stencil_bits);
+    f.has_stencil = stencil_bits > 0;
+    g.GetIntegerv(GL_SAMPLES, &f.samples);
+    // The drawable's size from the window system; the viewport otherwise.
+    unsigned w = 0, h = 0;
+    if (g.glXGetCurrentContext && g.glXGetCurrentContext() && g.glXQueryDrawable) {
+      g.glXQueryDrawable(g.glXGetCurrentDisplay(), g.glXGetCurrentDrawable(), GLX_WIDTH, &w);
+      g.glXQueryDrawable(g.glXGetCurrentDisplay(), g.glXGetCurrentDrawable(), GLX_HEIGHT, &h);
+    } else if (g.eglGetCurrentContext && g.eglGetCurrentContext() != EGL_NO_CONTEXT && g.eglQuerySurface) {
+      EGLint ew = 0, eh = 0;
+      g.eglQuerySurface(g.eglGetCurrentDisplay(), g.eglGetCurrentSurface(EGL_DRAW), EGL_WIDTH, &ew);
+      g.eglQuerySurface(g.eglGetCurrentDisplay(), g.eglGetCurrentSurface(EGL_DRAW), EGL_HEIGHT, &eh);
+      w = unsigned(ew);
+      h = unsigned(eh);
+    }
+    if (w == 0 || h == 0) {
+      GLint vp[4] = {};
+      g.GetIntegerv(GL_VIEWPORT, vp);
+      w = unsigned(vp[2]);
+      h = unsigned(vp[3]);
+    }
+    f.width = int(w);
+    f.height = int(h);
+    if (bound != 0) g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(bound));
+  } else {
+    f.name = "fbo " + std::to_string(fbo);
+    const GLuint fb = GLuint(fbo);
+    g.GetNamedFramebufferAttachmentParameteriv(fb, GL_COLOR_ATTACHMENT0, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_TYPE, &type);
+    if (type != GL_NONE) {
+      g.GetNamedFramebufferAttachmentParameteriv(fb, GL_COLOR_ATTACHMENT0, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_NAME,
+                                                 &name);
+      g.GetNamedFramebufferAttachmentParameteriv(fb, GL_COLOR_ATTACHMENT0, GL_FRAMEBUFFER_ATTACHMENT_COLOR_ENCODING,
+                                                 &encoding);
+      g.GetNamedFramebufferAttachmentParameteriv(fb, GL_COLOR_ATTACHMENT0, GL_FRAMEBUFFER_ATTACHMENT_COMPONENT_TYPE,
+                                                 &component);
+    }
+    if (type == GL_TEXTURE) {
+      GLint level = 0;
+      g.GetNamedFramebufferAttachmentParameteriv(fb, GL_COLOR_ATTACHMENT0, GL_FRAMEBUFFER_ATTACHMENT_TEXTURE_LEVEL,
+                                                 &level);
+      g.GetTextureLevelParameteriv(GLuint(name), level, GL_TEXTURE_WIDTH, &f.width);
+      g.GetTextureLevelParameteriv(GLuint(name), level, GL_TEXTURE_HEIGHT, &f.height);
+      g.GetTextureLevelParameteriv(GLuint(name), level, GL_TEXTURE_SAMPLES, &f.samples);
+    } else if (type == GL_RENDERBUFFER) {
+      g.GetNamedRenderbufferParameteriv(GLuint(name), GL_RENDERBUFFER_WIDTH, &f.width);
+      g.GetNamedRenderbufferParameteriv(GLuint(name), GL_RENDERBUFFER_HEIGHT, &f.height);
+      g.GetNamedRenderbufferParameteriv(GLuint(name), GL_RENDERBUFFER_SAMPLES, &f.samples);
+    }
+    GLint depth_type = GL_NONE;
+    g.GetNamedFramebufferAttachmentParameteriv(fb, GL_DEPTH_ATTACHMENT, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_TYPE,
+                                               &depth_type);
+    f.has_depth = depth_type != GL_NONE;
+    GLint stencil_type = GL_NONE;
+    g.GetNamedFramebufferAttachmentParameteriv(fb, GL_STENCIL_ATTACHMENT, GL_FRAMEBUFFER_ATTACHMENT_OBJECT_TYPE,
+                                               &stencil_type);
+    f.has_stencil = stencil_type != GL_NONE;
+  }
+  if (component == GL_FLOAT)
+    f.encoding = TargetEncoding::kFloat;
+  else if (encoding == GL_SRGB && g.IsEnabled(GL_FRAMEBUFFER_SRGB))
+    f.encoding = TargetEncoding::kSrgb8;
+  else
+    f.encoding = TargetEncoding::kUnorm8;
+  return f;
+}
+
+FramebufferInfo& Session::framebuffer(GLint fbo) {
+  for (FramebufferInfo& f : framebuffers_)
+    if (f.fbo == fbo) return f;
+  framebuffers_.push_back(query_framebuffer(fbo));
+  return framebuffers_.back();
+}
+
+void Session::use_target(const FramebufferInfo& fb) {
+  if (target_known_) return;
+  const GlFunctions& g = real_gl();
+  if (fb.width <= 0 || fb.height <= 0 || uint32_t(fb.width) > kMaxScreenSide || uint32_t(fb.height) > kMaxScreenSide)
+    fail("the target " + fb.name + " is " + std::to_string(fb.width) + "x" + std::to_string(fb.height) + ", not 1.." +
+         std::to_string(kMaxScreenSide) + " pixels a side");
+  target_ = fb;
+  target_known_ = true;
+  // A compatibility context (GL_ALPHA_TEST exists): before 3.2, or the profile says.
+  const char* version = reinterpret_cast<const char*>(g.GetString(GL_VERSION));
+  if (version && std::strncmp(version, "OpenGL ES", 9) == 0)
+    fail(std::string("the context is OpenGL ES (") + version +
+         "): the capture instruments desktop OpenGL (GLSL 4.50) only");
+  const int major = version ? std::atoi(version) : 0;
+  const int minor = version && std::strchr(version, '.') ? std::atoi(std::strchr(version, '.') + 1) : 0;
+  compatibility_ = major < 3 || (major == 3 && minor < 2);
+  if (!compatibility_) {
+    GLint mask = 0;
+    g.GetIntegerv(GL_CONTEXT_PROFILE_MASK, &mask);
+    compatibility_ = (mask & GL_CONTEXT_COMPATIBILITY_PROFILE_BIT) != 0;
+  }
+  binding_ = record_binding();
+  // The capture framebuffer: the target's size, no attachments (every write
+  // but the storage buffer's goes nowhere; no depth or stencil buffer, so
+  // no fragment is tested away).
+  g.CreateFramebuffers(1, &capture_fbo_);
+  g.NamedFramebufferParameteri(capture_fbo_, GL_FRAMEBUFFER_DEFAULT_WIDTH, fb.width);
+  g.NamedFramebufferParameteri(capture_fbo_, GL_FRAMEBUFFER_DEFAULT_HEIGHT, fb.height);
+  if (g.CheckNamedFramebufferStatus(capture_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    fail("the " + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
+         " capture framebuffer (no attachments) is not complete");
+  GLint max_block = 0;
+  g.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  const uint64_t record_bytes = kRecordWords * 4, head = kRecordHeaderWords * 4;
+  max_capacity_ = max_block > int64_t(head) ? (uint64_t(max_block) - head) / record_bytes : 0;
+  capacity_ = std::min<uint64_t>(max_capacity_, std::max<uint64_t>(65536, uint64_t(fb.width) * uint64_t(fb.height)));
+  g.CreateBuffers(1, &record_buffer_);
+  g.NamedBufferData(record_buffer_, GLsizeiptr(head + capacity_ * record_bytes), nullptr, GL_DYNAMIC_READ);
+  g.GenQueries(1, &query_);
+  if (reference_msaa_) {
+    // The 4x reference: the frame's draws into a multisampled copy.
+    GLuint rb[2];
+    g.CreateRenderbuffers(2, rb);
+    const GLenum colour = fb.encoding == TargetEncoding::kFloat   ? GL_RGBA16F
+                          : fb.encoding == TargetEncoding::kSrgb8 ? GL_SRGB8_ALPHA8
+                                                                  : GL_RGBA8;
+    g.NamedRenderbufferStorageMultisample(rb[0], 4, colour, fb.width, fb.height);
+    g.NamedRenderbufferStorageMultisample(rb[1], 4, GL_DEPTH24_STENCIL8, fb.width, fb.height);
+    g.CreateFramebuffers(1, &msaa_fbo_);
+    g.NamedFramebufferRenderbuffer(msaa_fbo_, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb[0]);
+    g.NamedFramebufferRenderbuffer(msaa_fbo_, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb[1]);
+    if (g.CheckNamedFramebufferStatus(msaa_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      fail("the 4x multisampled reference framebuffer is not complete");
+    g.CreateBuffers(1, &reference_buffer_);
+    g.NamedBufferData(reference_buffer_, kRecordHeaderWords * 4 + kRecordWords * 4, nullptr, GL_DYNAMIC_COPY);
+  }
+}
+
+std::string Session::program_name(GLuint program) const {
+  if (program == 0) return "fixed function";
+  char label[256] = {};
+  GLsizei n = 0;
+  real_gl().GetObjectLabel(GL_PROGRAM, program, sizeof label, &n, label);
+  if (n > 0) return std::string(label, size_t(n));
+  return "program " + std::to_string(program);
+}
+
+DrawState Session::read_state(uint32_t index, const FramebufferInfo& fb, std::string& unsupported) const {
+  const GlFunctions& g = real_gl();
+  DrawState s;
+  s.draw_id = index;
+  s.blend = g.IsEnabledi(GL_BLEND, 0);
+  GLint v[6] = {};
+  g.GetIntegerv(GL_BLEND_EQUATION_RGB, &v[0]);
+  g.GetIntegerv(GL_BLEND_EQUATION_ALPHA, &v[1]);
+  g.GetIntegerv(GL_BLEND_SRC_RGB, &v[2]);
+  g.GetIntegerv(GL_BLEND_DST_RGB, &v[3]);
+  g.GetIntegerv(GL_BLEND_SRC_ALPHA, &v[4]);
+  g.GetIntegerv(GL_BLEND_DST_ALPHA, &v[5]);
+  if (!map_equation(v[0], s.eq_rgb) || !map_equation(v[1], s.eq_alpha))
+    unsupported = "blend equation " + hex(map_equation(v[0], s.eq_rgb) ? v[1] : v[0]) + " has no trace equivalent";
+  BlendFactor* f[4] = {&s.src_rgb, &s.dst_rgb, &s.src_alpha, &s.dst_alpha};
+  for (int i = 0; i < 4; ++i)
+    if (!map_factor(v[2 + i], *f[i]) && s.blend)
+      unsupported = "blend factor " + hex(v[2 + i]) + " (dual-source) has no trace equivalent";
+  g.GetFloatv(GL_BLEND_COLOR, s.blend_color.data());
+  s.depth_test = fb.has_depth && g.IsEnabled(GL_DEPTH_TEST);
+  GLint func = GL_LESS;
+  g.GetIntegerv(GL_DEPTH_FUNC, &func);
+  s.depth_func = map_depth_func(func);
+  GLboolean mask = GL_TRUE;
+  g.GetBooleanv(GL_DEPTH_WRITEMASK, &mask);
+  s.depth_write = s.depth_test && mask;
+  GLboolean cm[4] = {GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE};
+  g.GetBooleani_v(GL_COLOR_WRITEMASK, 0, cm);
+  s.color_mask = uint8_t((cm[0] ? 1 : 0) | (cm[1] ? 2 : 0) | (cm[2] ? 4 : 0) | (cm[3] ? 8 : 0));
+  s.encoding = fb.encoding;
+  if (!fb.has_depth) s.depth_func = DepthFunc::kAlways;
+  if (unsupported.empty() && fb.has_stencil && g.IsEnabled(GL_STENCIL_TEST))
+    unsupported = "the stencil test has no trace equivalent";
+  return s;
+}
+
+void Session::linked(GLuint program) {
+  const GlFunctions& g = real_gl();
+  instrumented_.erase(program);
+  GLint count = 0;
+  g.GetProgramiv(program, GL_ATTACHED_SHADERS, &count);
+  std::vector<GLuint> shaders(size_t(std::max(0, count)));
+  if (count > 0) g.GetAttachedShaders(program, count, &count, shaders.data());
+  std::vector<ShaderSource> src;
+  for (GLuint s : shaders) {
+    GLint type = 0, len = 0;
+    g.GetShaderiv(s, GL_SHADER_TYPE, &type);
+    g.GetShaderiv(s, GL_SHADER_SOURCE_LENGTH, &len);
+    std::string text(size_t(std::max(0, len)), '\0');
+    GLsizei got = 0;
+    if (len > 0) g.GetShaderSource(s, len, &got, text.data());
+    text.resize(size_t(got));
+    src.push_back({GLenum(type), text});
+  }
+  sources_[program] = std::move(src);
+}
+
+void Session::deleting_program(GLuint program) {
+  sources_.erase(program);
+  auto it = instrumented_.find(program);
+  if (it != instrumented_.end()) {
+    if (it->second.program) real_gl().DeleteProgram(it->second.program);
+    instrumented_.erase(it);
+  }
+}
+
+Instrumented& Session::instrumented(GLuint program) {
+  auto it = instrumented_.find(program);
+  if (it != instrumented_.end()) return it->second;
+  Instrumented& ins = instrumented_[program];
+  if (!sources_.count(program)) linked(program);  // linked before the library saw it (or never through glLinkProgram)
+  build_instrumented(program, sources_[program], "program " + std::to_string(program), binding_, ins);
+  return ins;
+}
+
+Instrumented* Session::fixed_function(std::string& unsupported) {
+#if ROPSIM_GLCAPTURE_FIXED_FUNCTION
+  const GlFunctions& g = real_gl();
+  GlGetters get;
+  get.GetIntegerv = reinterpret_cast<decltype(get.GetIntegerv)>(g.GetIntegerv);
+  get.GetFloatv = reinterpret_cast<decltype(get.GetFloatv)>(g.GetFloatv);
+  get.IsEnabled = reinterpret_cast<decltype(get.IsEnabled)>(g.IsEnabled);
+  get.GetTexEnviv = reinterpret_cast<decltype(get.GetTexEnviv)>(g.GetTexEnviv);
+  get.GetTexEnvfv = reinterpret_cast<decltype(get.GetTexEnvfv)>(g.GetTexEnvfv);
+  get.GetLightfv = reinterpret_cast<decltype(get.GetLightfv)>(g.GetLightfv);
+  get.GetTexParameteriv = reinterpret_cast<decltype(get.GetTexParameteriv)>(g.GetTexParameteriv);
+  get.GetTexLevelParameteriv = reinterpret_cast<decltype(get.GetTexLevelParameteriv)>(g.GetTexLevelParameteriv);
+  get.ActiveTexture = reinterpret_cast<decltype(get.ActiveTexture)>(g.ActiveTexture);
+  const FixedFunctionState state = read_fixed_function_state(get);
+  unsupported = unsupported_reason(state);
+  if (!unsupported.empty()) {
+    unsupported = "fixed function: " + unsupported;
+    return nullptr;
+  }
+  const GlslProgram p = fixed_function_program(state);
+  const std::string key = p.vertex + '\0' + p.fragment;
+  auto it = fixed_function_.find(key);
+  if (it == fixed_function_.end()) {
+    it = fixed_function_.emplace(key, Instrumented{}).first;
+    build_instrumented(0, {{GL_VERTEX_SHADER, p.vertex}, {GL_FRAGMENT_SHADER, p.fragment}},
+                       "the fixed-function program", binding_, it->second);
+  }
+  return &it->second;
+#else
+  unsupported = "a fixed-function draw: the library is built without the fixed-function module (ff_program.h)";
+  return nullptr;
+#endif
+}
+
+/// The GL state a capture pass changes, restored after it.
+struct SavedState {
+  GLint program = 0, draw_fbo = 0, generic_ssbo = 0, ssbo = 0;
+  GLint64 ssbo_start = 0, ssbo_size = 0;
+  GLboolean depth_test = GL_FALSE, stencil_test = GL_FALSE;
+  GLint draw_buffers = 1;
+  GLboolean blend[16] = {};
+  GLboolean mask[16][4] = {};
+
+  void save(GLint binding) {
+    const GlFunctions& g = real_gl();
+    g.GetIntegerv(GL_CURRENT_PROGRAM, &program);
+    g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_fbo);
+    g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic_ssbo);
+    g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, GLuint(binding), &ssbo);
+    g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, GLuint(binding), &ssbo_start);
+    g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, GLuint(binding), &ssbo_size);
+    depth_test = g.IsEnabled(GL_DEPTH_TEST);
+    stencil_test = g.IsEnabled(GL_STENCIL_TEST);
+    g.GetIntegerv(GL_MAX_DRAW_BUFFERS, &draw_buffers);
+    draw_buffers = std::min(16, std::max(1, draw_buffers));
+    for (GLint i = 0; i < draw_buffers; ++i) {
+      blend[i] = g.IsEnabledi(GL_BLEND, GLuint(i));
+      g.GetBooleani_v(GL_COLOR_WRITEMASK, GLuint(i), mask[i]);
+    }
+  }
+  void restore(GLint binding) const {
+    const GlFunctions& g = real_gl();
+    g.UseProgram(GLuint(program));
+    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(draw_fbo));
+    if (ssbo_size > 0)
+      g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding), GLuint(ssbo), GLintptr(ssbo_start),
+                        GLsizeiptr(ssbo_size));
+    else
+      g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding), GLuint(ssbo));
+    g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic_ssbo));
+    (depth_test ? g.Enable : g.Disable)(GL_DEPTH_TEST);
+    (stencil_test ? g.Enable : g.Disable)(GL_STENCIL_TEST);
+    for (GLint i = 0; i < draw_buffers; ++i) {
+      (blend[i] ? g.Enablei : g.Disablei)(GL_BLEND, GLuint(i));
+      g.ColorMaski(GLuint(i), mask[i][0], mask[i][1], mask[i][2], mask[i][3]);
+    }
+  }
+};
+
+void Session::capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts,
+                           DrawRecord& d) {
+  const GlFunctions& g = real_gl();
+  for (const auto& b : ins.storage_blocks) {
+    const GLenum prop = GL_BUFFER_BINDING;
+    GLint binding = 0;
+    g.GetProgramResourceiv(program, GL_SHADER_STORAGE_BLOCK, b.first, 1, &prop, 1, nullptr, &binding);
+    if (binding == binding_)
+      fail("program " + std::to_string(program) + ": a storage block uses binding " + std::to_string(binding_) +
+           ", the one the capture appends its records to");
+  }
+  // An occlusion query of the application's own would count the passes.
+  GLint app_query = 0;
+  g.GetQueryiv(GL_SAMPLES_PASSED, GL_CURRENT_QUERY, &app_query);
+  const bool count = count_samples_ && app_query == 0;
+
+  SavedState saved;
+  saved.save(binding_);
+  g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, capture_fbo_);
+  g.Disable(GL_DEPTH_TEST);
+  g.Disable(GL_STENCIL_TEST);
+  g.Disable(GL_BLEND);
+  g.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  g.UseProgram(ins.program);
+  copy_uniforms(program, ins);
+  g.ProgramUniform1i(ins.program, ins.loc_upside_down, 0);
+  GLint vp[4] = {};
+  g.GetIntegerv(GL_VIEWPORT, vp);
+  const std::array<SamplePos, 64> positions = standard_sample_positions(spp_);
+  const uint64_t record_bytes = kRecordWords * 4, head = kRecordHeaderWords * 4;
+  records_.clear();
+  uint64_t passed = 0;
+  const int passes = spp_ + (needs_centre_pass(positions, spp_) ? 1 : 0);
+  for (int pass = 0; pass < passes; ++pass) {
+    const int s = pass < spp_ ? pass : kCentrePass;
+    const std::array<float, 2> off =
+        s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
+                         : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
+    g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
+    for (size_t k = 0; k < parts.size(); ++k) {
+      for (;;) {
+        g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), record_buffer_, 0,
+                          GLsizeiptr(head + capacity_ * record_bytes));
+        g.ProgramUniform1ui(ins.program, ins.loc_capacity, GLuint(capacity_));
+        const uint32_t zero[kRecordHeaderWords] = {};
+        g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous pass's writes before the reset
+        g.NamedBufferSubData(record_buffer_, 0, sizeof zero, zero);
+        if (count && s != kCentrePass) g.BeginQuery(GL_SAMPLES_PASSED, query_);
+        parts[k].replay();
+        if (count && s != kCentrePass) g.EndQuery(GL_SAMPLES_PASSED);
+        g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+        uint32_t n = 0;
+        g.GetNamedBufferSubData(record_buffer_, 0, 4, &n);
+        if (n <= capacity_) {
+          raw_.resize(size_t(n) * kRecordWords);
+          if (n) g.GetNamedBufferSubData(record_buffer_, GLintptr(head), GLsizeiptr(raw_.size() * 4), raw_.data());
+          if (count && s != kCentrePass) {  // the centre pass adds colour, no coverage
+            GLuint64 r = 0;
+            g.GetQueryObjectui64v(query_, GL_QUERY_RESULT, &r);
+            passed += r;
+          }
+          const std::string err = decode_records(raw_.data(), n, uint32_t(target_.width), uint32_t(target_.height),
+                                                 uint32_t(k), s, records_);
+          if (!err.empty()) fail("draw " + std::to_string(d.index) + " (" + d.name + "): " + err);
+          break;
+        }
+        if (n > max_capacity_)
+          fail("draw " + std::to_string(d.index) + " (" + d.name + "): one pass makes " + std::to_string(n) +
+               " fragments, more than the " + std::to_string(max_capacity_) +
+               " records a storage block holds (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
+        capacity_ = std::min<uint64_t>(max_capacity_, std::max<uint64_t>(n, capacity_ * 2));
+        g.NamedBufferData(record_buffer_, GLsizeiptr(head + capacity_ * record_bytes), nullptr, GL_DYNAMIC_READ);
+      }
+    }
+  }
+  saved.restore(binding_);
+  std::vector<DrawPart> shape;
+  for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
+  const size_t before = fragments_.size();
+  const bool clamp = target_.encoding != TargetEncoding::kFloat;
+  const std::string err = build_fragments(records_, d.trace_id, shape, clamp, fragments_);
+  if (!err.empty()) fail(err);
+  d.fragments = fragments_.size() - before;
+  for (size_t i = before; i < fragments_.size(); ++i) d.covered_samples += fragments_[i].z.size();
+  if (list_only_) fragments_.resize(before);  // counted, no trace to write
+  d.counted = count;
+  d.samples_passed = passed;
+}
+
+/// The GL state the upside-down reference draw changes, restored after it.
+struct FlippedState {
+  GLint viewport[4] = {}, scissor[4] = {}, front_face = GL_CCW, draw_fbo = 0;
+
+  void flip(GLuint fbo, int height) {
+    const GlFunctions& g = real_gl();
+    g.GetIntegerv(GL_VIEWPORT, viewport);
+    g.GetIntegerv(GL_SCISSOR_BOX, scissor);
+    g.GetIntegerv(GL_FRONT_FACE, &front_face);
+    g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_fbo);
+    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, fbo);
+    g.Viewport(viewport[0], height - viewport[1] - viewport[3], viewport[2], viewport[3]);
+    g.Scissor(scissor[0], height - scissor[1] - scissor[3], scissor[2], scissor[3]);
+    g.FrontFace(front_face == GL_CCW ? GL_CW : GL_CCW);  // the y flip mirrors the winding
+  }
+  void restore() const {
+    const GlFunctions& g = real_gl();
+    g.Viewport(viewport[0], viewport[1], viewport[2], viewport[3]);
+    g.Scissor(scissor[0], scissor[1], scissor[2], scissor[3]);
+    g.FrontFace(GLenum(front_face));
+    g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(draw_fbo));
+  }
+};
+
+void Session::reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts) {
+  // The application's state but the framebuffer, drawn upside down with the
+  // instrumented program writing no record (capacity 0): GL window row y is
+  // then trace row y, and llvmpipe's 4 sample positions are the header's.
+  const GlFunctions& g = real_gl();
+  GLint current = 0, generic = 0, bound = 0;
+  GLint64 start = 0, size = 0;
+  g.GetIntegerv(GL_CURRENT_PROGRAM, &current);
+  g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic);
+  g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, GLuint(binding_), &bound);
+  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, GLuint(binding_), &start);
+  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, GLuint(binding_), &size);
+  FlippedState flipped;
+  flipped.flip(msaa_fbo_, target_.height);
+  g.UseProgram(ins.program);
+  copy_uniforms(program, ins);
+  g.ProgramUniform2f(ins.program, ins.loc_offset, 0.0f, 0.0f);
+  g.ProgramUniform1i(ins.program, ins.loc_upside_down, 1);
+  g.ProgramUniform1ui(ins.program, ins.loc_capacity, 0);
+  // A buffer of its own (the count alone), so that its increments never
+  // meet the capture's records.
+  g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), reference_buffer_);
+  for (const DrawCallPart& p : parts) p.replay();
+  flipped.restore();
+  g.UseProgram(GLuint(current));
+  if (size > 0)
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound), GLintptr(start), GLsizeiptr(size));
+  else
+    g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound));
+  g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic));
+}
+
+void Session::draw(const std::function<void()>& app, const std::vector<DrawCallPart>& parts) {
+  const GlFunctions& g = real_gl();
+  GLint fbo = 0, program = 0, pipeline = 0;
+  g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fbo);
+  g.GetIntegerv(GL_CURRENT_PROGRAM, &program);
+  FramebufferInfo& fb = framebuffer(fbo);
+  DrawRecord d;
+  d.index = uint32_t(draws_.size());
+  d.framebuffer = fb.name;
+  d.program = GLuint(program);
+  d.name = program_name(d.program);
+  ++fb.draws;
+  std::string unsupported;
+  if (is_target(fbo)) {
+    use_target(fb);
+    d.target = true;
+    d.trace_id = target_draws_++;
+    d.state = read_state(d.trace_id, fb, unsupported);
+    d.state.name = d.name.size() > 255 ? d.name.substr(0, 255) : d.name;
+  } else {
+    d.state = default_draw_state(d.index);
+  }
+  app();
+  if (!d.target) {
+    draws_.push_back(d);
+    return;
+  }
+  const Instrumented* ins = nullptr;
+  if (unsupported.empty() && program == 0) {
+    g.GetIntegerv(GL_PROGRAM_PIPELINE_BINDING, &pipeline);
+    if (pipeline != 0)
+      unsupported = "a separable program pipeline cannot be instrumented";
+    else
+      ins = fixed_function(unsupported);
+  } else if (unsupported.empty() && (msaa_fbo_ || !list_only_ || count_samples_)) {
+    ins = &instrumented(GLuint(program));  // a list without counts re-executes nothing
+    if (compatibility_ && g.IsEnabled(GL_ALPHA_TEST))
+      unsupported = "the alpha test (GL_ALPHA_TEST) with a GLSL program runs after the fragment shader's record";
+  }
+  if (ins && !ins->error.empty()) fail(ins->error);
+  GLboolean tf = GL_FALSE;
+  g.GetBooleanv(GL_TRANSFORM_FEEDBACK_ACTIVE, &tf);
+  if (unsupported.empty() && tf) unsupported = "transform feedback is active (re-executing would append to it)";
+  if (!unsupported.empty()) {
+    unsupported_.push_back({d.index, d.name, unsupported});
+  } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {  // a discarded rasterizer draws nothing: no fragments
+    if (msaa_fbo_) reference_draw(GLuint(program), *ins, parts);
+    // ROPSIM_GL_LIST_ONLY: the passes only when the counts are asked for (ROPSIM_GL_COUNT_SAMPLES)
+    if (!list_only_ || count_samples_) capture_draw(GLuint(program), *ins, parts, d);
+  }
+  draws_.push_back(std::move(d));
+}
+
+void Session::unsupported_draw(const char* reason) {
+  const GlFunctions& g = real_gl();
+  GLint fbo = 0, program = 0;
+  g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fbo);
+  g.GetIntegerv(GL_CURRENT_PROGRAM, &program);
+  FramebufferInfo& fb = framebuffer(fbo);
+  DrawRecord d;
+  d.index = uint32_t(draws_.size());
+  d.framebuffer = fb.name;
+  d.program = GLuint(program);
+  d.name = program_name(d.program);
+  ++fb.draws;
+  if (is_target(fbo)) {
+    use_target(fb);
+    std::string ignored;
+    d.target = true;
+    d.trace_id = target_draws_++;
+    d.state = read_state(d.trace_id, fb, ignored);
+    d.state.name = d.name.size() > 255 ? d.name.substr(0, 255) : d.name;
+    unsupported_.push_back({d.index, d.name, reason});
+  } else {
+    d.state = default_draw_state(d.index);
+  }
+  draws_.push_back(std::move(d));
+}
+
+void Session::clear(GLbitfield mask) {
+  const GlFunctions& g = real_gl();
+  GLint fbo = 0;
+  g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fbo);
+  if (!is_target(fbo)) return;
+  use_target(framebuffer(fbo));
+  const bool drawn = std::any_of(draws_.begin(), draws_.end(), [](const DrawRecord& d) { return d.target; });
+  if ((mask & GL_COLOR_BUFFER_BIT) && !color_cleared_ && !drawn) {
+    GLfloat c[4] = {};
+    g.GetFloatv(GL_COLOR_CLEAR_VALUE, c);
+    for (int i = 0; i < 3; ++i) {
+      float v = std::isfinite(c[i]) ? std::max(0.0f, c[i]) : 0.0f;
+      clear_color_[size_t(i)] = target_.encoding == TargetEncoding::kFloat ? v : std::min(1.0f, v);
+    }
+    color_cleared_ = true;
+  }
+  if ((mask & GL_DEPTH_BUFFER_BIT) && !depth_cleared_ && !drawn) {
+    GLfloat z = 1.0f;
+    g.GetFloatv(GL_DEPTH_CLEAR_VALUE, &z);
+    clear_depth_ = std::min(1.0f, std::max(0.0f, z));
+    depth_cleared_ = true;
+  }
+  if (msaa_fbo_) {
+    FlippedState flipped;
+    flipped.flip(msaa_fbo_, target_.height);
+    g.Clear(mask);
+    flipped.restore();
+  }
+}
+
+std::vector<uint8_t> Session::read_target(GLint fbo, bool presented, int w, int h, bool upside_down) const {
+  const GlFunctions& g = real_gl();
+  g.BindFramebuffer(GL_READ_FRAMEBUFFER, GLuint(fbo));
+  if (presented) {
+    GLboolean doublebuffer = GL_TRUE;
+    g.GetBooleanv(GL_DOUBLEBUFFER, &doublebuffer);
+    g.ReadBuffer(doublebuffer ? GL_BACK : GL_FRONT);
+  } else {
+    g.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  }
+  g.BindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  g.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  g.PixelStorei(GL_PACK_ROW_LENGTH, 0);
+  g.PixelStorei(GL_PACK_SKIP_ROWS, 0);
+  g.PixelStorei(GL_PACK_SKIP_PIXELS, 0);
+  std::vector<uint8_t> up(size_t(w) * size_t(h) * 4), down(up.size());
+  g.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, up.data());
+  // GL's rows run bottom-up; the files' run top-down, as the trace's.
+  const size_t row = size_t(w) * 4;
+  if (upside_down) return up;  // drawn upside down: GL's rows already run top-down
+  for (int y = 0; y < h; ++y) std::memcpy(&down[size_t(y) * row], &up[size_t(h - 1 - y) * row], row);
+  return down;
+}
+
+void Session::finish_frame() {
+  finished_ = true;
+  frames_seen_ += 1;
+  const GlFunctions& g = real_gl();
+  if (!target_known_) {
+    if (!target_presented_)
+      fail("ROPSIM_GL_TARGET=" + target_text_ + ": frame " + std::to_string(frame_) +
+           " neither draws into nor clears framebuffer object " + std::to_string(target_fbo_));
+    // Nothing drew into the presented framebuffer this frame: its size from the window system.
+    use_target(query_framebuffer(target_presented_ ? 0 : GLint(target_fbo_)));
+    framebuffers_.push_back(target_);
+  }
+  std::string err;
+  const std::vector<uint8_t> frame =
+      read_target(target_presented_ ? 0 : GLint(target_fbo_), target_presented_, target_.width, target_.height);
+  if (!write_file_atomic(dir_ + "/frame.rgba", frame.data(), frame.size(), err)) fail(err);
+  const json frame_json = {{"width", target_.width},
+                           {"height", target_.height},
+                           {"format", "rgba8"},
+                           {"encoding", encoding_name(target_.encoding)},
+                           {"rows", "top-down"}};
+  if (!write_json(dir_ + "/frame.json", frame_json, err)) fail(err);
+  if (msaa_fbo_) {
+    GLuint rb = 0, resolved = 0;
+    g.CreateRenderbuffers(1, &rb);
+    g.NamedRenderbufferStorage(rb, target_.encoding == TargetEncoding::kSrgb8 ? GL_SRGB8_ALPHA8 : GL_RGBA8,
+                               target_.width, target_.height);
+    g.CreateFramebuffers(1, &resolved);
+    g.NamedFramebufferRenderbuffer(resolved, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb);
+    g.BlitNamedFramebuffer(msaa_fbo_, resolved, 0, 0, target_.width, target_.height, 0, 0, target_.width,
+                           target_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    const std::vector<uint8_t> ref = read_target(GLint(resolved), false, target_.width, target_.height, true);
+    if (!write_file_atomic(dir_ + "/frame-msaa4.rgba", ref.data(), ref.size(), err)) fail(err);
+  }
+  if (!list_only_) {
+    TraceHeader h;
+    h.width = uint32_t(target_.width);
+    h.height = uint32_t(target_.height);
+    h.spp = spp_;
+    h.depth_mode = DepthMode::kPerSample;
+    h.color_format = ColorFormat::kRgbF32;
+    h.compression = Compression::kZstd;
+    h.clear_color = clear_color_;
+    h.clear_depth = clear_depth_;
+    h.positions = standard_sample_positions(spp_);
+    char exe[256] = {};
+    const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    std::string app = n > 0 ? std::string(exe, size_t(n)) : "application";
+    app = app.substr(app.rfind('/') + 1);
+    h.scene_name = "gl " + app + " frame " + std::to_string(frame_);
+    std::vector<DrawState> states;
+    for (const DrawRecord& d : draws_)
+      if (d.target) states.push_back(d.state);
+    h.draws = DrawTable(std::move(states));
+    if (const std::string why = h.draws.validate(); !why.empty()) fail("the draw states: " + why);
+    try {
+      TraceWriter w(out_, h);
+      for (const CapturedFragment& f : fragments_) w.write(to_trace_fragment(f));
+      w.finish();
+    } catch (const std::exception& e) {
+      fail(e.what());
+    }
+  }
+  if (!write_json(dir_ + "/list.json", list_json(), err)) fail(err);
+  if (!write_status(true, "")) _exit(1);
+  std::fflush(stdout);
+  _exit(0);
+}
+
+void Session::swap() {
+  if (finished_) return;
+  if (capturing()) {
+    finish_frame();
+    return;
+  }
+  ++frames_seen_;
+}
+
+void Session::destroying_context(const void* context) {
+  contexts_.erase(context);
+  if (contexts_.empty() && !finished_) at_exit();
+}
+
+void Session::at_exit() {
+  if (finished_ || !used_gl_) return;
+  write_status(false, "the application exited after " + std::to_string(frames_seen_) + " frames, before frame " +
+                          std::to_string(frame_));
+}
+
+Session* g_session = nullptr;
+
+void session_at_exit() {
+  if (g_session) g_session->at_exit();
+}
+
+__attribute__((constructor)) void start_session() {
+  if (!std::getenv("ROPSIM_GL_CONTROL")) return;
+  g_session = new Session();
+  std::atexit(session_at_exit);
+}
+
+}  // namespace
+
+CaptureSession* session() { return g_session; }
+
+}  // namespace ropsim::glcapture

@@ -1,0 +1,283 @@
+#include "instrumented_program.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "gl_functions.h"
+#include "glsl_rewrite.h"
+
+namespace ropsim::glcapture {
+
+UniformShape uniform_shape(GLenum type) {
+  switch (type) {
+    case GL_FLOAT:
+      return {'f', 1, 0};
+    case GL_FLOAT_VEC2:
+      return {'f', 2, 0};
+    case GL_FLOAT_VEC3:
+      return {'f', 3, 0};
+    case GL_FLOAT_VEC4:
+      return {'f', 4, 0};
+    case GL_INT:
+    case GL_BOOL:
+      return {'i', 1, 0};
+    case GL_INT_VEC2:
+    case GL_BOOL_VEC2:
+      return {'i', 2, 0};
+    case GL_INT_VEC3:
+    case GL_BOOL_VEC3:
+      return {'i', 3, 0};
+    case GL_INT_VEC4:
+    case GL_BOOL_VEC4:
+      return {'i', 4, 0};
+    case GL_UNSIGNED_INT:
+      return {'u', 1, 0};
+    case GL_UNSIGNED_INT_VEC2:
+      return {'u', 2, 0};
+    case GL_UNSIGNED_INT_VEC3:
+      return {'u', 3, 0};
+    case GL_UNSIGNED_INT_VEC4:
+      return {'u', 4, 0};
+    case GL_DOUBLE:
+      return {'d', 1, 0};
+    case GL_DOUBLE_VEC2:
+      return {'d', 2, 0};
+    case GL_DOUBLE_VEC3:
+      return {'d', 3, 0};
+    case GL_DOUBLE_VEC4:
+      return {'d', 4, 0};
+    case GL_FLOAT_MAT2:
+      return {'m', 2, 2};
+    case GL_FLOAT_MAT3:
+      return {'m', 3, 3};
+    case GL_FLOAT_MAT4:
+      return {'m', 4, 4};
+    case GL_FLOAT_MAT2x3:
+      return {'m', 2, 3};
+    case GL_FLOAT_MAT2x4:
+      return {'m', 2, 4};
+    case GL_FLOAT_MAT3x2:
+      return {'m', 3, 2};
+    case GL_FLOAT_MAT3x4:
+      return {'m', 3, 4};
+    case GL_FLOAT_MAT4x2:
+      return {'m', 4, 2};
+    case GL_FLOAT_MAT4x3:
+      return {'m', 4, 3};
+    case GL_UNSIGNED_INT_ATOMIC_COUNTER:
+      return {'-', 0, 0};  // has no value of its own
+    default:
+      return {'i', 1, 0};  // samplers and images: a unit
+  }
+}
+
+void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
+                        Instrumented& ins) {
+  const GlFunctions& g = real_gl();
+  bool vertex = false, fragment = false;
+  for (const ShaderSource& s : src) {
+    if (s.type == GL_VERTEX_SHADER)
+      vertex = true;
+    else if (s.type == GL_FRAGMENT_SHADER)
+      fragment = true;
+    else {
+      ins.error = who + ": its " +
+                  std::string(s.type == GL_GEOMETRY_SHADER  ? "geometry"
+                              : s.type == GL_COMPUTE_SHADER ? "compute"
+                                                            : "tessellation") +
+                  " shader cannot be instrumented (vertex and fragment shaders only)";
+      return;
+    }
+  }
+  if (!vertex || !fragment) {
+    ins.error = who + (src.empty() ? ": its shader sources are unknown (no shader attached when it was linked)"
+                                   : ": it has no " + std::string(vertex ? "fragment" : "vertex") +
+                                         " shader (the capture instruments both)");
+    return;
+  }
+  std::string log;
+  for (GlslProfile profile : {GlslProfile::kCompatibility, GlslProfile::kCore}) {
+    std::vector<GLuint> shaders;
+    bool ok = true;
+    for (const ShaderSource& s : src) {
+      const Rewritten r = s.type == GL_VERTEX_SHADER ? instrument_vertex_shader(s.source, profile)
+                                                     : instrument_fragment_shader(s.source, profile, binding);
+      if (!r.error.empty()) {
+        ins.error = who + ": " + r.error;
+        for (GLuint sh : shaders) g.DeleteShader(sh);
+        return;
+      }
+      const GLuint sh = g.CreateShader(s.type);
+      const char* text = r.source.c_str();
+      g.ShaderSource(sh, 1, &text, nullptr);
+      g.CompileShader(sh);
+      shaders.push_back(sh);
+      GLint compiled = 0;
+      g.GetShaderiv(sh, GL_COMPILE_STATUS, &compiled);
+      if (!compiled) {
+        char buf[1024] = {};
+        g.GetShaderInfoLog(sh, sizeof buf, nullptr, buf);
+        log = std::string("the instrumented ") + (s.type == GL_VERTEX_SHADER ? "vertex" : "fragment") +
+              " shader does not compile: " + buf;
+        ok = false;
+        break;
+      }
+    }
+    if (ok) {
+      const GLuint q = g.CreateProgram();
+      for (GLuint sh : shaders) g.AttachShader(q, sh);
+      // The application's attribute locations (bound or assigned at its link).
+      GLint attribs = 0;
+      if (program) g.GetProgramiv(program, GL_ACTIVE_ATTRIBUTES, &attribs);
+      for (GLint i = 0; i < attribs; ++i) {
+        char name[256] = {};
+        GLint size = 0;
+        GLenum type = 0;
+        g.GetActiveAttrib(program, GLuint(i), sizeof name, nullptr, &size, &type, name);
+        const GLint loc = g.GetAttribLocation(program, name);
+        if (loc >= 0 && std::strncmp(name, "gl_", 3) != 0) g.BindAttribLocation(q, GLuint(loc), name);
+      }
+      g.LinkProgram(q);
+      GLint linked = 0;
+      g.GetProgramiv(q, GL_LINK_STATUS, &linked);
+      if (linked) {
+        ins.program = q;
+      } else {
+        char buf[1024] = {};
+        g.GetProgramInfoLog(q, sizeof buf, nullptr, buf);
+        log = std::string("the instrumented program does not link: ") + buf;
+        g.DeleteProgram(q);
+      }
+    }
+    for (GLuint sh : shaders) g.DeleteShader(sh);
+    if (ins.program) break;
+  }
+  if (!ins.program) {
+    std::string line = log.substr(0, log.find('\n'));
+    ins.error = who + ": " + line;
+    return;
+  }
+  const GLuint q = ins.program;
+  ins.loc_offset = g.GetUniformLocation(q, "ropsim_offset");
+  ins.loc_capacity = g.GetUniformLocation(q, "ropsim_capacity");
+  ins.loc_upside_down = g.GetUniformLocation(q, "ropsim_upside_down");
+  if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0) {
+    ins.error = who + ": the instrumented program lacks the capture's uniforms";
+    return;
+  }
+  if (program == 0) return;  // fixed function: built-ins and sampler bindings only
+  GLint uniforms = 0;
+  g.GetProgramiv(program, GL_ACTIVE_UNIFORMS, &uniforms);
+  for (GLint i = 0; i < uniforms; ++i) {
+    char name[512] = {};
+    GLint size = 0, block = -1;
+    GLenum type = 0;
+    g.GetActiveUniform(program, GLuint(i), sizeof name, nullptr, &size, &type, name);
+    const GLuint ui = GLuint(i);
+    g.GetActiveUniformsiv(program, 1, &ui, GL_UNIFORM_BLOCK_INDEX, &block);
+    if (block != -1 || std::strncmp(name, "gl_", 3) == 0) continue;
+    const UniformShape shape = uniform_shape(type);
+    if (shape.kind == '-') continue;
+    std::string base = name;
+    const bool array = base.size() > 3 && base.compare(base.size() - 3, 3, "[0]") == 0;
+    if (array) base.resize(base.size() - 3);
+    for (GLint k = 0; k < std::max(1, size); ++k) {
+      const std::string element = array ? base + "[" + std::to_string(k) + "]" : base;
+      const GLint from = g.GetUniformLocation(program, element.c_str()), to = g.GetUniformLocation(q, element.c_str());
+      if (from >= 0 && to >= 0) ins.uniforms.push_back({shape, from, to});
+    }
+  }
+  GLint blocks = 0;
+  g.GetProgramiv(program, GL_ACTIVE_UNIFORM_BLOCKS, &blocks);
+  for (GLint i = 0; i < blocks; ++i) {
+    char name[256] = {};
+    g.GetActiveUniformBlockName(program, GLuint(i), sizeof name, nullptr, name);
+    const GLuint j = g.GetUniformBlockIndex(q, name);
+    if (j != GL_INVALID_INDEX) ins.uniform_blocks.push_back({GLuint(i), j});
+  }
+  GLint storage = 0;
+  g.GetProgramInterfaceiv(program, GL_SHADER_STORAGE_BLOCK, GL_ACTIVE_RESOURCES, &storage);
+  for (GLint i = 0; i < storage; ++i) {
+    char name[256] = {};
+    g.GetProgramResourceName(program, GL_SHADER_STORAGE_BLOCK, GLuint(i), sizeof name, nullptr, name);
+    const GLuint j = g.GetProgramResourceIndex(q, GL_SHADER_STORAGE_BLOCK, name);
+    if (j != GL_INVALID_INDEX) ins.storage_blocks.push_back({GLuint(i), j});
+  }
+}
+
+void copy_uniforms(GLuint program, const Instrumented& ins) {
+  if (program == 0) return;
+  const GlFunctions& g = real_gl();
+  const GLuint q = ins.program;
+  for (const UniformCopy& u : ins.uniforms) {
+    const UniformShape& s = u.shape;
+    switch (s.kind) {
+      case 'f': {
+        GLfloat v[4] = {};
+        g.GetUniformfv(program, u.from, v);
+        (s.n == 1   ? g.ProgramUniform1fv
+         : s.n == 2 ? g.ProgramUniform2fv
+         : s.n == 3 ? g.ProgramUniform3fv
+                    : g.ProgramUniform4fv)(q, u.to, 1, v);
+        break;
+      }
+      case 'i': {
+        GLint v[4] = {};
+        g.GetUniformiv(program, u.from, v);
+        (s.n == 1   ? g.ProgramUniform1iv
+         : s.n == 2 ? g.ProgramUniform2iv
+         : s.n == 3 ? g.ProgramUniform3iv
+                    : g.ProgramUniform4iv)(q, u.to, 1, v);
+        break;
+      }
+      case 'u': {
+        GLuint v[4] = {};
+        g.GetUniformuiv(program, u.from, v);
+        (s.n == 1   ? g.ProgramUniform1uiv
+         : s.n == 2 ? g.ProgramUniform2uiv
+         : s.n == 3 ? g.ProgramUniform3uiv
+                    : g.ProgramUniform4uiv)(q, u.to, 1, v);
+        break;
+      }
+      case 'd': {
+        GLdouble v[4] = {};
+        g.GetUniformdv(program, u.from, v);
+        (s.n == 1   ? g.ProgramUniform1dv
+         : s.n == 2 ? g.ProgramUniform2dv
+         : s.n == 3 ? g.ProgramUniform3dv
+                    : g.ProgramUniform4dv)(q, u.to, 1, v);
+        break;
+      }
+      case 'm': {
+        GLfloat v[16] = {};
+        g.GetUniformfv(program, u.from, v);
+        PFNGLPROGRAMUNIFORMMATRIX4FVPROC set = nullptr;
+        if (s.n == s.rows)
+          set = s.n == 2 ? g.ProgramUniformMatrix2fv : s.n == 3 ? g.ProgramUniformMatrix3fv : g.ProgramUniformMatrix4fv;
+        else if (s.n == 2)
+          set = s.rows == 3 ? g.ProgramUniformMatrix2x3fv : g.ProgramUniformMatrix2x4fv;
+        else if (s.n == 3)
+          set = s.rows == 2 ? g.ProgramUniformMatrix3x2fv : g.ProgramUniformMatrix3x4fv;
+        else
+          set = s.rows == 2 ? g.ProgramUniformMatrix4x2fv : g.ProgramUniformMatrix4x3fv;
+        set(q, u.to, 1, GL_FALSE, v);
+        break;
+      }
+      default:
+        break;
+    }
+  }
+  for (const auto& b : ins.uniform_blocks) {
+    GLint binding = 0;
+    g.GetActiveUniformBlockiv(program, b.first, GL_UNIFORM_BLOCK_BINDING, &binding);
+    g.UniformBlockBinding(q, b.second, GLuint(binding));
+  }
+  for (const auto& b : ins.storage_blocks) {
+    const GLenum prop = GL_BUFFER_BINDING;
+    GLint binding = 0;
+    g.GetProgramResourceiv(program, GL_SHADER_STORAGE_BLOCK, b.first, 1, &prop, 1, nullptr, &binding);
+    g.ShaderStorageBlockBinding(q, b.second, GLuint(binding));
+  }
+}
+
+}  // namespace ropsim::glcapture

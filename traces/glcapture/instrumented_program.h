@@ -1,0 +1,53 @@
+// An application program's instrumented twin (docs/capture.md "One draw"):
+// the rewritten shaders compiled and linked with the application program's
+// attribute locations, and the lists that copy its uniform values and block
+// bindings before each re-execution. GL calls through real_gl() only.
+#pragma once
+#include <GL/gl.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ropsim::glcapture {
+
+/// How a uniform's value is read and written: kind and shape.
+struct UniformShape {
+  char kind;  ///< 'f', 'i', 'u', 'd', 'm' (float matrix)
+  int n;      ///< components (vectors) or columns (matrices)
+  int rows;   ///< matrix rows
+};
+
+/// The shape of a uniform of GL type `type` (samplers and images: an int unit).
+UniformShape uniform_shape(GLenum type);
+
+struct UniformCopy {
+  UniformShape shape;
+  GLint from = -1, to = -1;  ///< locations in the application's program and in the instrumented one
+};
+
+/// An application program's instrumented twin.
+struct Instrumented {
+  GLuint program = 0;
+  std::string error;  ///< "" or why it cannot be made ("program N: ...")
+  GLint loc_offset = -1, loc_capacity = -1, loc_upside_down = -1;
+  std::vector<UniformCopy> uniforms;
+  std::vector<std::pair<GLuint, GLuint>> uniform_blocks, storage_blocks;  ///< (application's, ours)
+};
+
+struct ShaderSource {
+  GLenum type;
+  std::string source;
+};
+
+/// Builds `ins` for `program` (0: a fixed-function equivalent, no uniforms
+/// to copy) from its shader sources; the fragment records go to storage
+/// binding `binding`. On failure `ins.error` says why, naming `who`.
+void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
+                        Instrumented& ins);
+
+/// Copies the application program's uniform values and block bindings to
+/// its instrumented twin (nothing for program 0).
+void copy_uniforms(GLuint program, const Instrumented& ins);
+
+}  // namespace ropsim::glcapture
