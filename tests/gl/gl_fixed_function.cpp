@@ -1,16 +1,21 @@
 // A fixed-function draw and the same frame drawn by an equivalent shader
 // (--mode ff | shader): one quad with per-vertex colours, one 4x4 RGBA
 // texture (nearest filtering) under GL_MODULATE, and the alpha test
-// GL_GREATER 0.5 (texels of alpha 0.25 are dropped). ff draws it with
-// glBegin/glEnd and no program; shader with a GLSL program computing
-// colour x texel and discarding alpha <= 0.5, from the same vertex data
-// (compatibility built-ins: gl_Vertex, gl_Color, gl_MultiTexCoord0).
+// GL_GREATER 0.5 (texels of alpha 0.25 are dropped). ff draws it with no
+// program; shader with a GLSL program computing colour x texel and discarding
+// alpha <= 0.5, from the same vertex data (compatibility built-ins: gl_Vertex,
+// gl_Color, gl_MultiTexCoord0). --submit arrays (default) gives the vertices
+// through fixed-function arrays in a buffer (glVertexPointer, glColorPointer,
+// glTexCoordPointer) and one glDrawArrays(GL_TRIANGLE_FAN); --submit
+// immediate through glBegin(GL_QUADS) ... glEnd.
 #include "gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_fixed_function");
   const std::string mode = gltest::arg(argc, argv, "--mode", "ff");
   if (mode != "ff" && mode != "shader") gltest::die(a, "--mode " + mode + ": not ff or shader");
+  const std::string submit = gltest::arg(argc, argv, "--submit", "arrays");
+  if (submit != "arrays" && submit != "immediate") gltest::die(a, "--submit " + submit + ": not arrays or immediate");
   unsigned char texels[4 * 4 * 4];
   for (int y = 0; y < 4; ++y)
     for (int x = 0; x < 4; ++x) {
@@ -50,6 +55,14 @@ int main(int argc, char** argv) {
                          {0.9f, -0.8f, 0.2f, 1.0f, 0.2f, 0.9f, 1.0f, 0.0f},
                          {0.7f, 0.8f, 0.2f, 0.2f, 1.0f, 0.8f, 1.0f, 1.0f},
                          {-0.9f, 0.6f, 1.0f, 1.0f, 0.2f, 1.0f, 0.0f, 1.0f}};
+  GLuint vbo = 0;
+  glGenBuffers(1, &vbo);
+  glBindBuffer(GL_ARRAY_BUFFER, vbo);
+  glBufferData(GL_ARRAY_BUFFER, sizeof v, v, GL_STATIC_DRAW);
+  const GLsizei stride = 8 * sizeof(float);
+  glVertexPointer(2, GL_FLOAT, stride, reinterpret_cast<const void*>(0));
+  glColorPointer(4, GL_FLOAT, stride, reinterpret_cast<const void*>(2 * sizeof(float)));
+  glTexCoordPointer(2, GL_FLOAT, stride, reinterpret_cast<const void*>(6 * sizeof(float)));
   return gltest::run(a, [&](int) {
     glClearColor(0.1f, 0.1f, 0.1f, 1);
     glClear(GL_COLOR_BUFFER_BIT);
@@ -64,13 +77,20 @@ int main(int argc, char** argv) {
       glEnable(GL_ALPHA_TEST);
       glAlphaFunc(GL_GREATER, 0.5f);
     }
-    glBegin(GL_QUADS);
-    for (const auto& c : v) {
-      glColor4f(c[2], c[3], c[4], c[5]);
-      glTexCoord2f(c[6], c[7]);
-      glVertex2f(c[0], c[1]);
+    if (submit == "immediate") {
+      glBegin(GL_QUADS);
+      for (const auto& c : v) {
+        glColor4f(c[2], c[3], c[4], c[5]);
+        glTexCoord2f(c[6], c[7]);
+        glVertex2f(c[0], c[1]);
+      }
+      glEnd();
+    } else {
+      glEnableClientState(GL_VERTEX_ARRAY);
+      glEnableClientState(GL_COLOR_ARRAY);
+      glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+      glDrawArrays(GL_TRIANGLE_FAN, 0, 4);
     }
-    glEnd();
     glDisable(GL_TEXTURE_2D);
     glDisable(GL_ALPHA_TEST);
   });
