@@ -756,6 +756,31 @@ TEST(CaptureGl, CapturesAreByteIdenticalForEveryThreadCount) {
   }
 }
 
+// glretrace replaying an apitrace trace of a program gives the same
+// fragments as the program run live.
+TEST(CaptureGl, ReplayCapturesWhatTheApplicationDrewLive) {
+  ROPSIM_NEEDS_LIBRARY();
+#ifdef ROPSIM_GL_TEST_PROGRAMS
+  Sandbox box;
+  const std::string t = record_apitrace(box);
+  ASSERT_FALSE(t.empty());
+  ASSERT_EQ(box.run("capture gl --apitrace " + t + " --frame 1 --spp 4 --quiet -o replay.rop", kLib).code, 0);
+  ASSERT_EQ(
+      box.run("capture gl --frame 1 --spp 4 --quiet -o live.rop -- " + gl_program("gl_order") + " --frames 3", kLib)
+          .code,
+      0);
+  const Captured a = read_trace(box.path("live.rop")), b = read_trace(box.path("replay.rop"));
+  ASSERT_GT(a.fragments.size(), 1000u);
+  ASSERT_EQ(a.fragments.size(), b.fragments.size());
+  for (size_t i = 0; i < a.fragments.size(); ++i) {
+    const auto &f = a.fragments[i], &g = b.fragments[i];
+    ASSERT_TRUE(f.draw_id == g.draw_id && f.prim_id == g.prim_id && f.x == g.x && f.y == g.y &&
+                f.coverage == g.coverage && f.rgb == g.rgb && f.alpha == g.alpha)
+        << "fragment " << i << " differs between the live run and the replay";
+  }
+#endif
+}
+
 // The real library's errors: an application that exits before frame N, a
 // frame past the end of a replayed trace.
 TEST(CaptureGl, FramesThatNeverComeAreErrors) {
