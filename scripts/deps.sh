@@ -11,6 +11,7 @@ ROPSIM_PACKAGES=(
   chromium
   verilator yosys iverilog
   gtkwave xvfb xauth
+  glmark2-x11 apitrace mesa-utils libgl1-mesa-dri libgl-dev libglx-dev libegl-dev libx11-dev
 )
 missing=()
 for p in "${ROPSIM_PACKAGES[@]}"; do

@@ -52,8 +52,9 @@ constexpr Layer kLayers[] = {
     {"sim/study", 42, "drivers: studies (sweeps, the local executor, the results database)"},
     {"sim/cli", 43, "drivers: the ropsim command"},
 };
-// Folders with sources that sit above every layer (nothing includes them).
-const std::set<std::string> kTop = {"tests", "tests/rtl", "bench", "fuzz"};  // tests/rtl: the Verilator testbenches
+// Folders with sources that sit above every layer (nothing includes them);
+// tests/rtl: the Verilator testbenches, tests/gl: the GL test programs.
+const std::set<std::string> kTop = {"tests", "tests/rtl", "tests/gl", "bench", "fuzz"};
 
 bool is_source(const fs::path& p) {
   const auto e = p.extension().string();

@@ -29,6 +29,8 @@ struct CaptureOpts {
 };
 
 int run_capture(const CaptureOpts& o, const CLI::App& sub) {
+  if (o.scene.empty())
+    throw CaptureError("capture: give SCENE (a scene file), or `capture gl` for an OpenGL application");
   set_progress_flags(o.quiet, o.progress);
   SceneOverrides ov;
   if (sub.count("--mesh-dir")) ov.mesh_dir = o.mesh_dir;
@@ -81,7 +83,8 @@ std::function<int()> add_capture_command(CLI::App& app) {
   auto o = std::make_shared<CaptureOpts>();
   CLI::App* sub = app.add_subcommand(
       "capture", "Rasterize a mesh scene file (OBJ / glTF meshes, camera, opacity; docs/capture.md) into a trace");
-  sub->add_option("SCENE", o->scene, "Scene file (TOML)")->required();
+  // Required unless the `gl` subcommand is given (checked in run_capture).
+  sub->add_option("SCENE", o->scene, "Scene file (TOML)");
   sub->add_option("-o,--out,--output", o->out,
                   "Trace file to write (written atomically: no file on error; docs/outputs.md)")
       ->type_name("FILE");
@@ -108,7 +111,12 @@ std::function<int()> add_capture_command(CLI::App& app) {
   sub->footer(examples({"ropsim capture traces/scenes/mesh/cloth.toml --width 128 --height 128 --spp 4 -o mesh.trace",
                         "ropsim capture traces/scenes/mesh/cloth.toml --width 128 --height 128 --order far-to-near "
                         "-o sorted.trace"}));
-  return [o, sub]() { return sub->parsed() ? run_capture(*o, *sub) : -1; };
+  const std::function<int()> gl = add_capture_gl_command(*sub);
+  CLI::App* gl_sub = sub->get_subcommand("gl");
+  return [o, sub, gl, gl_sub]() {
+    if (!sub->parsed()) return -1;
+    return gl_sub->parsed() ? gl() : run_capture(*o, *sub);
+  };
 }
 
 }  // namespace ropsim
