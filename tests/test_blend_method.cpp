@@ -93,31 +93,112 @@ struct BlendCase {
 
 // Source (0.8, 0.4, 0.2, 0.6); destination bytes (51, 102, 153, 204), i.e.
 // (0.2, 0.4, 0.6, 0.8) (srgb8: those codes decoded to linear for R, G, B);
-// constant colour (0.25, 0.25, 1.0, 0.4). unorm8: round(255 clamp(r)); srgb8:
-// round(255 encode(clamp(r))), alpha as unorm8.
+// constant colour (0.25, 0.25, 1.0, 0.4). unorm8 in 8-bit fixed point:
+// source bytes (204, 102, 51, 153), constant bytes (64, 64, 255, 102), each
+// product x y / 255 rounded to a byte, the sum saturated (e.g. SRC_ALPHA,
+// ONE_MINUS_SRC_ALPHA red: round(204 * 153 / 255) + round(51 * 102 / 255) =
+// 122 + 20 = 142, where binary32 would round 0.56 to 143); srgb8:
+// round(255 encode(clamp(r))) of the binary32 blend, alpha as unorm8.
 const BlendCase kCases[] = {
-    {E::kAdd, E::kAdd, F::kSrcAlpha, F::kOneMinusSrcAlpha, F::kOne, F::kOneMinusSrcAlpha, {143, 102, 92, 235},
-     {186, 147, 136, 235}, {0.56, 0.4, 0.36, 0.92}},
-    {E::kAdd, E::kAdd, F::kOne, F::kOne, F::kOne, F::kOne, {255, 204, 204, 255}, {235, 193, 191, 255},
+    {E::kAdd,
+     E::kAdd,
+     F::kSrcAlpha,
+     F::kOneMinusSrcAlpha,
+     F::kOne,
+     F::kOneMinusSrcAlpha,
+     {142, 102, 92, 235},
+     {186, 147, 136, 235},
+     {0.56, 0.4, 0.36, 0.92}},
+    {E::kAdd,
+     E::kAdd,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     {255, 204, 204, 255},
+     {235, 193, 191, 255},
      {1.0, 0.8, 0.8, 1.4}},
-    {E::kSubtract, E::kSubtract, F::kOne, F::kOne, F::kOne, F::kOne, {153, 0, 0, 0}, {227, 141, 0, 0},
+    {E::kSubtract,
+     E::kSubtract,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     {153, 0, 0, 0},
+     {227, 141, 0, 0},
      {0.6, 0.0, -0.4, -0.2}},
-    {E::kReverseSubtract, E::kReverseSubtract, F::kOne, F::kOne, F::kOne, F::kOne, {0, 0, 102, 51}, {0, 0, 97, 51},
+    {E::kReverseSubtract,
+     E::kReverseSubtract,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     F::kOne,
+     {0, 0, 102, 51},
+     {0, 0, 97, 51},
      {-0.6, 0.0, 0.4, 0.2}},
-    {E::kMin, E::kMax, F::kOne, F::kZero, F::kZero, F::kOne, {51, 102, 51, 204}, {51, 102, 124, 204},
+    {E::kMin,
+     E::kMax,
+     F::kOne,
+     F::kZero,
+     F::kZero,
+     F::kOne,
+     {51, 102, 51, 204},
+     {51, 102, 124, 204},
      {0.2, 0.4, 0.2, 0.8}},
-    {E::kAdd, E::kAdd, F::kDstColor, F::kZero, F::kDstAlpha, F::kZero, {41, 41, 31, 122}, {45, 65, 71, 122},
+    {E::kAdd,
+     E::kAdd,
+     F::kDstColor,
+     F::kZero,
+     F::kDstAlpha,
+     F::kZero,
+     {41, 41, 31, 122},
+     {45, 65, 71, 122},
      {0.16, 0.16, 0.12, 0.48}},
-    {E::kAdd, E::kAdd, F::kOneMinusDstColor, F::kSrcColor, F::kOneMinusDstAlpha, F::kSrcAlpha, {204, 102, 51, 153},
-     {231, 170, 124, 153}, {0.8, 0.4, 0.2, 0.6}},
-    {E::kAdd, E::kAdd, F::kDstAlpha, F::kOneMinusDstAlpha, F::kZero, F::kOne, {173, 102, 71, 204},
-     {210, 159, 130, 204}, {0.68, 0.4, 0.28, 0.8}},
-    {E::kAdd, E::kAdd, F::kConstantColor, F::kOneMinusConstantColor, F::kConstantAlpha, F::kOneMinusConstantAlpha,
-     {89, 102, 51, 184}, {130, 123, 124, 184}, {0.35, 0.4, 0.2, 0.72}},
-    {E::kAdd, E::kAdd, F::kSrcAlphaSaturate, F::kOne, F::kSrcAlphaSaturate, F::kZero, {92, 122, 163, 153},
-     {122, 127, 161, 153}, {0.36, 0.48, 0.64, 0.6}},
-    {E::kAdd, E::kSubtract, F::kOneMinusSrcColor, F::kOneMinusConstantColor, F::kOneMinusSrcAlpha,
-     F::kOneMinusConstantAlpha, {79, 138, 41, 0}, {119, 158, 111, 0}, {0.31, 0.54, 0.16, -0.24}},
+    {E::kAdd,
+     E::kAdd,
+     F::kOneMinusDstColor,
+     F::kSrcColor,
+     F::kOneMinusDstAlpha,
+     F::kSrcAlpha,
+     {204, 102, 51, 153},
+     {231, 170, 124, 153},
+     {0.8, 0.4, 0.2, 0.6}},
+    {E::kAdd,
+     E::kAdd,
+     F::kDstAlpha,
+     F::kOneMinusDstAlpha,
+     F::kZero,
+     F::kOne,
+     {173, 102, 72, 204},
+     {210, 159, 130, 204},
+     {0.68, 0.4, 0.28, 0.8}},
+    {E::kAdd,
+     E::kAdd,
+     F::kConstantColor,
+     F::kOneMinusConstantColor,
+     F::kConstantAlpha,
+     F::kOneMinusConstantAlpha,
+     {89, 102, 51, 183},
+     {130, 123, 124, 184},
+     {0.35, 0.4, 0.2, 0.72}},
+    {E::kAdd,
+     E::kAdd,
+     F::kSrcAlphaSaturate,
+     F::kOne,
+     F::kSrcAlphaSaturate,
+     F::kZero,
+     {92, 122, 163, 153},
+     {122, 127, 161, 153},
+     {0.36, 0.48, 0.64, 0.6}},
+    {E::kAdd,
+     E::kSubtract,
+     F::kOneMinusSrcColor,
+     F::kOneMinusConstantColor,
+     F::kOneMinusSrcAlpha,
+     F::kOneMinusConstantAlpha,
+     {79, 137, 41, 0},
+     {119, 158, 111, 0},
+     {0.31, 0.54, 0.16, -0.24}},
 };
 
 }  // namespace
@@ -141,7 +222,7 @@ TEST(BlendMethod, EveryFactorAndEquationMatchesAHandComputationInEachEncoding) {
       std::array<float, 4> dst;
       for (int ch = 0; ch < 4; ++ch)
         dst[size_t(ch)] = e == TargetEncoding::kSrgb8 && ch < 3 ? float(srgb_decode(dst_codes[size_t(ch)]))
-                                                                 : float(dst_codes[size_t(ch)]) / 255.0f;
+                                                                : float(dst_codes[size_t(ch)]) / 255.0f;
       const auto m = run_blend(h, {frag(0, 0, 0, 0.5f, dst), frag(1, 0, 0, 0.5f, {0.8f, 0.4f, 0.2f, 0.6f})});
       const std::array<float, 4> got = stored(*m, 0, 0);
       const std::string what = std::string(to_string(e)) + " " + to_string(c.eq_rgb) + "/" + to_string(c.eq_alpha) +
@@ -217,10 +298,10 @@ TEST(BlendMethod, DepthFunctionsAndTheWriteMask) {
     DepthFunc f;
     bool less, equal, greater;  // passes for z = 0.4, 0.5, 0.6
   };
-  const Case cases[] = {{DepthFunc::kNever, false, false, false},   {DepthFunc::kLess, true, false, false},
-                        {DepthFunc::kEqual, false, true, false},    {DepthFunc::kLequal, true, true, false},
-                        {DepthFunc::kGreater, false, false, true},  {DepthFunc::kNotequal, true, false, true},
-                        {DepthFunc::kGequal, false, true, true},    {DepthFunc::kAlways, true, true, true}};
+  const Case cases[] = {{DepthFunc::kNever, false, false, false},  {DepthFunc::kLess, true, false, false},
+                        {DepthFunc::kEqual, false, true, false},   {DepthFunc::kLequal, true, true, false},
+                        {DepthFunc::kGreater, false, false, true}, {DepthFunc::kNotequal, true, false, true},
+                        {DepthFunc::kGequal, false, true, true},   {DepthFunc::kAlways, true, true, true}};
   for (const Case& c : cases) {
     DrawState base = replace_draw(0, TargetEncoding::kFloat);
     base.depth_test = true;
@@ -250,11 +331,12 @@ TEST(BlendMethod, DepthFunctionsAndTheWriteMask) {
     DrawState far = replace_draw(1, TargetEncoding::kFloat);
     far.depth_test = true;
     far.depth_func = DepthFunc::kLess;
-    const auto m = run_blend(header(1, 1, 1, {near, far}),
-                             {frag(0, 0, 0, 0.3f, {0, 0, 0, 1}), frag(1, 0, 0, 0.4f, {1, 1, 1, 1})});
+    const auto m =
+        run_blend(header(1, 1, 1, {near, far}), {frag(0, 0, 0, 0.3f, {0, 0, 0, 1}), frag(1, 0, 0, 0.4f, {1, 1, 1, 1})});
     const bool wrote = variant == 1;
-    EXPECT_EQ(stored(*m, 0, 0)[0], wrote ? 0.0f : 1.0f)
-        << (variant == 0 ? "test on, mask off" : variant == 1 ? "test on, mask on" : "test off, mask on");
+    EXPECT_EQ(stored(*m, 0, 0)[0], wrote ? 0.0f : 1.0f) << (variant == 0   ? "test on, mask off"
+                                                            : variant == 1 ? "test on, mask on"
+                                                                           : "test off, mask on");
     EXPECT_EQ(m->pixel_view(0, 0).depth[0], wrote ? 0.3f : 1.0f);
     EXPECT_EQ(m->counters().depth_bytes_written, wrote ? 4u : 0u);
   }
@@ -305,7 +387,9 @@ TEST(BlendMethod, DiffersFromTheReferenceOnlyByOrder) {
       EXPECT_NEAR(b[c], back_to_front ? sorted[c] : submitted[c], 1e-6)
           << (back_to_front ? "back to front" : "front to back") << " channel " << c;
     }
-    if (!back_to_front) EXPECT_GT(std::fabs(double(a[0]) - double(b[0])), 0.2) << "order matters to blend";
+    if (!back_to_front) {
+      EXPECT_GT(std::fabs(double(a[0]) - double(b[0])), 0.2) << "order matters to blend";
+    }
   }
 }
 

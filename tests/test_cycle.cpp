@@ -201,7 +201,7 @@ std::pair<TraceHeader, std::vector<Fragment>> mixed_state_frame(int spp, TargetE
   d[4].eq_rgb = Q::kMin;  // MIN / MAX, depth test off
   d[4].eq_alpha = Q::kMax;
   d[4].depth_test = false;
-  d[4].depth_write = true;  // (no effect with the test off)
+  d[4].depth_write = true;           // (no effect with the test off)
   d[5].src_rgb = F::kConstantColor;  // constant colour, LEQUAL, writing, colour mask
   d[5].dst_rgb = F::kOneMinusConstantAlpha;
   d[5].blend_color = {0.3f, 0.6f, 0.9f, 0.25f};
@@ -2129,9 +2129,11 @@ TEST(LivePointLibrary, RefusesWhatIsNotItsOwn) {
   };
   refused("", "not a live-point library");
   refused("RTRACE01" + bytes.substr(8), "not a live-point library");
-  std::string v2 = bytes;
-  v2[8] = 2;
-  refused(v2, "version 2");
+  for (const char version : {char(1), char(3)}) {
+    std::string other = bytes;
+    other[8] = version;
+    refused(other, "version " + std::to_string(int(version)));
+  }
   refused(bytes.substr(0, bytes.size() / 2), "truncated");
   std::string flipped = bytes;
   flipped[flipped.size() - 10] = char(flipped[flipped.size() - 10] ^ 0x40);
@@ -2209,8 +2211,14 @@ PayloadFields walk_payload(const std::string& p) {
   at += 4 + 4 + 4 + 3 + 12 + 4 + 128;  // the trace header: w, h, spp, modes, clear colour and depth, positions
   str();                               // its scene name
   at += 1;                             // checksummed
-  str();                               // method name
-  at += 4 + 4 + 4 + 8;                 // numerics, seed
+  const uint64_t n_draws = u64(at);    // the draw table
+  at += 8;
+  for (uint64_t i = 0; i < n_draws; ++i) {
+    at += 4 + 3 + 9 + 16;  // id, flags, equations, factors, function, mask, encoding, blend colour
+    str();                 // its name
+  }
+  str();                // method name
+  at += 4 + 4 + 4 + 8;  // numerics, seed
   f.slab_k = at;
   f.slab_b = at + 4;
   at += 8 + 3;

@@ -6,8 +6,10 @@
 //
 // A framebuffer sample holds RGBA as four binary32 values in the target's
 // own encoding:
-//   unorm8  q / 255, q the stored byte (every blend reads q / 255 and stores
-//           its result clamped to [0, 1] and rounded to the nearest byte);
+//   unorm8  q / 255, q the stored byte; a blend runs in 8-bit fixed point as
+//           a fixed-function blender does (llvmpipe's too): source, constant
+//           and factors become bytes, each product x * y / 255 rounds to the
+//           nearest byte, and the equation saturates to [0, 255];
 //   srgb8   q / 255, q the stored sRGB code of R, G, B (read back to linear
 //           through the IEC 61966-2-1 curve, blended in linear, encoded and
 //           rounded to a byte on store) and the alpha byte as unorm8;
@@ -150,6 +152,71 @@ inline float combine(BlendEquation e, float s, float fs, float d, float fd) {
   }
   return s;
 }
+
+/// x * y / 255 of two bytes, rounded to the nearest byte (exact for every
+/// pair: t + (t >> 8) >> 8 with t = x y + 128 is round(x y / 255)).
+inline uint32_t mul_unorm8(uint32_t x, uint32_t y) {
+  const uint32_t t = x * y + 128;
+  return (t + (t >> 8)) >> 8;
+}
+/// Factor f of channel c as a byte, from the bytes of source s, destination d
+/// and constant k (the byte of 1 - x is 255 - x).
+inline uint32_t factor_unorm8(BlendFactor f, int c, const uint32_t* s, const uint32_t* d, const uint32_t* k) {
+  switch (f) {
+    case BlendFactor::kZero:
+      return 0;
+    case BlendFactor::kOne:
+      return 255;
+    case BlendFactor::kSrcColor:
+      return s[c];
+    case BlendFactor::kOneMinusSrcColor:
+      return 255 - s[c];
+    case BlendFactor::kDstColor:
+      return d[c];
+    case BlendFactor::kOneMinusDstColor:
+      return 255 - d[c];
+    case BlendFactor::kSrcAlpha:
+      return s[3];
+    case BlendFactor::kOneMinusSrcAlpha:
+      return 255 - s[3];
+    case BlendFactor::kDstAlpha:
+      return d[3];
+    case BlendFactor::kOneMinusDstAlpha:
+      return 255 - d[3];
+    case BlendFactor::kConstantColor:
+      return k[c];
+    case BlendFactor::kOneMinusConstantColor:
+      return 255 - k[c];
+    case BlendFactor::kConstantAlpha:
+      return k[3];
+    case BlendFactor::kOneMinusConstantAlpha:
+      return 255 - k[3];
+    case BlendFactor::kSrcAlphaSaturate:
+      return c == 3 ? 255 : std::min(s[3], 255 - d[3]);
+  }
+  return 0;
+}
+/// Equation e on bytes, saturated to [0, 255]; MIN and MAX ignore the factors.
+inline uint32_t combine_unorm8(BlendEquation e, uint32_t s, uint32_t fs, uint32_t d, uint32_t fd) {
+  const int32_t a = int32_t(mul_unorm8(s, fs)), b = int32_t(mul_unorm8(d, fd));
+  int32_t r = 0;
+  switch (e) {
+    case BlendEquation::kAdd:
+      r = a + b;
+      break;
+    case BlendEquation::kSubtract:
+      r = a - b;
+      break;
+    case BlendEquation::kReverseSubtract:
+      r = b - a;
+      break;
+    case BlendEquation::kMin:
+      return std::min(s, d);
+    case BlendEquation::kMax:
+      return std::max(s, d);
+  }
+  return uint32_t(std::clamp(r, 0, 255));
+}
 }  // namespace fb
 
 /// One sample of the framebuffer (dst: its four stored channels) after a
@@ -157,10 +224,28 @@ inline float combine(BlendEquation e, float s, float fs, float d, float fd) {
 /// with blending off the source replaces the destination; on, each channel is
 /// the draw's equation of source and destination times their factors. A
 /// fixed-point target (unorm8, srgb8) clamps the source and the constant
-/// colour to [0, 1] first. Channels the colour mask leaves off keep their
+/// colour to [0, 1] first; unorm8 blends in 8-bit fixed point, srgb8 in
+/// binary32 on linear values. Channels the colour mask leaves off keep their
 /// stored value.
 inline void framebuffer_blend(const DrawState& d, const float rgba[4], float dst[4]) {
   const TargetEncoding e = d.encoding;
+  if (e == TargetEncoding::kUnorm8 && d.blend) {
+    uint32_t s[4], t[4], k[4];
+    for (int c = 0; c < 4; ++c) {
+      s[c] = fb::unorm8_code(rgba[c]);
+      t[c] = fb::code_of(dst[c]);
+      k[c] = fb::unorm8_code(d.blend_color[size_t(c)]);
+    }
+    for (int c = 0; c < 4; ++c) {
+      if (!(d.color_mask >> c & 1)) continue;
+      const bool alpha = c == 3;
+      const uint32_t q = fb::combine_unorm8(alpha ? d.eq_alpha : d.eq_rgb, s[c],
+                                            fb::factor_unorm8(alpha ? d.src_alpha : d.src_rgb, c, s, t, k), t[c],
+                                            fb::factor_unorm8(alpha ? d.dst_alpha : d.dst_rgb, c, s, t, k));
+      dst[c] = fb::unorm8_value(q);
+    }
+    return;
+  }
   const bool fixed = e != TargetEncoding::kFloat;
   float s[4], t[4], k[4], out[4];
   for (int c = 0; c < 4; ++c) {
@@ -173,8 +258,8 @@ inline void framebuffer_blend(const DrawState& d, const float rgba[4], float dst
   } else {
     for (int c = 0; c < 3; ++c)
       out[c] = fb::combine(d.eq_rgb, s[c], fb::factor(d.src_rgb, c, s, t, k), t[c], fb::factor(d.dst_rgb, c, s, t, k));
-    out[3] = fb::combine(d.eq_alpha, s[3], fb::factor(d.src_alpha, 3, s, t, k), t[3],
-                         fb::factor(d.dst_alpha, 3, s, t, k));
+    out[3] =
+        fb::combine(d.eq_alpha, s[3], fb::factor(d.src_alpha, 3, s, t, k), t[3], fb::factor(d.dst_alpha, 3, s, t, k));
   }
   for (int c = 0; c < 4; ++c)
     if (d.color_mask >> c & 1) dst[c] = framebuffer_store(e, c, out[c]);

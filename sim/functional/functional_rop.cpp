@@ -36,8 +36,11 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
 }
 
 StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
-  StoreTargets t{uses_transmittance(cfg.method), uses_accum(cfg.method), target_formats(cfg),
-                 {0.0f, 0.0f, 0.0f, 0.0f}, cfg.method == Method::kSlab ? cfg.slab_bits : 0};
+  StoreTargets t{uses_transmittance(cfg.method),
+                 uses_accum(cfg.method),
+                 target_formats(cfg),
+                 {0.0f, 0.0f, 0.0f, 0.0f},
+                 cfg.method == Method::kSlab ? cfg.slab_bits : 0};
   if (traits(cfg.method).framebuffer) t.accum_clear = framebuffer_clear(frame_encoding(h.draws), h.clear_color);
   return t;
 }

@@ -114,8 +114,8 @@ inline constexpr MethodTraits kMethodTable[] = {
      "enderton depth-based with alpha correction: total alpha, depth, accumulation", true, false, false, false, true,
      int(Method::kEnderton), true, true, false},
     {Method::kBlend, "blend",
-     "what GPUs execute: each fragment in submission order, with its draw's blend and depth state", true, false,
-     false, false, false, -1, false, false, false, true},
+     "what GPUs execute: each fragment in submission order, with its draw's blend and depth state", true, false, false,
+     false, false, -1, false, false, false, true},
 };
 
 /// The traits of a method (usable at compile time).
