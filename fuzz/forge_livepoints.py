@@ -37,6 +37,11 @@ def walk(p):
     at += 4 + 4 + 4 + 3 + 12 + 4 + 128  # the trace header to its scene name
     skip_str()
     at += 1  # checksummed
+    n_draws = u64(at)  # the draw table
+    at += 8
+    for _ in range(n_draws):
+        at += 4 + 3 + 9 + 16  # id, flags, equations, factors, function, mask, encoding, blend colour
+        skip_str()  # its name
     skip_str()  # method name
     at += 4 + 4 + 4 + 8  # numerics, seed
     f["slab_k"], f["slab_b"] = at, at + 4

@@ -497,9 +497,9 @@ uint64_t popcount(uint64_t m) { return uint64_t(__builtin_popcountll(m)); }
 // reproduces the frame the application rendered, at 1 spp against
 // frame.rgba for >= 99.9 % of the pixels within 1/255 in every channel, and
 // at 4 spp against the 4x MSAA reference for >= 99.9 % of the pixels that
-// every fragment covers whole (docs/capture.md "Limitations": a partly
-// covered fragment is shaded at its lowest covered sample, where llvmpipe's
-// MSAA shades at the pixel centre); and
+// every fragment covers whole, and of all pixels for pulsar (jellyfish: 90 %;
+// docs/capture.md "Limitations": some of its partly covered pixels differ);
+// and
 // each draw's covered samples in the trace equal its occlusion query's
 // samples passed.
 TEST(CaptureGl, Glmark2FramesAreReproducedByTheBlendMethod) {
@@ -557,8 +557,9 @@ TEST(CaptureGl, Glmark2FramesAreReproducedByTheBlendMethod) {
       EXPECT_GE(share_within_one_code(img, f, &worst, &whole), 0.999)
           << "worst: " << worst << " (of the " << kept << " pixels whole)";
       std::string any;
-      std::cout << tag << ": " << share_within_one_code(img, f, &any) * 100
-                << " % of all pixels within one code of the MSAA reference\n";
+      const double share = share_within_one_code(img, f, &any);
+      std::cout << tag << ": " << share * 100 << " % of all pixels within one code of the MSAA reference\n";
+      EXPECT_GE(share, std::string(scene) == "pulsar" ? 0.999 : 0.90) << "of all pixels; worst: " << any;
     }
 }
 

@@ -99,8 +99,10 @@ const DrawState* DrawTable::find(uint32_t draw_id) const {
 
 const DrawState& DrawTable::at(uint32_t draw_id) const {
   if (states_.empty()) {
-    default_ = default_draw_state(draw_id);
-    return default_;
+    // One immutable state shared by every id (and every thread): the default
+    // state's rules do not depend on the draw.
+    static const DrawState kDefault = default_draw_state(0);
+    return kDefault;
   }
   if (const DrawState* s = find(draw_id)) return *s;
   throw std::out_of_range("draw " + std::to_string(draw_id) + " has no draw state");

@@ -93,8 +93,9 @@ class DrawTable {
   const std::vector<DrawState>& states() const { return states_; }  ///< sorted by draw_id
   /// The state of draw_id, or nullptr when the table is non-empty and lacks it.
   const DrawState* find(uint32_t draw_id) const;
-  /// The state of draw_id: find()'s, or default_draw_state() for an empty table.
-  /// Throws std::out_of_range for an id the non-empty table lacks.
+  /// The state of draw_id: find()'s, or for an empty table the one default
+  /// state (default_draw_state(0): its draw_id is 0 whatever the id asked;
+  /// thread-safe). Throws std::out_of_range for an id the non-empty table lacks.
   const DrawState& at(uint32_t draw_id) const;
   /// "" when the table is valid (distinct ids, enumerations in range, mask in
   /// 0..15, a UTF-8 name of at most 255 bytes, finite blend colour), else the
@@ -104,7 +105,6 @@ class DrawTable {
 
  private:
   std::vector<DrawState> states_;
-  mutable DrawState default_;
 };
 
 }  // namespace ropsim

@@ -810,6 +810,11 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
         s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
                          : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
     g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
+    // The shift in pixels: the fragment shader reads its inputs there, at the
+    // pixel centre of the unshifted geometry, where multisampling shades.
+    if (ins.loc_pixel_offset >= 0)
+      g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, off[0] * 0.5f * float(std::max(1, vp[2])),
+                         off[1] * 0.5f * float(std::max(1, vp[3])));
     for (size_t k = 0; k < parts.size(); ++k) {
       for (;;) {
         g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), record_buffer_, 0,
@@ -901,6 +906,7 @@ void Session::reference_draw(GLuint program, const Instrumented& ins, const std:
   g.UseProgram(ins.program);
   copy_uniforms(program, ins);
   g.ProgramUniform2f(ins.program, ins.loc_offset, 0.0f, 0.0f);
+  if (ins.loc_pixel_offset >= 0) g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, 0.0f, 0.0f);
   g.ProgramUniform1i(ins.program, ins.loc_upside_down, 1);
   g.ProgramUniform1ui(ins.program, ins.loc_capacity, 0);
   // A buffer of its own (the count alone), so that its increments never

@@ -1,5 +1,6 @@
 #include "glsl_rewrite.h"
 
+#include <algorithm>
 #include <cctype>
 #include <regex>
 #include <vector>
@@ -72,6 +73,106 @@ bool uses(const std::string& s, const char* name) {
   return std::regex_search(s, re);
 }
 
+/// The fragment shader's interpolated inputs, read at the pixel centre: each
+/// global `[layout(...)] [smooth|noperspective] in|varying [precision]
+/// float|vecN NAME;` gets a global copy `ropsim_c_NAME` and a #define that
+/// sends the shader's reads to it (a #line after keeps the application's line
+/// numbers). Returns the names; the wrapper's main fills each copy with
+/// interpolateAtOffset(NAME, ropsim_pixel_offset) after #undef-ing it.
+/// Flat, centroid and sample inputs, arrays, blocks and GL's built-in inputs
+/// are left as they are.
+std::vector<std::pair<std::string, std::string>> centre_inputs(std::string& s) {
+  static const std::regex kIn(
+      R"((^|[;\n])[ \t]*(layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
+      R"((float|vec2|vec3|vec4)\s+([A-Za-z_][A-Za-z0-9_]*)\s*;)");
+  const std::string g = global_scope(s);
+  struct Hit {
+    size_t end;
+    std::string type, name;
+  };
+  std::vector<Hit> hits;
+  for (auto it = std::sregex_iterator(g.begin(), g.end(), kIn); it != std::sregex_iterator(); ++it) {
+    const std::smatch& m = *it;
+    const std::string name = m[9].str();
+    if (name.compare(0, 3, "gl_") == 0 || name.compare(0, 7, "ropsim_") == 0) continue;
+    hits.push_back({size_t(m.position(0) + m.length(0)), m[8].str(), name});
+  }
+  std::vector<std::pair<std::string, std::string>> names;
+  for (auto h = hits.rbegin(); h != hits.rend(); ++h) {
+    const size_t line = size_t(std::count(s.begin(), s.begin() + std::ptrdiff_t(h->end), '\n')) + 1;
+    s.insert(h->end, "\n" + h->type + " ropsim_c_" + h->name + ";\n#define " + h->name + " ropsim_c_" + h->name +
+                         "\n#line " + std::to_string(line) + "\n");
+    names.emplace_back(h->type, h->name);
+  }
+  return names;
+}
+
+/// GL's built-in interpolated inputs of the compatibility profile that the
+/// shader reads (and does not redeclare), read at the pixel centre like
+/// centre_inputs': a global copy each, a #define that sends the reads to it
+/// (placed after the leading directives, #line keeping the line numbers),
+/// and the wrapper's statements that fill the copies (after the returned
+/// #undef lines). Returns {undefs, fill statements}.
+std::pair<std::string, std::string> centre_builtin_inputs(std::string& s) {
+  struct Builtin {
+    const char* name;
+    const char* decl;  ///< the copy's declaration
+    const char* fill;  ///< the wrapper's statement
+  };
+  static const Builtin kBuiltins[] = {
+      {"gl_Color", "vec4 ropsim_c_gl_Color;",
+       "  ropsim_c_gl_Color = interpolateAtOffset(gl_Color, ropsim_pixel_offset);\n"},
+      {"gl_SecondaryColor", "vec4 ropsim_c_gl_SecondaryColor;",
+       "  ropsim_c_gl_SecondaryColor = interpolateAtOffset(gl_SecondaryColor, ropsim_pixel_offset);\n"},
+      {"gl_FogFragCoord", "float ropsim_c_gl_FogFragCoord;",
+       "  ropsim_c_gl_FogFragCoord = interpolateAtOffset(gl_FogFragCoord, ropsim_pixel_offset);\n"},
+  };
+  const std::string g = global_scope(s);
+  std::string decls, undefs, fills;
+  for (const Builtin& b : kBuiltins) {
+    if (!uses(s, b.name)) continue;
+    const std::regex redeclared(std::string(R"(\b(in|varying)\s+[^;]*\b)") + b.name + R"(\b)");
+    if (std::regex_search(g, redeclared)) continue;
+    decls += std::string(b.decl) + "\n#define " + b.name + " ropsim_c_" + b.name + "\n";
+    undefs += std::string("\n#undef ") + b.name;
+    fills += b.fill;
+  }
+  // gl_TexCoord (implicitly sized): the elements up to the highest constant
+  // index the shader reads; all 8 of llvmpipe's with a variable index.
+  if (uses(s, "gl_TexCoord") && !std::regex_search(g, std::regex(R"(\b(in|varying)\s+[^;]*\bgl_TexCoord\b)"))) {
+    static const std::regex kIndex(R"(gl_TexCoord\s*\[\s*([^\]]*)\])");
+    int top = -1;
+    for (auto it = std::sregex_iterator(s.begin(), s.end(), kIndex); it != std::sregex_iterator(); ++it) {
+      const std::string i = (*it)[1].str();
+      const bool constant = !i.empty() && i.size() < 3 && std::all_of(i.begin(), i.end(), ::isdigit);
+      top = std::max(top, constant ? std::stoi(i) : 7);
+    }
+    if (top >= 0) {
+      decls +=
+          "vec4 ropsim_c_gl_TexCoord[" + std::to_string(top + 1) + "];\n#define gl_TexCoord ropsim_c_gl_TexCoord\n";
+      undefs += "\n#undef gl_TexCoord";
+      for (int k = 0; k <= top; ++k)
+        fills += "  ropsim_c_gl_TexCoord[" + std::to_string(k) + "] = gl_TexCoord[" + std::to_string(k) +
+                 "] + dFdx(gl_TexCoord[" + std::to_string(k) + "]) * ropsim_pixel_offset.x + dFdy(gl_TexCoord[" +
+                 std::to_string(k) + "]) * ropsim_pixel_offset.y;\n";
+    }
+  }
+  if (decls.empty()) return {"", ""};
+  // After the leading lines that are directives (#version, #extension) or blank.
+  size_t at = 0, line = 1;
+  while (at < s.size()) {
+    size_t end = s.find('\n', at);
+    if (end == std::string::npos) break;
+    size_t k = at;
+    while (k < end && (s[k] == ' ' || s[k] == '\t')) ++k;
+    if (k < end && s[k] != '#') break;
+    at = end + 1;
+    ++line;
+  }
+  s.insert(at, decls + "#line " + std::to_string(line) + "\n");
+  return {undefs, fills};
+}
+
 }  // namespace
 
 std::string strip_comments(const std::string& src) {
@@ -142,13 +243,23 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
   const std::string color = fragment_color_expression(s);
   const int mains = rename_main(s);
   if (mains == 0) return {s, ""};
-  s += "\n// ropsim capture: one record per fragment that survives the shader\n"
+  const auto inputs = centre_inputs(s);
+  const auto [builtin_undefs, builtin_fills] = centre_builtin_inputs(s);
+  s += builtin_undefs;
+  std::string centre = builtin_fills;
+  for (const auto& [type, name] : inputs) {
+    s += "\n#undef " + name;
+    centre += "  ropsim_c_" + name + " = interpolateAtOffset(" + name + ", ropsim_pixel_offset);\n";
+  }
+  s += "\n// ropsim capture: one record per fragment that survives the shader, its inputs read at the pixel centre\n"
+       "uniform vec2 ropsim_pixel_offset;\n"
        "layout(std430, binding = " +
        std::to_string(binding) +
        ") buffer RopsimFragments { uint ropsim_count; uint ropsim_pad; uint ropsim_rec[]; };\n"
        "uniform uint ropsim_capacity;\n"
        "flat in int ropsim_instance;\n"
-       "void main() {\n"
+       "void main() {\n" +
+       centre +
        "  ropsim_app_main();\n"
        "  if (!gl_HelperInvocation) {\n"
        "    vec4 ropsim_color = " +

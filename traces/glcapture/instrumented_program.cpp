@@ -115,10 +115,22 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
       GLint compiled = 0;
       g.GetShaderiv(sh, GL_COMPILE_STATUS, &compiled);
       if (!compiled) {
-        char buf[1024] = {};
+        char buf[4096] = {};
         g.GetShaderInfoLog(sh, sizeof buf, nullptr, buf);
-        log = std::string("the instrumented ") + (s.type == GL_VERTEX_SHADER ? "vertex" : "fragment") +
-              " shader does not compile: " + buf;
+        // The first error line of the log (warnings come before it), else the log.
+        std::string reason = buf;
+        const size_t e = reason.find("error:");
+        if (e != std::string::npos) {
+          const size_t from = reason.rfind('\n', e), to = reason.find('\n', e);
+          reason = reason.substr(
+              from == std::string::npos ? 0 : from + 1,
+              to == std::string::npos ? std::string::npos : to - (from == std::string::npos ? 0 : from + 1));
+        }
+        while (!reason.empty() && (reason.back() == '\n' || reason.back() == ' ')) reason.pop_back();
+        // The first profile's reason (compatibility: every source's first try).
+        if (log.empty())
+          log = std::string("the instrumented ") + (s.type == GL_VERTEX_SHADER ? "vertex" : "fragment") +
+                " shader does not compile: " + reason;
         ok = false;
         break;
       }
@@ -161,6 +173,7 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
   ins.loc_offset = g.GetUniformLocation(q, "ropsim_offset");
   ins.loc_capacity = g.GetUniformLocation(q, "ropsim_capacity");
   ins.loc_upside_down = g.GetUniformLocation(q, "ropsim_upside_down");
+  ins.loc_pixel_offset = g.GetUniformLocation(q, "ropsim_pixel_offset");
   if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;

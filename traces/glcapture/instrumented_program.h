@@ -31,6 +31,9 @@ struct Instrumented {
   GLuint program = 0;
   std::string error;  ///< "" or why it cannot be made ("program N: ...")
   GLint loc_offset = -1, loc_capacity = -1, loc_upside_down = -1;
+  /// ropsim_pixel_offset, the pass's geometry shift in pixels (window
+  /// coordinates); -1 when the fragment shader has no interpolated input.
+  GLint loc_pixel_offset = -1;
   std::vector<UniformCopy> uniforms;
   std::vector<std::pair<GLuint, GLuint>> uniform_blocks, storage_blocks;  ///< (application's, ours)
 };
