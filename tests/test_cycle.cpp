@@ -2249,6 +2249,56 @@ void poke(std::string& p, size_t at, T v) {
 
 }  // namespace
 
+// The forged payloads kept for the fuzzer (fuzz/regressions/livepoints/,
+// made by fuzz/forge_livepoints.py from the documented layout) are of the
+// current layout: wrapped with a valid checksum, each is refused for the
+// field it forges, and the valid payloads they come from are read.
+TEST(LivePointLibrary, TheKeptForgeriesReachTheFieldTheyForge) {
+  const std::filesystem::path dir = std::filesystem::path(kSource) / "fuzz" / "regressions" / "livepoints";
+  const std::map<std::string, std::string> needle = {
+      {"n-2e60", "N 1152921504606846976"},
+      {"u-0", "U 0 fragments"},
+      {"repeat-0", "repeat 0 is not in [1, 1000]"},
+      {"repeat-5000", "repeat 5000 is not in [1, 1000]"},
+      {"slab-k-0", "SLAB layers k 0"},
+      {"slab-b-100", "SLAB bits b 100"},
+      {"counter-0-max", "18446744073709551615"},
+      {"counter-1-max", "18446744073709551615"},
+      {"pixel-nan", "not a resolved binary16 value"},
+      {"pixel-minus-1", "not a resolved binary16 value"},
+      {"row-twice", "row"},  // out of order or given twice, or more rows than the image has
+      {"k-units-0", "K"}};
+  const std::string path = temp_path("kept-forgery.rlp");
+  auto read_wrapped = [&](const std::filesystem::path& payload) {
+    const std::string bytes = read_bytes(payload.string());
+    const std::vector<uint8_t> file =
+        wrap_livepoint_payload(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(file.data()), std::streamsize(file.size()));
+    read_livepoints(path);
+  };
+  for (const char* valid : {"lk.payload", "slab.payload"}) EXPECT_NO_THROW(read_wrapped(dir / valid)) << valid;
+  size_t checked = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("forged-", 0) != 0) continue;
+    std::string field = name.substr(std::string("forged-").size());
+    field = field.substr(field.find('-') + 1);  // past the method
+    field = field.substr(0, field.size() - std::string(".payload").size());
+    const auto it = needle.find(field);
+    if (it == needle.end()) continue;  // e.g. pixel-inf: +inf is a value an rgb-f32 trace can resolve to
+    ++checked;
+    try {
+      read_wrapped(e.path());
+      ADD_FAILURE() << name << " was accepted";
+    } catch (const UserError& err) {
+      EXPECT_NE(std::string(err.what()).find(it->second), std::string::npos) << name << ": " << err.what();
+    }
+  }
+  EXPECT_GE(checked, 10u) << "the kept forgeries of docs/livepoints.md's fields";
+  std::filesystem::remove(path);
+}
+
 // A library whose checksum matches but whose fields lie outside the ranges
 // the trace format, the CLI and the recording give is refused, in one line
 // naming the file and the field: each forgery edits one field of a valid
