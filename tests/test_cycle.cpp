@@ -283,6 +283,53 @@ TEST(BitExactBlend, TheFrameExercisesEveryPathOfTheRule) {
   EXPECT_FALSE(m.resolve() == mf.resolve());
 }
 
+TEST(BitExactDrawRoutes, EverySinglePassMethodOnMixedDrawStatesMatchesTheGoldenModel) {
+  // The per-sample single-pass methods on the mixed frame: its opaque draws
+  // (z-buffer writes), blended draws (read-modify-writes of the colour) and
+  // src-over draws (the method's) through one pipeline, whose units pass the
+  // first two through; every committed design (Hi-Z and compression
+  // included), unorm8 and float, lockstep once.
+  std::vector<HwConfig> designs;
+  for (const auto& config : config_files()) designs.push_back(load_hw_config(config));
+  for (const HwConfig& hw : designs)
+    for (TargetEncoding e : {TargetEncoding::kUnorm8, TargetEncoding::kFloat})
+      for (int spp : {4, 16}) {
+        const auto [h, frags] = mixed_state_frame(spp, e);
+        for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed,
+                         Method::kHashedA2c, Method::kOpaque}) {
+          const std::string what = std::string(to_string(m)) + " " + to_string(e) + " " + std::to_string(spp) +
+                                   " spp on " + hw.name;
+          expect_bit_exact(h, frags, method_config(m, hw.blend.formats), hw, what,
+                           m == Method::kLk && spp == 4 && e == TargetEncoding::kUnorm8);
+        }
+      }
+}
+
+TEST(BitExactDrawRoutes, TheApproximateFidelityCountsWhatTheGoldenModelCounts) {
+  // The approximate fidelity runs the same functional stages on the mixed
+  // frame: its counters are the golden model's, and its DRAM traffic covers
+  // the colour the blended draws read.
+  const auto [h, frags] = mixed_state_frame(4, TargetEncoding::kUnorm8);
+  const std::string path = ::testing::TempDir() + "/mixed_routes.rtr";
+  {
+    TraceWriter w(path, h);
+    for (const Fragment& f : frags) w.write(f);
+    w.finish();
+  }
+  InputSpec in;
+  in.trace_path = path;
+  StochasticModel golden(h, method_config(Method::kLk));
+  for (const Fragment& f : frags) golden.draw(f);
+  const ApproxRun a = run_approximate(in, method_config(Method::kLk), HwConfig{});
+  std::vector<uint64_t> want, got;
+  golden.counters().for_each([&](const char*, uint64_t v) { want.push_back(v); });
+  a.counters.for_each([&](const char*, uint64_t v) { got.push_back(v); });
+  EXPECT_EQ(got, want);
+  EXPECT_GT(golden.counters().target_bytes_read, 0u) << "the mixed frame has blended draws";
+  EXPECT_GT(golden.kind_fragments()[size_t(DrawKind::kSrcOver)], 0u) << "the mixed frame has src-over draws";
+  std::remove(path.c_str());
+}
+
 TEST(BitExactTiming, ExtremeTimingParametersNeverChangeTheImage) {
   // One FIFO slot everywhere, one pixel in flight, no overtaking, tiny cache,
   // slow serial sorter, one hash lane, and the opposite extreme.

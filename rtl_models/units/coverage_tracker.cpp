@@ -5,6 +5,7 @@
 namespace ropsim {
 
 PipeUnit::Timing CoverageTracker::process(FragToken* t, uint64_t) {
+  if (t->route != DrawRoute::kMethod) return {1, 1};  // an opaque or blended draw's fragment passes through
   run_stage(rop_.track(), *t);
   new_surfaces_ += t->lk.track.new_surface;
   stats_.samples += t->m;

@@ -4,6 +4,7 @@
 
 #include "blend_unit.h"
 #include "errors.h"
+#include "framebuffer_blend.h"
 
 namespace ropsim {
 
@@ -24,10 +25,13 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   }
   // Hierarchical Z: a fragment whose tested samples all lie beyond its
   // tile's farthest stored depth fails them all; it reads nothing and
-  // retires here (compression_model.h gives the update rule). Not for blend:
-  // its draws' depth functions are not all LESS or LEQUAL.
-  if (CompressionModel* cm = cache_.compression();
-      cm && cm->hiz() && t->covered && rop_.setup().cfg.method != Method::kBlend) {
+  // retires here (compression_model.h gives the update rule). Only for the
+  // methods' own test and for draws testing LESS or LEQUAL (blend's draws and
+  // the opaque and blended draws of a frame test with their own functions).
+  const bool own_test = rop_.setup().cfg.method == Method::kBlend || t->route != DrawRoute::kMethod;
+  const bool hiz_applies = !own_test || (t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess ||
+                                                                 t->draw->depth_func == DepthFunc::kLequal));
+  if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered && hiz_applies) {
     float zmin = 1.0f;
     for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);
     if (cm->hiz_rejects(t->f->x, t->f->y, zmin)) {
@@ -43,16 +47,23 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->covered, [&](uint64_t line) {
     ready = std::max(ready, cache_.read(line, Buffer::kDepth, now, o));
   });
-  if (rop_.pass_uses_tracker())
+  if (rop_.pass_uses_tracker() && t->route == DrawRoute::kMethod)
     amap_.for_each_tracker_line(
         t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kTracker, now, o)); });
   // Blend passes: the destination of the blend (read-modify-write), the
   // render-target lines of the surviving samples, fetched with the depth.
+  // (blend: not for a draw that replaces every channel, which reads none.)
   const PassKind p = rop_.pass();
+  const bool fb_read = p != PassKind::kFramebuffer || draw_reads_colour(*t->draw);
   for (Buffer b : {Buffer::kTransmittance, Buffer::kAccum})
-    if (b == Buffer::kTransmittance ? pass_blends_transmittance(p) : pass_blends_accum(p))
+    if (b == Buffer::kTransmittance ? pass_blends_transmittance(p) : pass_blends_accum(p) && fb_read)
       amap_.for_each_sample_line(b, t->f->x, t->f->y, t->survivors,
                                  [&](uint64_t line) { ready = std::max(ready, cache_.read(line, b, now, o)); });
+  // An additive or other blended draw of a frame: the colour it blends into.
+  if (t->route == DrawRoute::kBlend || (t->route == DrawRoute::kOpaque && draw_reads_colour(*t->draw)))
+    amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
+      ready = std::max(ready, cache_.read(line, Buffer::kColor, now, o));
+    });
   return ready;
 }
 

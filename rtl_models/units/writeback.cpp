@@ -10,7 +10,8 @@ Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, Func
 
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
   // What the write replaces in the surfaces the compressor tracks (pixel_snapshot.h).
-  const bool color = stochastic_writes_color(rop_.setup().cfg.method);  // depth-based methods store depth only
+  // Depth-based methods store depth only; a frame's opaque and blended draws write colour.
+  const bool color = stochastic_writes_color(rop_.setup().cfg.method) || t->route != DrawRoute::kMethod;
   PixelSnapshot depth, rgb;
   if (CompressionModel* cm = cache_.compression()) {
     depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
@@ -19,7 +20,7 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   const uint32_t examined = run_stage(rop_.write(), *t);
   const Owner o = t->owner();
   written_ += uint64_t(__builtin_popcountll(t->written));
-  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->written, [&](uint64_t line) {
+  amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->depth_written, [&](uint64_t line) {
     cache_.post_write(line, Buffer::kDepth, now, o, depth.patch(line));
   });
   if (color)
@@ -27,7 +28,7 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
       cache_.post_write(line, Buffer::kColor, now, o, rgb.patch(line));
     });
   // lk: the tracker's updated state (written whatever the opacity test said).
-  if (rop_.pass_uses_tracker())
+  if (rop_.pass_uses_tracker() && t->route == DrawRoute::kMethod)
     amap_.for_each_tracker_line(t->f->x, t->f->y,
                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now, o); });
   // slab: the pixel's layers, rewritten when the fragment was inserted.

@@ -271,6 +271,11 @@ struct FragRec {
   uint16_t m = 0;                                  ///< popcount(survivors); 0: killed by the depth test
   uint16_t hashes = 0, examined = 0, blended = 0;  ///< the reference, writeback and blend stages' counts
   bool slab_kept = false;                          ///< slab: its layers were rewritten
+  /// A frame's opaque or blended draw (DrawRoute): its colour is written, and
+  /// read when reads_colour; its depth only when depth_write.
+  DrawRoute route = DrawRoute::kMethod;
+  bool reads_colour = false;  ///< a blend pass (blend) or a routed draw reads the colour it writes
+  bool depth_write = false;   ///< a routed draw: it writes depth
   bool killed() const { return m == 0; }
 };
 static_assert(sizeof(FragRec) == kApproxRecordBytes, "memory_estimate.h's kApproxRecordBytes is a FragRec's size");
@@ -339,8 +344,10 @@ class Model {
       if (trans_)
         amap_.for_each_sample_line(Buffer::kTransmittance, f.x, f.y, w.survivors,
                                    [&](uint64_t l) { rd(l, Buffer::kTransmittance); });
-      if (accum_)
+      if (accum_ && (!framebuffer_ || w.reads_colour))
         amap_.for_each_sample_line(Buffer::kAccum, f.x, f.y, w.survivors, [&](uint64_t l) { rd(l, Buffer::kAccum); });
+      if (w.route != DrawRoute::kMethod && w.reads_colour)
+        amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.survivors, [&](uint64_t l) { rd(l, Buffer::kColor); });
     }
     e.demand[kOrdering] += 1;
     e.demand[kDepthTest] += std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
@@ -360,6 +367,21 @@ class Model {
         if (framebuffer_)  // blend: `written` holds the samples whose depth its draw wrote
           amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.written,
                                      [&](uint64_t l) { c.write(l, Buffer::kDepth); });
+      } else if (w.route != DrawRoute::kMethod) {
+        // An opaque or blended draw: through the bypassed units, one clock
+        // each, to the writeback (the cycle model's pass-through).
+        const uint32_t bypassed = uint32_t(tracker_unit_) + uint32_t(sorter_on_) + uint32_t(reference_on_);
+        if (tracker_unit_) e.demand[kTracker] += 1;
+        if (sorter_on_) e.demand[kSorter] += 1;
+        if (reference_on_) e.demand[kAlphaRef] += 1;
+        res += bypassed;
+        e.demand[kWriteback] += std::max<uint32_t>(1, ceil_div(examined, hw.writeback.samples_per_clock));
+        res += hw.writeback.latency_cycles;
+        if (w.depth_write)
+          amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.written,
+                                     [&](uint64_t l) { c.write(l, Buffer::kDepth); });
+        amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.written,
+                                   [&](uint64_t l) { c.write(l, Buffer::kColor); });
       } else {
         if (tracker_unit_) {
           e.demand[kTracker] += 1;
@@ -597,6 +619,9 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
           r.slab_kept = method.method == Method::kSlab && w.slab.kept;
         }
         r.written = rop->pass() == PassKind::kFramebuffer ? w.depth_written : w.written;
+        r.route = w.route;
+        if (w.draw) r.reads_colour = (blend_pass || w.route != DrawRoute::kMethod) && draw_reads_colour(*w.draw);
+        r.depth_write = w.route != DrawRoute::kMethod && w.depth_written != 0;
       }
       batch.push_back(r);
       if (batch.size() == kBatch) {

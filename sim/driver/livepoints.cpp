@@ -215,6 +215,14 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.method = method;
   lib.params = p;
   auto src = open_fragments(in);
+  // A live-point's touches hold the samples written, one mask for depth and
+  // colour: an opaque or blended draw's own depth mask and colour read are
+  // not in them.
+  for (const DrawState& d : src->header().draws.states())
+    if (route_of(draw_kind(d)) != DrawRoute::kMethod)
+      throw UserError("sampled simulation runs frames whose draws are all src-over; draw " +
+                      std::to_string(d.draw_id) + " of " + in.describe() + " is " + to_string(draw_kind(d)) +
+                      " (run it at the functional, approximate or cycle fidelity)");
   if (const std::optional<uint64_t> known = src->fragments_known()) {
     lib.fragments = *known;  // N from the trace's header (the reader holds the trace to it)
   } else {                   // N: the sampling design needs the input's length

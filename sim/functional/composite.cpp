@@ -14,7 +14,8 @@ Image composite(const SampleStore& store, Method m) {
   const BlendFormats& fmt = store.targets().formats;
   const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
   double bg[3];
-  for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(h.clear_color[c]));  // as the colour buffer holds it
+  const std::array<float, 3> clear = colour_buffer_clear(frame_encoding(h.draws), h.clear_color);
+  for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(clear[size_t(c)]));  // as the colour buffer holds it
   Image img(h.width, h.height, {float(bg[0]), float(bg[1]), float(bg[2])});            // untouched tiles: no memory
   const int spp = h.spp;
   const uint32_t clear_z = depth_bits(canonical_depth(h.clear_depth));
@@ -60,12 +61,11 @@ Image composite(const SampleStore& store, Method m) {
   return img;
 }
 
-namespace {
-/// Linear light of a resolved framebuffer value of encoding e.
-float framebuffer_light(TargetEncoding e, float v) {
-  return e == TargetEncoding::kFloat ? v : fb::srgb_decode_code(fb::code_of(v));
+
+void encode_resolved(Image& img, TargetEncoding e) {
+  if (e == TargetEncoding::kFloat) return;
+  img.transform([e](float v) { return resolved_light(e, v); });
 }
-}  // namespace
 
 Image framebuffer_image(const SampleStore& store) {
   const TraceHeader& h = store.header();

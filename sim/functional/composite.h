@@ -33,4 +33,11 @@ Image composite(const SampleStore& store, Method m);
 /// target's values are the image's.
 Image framebuffer_image(const SampleStore& store);
 
+/// A method's image from its colour buffer's working values (the box filter
+/// or the composite, framebuffer_blend.h) as the frame's target of encoding e
+/// holds it: each value resolved into that encoding, then as light
+/// (resolved_light), so that it compares with blend's image as screenshots
+/// do. Nothing changes for a float target.
+void encode_resolved(Image& img, TargetEncoding e);
+
 }  // namespace ropsim

@@ -5,6 +5,7 @@
 #pragma once
 #include <cstdint>
 
+#include "draw_state.h"
 #include "sample_store.h"
 #include "trace.h"
 #include "tracker.h"
@@ -52,9 +53,10 @@ struct FragWork {
   // Opacity test and write.
   uint64_t written = 0;  ///< samples whose depth and colour were written
 
-  // blend (the framebuffer pass).
-  const DrawState* draw = nullptr;  ///< the fragment's draw state (the depth test looks it up)
-  uint64_t depth_written = 0;       ///< samples whose depth the blend wrote (the draw's depth mask)
+  // The fragment's draw (a trace of draw states; blend: always).
+  const DrawState* draw = nullptr;       ///< the fragment's draw state (the depth test looks it up)
+  DrawRoute route = DrawRoute::kMethod;  ///< its path: the method's, opaque or blended (the depth test sets it)
+  uint64_t depth_written = 0;            ///< samples whose depth was written (the method's writes, or the draw's depth mask)
 
   /// No sample survived the depth test: the fragment leaves the ROP there.
   bool killed() const { return m == 0; }

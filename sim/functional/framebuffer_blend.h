@@ -22,6 +22,7 @@
 #include <cstdint>
 
 #include "draw_state.h"
+#include "half.h"
 
 namespace ropsim {
 
@@ -290,6 +291,67 @@ inline void framebuffer_resolve_pixel(TargetEncoding e, const float* samples, in
     for (int i = 0; i < spp; ++i) sum += framebuffer_read(e, c, samples[4 * i + c]);
     rgb[c] = spp == 1 ? samples[c] : framebuffer_store(e, c, sum * inv);
   }
+}
+
+
+// ------------------------------------------------ the methods' colour buffer
+//
+// Every method but blend keeps one RGB binary16 colour per sample. On a
+// frame of draw states (docs/methods.md "Methods on a frame of draw states")
+// it holds the working value of the target's encoding (framebuffer_read):
+// linear light for srgb8, the stored value for unorm8 and float. Destination
+// alpha is not kept: it reads as 1.
+
+/// The colour a src-over draw's fragment contributes, as straight (not
+/// premultiplied) colour: premultiplied draws' colour divided by alpha (0 for
+/// alpha 0), clamped to [0, 1] for an 8-bit target as its blender clamps it.
+inline std::array<float, 3> transparent_rgb(const DrawState& d, const std::array<float, 3>& rgb, float alpha) {
+  std::array<float, 3> c = rgb;
+  if (draw_kind(d) == DrawKind::kPremultipliedOver)
+    for (float& v : c) v = alpha > 0.0f ? v / alpha : 0.0f;
+  if (d.encoding != TargetEncoding::kFloat)
+    for (float& v : c) v = fb::clamp01(v);
+  return c;
+}
+
+/// An opaque or blended draw's fragment (colour rgba) on one stored sample
+/// (rgb16: its working value, binary16): the sample stored in the target's
+/// encoding, framebuffer_blend, and back to the working value. An opaque
+/// draw with every colour channel on replaces it without reading it.
+inline void colour_buffer_blend(const DrawState& d, const float rgba[4], uint16_t* rgb16) {
+  const TargetEncoding e = d.encoding;
+  float dst[4];
+  for (int c = 0; c < 3; ++c) dst[c] = framebuffer_store(e, c, half_to_float(rgb16[c]));
+  dst[3] = 1.0f;
+  framebuffer_blend(d, rgba, dst);
+  for (int c = 0; c < 3; ++c) rgb16[c] = float_to_half(framebuffer_read(e, c, dst[c]));
+}
+
+/// The colour buffer's clear value: the trace's clear colour as the frame's
+/// target of encoding e stores it, as a working value (the clear colour
+/// itself for a float target).
+inline std::array<float, 3> colour_buffer_clear(TargetEncoding e, const std::array<float, 3>& rgb) {
+  std::array<float, 3> c{};
+  for (int i = 0; i < 3; ++i) c[size_t(i)] = framebuffer_read(e, i, framebuffer_store(e, i, rgb[size_t(i)]));
+  return c;
+}
+
+/// Does a draw's fragment read the stored colour (a read-modify-write)?
+/// Blending reads it; so does a colour mask that keeps a channel.
+inline bool draw_reads_colour(const DrawState& d) { return draw_kind(d) != DrawKind::kOpaque || (d.color_mask & 7) != 7; }
+
+/// Linear light of value v of an image resolved in encoding e: an 8-bit
+/// target's values are code values (their sRGB decoding, as a display shows
+/// them; unorm8 stores display codes), a float target's are light.
+inline float framebuffer_light(TargetEncoding e, float v) {
+  return e == TargetEncoding::kFloat ? v : fb::srgb_decode_code(fb::code_of(v));
+}
+
+/// One resolved working value of a method's colour buffer (the box filter of
+/// its samples) as the frame's target stores it, then as light: a resolve
+/// into a one-sample target of the frame's encoding, as blend resolves.
+inline float resolved_light(TargetEncoding e, float working) {
+  return e == TargetEncoding::kFloat ? working : framebuffer_light(e, framebuffer_store(e, 0, working));
 }
 
 }  // namespace ropsim

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "composite.h"
+#include "framebuffer_blend.h"
 #include "hilbert.h"
 #include "method_kernels.h"
 
@@ -28,6 +29,22 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
     if (const char* err = validate_slab(c.slab_layers, c.slab_bits)) throw std::invalid_argument(err);
     slab_bits_of = slab_sample_bits(h.spp, c.slab_bits);
     slab_bytes = slab_pixel_bytes(c.slab_layers, c.slab_bits);
+  }
+  draw_states = !h.draws.empty();
+  encoding = frame_encoding(h.draws);
+  for (const DrawState& d : h.draws.states()) {
+    if (route_of(draw_kind(d)) == DrawRoute::kMethod) continue;
+    routed = true;
+    // Opaque and blended draws go into the colour buffer in submission order;
+    // a method that composites its own targets over the clear colour, or keeps
+    // layers in place of per-sample colour, would need an opaque pre-pass first.
+    if (!traits.framebuffer && (has_blend_pass(c.method) || c.method == Method::kSlab))
+      throw std::invalid_argument(std::string("the ") + traits.name + " method runs frames whose draws are all " +
+                                  "src-over; draw " + std::to_string(d.draw_id) + " is " +
+                                  to_string(draw_kind(d)) +
+                                  " (an opaque pre-pass is not modelled; every single-pass per-sample method, "
+                                  "blend and reference run it)");
+    break;
   }
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
@@ -64,6 +81,12 @@ void FunctionalRop::process_as(FragWork& w) {
   }
   depth_.run_as<M>(w);
   if (w.killed()) return;
+  if constexpr (M != Method::kBlend && !has_blend_pass(M) && M != Method::kSlab) {
+    if (w.route != DrawRoute::kMethod) {  // a frame's opaque or blended draw: a z-buffer's write or a blend
+      write_.run_routed(w);
+      return;
+    }
+  }
   if constexpr (kT.tracker) track_.run(w);
   if constexpr (kT.sorter) sort_.run(w);
   if constexpr (kT.reference) reference_.run_as<M>(w);
@@ -158,8 +181,9 @@ void FunctionalRop::begin_pass(int i) {
 
 Image FunctionalRop::resolve() const {
   if (setup_.traits.framebuffer) return framebuffer_image(store_);
-  if (setup_.passes.count == 1 && !setup_.traits.wboit) return store_.resolve();
-  return composite(store_, setup_.cfg.method);
+  Image img = setup_.passes.count == 1 && !setup_.traits.wboit ? store_.resolve() : composite(store_, setup_.cfg.method);
+  encode_resolved(img, setup_.encoding);
+  return img;
 }
 
 }  // namespace ropsim

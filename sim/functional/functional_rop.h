@@ -15,6 +15,7 @@
 #include <cstdint>
 
 #include "conversion_memo.h"
+#include "draw_state.h"
 #include "counters.h"
 #include "depth.h"
 #include "frag_work.h"
@@ -44,6 +45,13 @@ struct RopSetup {
   std::array<uint64_t, 64> slab_bits_of{};       ///< slab: the mask bits sample s owns
   uint32_t slab_bytes = 0;                       ///< slab: one pixel's layers in memory (slab_pixel_bytes)
   RopObserver* observer = nullptr;               ///< told every unit call (FunctionalRop::set_observer)
+  /// The trace has draw states: each fragment's draw is looked up (its kind,
+  /// route and encoding); without them every fragment takes the method's route.
+  bool draw_states = false;
+  /// Some draw takes another route than the method's (DrawRoute): opaque,
+  /// additive or other blended draws.
+  bool routed = false;
+  TargetEncoding encoding = TargetEncoding::kFloat;  ///< the frame's (frame_encoding)
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
   /// from its plane, or its stored per-sample depths.
@@ -89,14 +97,28 @@ class DepthStage : public Stage {
   /// hashed, hashed-a2c, slab: the hashes the coverage selection computed (1
   /// and 3 per fragment: chi; xi1, xi2, chi; slab: R + 1 for its R mask bits).
   uint64_t selection_hashes() const { return selection_hashes_; }
+  /// Fragments by their draw's kind (DrawKind order); all zero for a trace
+  /// without draw states.
+  const DrawKindCounts& kind_fragments() const { return kind_fragments_; }
   void absorb(const DepthStage& o) {
     Stage::absorb(o);
     selection_hashes_ += o.selection_hashes_;
+    for (int k = 0; k < kDrawKinds; ++k) kind_fragments_[size_t(k)] += o.kind_fragments_[size_t(k)];
   }
 
  private:
+  /// The draw state of f's draw (memoised: a draw's fragments are consecutive),
+  /// its kind counted; sets w.draw and w.route.
+  const DrawState& look_up_draw(FragWork& w);
+  /// The draw's own depth test (framebuffer_blend.h): its function, or every
+  /// covered sample when its test is off; each covered sample's depth read.
+  uint32_t draw_depth_test(FragWork& w, const DrawState& d);
   ConversionMemo memo_;
   uint64_t selection_hashes_ = 0;
+  DrawKindCounts kind_fragments_{};
+  uint32_t memo_draw_id_ = UINT32_MAX;
+  const DrawState* memo_draw_ = nullptr;
+  DrawKind memo_kind_ = DrawKind::kSrcOver;
 };
 
 /// Coverage-bitmask surface tracker (lk; Figure 7 lines 4-8 and 18).
@@ -159,6 +181,10 @@ class WriteStage : public Stage {
   uint32_t run(FragWork& w);
   template <Method M>
   uint32_t run_as(FragWork& w);
+  /// An opaque or blended draw's fragment (w.route not kMethod): its colour
+  /// on each surviving sample (colour_buffer_blend) and, as its depth mask
+  /// says, its depth; returns the samples written.
+  uint32_t run_routed(FragWork& w);
 
  private:
   ConversionMemo memo_;
@@ -178,6 +204,7 @@ class FunctionalRop {
   /// The fragment's pixel state (its tile allocated and cleared on first touch).
   void fetch(FragWork& w) { w.px = store_.pixel(w.f->x, w.f->y); }
   DepthStage& depth() { return depth_; }
+  const DepthStage& depth() const { return depth_; }
   TrackStage& track() { return track_; }
   SortStage& sort() { return sort_; }
   ReferenceStage& reference() { return reference_; }

@@ -64,6 +64,39 @@ inline uint64_t RopSetup::random_key(const Fragment& f) const {
   }                                             \
   return 0;
 
+inline const DrawState& DepthStage::look_up_draw(FragWork& w) {
+  const uint32_t id = w.f->draw_id;
+  if (id != memo_draw_id_ || !memo_draw_) {
+    memo_draw_ = &s_.header.draws.at(id);
+    memo_draw_id_ = id;
+    memo_kind_ = draw_kind(*memo_draw_);
+  }
+  ++kind_fragments_[size_t(memo_kind_)];
+  w.draw = memo_draw_;
+  w.route = route_of(memo_kind_);
+  return *memo_draw_;
+}
+
+inline uint32_t DepthStage::draw_depth_test(FragWork& w, const DrawState& d) {
+  const Fragment& f = *w.f;
+  const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
+  c_.depth_bytes_read += kDepthSampleBytes * covered;
+  uint64_t S = 0;
+  const float* stored = w.px.depth;
+  float* z = w.z;
+  for_each_sample_depth(f.coverage, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy,
+                        s_.offset_x.data(), s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
+                          z[i] = zi;
+                          S |= uint64_t{!d.depth_test || depth_func_passes(d.depth_func, zi, stored[i])} << i;
+                        });
+  w.covered = f.coverage;
+  w.survivors = S;
+  w.m = uint32_t(__builtin_popcountll(S));
+  c_.samples_depth_passed += w.m;
+  if (s_.observer) s_.observer->depth_tested(w);
+  return covered;
+}
+
 template <Method M>
 inline uint32_t DepthStage::run_as(FragWork& w) {
   constexpr MethodTraits kT = traits(selection_of(M));
@@ -75,25 +108,15 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   // Blend passes: the plain test, no coverage selection, no tracker.
   [[maybe_unused]] const bool stochastic = !has_blend_pass(M) || !is_blend_pass(s_.pass);
   if constexpr (M == Method::kBlend) {
-    // The draw's own test (framebuffer_blend.h): its function, or every
-    // covered sample when its test is off. Each covered sample's depth is read.
-    const DrawState& d = s_.header.draws.at(f.draw_id);
-    w.draw = &d;
-    c_.depth_bytes_read += kDepthSampleBytes * covered;
-    uint64_t S = 0;
-    const float* stored = w.px.depth;
-    float* z = w.z;
-    for_each_sample_depth(f.coverage, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy,
-                          s_.offset_x.data(), s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
-                            z[i] = zi;
-                            S |= uint64_t{!d.depth_test || depth_func_passes(d.depth_func, zi, stored[i])} << i;
-                          });
-    w.covered = f.coverage;
-    w.survivors = S;
-    w.m = uint32_t(__builtin_popcountll(S));
-    c_.samples_depth_passed += w.m;
-    if (s_.observer) s_.observer->depth_tested(w);
-    return covered;
+    // Every fragment: its draw's own test and blend (framebuffer_blend.h).
+    return draw_depth_test(w, look_up_draw(w));
+  }
+  w.route = DrawRoute::kMethod;
+  if (s_.draw_states) {
+    // A frame of draw states: opaque and blended draws take their own depth
+    // test and leave the method's stages (docs/methods.md).
+    const DrawState& d = look_up_draw(w);
+    if (w.route != DrawRoute::kMethod) return draw_depth_test(w, d);
   }
   if constexpr (kT.coverage_select) {
     // The opacity decision as a sample mask, made before the depth test.
@@ -187,6 +210,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
 inline uint32_t DepthStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
 
 inline void TrackStage::run(FragWork& w) {
+  if (w.route != DrawRoute::kMethod) return;  // opaque and blended draws bypass the tracker
   RopObserver* const obs = s_.observer;
   TrackerState before{};
   if (obs) before = *w.px.tracker;
@@ -198,6 +222,7 @@ inline void TrackStage::run(FragWork& w) {
 }
 
 inline uint32_t SortStage::run(FragWork& w) {
+  if (w.route != DrawRoute::kMethod) return 0;  // opaque and blended draws bypass the sorter
   const int m = sort_by_stored_depth(w.px.depth, w.survivors, w.lk.order);
   c_.sorts += m > 1;
   if (s_.observer) s_.observer->sorted(w);
@@ -244,13 +269,18 @@ inline uint32_t ReferenceStage::run_as(FragWork& w) {
   }
 }
 
-inline uint32_t ReferenceStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+inline uint32_t ReferenceStage::run(FragWork& w) {
+  if (w.route != DrawRoute::kMethod) return 0;  // opaque and blended draws need no reference
+  ROPSIM_DISPATCH(run_as)
+}
 
 template <Method M>
 inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
   [[maybe_unused]] RopObserver* const obs = s_.observer;
-  const uint16_t* rgb16 = memo_.half_color(w.f->rgb);
+  // A frame of draw states: the src-over draw's straight colour (transparent_rgb).
+  const uint16_t* rgb16 =
+      memo_.half_color(s_.draw_states ? transparent_rgb(*w.draw, w.f->rgb, w.f->alpha) : w.f->rgb);
   uint64_t wrote = 0;
   uint32_t examined = w.m;
   PixelRef px = w.px;
@@ -272,7 +302,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
       c_.samples_written += uint64_t(__builtin_popcountll(w.slab.mask));
       c_.layer_bytes_written += s_.slab_bytes;  // the pixel's layers, rewritten
     }
-    w.written = 0;
+    w.written = w.depth_written = 0;
     return 1;
   } else if constexpr (selection_of(M) == Method::kLk) {  // lines 10-17: alpha >= reference, in sort order
     const uint64_t a = memo_.fixed_alpha(w.f->alpha);
@@ -327,10 +357,51 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   c_.depth_bytes_written += kDepthSampleBytes * n;
   if constexpr (kColor) c_.color_bytes_written += kColorSampleBytes * n;
   w.written = wrote;
+  w.depth_written = wrote;
   return examined;
 }
 
-inline uint32_t WriteStage::run(FragWork& w) { ROPSIM_DISPATCH(run_as) }
+inline uint32_t WriteStage::run_routed(FragWork& w) {
+  const DrawState& d = *w.draw;
+  const Fragment& f = *w.f;
+  // An opaque draw's fragment is opaque: alpha 1.
+  const float src[4] = {f.rgb[0], f.rgb[1], f.rgb[2], w.route == DrawRoute::kOpaque ? 1.0f : f.alpha};
+  const bool zw = draw_writes_depth(d), reads = draw_reads_colour(d);
+  PixelRef px = w.px;
+  uint16_t replace[3];
+  if (!reads) {  // every channel replaced: one value for every sample
+    replace[0] = replace[1] = replace[2] = 0;
+    colour_buffer_blend(d, src, replace);
+  }
+  for (uint64_t s = w.survivors; s; s &= s - 1) {
+    const int i = __builtin_ctzll(s);
+    uint16_t* c = px.rgb + 3 * i;
+    if (reads) {
+      colour_buffer_blend(d, src, c);
+    } else {
+      c[0] = replace[0];
+      c[1] = replace[1];
+      c[2] = replace[2];
+    }
+    if (zw) px.depth[i] = w.z[i];
+  }
+  const uint32_t n = w.m, nz = zw ? n : 0;
+  w.written = w.survivors;
+  w.depth_written = zw ? w.survivors : 0;
+  c_.samples_written += n;
+  c_.depth_bytes_written += kDepthSampleBytes * nz;
+  c_.color_bytes_written += kColorSampleBytes * n;
+  if (reads) {  // a read-modify-write of the colour
+    c_.samples_blended += n;
+    c_.target_bytes_read += kColorSampleBytes * n;
+  }
+  return n;
+}
+
+inline uint32_t WriteStage::run(FragWork& w) {
+  if (w.route != DrawRoute::kMethod) return run_routed(w);
+  ROPSIM_DISPATCH(run_as)
+}
 
 namespace detail {
 /// The blend stage's multiplicative blend for one transmittance format: each
@@ -345,10 +416,10 @@ inline void multiply_survivors(const FragWork& w, int spp) {
 /// its weight w(z, alpha). Everything per fragment is read once, before the
 /// loop (the targets are bytes, which the compiler must assume alias it).
 template <TargetFormat AF, bool kWeighted>
-inline void add_survivors(const FragWork& w) {
+inline void add_survivors(const FragWork& w, const std::array<float, 3>& rgb) {
   constexpr uint32_t ab = sample_bytes(AF);
   const Fragment& f = *w.f;
-  const float a = f.alpha, r = f.rgb[0], g = f.rgb[1], b = f.rgb[2];
+  const float a = f.alpha, r = rgb[0], g = rgb[1], b = rgb[2];
   uint8_t* const accum = w.px.accum;
   const float* const z = w.z;
   if constexpr (kWeighted) {
@@ -388,7 +459,7 @@ inline uint32_t BlendStage::run(FragWork& w) {
     w.written = w.survivors;
     w.depth_written = zw ? w.survivors : 0;
     c_.samples_blended += n;
-    c_.target_bytes_read += uint64_t(n) * 16;
+    if (draw_reads_colour(d)) c_.target_bytes_read += uint64_t(n) * 16;  // an opaque draw replaces it unread
     c_.target_bytes_written += uint64_t(n) * 16;
     const uint32_t nz = zw ? n : 0;
     c_.samples_written += nz;
@@ -407,14 +478,16 @@ inline uint32_t BlendStage::run(FragWork& w) {
   }
   if (accum) {
     const bool half_a = fmt.accum == TargetFormat::kRGBA16F, weighted = pass == PassKind::kWboit;
+    // A frame of draw states: the src-over draw's straight colour (transparent_rgb).
+    const std::array<float, 3> rgb = s_.draw_states ? transparent_rgb(*w.draw, w.f->rgb, w.f->alpha) : w.f->rgb;
     if (half_a && weighted)
-      detail::add_survivors<TargetFormat::kRGBA16F, true>(w);
+      detail::add_survivors<TargetFormat::kRGBA16F, true>(w, rgb);
     else if (half_a)
-      detail::add_survivors<TargetFormat::kRGBA16F, false>(w);
+      detail::add_survivors<TargetFormat::kRGBA16F, false>(w, rgb);
     else if (weighted)
-      detail::add_survivors<TargetFormat::kRGBA32F, true>(w);
+      detail::add_survivors<TargetFormat::kRGBA32F, true>(w, rgb);
     else
-      detail::add_survivors<TargetFormat::kRGBA32F, false>(w);
+      detail::add_survivors<TargetFormat::kRGBA32F, false>(w, rgb);
   }
   const uint32_t n = w.m;
   c_.samples_blended += n;

@@ -49,6 +49,14 @@ class Image {
   std::vector<float> dense() const;
 
   const std::array<float, 3>& background() const { return background_; }
+  /// Replaces every value v, the background's and every held pixel's, by f(v).
+  template <class F>
+  void transform(F&& f) {
+    for (float& v : background_) v = f(v);
+    tiles_.for_each([&f](uint32_t, uint32_t, const Tile& t) {
+      for (float& v : const_cast<Tile&>(t).rgb) v = f(v);  // this image's own tile
+    });
+  }
   size_t tiles() const { return tiles_.tiles(); }
   /// Memory held by the pixels: the tiles and their directory.
   size_t bytes() const { return tiles_.tiles() * sizeof(Tile) + tiles_.directory_bytes(); }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "depth.h"
+#include "framebuffer_blend.h"
 #include "half.h"
 #include "numerics.h"
 
@@ -18,7 +19,8 @@ SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, const StoreTar
       targets_(targets),
       tiles_(h.width, h.height),
       clear_depth_(canonical_depth(h.clear_depth)) {
-  for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(h.clear_color[c]);
+  const std::array<float, 3> clear = colour_buffer_clear(frame_encoding(h.draws), h.clear_color);
+  for (int c = 0; c < 3; ++c) clear_rgb16_[c] = float_to_half(clear[size_t(c)]);
   // The block: the header, then each buffer from a cache line.
   const size_t n = size_t(64) * size_t(h.spp);
   size_t at = sizeof(SampleTile);
@@ -195,7 +197,8 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
   const int spp = h.spp;
   const float clear_z = canonical_depth(h.clear_depth);
   uint16_t clear_c[3];
-  for (int c = 0; c < 3; ++c) clear_c[c] = float_to_half(h.clear_color[c]);
+  const std::array<float, 3> clear = colour_buffer_clear(frame_encoding(h.draws), h.clear_color);
+  for (int c = 0; c < 3; ++c) clear_c[c] = float_to_half(clear[size_t(c)]);
   std::ostringstream os;
   auto check_tile = [&](uint32_t x0, uint32_t y0) -> bool {
     for (int p = 0; p < 64; ++p) {

@@ -9,6 +9,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "composite.h"
+#include "depth.h"
+#include "half.h"
 #include "host_threads.h"
 
 namespace ropsim {
@@ -205,9 +208,35 @@ MethodConfig reference_config() {
 ReferenceModel::ReferenceModel(const TraceHeader& h)
     : FunctionalModel(h), setup_(h, reference_config()), heads_(h.width, h.height) {
   mem_.add(heads_.directory_bytes(), "the A-buffer reference's tile directory");
+  if (setup_.routed) {
+    MethodConfig c;
+    c.method = Method::kOpaque;
+    base_ = std::make_unique<FunctionalRop>(h, c);
+  }
+}
+
+ReferenceModel::~ReferenceModel() = default;
+
+Counters ReferenceModel::counters() const {
+  Counters c = counters_;
+  if (base_) c += base_->counters();
+  return c;
 }
 
 void ReferenceModel::draw(const Fragment& f) {
+  std::array<float, 3> rgb = f.rgb;
+  if (setup_.draw_states) {
+    const DrawState& d = header_.draws.at(f.draw_id);
+    const DrawKind k = draw_kind(d);
+    ++kinds_[size_t(k)];
+    if (route_of(k) != DrawRoute::kMethod) {  // the colour and depth buffer's, in submission order
+      FragWork w;
+      w.f = &f;
+      base_->process(w);
+      return;
+    }
+    rgb = transparent_rgb(d, f.rgb, f.alpha);
+  }
   ++counters_.fragments;
   const int covered = __builtin_popcountll(f.coverage);
   counters_.samples_tested += covered;
@@ -221,7 +250,7 @@ void ReferenceModel::draw(const Fragment& f) {
   Entry e;
   e.coverage = f.coverage;
   e.z_offset = z_.size();
-  e.rgb = f.rgb;
+  e.rgb = rgb;
   e.alpha = f.alpha;
   e.seq = head < 0 ? 0 : entries_[size_t(head)].seq + 1;
   e.next = head;
@@ -236,7 +265,11 @@ void ReferenceModel::draw(const Fragment& f) {
 }
 
 Image ReferenceModel::resolve() const {
-  Image img(header_.width, header_.height, {header_.clear_color[0], header_.clear_color[1], header_.clear_color[2]});
+  // Pixels without src-over fragments: the colour buffer's box filter (the
+  // clear colour without opaque and blended draws).
+  const std::array<float, 3> clear = colour_buffer_clear(setup_.encoding, header_.clear_color);
+  Image img = base_ ? base_->store().resolve() : Image(header_.width, header_.height, clear);
+  const float clear_z = canonical_depth(header_.clear_depth);
   const int spp = header_.spp;
   struct Layer {
     float z;
@@ -254,8 +287,19 @@ Image ReferenceModel::resolve() const {
         for (uint64_t m = e.coverage; m; m &= m - 1) layers[__builtin_ctzll(m)].push_back(Layer{z_[k++], e.seq, &e});
       }
       double sum[3] = {0, 0, 0};
+      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+      const PixelView bv = base_ ? base_->store().view(x, y) : PixelView{};
       for (int s = 0; s < spp; ++s) {
         auto& L = layers[s];
+        // Behind the colour buffer's depth: hidden, as the methods' depth test
+        // (LESS_EQUAL) hides it.
+        double bg[3] = {clear[0], clear[1], clear[2]};
+        if (base_) {
+          const float zb = bv.depth ? bv.depth[s] : clear_z;
+          L.erase(std::remove_if(L.begin(), L.end(), [zb](const Layer& l) { return !(l.z <= zb); }), L.end());
+          if (bv.rgb)
+            for (int ch = 0; ch < 3; ++ch) bg[ch] = half_to_float(bv.rgb[3 * s + ch]);
+        }
         // Nearest first; at equal depth the later fragment is in front, as the
         // LESS_EQUAL depth test of the stochastic methods decides.
         std::sort(L.begin(), L.end(),
@@ -267,18 +311,19 @@ Image ReferenceModel::resolve() const {
           trans *= 1.0 - a;
           if (trans == 0.0) break;
         }
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch] + trans * header_.clear_color[ch];
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch] + trans * bg[ch];
       }
-      float* o = img.at(x0 + (p & 7), y0 + (p >> 3));
+      float* o = img.at(x, y);
       for (int ch = 0; ch < 3; ++ch) o[ch] = float(sum[ch] / spp);
     }
   });
+  encode_resolved(img, setup_.encoding);
   return img;
 }
 
 size_t ReferenceModel::state_bytes() const {
   return entries_.capacity() * sizeof(Entry) + z_.capacity() * sizeof(float) + heads_.tiles() * sizeof(HeadTile) +
-         heads_.directory_bytes();
+         heads_.directory_bytes() + (base_ ? base_->store().state_bytes() : 0);
 }
 
 std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg, int threads) {

@@ -41,6 +41,9 @@ class FunctionalModel {
   virtual size_t state_bytes() const = 0;
   /// Event counts so far.
   virtual Counters counters() const = 0;
+  /// Fragments so far by their draw's kind (all zero for a trace without
+  /// draw states).
+  virtual DrawKindCounts kind_fragments() const = 0;
   const TraceHeader& header() const { return header_; }
 
  protected:
@@ -71,6 +74,7 @@ class StochasticModel : public FunctionalModel {
   Image resolve() const override { return merged().resolve(); }
   size_t state_bytes() const override { return merged().store().state_bytes(); }
   Counters counters() const override;
+  DrawKindCounts kind_fragments() const override { return merged().depth().kind_fragments(); }
   /// The full per-sample state (depth, colour, tracker).
   const SampleStore& store() const { return merged().store(); }
   /// Read-only view of one pixel's state; all pointers null if the pixel's
@@ -122,20 +126,29 @@ class StochasticModel : public FunctionalModel {
 };
 
 /// Ground truth: an A-buffer keeping every fragment of every sample, sorted by
-/// depth and composited with the over operator at resolve.
+/// depth and composited with the over operator at resolve. On a frame of
+/// draw states the A-buffer holds the src-over draws' fragments; the opaque
+/// and blended draws go into a colour and depth buffer in submission order,
+/// each with its own state, as every method's opaque and blended draws do
+/// (the opaque method's ROP runs them), and the sorted fragments in front of
+/// its depth are composited over its colour (docs/methods.md).
 class ReferenceModel : public FunctionalModel {
  public:
   explicit ReferenceModel(const TraceHeader& h);
+  ~ReferenceModel() override;
   void draw(const Fragment& f) override;
   Image resolve() const override;
   size_t state_bytes() const override;
-  Counters counters() const override { return counters_; }
+  Counters counters() const override;
+  DrawKindCounts kind_fragments() const override { return kinds_; }
   /// The least state one fragment adds (its list entry and one depth).
   static constexpr size_t kBytesPerFragmentAtLeast = 48 + sizeof(float);
 
  private:
   Counters counters_;
   RopSetup setup_;  // the per-sample depths
+  std::unique_ptr<FunctionalRop> base_;  // the opaque and blended draws (a frame with some)
+  DrawKindCounts kinds_{};
   struct Entry {
     uint64_t coverage;
     size_t z_offset;  // into z_, popcount(coverage) depths in sample order

@@ -51,6 +51,22 @@ inline constexpr TargetEncoding kLastTargetEncoding = TargetEncoding::kFloat;
 ///   every method applies it as the `blend` method does.
 enum class DrawKind : uint8_t { kOpaque, kSrcOver, kPremultipliedOver, kAdditive, kOther };
 inline constexpr int kDrawKinds = 5;
+/// A count per draw kind, in DrawKind order.
+using DrawKindCounts = std::array<uint64_t, kDrawKinds>;
+
+/// Which path of a transparency method a draw's fragments take
+/// (docs/methods.md "Methods on a frame of draw states"):
+/// - kMethod: the method's own transparency (src-over and premultiplied
+///   src-over draws, and every draw of a trace without draw states);
+/// - kOpaque: a z-buffer write with the draw's own depth state (blending off);
+/// - kBlend: the draw's blend applied to the stored colour, with its own depth
+///   state, as `blend` applies it (additive and other blends).
+enum class DrawRoute : uint8_t { kMethod, kOpaque, kBlend };
+constexpr DrawRoute route_of(DrawKind k) {
+  return k == DrawKind::kOpaque ? DrawRoute::kOpaque
+         : k == DrawKind::kSrcOver || k == DrawKind::kPremultipliedOver ? DrawRoute::kMethod
+                                                                         : DrawRoute::kBlend;
+}
 const char* to_string(DrawKind k);
 const char* to_string(BlendFactor f);
 const char* to_string(BlendEquation e);

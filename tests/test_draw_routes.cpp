@@ -1,0 +1,257 @@
+// Every method on a frame of draw states (docs/methods.md "Methods on a frame
+// of draw states"): opaque draws are a z-buffer's writes with their own depth
+// state, additive and other blends are applied to the colour as `blend`
+// applies them, src-over draws (premultiplied ones un-premultiplied) are the
+// method's; the reference composites the src-over fragments over the colour
+// buffer of the rest. Each test states what it checks against.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "composite.h"
+#include "framebuffer_blend.h"
+#include "golden_model.h"
+#include "sample_patterns.h"
+
+using namespace ropsim;
+
+namespace {
+
+TraceHeader header(uint32_t w, uint32_t h, int spp, std::vector<DrawState> draws) {
+  TraceHeader hd;
+  hd.width = w;
+  hd.height = h;
+  hd.spp = spp;
+  hd.positions = standard_sample_positions(spp);
+  hd.clear_color = {0.2f, 0.3f, 0.4f};
+  hd.draws = DrawTable(std::move(draws));
+  return hd;
+}
+
+uint64_t all_samples(int spp) { return spp == 64 ? ~0ull : (1ull << spp) - 1; }
+
+Fragment frag(uint32_t draw, uint32_t x, uint32_t y, float z, std::array<float, 4> rgba, uint64_t coverage) {
+  Fragment f;
+  f.draw_id = draw;
+  f.x = uint16_t(x);
+  f.y = uint16_t(y);
+  f.coverage = coverage;
+  f.z0 = z;
+  f.rgb = {rgba[0], rgba[1], rgba[2]};
+  f.alpha = rgba[3];
+  return f;
+}
+
+/// A rectangle of fragments [x0, x1) x [y0, y1) of one draw, every sample covered.
+void rect(std::vector<Fragment>& out, uint32_t draw, uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1, float z,
+          std::array<float, 4> rgba, int spp) {
+  for (uint32_t y = y0; y < y1; ++y)
+    for (uint32_t x = x0; x < x1; ++x) out.push_back(frag(draw, x, y, z, rgba, all_samples(spp)));
+}
+
+DrawState opaque_draw(uint32_t id, TargetEncoding e, DepthFunc f = DepthFunc::kLess, bool write = true) {
+  DrawState s = default_draw_state(id);
+  s.blend = false;
+  s.depth_test = true;
+  s.depth_func = f;
+  s.depth_write = write;
+  s.encoding = e;
+  return s;
+}
+
+DrawState blended_draw(uint32_t id, TargetEncoding e, BlendFactor src, BlendFactor dst) {
+  DrawState s = default_draw_state(id);
+  s.src_rgb = s.src_alpha = src;
+  s.dst_rgb = s.dst_alpha = dst;
+  s.depth_func = DepthFunc::kLequal;
+  s.encoding = e;
+  return s;
+}
+
+DrawState src_over(uint32_t id, TargetEncoding e, bool premultiplied = false) {
+  DrawState s = default_draw_state(id);
+  if (premultiplied) s.src_rgb = BlendFactor::kOne;
+  s.encoding = e;
+  return s;
+}
+
+GoldenConfig config(Method m) {
+  GoldenConfig c;
+  c.method = m;
+  return c;
+}
+
+std::unique_ptr<FunctionalModel> run(const TraceHeader& h, const std::vector<Fragment>& frags, Method m) {
+  auto model = make_functional_model(h, config(m), 1);
+  for (int p = 0; p < model->passes(); ++p) {
+    model->begin_pass(p);
+    for (const Fragment& f : frags) model->draw(f);
+  }
+  return model;
+}
+
+/// The methods with per-sample colour and one pass: they run every draw kind.
+const std::vector<Method> kSinglePass = {Method::kLk,     Method::kEnderton,  Method::kNaive, Method::kA2c,
+                                         Method::kHashed, Method::kHashedA2c, Method::kOpaque};
+
+/// An 8 x 8 unorm8 frame of opaque draws with several depth states, an
+/// additive and a multiplying draw: no src-over draw.
+std::vector<Fragment> opaque_frame(TraceHeader& h, int spp) {
+  const TargetEncoding e = TargetEncoding::kUnorm8;
+  h = header(8, 8, spp,
+             {opaque_draw(0, e), opaque_draw(1, e), opaque_draw(2, e, DepthFunc::kAlways, false),
+              blended_draw(3, e, BlendFactor::kOne, BlendFactor::kOne),
+              blended_draw(4, e, BlendFactor::kDstColor, BlendFactor::kZero), opaque_draw(5, e, DepthFunc::kGequal)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 8, 8, 0.6f, {0.8f, 0.1f, 0.1f, 0.3f}, spp);     // background
+  rect(f, 1, 2, 2, 6, 6, 0.3f, {0.1f, 0.7f, 0.2f, 0.5f}, spp);     // nearer: wins
+  rect(f, 1, 0, 0, 3, 3, 0.9f, {1.0f, 1.0f, 1.0f, 1.0f}, spp);     // farther: hidden
+  rect(f, 2, 6, 0, 8, 8, 0.95f, {0.9f, 0.9f, 0.0f, 1.0f}, spp);    // depth test ALWAYS, no write: on top
+  rect(f, 3, 1, 1, 7, 4, 0.2f, {0.25f, 0.125f, 0.5f, 0.4f}, spp);  // additive
+  rect(f, 4, 3, 3, 8, 8, 0.1f, {0.5f, 1.0f, 0.75f, 1.0f}, spp);    // multiply
+  rect(f, 5, 0, 6, 4, 8, 0.7f, {0.0f, 0.3f, 0.9f, 1.0f}, spp);     // GEQUAL: the farther wins
+  return f;
+}
+
+void expect_same_image(const Image& a, const Image& b, const std::string& what) {
+  ASSERT_EQ(a.width, b.width);
+  int differ = 0;
+  for (uint32_t y = 0; y < a.height; ++y)
+    for (uint32_t x = 0; x < a.width; ++x)
+      for (int c = 0; c < 3; ++c)
+        if (a.at(x, y)[c] != b.at(x, y)[c] && ++differ <= 3)
+          ADD_FAILURE() << what << ": pixel (" << x << ", " << y << ") channel " << c << ": " << a.at(x, y)[c]
+                        << " vs blend's " << b.at(x, y)[c];
+  EXPECT_EQ(differ, 0) << what;
+}
+
+}  // namespace
+
+TEST(DrawRoutes, AFrameWithoutSrcOverDrawsIsBlendsFrameForEveryMethod) {
+  // Without src-over draws nothing is order-dependent transparency: every
+  // method (and the A-buffer reference) must produce blend's frame exactly:
+  // the same 8-bit codes, decoded the same way.
+  for (int spp : {1, 4, 16}) {
+    TraceHeader h;
+    const std::vector<Fragment> f = opaque_frame(h, spp);
+    const Image want = run(h, f, Method::kBlend)->resolve();
+    std::vector<Method> methods = kSinglePass;
+    methods.push_back(Method::kReference);
+    for (Method m : methods) expect_same_image(run(h, f, m)->resolve(), want, std::string(to_string(m)) + " at " +
+                                                                              std::to_string(spp) + " spp");
+  }
+}
+
+TEST(DrawRoutes, OpaqueAndBlendedDrawsCostLkWhatTheyCostAZBuffer) {
+  // lk's opaque and blended draws bypass the tracker, the sorter and the
+  // reference generator: every counter equals the plain z-buffer's (the
+  // opaque method) on the same frame.
+  TraceHeader h;
+  const std::vector<Fragment> f = opaque_frame(h, 16);
+  const Counters lk = run(h, f, Method::kLk)->counters(), zb = run(h, f, Method::kOpaque)->counters();
+  std::vector<uint64_t> a, b;
+  lk.for_each([&](const char*, uint64_t v) { a.push_back(v); });
+  zb.for_each([&](const char*, uint64_t v) { b.push_back(v); });
+  EXPECT_EQ(a, b) << "lk's counters on a frame without src-over draws differ from a z-buffer's";
+  EXPECT_EQ(lk.tracker_bytes_read, 0u);
+  EXPECT_EQ(lk.sorts, 0u);
+  // The blended draws read the colour they blend into, the opaque ones do not:
+  // 6 bytes per blended sample (draws 3 and 4: 18 and 25 fragments, 16 spp,
+  // each wholly visible in front of the opaque draws).
+  EXPECT_EQ(lk.samples_blended, (18u + 25u) * 16u);
+  EXPECT_EQ(lk.target_bytes_read, (18u + 25u) * 16u * kColorSampleBytes);
+}
+
+TEST(DrawRoutes, FragmentsAreCountedByTheirDrawsKind) {
+  TraceHeader h;
+  std::vector<Fragment> f = opaque_frame(h, 4);
+  std::vector<DrawState> draws = h.draws.states();
+  draws.push_back(src_over(6, TargetEncoding::kUnorm8));
+  draws.push_back(src_over(7, TargetEncoding::kUnorm8, true));
+  h.draws = DrawTable(draws);
+  rect(f, 6, 0, 0, 2, 1, 0.05f, {1, 0, 0, 0.5f}, 4);
+  rect(f, 7, 0, 0, 3, 1, 0.05f, {0.5f, 0, 0, 0.5f}, 4);
+  // Opaque: draws 0, 1, 2, 5 (64 + 16 + 9 + 16 + 8); additive: 18; other: 25.
+  const DrawKindCounts want = {113, 2, 3, 18, 25};
+  for (Method m : {Method::kLk, Method::kBlend, Method::kReference})
+    EXPECT_EQ(run(h, f, m)->kind_fragments(), want) << to_string(m);
+}
+
+TEST(DrawRoutes, SrcOverOverAnOpaqueDrawMatchesTheReference) {
+  // An opaque draw, then a src-over draw at alpha 1/2 in front of it and one
+  // behind it. lk's stratification keeps exactly half of each pixel's 16
+  // samples, so its image is the over composite (the reference's) to the
+  // binary16 rounding of the colour buffer; the draw behind is hidden in both.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  const TraceHeader h = header(4, 4, 16, {opaque_draw(0, e), src_over(1, e), src_over(2, e)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 4, 4, 0.5f, {0.2f, 0.4f, 0.8f, 0.25f}, 16);  // the opaque draw's alpha is ignored: it is 1
+  rect(f, 1, 0, 0, 4, 4, 0.3f, {1.0f, 0.5f, 0.0f, 0.5f}, 16);
+  rect(f, 2, 0, 0, 4, 4, 0.7f, {0.0f, 1.0f, 1.0f, 0.5f}, 16);  // behind the opaque draw
+  const Image ref = run(h, f, Method::kReference)->resolve(), lk = run(h, f, Method::kLk)->resolve();
+  const float want[3] = {0.5f * 1.0f + 0.5f * 0.2f, 0.5f * 0.5f + 0.5f * 0.4f, 0.5f * 0.8f};
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(ref.at(1, 1)[c], want[c], 1e-3) << "reference channel " << c;
+    EXPECT_NEAR(lk.at(1, 1)[c], want[c], 1e-3) << "lk channel " << c;
+  }
+}
+
+TEST(DrawRoutes, PremultipliedSrcOverIsSrcOverOfTheStraightColour) {
+  // ONE, ONE_MINUS_SRC_ALPHA with colour c a is src-over of colour c: every
+  // method sees the straight colour, to float rounding of c a / a.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  for (Method m : {Method::kLk, Method::kWboit, Method::kReference, Method::kBlend}) {
+    Image img[2];
+    for (int premultiplied = 0; premultiplied < 2; ++premultiplied) {
+      const TraceHeader h = header(2, 2, 8, {src_over(0, e, premultiplied)});
+      const float a = 0.375f;
+      const std::array<float, 4> c = premultiplied ? std::array<float, 4>{0.9f * a, 0.6f * a, 0.3f * a, a}
+                                                   : std::array<float, 4>{0.9f, 0.6f, 0.3f, a};
+      std::vector<Fragment> f;
+      rect(f, 0, 0, 0, 2, 2, 0.5f, c, 8);
+      img[premultiplied] = run(h, f, m)->resolve();
+    }
+    for (int ch = 0; ch < 3; ++ch)
+      EXPECT_NEAR(img[1].at(0, 0)[ch], img[0].at(0, 0)[ch], 1e-5) << to_string(m) << " channel " << ch;
+  }
+}
+
+TEST(DrawRoutes, AnAdditiveDrawIsAddedWhereverItPassesTheDepthTest) {
+  // Additive particles over an opaque draw, half of them behind it: lk adds
+  // them where they are in front, exactly as blend does (a float target:
+  // to binary16 rounding), and nowhere else.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  const TraceHeader h =
+      header(4, 1, 4, {opaque_draw(0, e), blended_draw(1, e, BlendFactor::kSrcAlpha, BlendFactor::kOne)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 4, 1, 0.5f, {0.25f, 0.25f, 0.25f, 1}, 4);
+  rect(f, 1, 0, 0, 2, 1, 0.4f, {0.5f, 0.25f, 1.0f, 0.5f}, 4);  // in front
+  rect(f, 1, 2, 0, 4, 1, 0.6f, {0.5f, 0.25f, 1.0f, 0.5f}, 4);  // behind
+  const Image lk = run(h, f, Method::kLk)->resolve(), bl = run(h, f, Method::kBlend)->resolve();
+  const float front[3] = {0.25f + 0.25f, 0.25f + 0.125f, 0.25f + 0.5f};
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(bl.at(0, 0)[c], front[c], 1e-6) << "blend, in front, channel " << c;
+    EXPECT_NEAR(lk.at(0, 0)[c], front[c], 1e-3) << "lk, in front, channel " << c;
+    EXPECT_NEAR(lk.at(3, 0)[c], 0.25f, 1e-3) << "lk, behind, channel " << c;
+  }
+}
+
+TEST(DrawRoutes, MethodsWithoutPerSampleColourRefuseOpaqueDraws) {
+  // The composite methods resolve over the clear colour and slab keeps
+  // layers: they run frames of src-over draws only, and say which draw is not.
+  const TargetEncoding e = TargetEncoding::kUnorm8;
+  const TraceHeader h = header(2, 2, 4, {src_over(0, e), opaque_draw(7, e)});
+  for (Method m : {Method::kWboit, Method::kLkAc, Method::kLkDepth, Method::kEndertonDepthAc, Method::kSlab}) {
+    try {
+      run(h, {}, m);
+      ADD_FAILURE() << to_string(m) << " ran a frame with an opaque draw";
+    } catch (const std::invalid_argument& err) {
+      EXPECT_NE(std::string(err.what()).find("draw 7 is opaque"), std::string::npos) << err.what();
+    }
+  }
+  // A frame of src-over draws only runs.
+  EXPECT_NO_THROW(run(header(2, 2, 4, {src_over(0, e), src_over(1, e, true)}), {}, Method::kWboit));
+}
