@@ -585,6 +585,48 @@ std::map<std::tuple<uint32_t, uint32_t, uint32_t>, uint64_t> coverage_of(const C
 // The cloth mesh at 64 x 64, drawn by gl_mesh through Mesa and captured by
 // ropsim capture gl, against `ropsim capture` of the same scene: at 16 and 64
 // spp, >= 99.9 % of the samples either covers (per primitive and pixel) agree.
+// glmark2's build scene draws one opaque model (blending off, depth test
+// LESS, writing): without src-over draws, every per-sample method and the
+// A-buffer reference must write blend's PNG byte for byte (docs/methods.md
+// "Methods on a frame of draw states"), lk's opaque draw bypasses its tracker
+// and the report counts the draw's fragments as opaque; a composite method
+// refuses the frame in one line, writing nothing.
+TEST(CaptureGl, AnOpaqueFrameIsBlendsFrameForEveryPerSampleMethod) {
+  ROPSIM_NEEDS_LIBRARY();
+  ASSERT_FALSE(ropsim::find_executable("glmark2").empty())
+      << "glmark2 not found: install glmark2-x11 (scripts/deps.sh)";
+  Sandbox box;
+  const Result c = box.run(
+      "capture gl --frame 3 --spp 4 --width 128 --height 128 -o build.trace -- glmark2 --size 128x128 -b "
+      "build:duration=0.5",
+      kLib);
+  ASSERT_EQ(c.code, 0) << c.describe();
+  const Captured t = read_trace(box.path("build.trace"));
+  ASSERT_FALSE(t.header.draws.empty());
+  for (const auto& d : t.header.draws.states())
+    EXPECT_EQ(ropsim::draw_kind(d), ropsim::DrawKind::kOpaque) << "draw " << d.draw_id;
+  const Result blend = box.run("run --trace build.trace --method blend --quiet -o blend.png");
+  ASSERT_EQ(blend.code, 0) << blend.describe();
+  const std::string want = slurp(box.path("blend.png"));
+  for (const char* m : {"lk", "opaque", "enderton", "hashed-a2c", "reference"}) {
+    const Result r = box.run(std::string("run --trace build.trace --method ") + m + " --quiet -o " + m +
+                             ".png --report " + m + ".json");
+    ASSERT_EQ(r.code, 0) << m << ": " << r.describe();
+    EXPECT_TRUE(slurp(box.path(std::string(m) + ".png")) == want) << m << "'s PNG differs from blend's";
+    const json rep = json::parse(slurp(box.path(std::string(m) + ".json")));
+    EXPECT_EQ(rep.at("draw_kinds").at("opaque").get<uint64_t>(), t.fragments.size()) << m;
+    if (std::string(m) == "lk") {
+      EXPECT_EQ(rep.at("counters").at("tracker_bytes_read").get<uint64_t>(), 0u) << "an opaque draw has no tracker";
+      EXPECT_EQ(rep.at("counters").at("sorts").get<uint64_t>(), 0u);
+    }
+  }
+  const Result w = box.run("run --trace build.trace --method wboit --quiet -o wboit.png");
+  EXPECT_EQ(w.code, 1) << w.describe();
+  EXPECT_NE(w.err.find("draw 0 is opaque"), std::string::npos) << w.err;
+  EXPECT_EQ(std::count(w.err.begin(), w.err.end(), '\n'), 1) << w.err;
+  EXPECT_FALSE(fs::exists(box.path("wboit.png")));
+}
+
 TEST(CaptureGl, CoverageAgreesWithRopsimsRasterizer) {
   ROPSIM_NEEDS_LIBRARY();
   Sandbox box;

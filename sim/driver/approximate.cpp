@@ -551,6 +551,8 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   const auto t0 = std::chrono::steady_clock::now();
   ApproxRun run;
   std::unique_ptr<FragmentSource> src = open_fragments(in);
+  if (const std::string why = draw_state_refusal(src->header(), method.method); !why.empty())
+    throw UserError(in.describe() + ": " + why);
   run.header = src->header();
   // The tag-only model's structures, charged before any is built (memory_estimate.h).
   const MemoryEstimate estimate = estimate_memory(
@@ -668,6 +670,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
        std::max(double(s.dram_service_cycles), s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
   s.bottleneck = classify_bottleneck(std::move(bounds), double(s.total_cycles));
   run.counters = rop->counters();
+  run.kind_fragments = rop->depth().kind_fragments();
   run.image = rop->resolve();
   run.state_bytes = rop->store().state_bytes();
   run.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

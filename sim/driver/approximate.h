@@ -79,6 +79,7 @@ struct ApproxStats {
 struct ApproxRun {
   TraceHeader header;
   Counters counters;
+  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
   Image image;
   ApproxStats stats;
   size_t state_bytes = 0;

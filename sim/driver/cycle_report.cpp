@@ -19,6 +19,7 @@ FunctionalRun as_functional(const Run& run, const std::optional<Image>& referenc
   FunctionalRun f;
   f.header = run.header;
   f.counters = run.counters;
+  f.kind_fragments = run.kind_fragments;
   f.image = run.image;
   f.state_bytes = run.state_bytes;
   f.wall_seconds = run.wall_seconds;
@@ -389,7 +390,8 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
            run.sim_seconds > 0 ? double(run.counters.fragments) / run.sim_seconds : 0.0, "1/s",
            "cycle: fragments over sim_seconds");
   if (run.breakdown && run.breakdown->per_draw())
-    put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab,
+    put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method) || !run.header.draws.empty(),
+              ctx.config.method == Method::kSlab,
               run.stats.listed);
   return j;
 }
@@ -546,6 +548,12 @@ std::vector<FieldDoc> report_field_docs() {
     functional_report(cc, run_functional(in, mc, false), &sink);
   }
   functional_report(ctx, f, &sink);
+  {  // a frame of draw states: its draw kinds (the fields do not depend on the values)
+    FunctionalRun d = run_functional(in, m, false);
+    d.header.draws = DrawTable({default_draw_state(0)});
+    d.kind_fragments[size_t(DrawKind::kSrcOver)] = d.counters.fragments;
+    functional_report(ctx, d, &sink);
+  }
   CycleOptions with_draws;
   with_draws.breakdown.per_draw = true;
   const CycleRun c = run_cycle(in, m, HwConfig{}, with_draws);

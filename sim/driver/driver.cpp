@@ -29,6 +29,8 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   FunctionalRun run;
   auto src = open_fragments(in);
   run.header = src->header();
+  if (const std::string why = draw_state_refusal(run.header, cfg.method); !why.empty())
+    throw UserError(in.describe() + ": " + why);
   if (with_reference || cfg.method == Method::kReference) check_reference_estimate(*src);
   std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg, threads), ref;
   if (with_reference && cfg.method != Method::kReference) {
@@ -80,6 +82,7 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   progress.finish();
   run.image = model->resolve();
   run.counters = model->counters();
+  run.kind_fragments = model->kind_fragments();
   run.state_bytes = model->state_bytes();
   if (auto* sm = dynamic_cast<const StochasticModel*>(model.get())) run.threads = sm->threads();
   if (ref) run.reference = ref->resolve();

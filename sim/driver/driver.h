@@ -24,6 +24,7 @@ FragmentList load_fragments(const InputSpec& in);
 struct FunctionalRun {
   TraceHeader header;
   Counters counters;
+  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
   Image image;
   size_t state_bytes = 0;
   int threads = 1;                          ///< host threads of the model

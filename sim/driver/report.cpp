@@ -1,5 +1,7 @@
 #include "report.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include <cerrno>
@@ -130,7 +132,26 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
   }
   put_numerics(r.obj("numerics"), ctx.config.numerics);
   put_silicon(r.obj("silicon"), ctx, run.header);
-  put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
+  // A frame of draw states: its blended draws' counts, whatever the method.
+  const bool draw_states = !run.header.draws.empty();
+  put_counters(r.obj("counters"), run.counters, has_blend_pass(ctx.config.method) || draw_states,
+               ctx.config.method == Method::kSlab);
+  uint64_t kinds = 0;
+  for (uint64_t n : run.kind_fragments) kinds += n;
+  if (draw_states && kinds > 0) {  // (a sampled run's library does not keep them)
+    Fields k = r.obj("draw_kinds");
+    for (int i = 0; i < kDrawKinds; ++i) {
+      const DrawKind dk = DrawKind(i);
+      const char* path = dk == DrawKind::kOpaque ? "z-buffer writes with the draw's own depth state (blend: written)"
+                         : route_of(dk) == DrawRoute::kMethod
+                             ? "the method's transparency (blend: blended)"
+                             : "blended into the colour with the draw's own state, as blend does";
+      std::string key = to_string(dk);
+      std::replace(key.begin(), key.end(), '-', '_');
+      k.put(key, run.kind_fragments[size_t(i)], "fragments",
+            std::string("a frame of draw states: fragments of ") + to_string(dk) + " draws: " + path);
+    }
+  }
   if (has_blend_pass(ctx.config.method)) {
     const PassList pl = passes_of(ctx.config.method);
     std::vector<std::string> names;
@@ -174,7 +195,8 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
           "mean signed error against the reference (image minus reference): a systematic darkening or brightening");
   }
   if (run.breakdown && run.breakdown->per_draw())
-    put_draws(r, *run.breakdown, false, has_blend_pass(ctx.config.method), ctx.config.method == Method::kSlab);
+    put_draws(r, *run.breakdown, false, has_blend_pass(ctx.config.method) || !run.header.draws.empty(),
+              ctx.config.method == Method::kSlab);
   r.put("outputs", ctx.outputs, "-", "files written");
   return j;
 }

@@ -62,6 +62,29 @@ Image composite(const SampleStore& store, Method m) {
 }
 
 
+Image colour_buffer_image(const SampleStore& store, TargetEncoding e) {
+  const TraceHeader& h = store.header();
+  const std::array<float, 3> clear = colour_buffer_clear(e, h.clear_color);
+  Image img(h.width, h.height, {resolved_light(e, clear[0]), resolved_light(e, clear[1]), resolved_light(e, clear[2])});
+  const int spp = h.spp;
+  store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
+    for (int p = 0; p < 64; ++p) {
+      const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
+      if (x >= img.width || y >= img.height) continue;
+      const PixelView v = store.view(x, y);
+      float samples[64 * 4], rgb[3];
+      for (int s = 0; s < spp; ++s) {
+        for (int c = 0; c < 3; ++c) samples[4 * s + c] = framebuffer_store(e, c, half_to_float(v.rgb[3 * s + c]));
+        samples[4 * s + 3] = 1.0f;
+      }
+      framebuffer_resolve_pixel(e, samples, spp, rgb);
+      float* o = img.at(x, y);
+      for (int c = 0; c < 3; ++c) o[c] = framebuffer_light(e, rgb[c]);
+    }
+  });
+  return img;
+}
+
 void encode_resolved(Image& img, TargetEncoding e) {
   if (e == TargetEncoding::kFloat) return;
   img.transform([e](float v) { return resolved_light(e, v); });

@@ -33,6 +33,13 @@ Image composite(const SampleStore& store, Method m);
 /// target's values are the image's.
 Image framebuffer_image(const SampleStore& store);
 
+/// The image of a per-sample method's colour buffer on a frame whose target
+/// has an 8-bit encoding e: each sample stored as the target stores it
+/// (framebuffer_store of its working value), the pixel resolved as blend
+/// resolves its framebuffer (framebuffer_resolve_pixel), as light; so equal
+/// samples give blend's image bit for bit. The clear colour where untouched.
+Image colour_buffer_image(const SampleStore& store, TargetEncoding e);
+
 /// A method's image from its colour buffer's working values (the box filter
 /// or the composite, framebuffer_blend.h) as the frame's target of encoding e
 /// holds it: each value resolved into that encoding, then as light

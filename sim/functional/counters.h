@@ -9,7 +9,8 @@
 namespace ropsim {
 
 // X(name, unit, meaning, scope): scope says which methods' reports list the
-// counter (CounterScope): every method, the methods with blend passes, or slab.
+// counter (CounterScope): every method, the methods with blend passes (and
+// every method on a frame of draw states), or slab.
 #define ROPSIM_COUNTERS(X)                                                                                          \
   X(fragments, "fragments", "fragments processed", kAll)                                                            \
   X(samples_tested, "samples", "covered samples of those fragments", kAll)                                          \
@@ -32,8 +33,14 @@ namespace ropsim {
   X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment", kAll)                        \
   X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample", kAll)                     \
   X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated", kAll)                                    \
-  X(samples_blended, "samples", "blend passes: samples blended into the render targets", kBlend)                    \
-  X(target_bytes_read, "bytes", "blend passes: render-target bytes read by the blend (read-modify-write)", kBlend)  \
+  X(samples_blended, "samples",                                                                                    \
+    "blend passes: samples blended into the render targets; a frame's additive and other blended draws: samples "   \
+    "blended into the colour",                                                                                      \
+    kBlend)                                                                                                         \
+  X(target_bytes_read, "bytes",                                                                                     \
+    "render-target bytes read by the blend (read-modify-write; blend: none for a draw replacing every channel); a " \
+    "frame's blended draws: 6 per sample of the colour they blend into",                                            \
+    kBlend)                                                                                                         \
   X(target_bytes_written, "bytes", "blend passes: render-target bytes written by the blend", kBlend)                \
   X(layer_bytes_read, "bytes", "slab: the pixel's layers, k (4 + 6 + ceil(b / 8)) + 1 per fragment", kSlab)         \
   X(layer_bytes_written, "bytes", "slab: the same, per fragment inserted (the layers rewritten)", kSlab)

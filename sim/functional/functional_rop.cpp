@@ -32,24 +32,26 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   }
   draw_states = !h.draws.empty();
   encoding = frame_encoding(h.draws);
-  for (const DrawState& d : h.draws.states()) {
-    if (route_of(draw_kind(d)) == DrawRoute::kMethod) continue;
-    routed = true;
-    // Opaque and blended draws go into the colour buffer in submission order;
-    // a method that composites its own targets over the clear colour, or keeps
-    // layers in place of per-sample colour, would need an opaque pre-pass first.
-    if (!traits.framebuffer && (has_blend_pass(c.method) || c.method == Method::kSlab))
-      throw std::invalid_argument(std::string("the ") + traits.name + " method runs frames whose draws are all " +
-                                  "src-over; draw " + std::to_string(d.draw_id) + " is " +
-                                  to_string(draw_kind(d)) +
-                                  " (an opaque pre-pass is not modelled; every single-pass per-sample method, "
-                                  "blend and reference run it)");
-    break;
-  }
+  for (const DrawState& d : h.draws.states()) routed |= route_of(draw_kind(d)) != DrawRoute::kMethod;
+  if (const std::string why = draw_state_refusal(h, c.method); !why.empty()) throw std::invalid_argument(why);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
   }
+}
+
+std::string draw_state_refusal(const TraceHeader& h, Method m) {
+  // Opaque and blended draws go into the colour buffer in submission order;
+  // a method that composites its own targets over the clear colour, or keeps
+  // layers in place of per-sample colour, would need an opaque pre-pass first.
+  if (traits(m).framebuffer || !(has_blend_pass(m) || m == Method::kSlab)) return "";
+  for (const DrawState& d : h.draws.states())
+    if (route_of(draw_kind(d)) != DrawRoute::kMethod)
+      return std::string("the ") + traits(m).name + " method runs frames whose draws are all src-over; draw " +
+             std::to_string(d.draw_id) + " is " + to_string(draw_kind(d)) +
+             " (its opaque pre-pass is not modelled; lk, enderton, naive, a2c, hashed, hashed-a2c, opaque, blend and "
+             "reference run the frame)";
+  return "";
 }
 
 StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
@@ -181,7 +183,10 @@ void FunctionalRop::begin_pass(int i) {
 
 Image FunctionalRop::resolve() const {
   if (setup_.traits.framebuffer) return framebuffer_image(store_);
-  Image img = setup_.passes.count == 1 && !setup_.traits.wboit ? store_.resolve() : composite(store_, setup_.cfg.method);
+  const bool per_sample = setup_.passes.count == 1 && !setup_.traits.wboit;
+  if (per_sample && setup_.encoding != TargetEncoding::kFloat && setup_.cfg.method != Method::kSlab)
+    return colour_buffer_image(store_, setup_.encoding);
+  Image img = per_sample ? store_.resolve() : composite(store_, setup_.cfg.method);
   encode_resolved(img, setup_.encoding);
   return img;
 }

@@ -13,10 +13,11 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "conversion_memo.h"
-#include "draw_state.h"
 #include "counters.h"
+#include "draw_state.h"
 #include "depth.h"
 #include "frag_work.h"
 #include "method.h"
@@ -65,6 +66,11 @@ inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) 
   for_each_sample_depth(mask, header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, offset_x.data(),
                         offset_y.data(), f.z.data(), [z](int i, float zi) { z[i] = zi; });
 }
+
+/// Why method m cannot run a frame of header h's draw states ("" when it
+/// can): the composite methods and slab run frames of src-over draws only
+/// (docs/methods.md "Methods on a frame of draw states").
+std::string draw_state_refusal(const TraceHeader& h, Method m);
 
 /// The per-pixel buffers a run of cfg on a trace of header h keeps beyond
 /// depth and colour (the golden model's and the cycle model's store).

@@ -268,7 +268,13 @@ Image ReferenceModel::resolve() const {
   // Pixels without src-over fragments: the colour buffer's box filter (the
   // clear colour without opaque and blended draws).
   const std::array<float, 3> clear = colour_buffer_clear(setup_.encoding, header_.clear_color);
-  Image img = base_ ? base_->store().resolve() : Image(header_.width, header_.height, clear);
+  const TargetEncoding enc = setup_.encoding;
+  const bool fixed = enc != TargetEncoding::kFloat;
+  Image img = base_ ? (fixed ? colour_buffer_image(base_->store(), enc) : base_->store().resolve())
+                    : Image(header_.width, header_.height,
+                            fixed ? std::array<float, 3>{resolved_light(enc, clear[0]), resolved_light(enc, clear[1]),
+                                                         resolved_light(enc, clear[2])}
+                                  : clear);
   const float clear_z = canonical_depth(header_.clear_depth);
   const int spp = header_.spp;
   struct Layer {
@@ -287,6 +293,7 @@ Image ReferenceModel::resolve() const {
         for (uint64_t m = e.coverage; m; m &= m - 1) layers[__builtin_ctzll(m)].push_back(Layer{z_[k++], e.seq, &e});
       }
       double sum[3] = {0, 0, 0};
+      float stored[64 * 4];  // an 8-bit target: each sample as it stores it
       const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
       const PixelView bv = base_ ? base_->store().view(x, y) : PixelView{};
       for (int s = 0; s < spp; ++s) {
@@ -311,13 +318,22 @@ Image ReferenceModel::resolve() const {
           trans *= 1.0 - a;
           if (trans == 0.0) break;
         }
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch] + trans * bg[ch];
+        for (int ch = 0; ch < 3; ++ch) {
+          sum[ch] += c[ch] + trans * bg[ch];
+          stored[4 * s + ch] = framebuffer_store(enc, ch, float(c[ch] + trans * bg[ch]));
+        }
+        stored[4 * s + 3] = 1.0f;
       }
       float* o = img.at(x, y);
-      for (int ch = 0; ch < 3; ++ch) o[ch] = float(sum[ch] / spp);
+      if (fixed) {  // resolved as blend resolves its framebuffer (colour_buffer_image)
+        float rgb[3];
+        framebuffer_resolve_pixel(enc, stored, spp, rgb);
+        for (int ch = 0; ch < 3; ++ch) o[ch] = framebuffer_light(enc, rgb[ch]);
+      } else {
+        for (int ch = 0; ch < 3; ++ch) o[ch] = float(sum[ch] / spp);
+      }
     }
   });
-  encode_resolved(img, setup_.encoding);
   return img;
 }
 

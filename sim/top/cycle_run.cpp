@@ -9,6 +9,7 @@
 #include "compressibility.h"
 #include "compression_model.h"
 #include "depth.h"
+#include "errors.h"
 #include "line_set.h"
 #include "memory_budget.h"
 #include "memory_estimate.h"
@@ -124,7 +125,14 @@ class StoreTileSource : public TileSource {
 }  // namespace
 
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
-  return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
+  return run_cycle(
+      [&in, &method] {
+        auto src = open_fragments(in);
+        if (const std::string why = draw_state_refusal(src->header(), method.method); !why.empty())
+          throw UserError(in.describe() + ": " + why);
+        return src;
+      },
+      method, hw, opt);
 }
 
 CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_input, const GoldenConfig& method,
@@ -333,6 +341,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   }
   s.frame_time_us = double(s.total_cycles) / (hw.clock.frequency_ghz * 1e3);
   run.counters = rop->counters();
+  run.kind_fragments = rop->depth().kind_fragments();
   const double cyc = double(std::max<uint64_t>(1, s.total_cycles));
   s.fragments_per_clock = double(run.counters.fragments) / cyc;
   s.samples_per_clock = double(run.counters.samples_tested) / cyc;

@@ -107,6 +107,7 @@ Bottleneck classify_bottleneck(const CycleStats& s);
 struct CycleRun {
   TraceHeader header;
   Counters counters;
+  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
   Image image;
   std::unique_ptr<SampleStore> state;  ///< the final per-sample state
   CycleStats stats;
