@@ -297,8 +297,8 @@ TEST(BitExactDrawRoutes, EverySinglePassMethodOnMixedDrawStatesMatchesTheGoldenM
         const auto [h, frags] = mixed_state_frame(spp, e);
         for (Method m : {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed,
                          Method::kHashedA2c, Method::kOpaque}) {
-          const std::string what = std::string(to_string(m)) + " " + to_string(e) + " " + std::to_string(spp) +
-                                   " spp on " + hw.name;
+          const std::string what =
+              std::string(to_string(m)) + " " + to_string(e) + " " + std::to_string(spp) + " spp on " + hw.name;
           expect_bit_exact(h, frags, method_config(m, hw.blend.formats), hw, what,
                            m == Method::kLk && spp == 4 && e == TargetEncoding::kUnorm8);
         }

@@ -140,8 +140,9 @@ TEST(DrawRoutes, AFrameWithoutSrcOverDrawsIsBlendsFrameForEveryMethod) {
     const Image want = run(h, f, Method::kBlend)->resolve();
     std::vector<Method> methods = kSinglePass;
     methods.push_back(Method::kReference);
-    for (Method m : methods) expect_same_image(run(h, f, m)->resolve(), want, std::string(to_string(m)) + " at " +
-                                                                              std::to_string(spp) + " spp");
+    for (Method m : methods)
+      expect_same_image(run(h, f, m)->resolve(), want,
+                        std::string(to_string(m)) + " at " + std::to_string(spp) + " spp");
   }
 }
 

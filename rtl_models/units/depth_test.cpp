@@ -29,8 +29,9 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   // methods' own test and for draws testing LESS or LEQUAL (blend's draws and
   // the opaque and blended draws of a frame test with their own functions).
   const bool own_test = rop_.setup().cfg.method == Method::kBlend || t->route != DrawRoute::kMethod;
-  const bool hiz_applies = !own_test || (t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess ||
-                                                                 t->draw->depth_func == DepthFunc::kLequal));
+  const bool hiz_applies =
+      !own_test ||
+      (t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess || t->draw->depth_func == DepthFunc::kLequal));
   if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered && hiz_applies) {
     float zmin = 1.0f;
     for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);

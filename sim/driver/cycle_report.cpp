@@ -391,8 +391,7 @@ nlohmann::ordered_json cycle_report(const ReportContext& ctx, const CycleRun& ru
            "cycle: fragments over sim_seconds");
   if (run.breakdown && run.breakdown->per_draw())
     put_draws(r, *run.breakdown, true, has_blend_pass(ctx.config.method) || !run.header.draws.empty(),
-              ctx.config.method == Method::kSlab,
-              run.stats.listed);
+              ctx.config.method == Method::kSlab, run.stats.listed);
   return j;
 }
 

@@ -220,8 +220,8 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   // not in them.
   for (const DrawState& d : src->header().draws.states())
     if (route_of(draw_kind(d)) != DrawRoute::kMethod)
-      throw UserError("sampled simulation runs frames whose draws are all src-over; draw " +
-                      std::to_string(d.draw_id) + " of " + in.describe() + " is " + to_string(draw_kind(d)) +
+      throw UserError("sampled simulation runs frames whose draws are all src-over; draw " + std::to_string(d.draw_id) +
+                      " of " + in.describe() + " is " + to_string(draw_kind(d)) +
                       " (run it at the functional, approximate or cycle fidelity)");
   if (const std::optional<uint64_t> known = src->fragments_known()) {
     lib.fragments = *known;  // N from the trace's header (the reader holds the trace to it)

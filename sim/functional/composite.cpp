@@ -61,7 +61,6 @@ Image composite(const SampleStore& store, Method m) {
   return img;
 }
 
-
 Image colour_buffer_image(const SampleStore& store, TargetEncoding e) {
   const TraceHeader& h = store.header();
   const std::array<float, 3> clear = colour_buffer_clear(e, h.clear_color);

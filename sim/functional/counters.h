@@ -33,7 +33,7 @@ namespace ropsim {
   X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment", kAll)                        \
   X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample", kAll)                     \
   X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated", kAll)                                    \
-  X(samples_blended, "samples",                                                                                    \
+  X(samples_blended, "samples",                                                                                     \
     "blend passes: samples blended into the render targets; a frame's additive and other blended draws: samples "   \
     "blended into the colour",                                                                                      \
     kBlend)                                                                                                         \

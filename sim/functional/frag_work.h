@@ -56,7 +56,7 @@ struct FragWork {
   // The fragment's draw (a trace of draw states; blend: always).
   const DrawState* draw = nullptr;       ///< the fragment's draw state (the depth test looks it up)
   DrawRoute route = DrawRoute::kMethod;  ///< its path: the method's, opaque or blended (the depth test sets it)
-  uint64_t depth_written = 0;            ///< samples whose depth was written (the method's writes, or the draw's depth mask)
+  uint64_t depth_written = 0;  ///< samples whose depth was written (the method's writes, or the draw's depth mask)
 
   /// No sample survived the depth test: the fragment leaves the ROP there.
   bool killed() const { return m == 0; }

@@ -293,7 +293,6 @@ inline void framebuffer_resolve_pixel(TargetEncoding e, const float* samples, in
   }
 }
 
-
 // ------------------------------------------------ the methods' colour buffer
 //
 // Every method but blend keeps one RGB binary16 colour per sample. On a
@@ -338,7 +337,9 @@ inline std::array<float, 3> colour_buffer_clear(TargetEncoding e, const std::arr
 
 /// Does a draw's fragment read the stored colour (a read-modify-write)?
 /// Blending reads it; so does a colour mask that keeps a channel.
-inline bool draw_reads_colour(const DrawState& d) { return draw_kind(d) != DrawKind::kOpaque || (d.color_mask & 7) != 7; }
+inline bool draw_reads_colour(const DrawState& d) {
+  return draw_kind(d) != DrawKind::kOpaque || (d.color_mask & 7) != 7;
+}
 
 /// Linear light of value v of an image resolved in encoding e: an 8-bit
 /// target's values are code values (their sRGB decoding, as a display shows

@@ -17,8 +17,8 @@
 
 #include "conversion_memo.h"
 #include "counters.h"
-#include "draw_state.h"
 #include "depth.h"
+#include "draw_state.h"
 #include "frag_work.h"
 #include "method.h"
 #include "rop_observer.h"

@@ -84,8 +84,8 @@ inline uint32_t DepthStage::draw_depth_test(FragWork& w, const DrawState& d) {
   uint64_t S = 0;
   const float* stored = w.px.depth;
   float* z = w.z;
-  for_each_sample_depth(f.coverage, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy,
-                        s_.offset_x.data(), s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
+  for_each_sample_depth(f.coverage, s_.header.depth_mode == DepthMode::kPlane, f.z0, f.dzdx, f.dzdy, s_.offset_x.data(),
+                        s_.offset_y.data(), f.z.data(), [&](int i, float zi) {
                           z[i] = zi;
                           S |= uint64_t{!d.depth_test || depth_func_passes(d.depth_func, zi, stored[i])} << i;
                         });
@@ -279,8 +279,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
   [[maybe_unused]] RopObserver* const obs = s_.observer;
   // A frame of draw states: the src-over draw's straight colour (transparent_rgb).
-  const uint16_t* rgb16 =
-      memo_.half_color(s_.draw_states ? transparent_rgb(*w.draw, w.f->rgb, w.f->alpha) : w.f->rgb);
+  const uint16_t* rgb16 = memo_.half_color(s_.draw_states ? transparent_rgb(*w.draw, w.f->rgb, w.f->alpha) : w.f->rgb);
   uint64_t wrote = 0;
   uint32_t examined = w.m;
   PixelRef px = w.px;

@@ -146,7 +146,7 @@ class ReferenceModel : public FunctionalModel {
 
  private:
   Counters counters_;
-  RopSetup setup_;  // the per-sample depths
+  RopSetup setup_;                       // the per-sample depths
   std::unique_ptr<FunctionalRop> base_;  // the opaque and blended draws (a frame with some)
   DrawKindCounts kinds_{};
   struct Entry {

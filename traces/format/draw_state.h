@@ -63,9 +63,9 @@ using DrawKindCounts = std::array<uint64_t, kDrawKinds>;
 ///   state, as `blend` applies it (additive and other blends).
 enum class DrawRoute : uint8_t { kMethod, kOpaque, kBlend };
 constexpr DrawRoute route_of(DrawKind k) {
-  return k == DrawKind::kOpaque ? DrawRoute::kOpaque
+  return k == DrawKind::kOpaque                                         ? DrawRoute::kOpaque
          : k == DrawKind::kSrcOver || k == DrawKind::kPremultipliedOver ? DrawRoute::kMethod
-                                                                         : DrawRoute::kBlend;
+                                                                        : DrawRoute::kBlend;
 }
 const char* to_string(DrawKind k);
 const char* to_string(BlendFactor f);
