@@ -745,8 +745,11 @@ TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
   rasterize_scene(scene, [&](const Fragment& f) { ids.insert(f.draw_id); });
   std::vector<DrawState> states;
   for (uint32_t id : ids) {
+    // Src-over and premultiplied-over draws (sampled runs take frames of
+    // src-over draws only), each with its own name and depth state.
     DrawState s = default_draw_state(id);
-    s.blend = id % 2 == 0;
+    if (id % 2) s.src_rgb = BlendFactor::kOne;
+    s.depth_func = id % 2 ? DepthFunc::kLequal : DepthFunc::kLess;
     s.name = "draw \xCE\xB1" + std::to_string(id);
     states.push_back(s);
   }
@@ -764,6 +767,29 @@ TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
   p.unit_fragments = 200;
   const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
   EXPECT_TRUE(lib.header.draws == h.draws) << "the recorded library";
+  {  // a frame with an opaque draw is refused, naming the draw
+    TraceHeader ho = h;
+    std::vector<DrawState> so = states;
+    so.front().blend = false;
+    ho.draws = DrawTable(so);
+    const std::string opaque_trace = tmp.path("opaque.trace");
+    {
+      TraceWriter w(opaque_trace, ho);
+      rasterize_scene(scene, [&](const Fragment& f) { w.write(f); });
+      w.finish();
+    }
+    InputSpec io;
+    io.trace_path = opaque_trace;
+    try {
+      record_livepoints(io, GoldenConfig{}, p);
+      ADD_FAILURE() << "a frame with an opaque draw was recorded";
+    } catch (const UserError& e) {
+      EXPECT_NE(std::string(e.what()).find("draw " + std::to_string(so.front().draw_id) + " of " + opaque_trace +
+                                           " is opaque"),
+                std::string::npos)
+          << e.what();
+    }
+  }
   const std::string file = tmp.path("lib.rlp");
   write_livepoints(file, lib);
   const LivePoints back = read_livepoints(file);
