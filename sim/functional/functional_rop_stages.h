@@ -108,8 +108,11 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   // Blend passes: the plain test, no coverage selection, no tracker.
   [[maybe_unused]] const bool stochastic = !has_blend_pass(M) || !is_blend_pass(s_.pass);
   if constexpr (M == Method::kBlend) {
-    // Every fragment: its draw's own test and blend (framebuffer_blend.h).
-    return draw_depth_test(w, look_up_draw(w));
+    // Every fragment: its draw's own test and blend (framebuffer_blend.h);
+    // one route, the framebuffer's.
+    const DrawState& d = look_up_draw(w);
+    w.route = DrawRoute::kMethod;
+    return draw_depth_test(w, d);
   }
   w.route = DrawRoute::kMethod;
   if (s_.draw_states) {
