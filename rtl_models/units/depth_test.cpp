@@ -61,7 +61,7 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
       amap_.for_each_sample_line(b, t->f->x, t->f->y, t->survivors,
                                  [&](uint64_t line) { ready = std::max(ready, cache_.read(line, b, now, o)); });
   // An additive or other blended draw of a frame: the colour it blends into.
-  if (t->route == DrawRoute::kBlend || (t->route == DrawRoute::kOpaque && draw_reads_colour(*t->draw)))
+  if (t->route != DrawRoute::kMethod && draw_reads_colour(*t->draw))
     amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->survivors, [&](uint64_t line) {
       ready = std::max(ready, cache_.read(line, Buffer::kColor, now, o));
     });

@@ -282,7 +282,8 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
   [[maybe_unused]] RopObserver* const obs = s_.observer;
   // A frame of draw states: the src-over draw's straight colour (transparent_rgb).
-  const uint16_t* rgb16 = memo_.half_color(s_.draw_states ? transparent_rgb(*w.draw, w.f->rgb, w.f->alpha) : w.f->rgb);
+  const uint16_t* rgb16 = s_.draw_states ? memo_.half_color(transparent_rgb(*w.draw, w.f->rgb, w.f->alpha))
+                                         : memo_.half_color(w.f->rgb);  // (no copy of the colour)
   uint64_t wrote = 0;
   uint32_t examined = w.m;
   PixelRef px = w.px;
