@@ -223,37 +223,44 @@ TEST(GlslRewrite, TheColourIsTheOutputAtLocationZeroOrTheBuiltIns) {
 }
 
 // The fragment shader's interpolated inputs are read at the pixel centre of
-// the unshifted geometry (where multisampling shades): each smooth or
-// noperspective input through interpolateAtOffset, gl_Color too, and
-// gl_TexCoord's elements by their derivatives; flat and centroid inputs are
-// left alone, and the shader's own lines keep their numbers (#line).
+// the unshifted geometry (where multisampling shades), from their
+// derivatives: a smooth input through its product with 1/w (affine in window
+// coordinates) divided by 1/w at the centre, a noperspective one directly,
+// gl_Color and gl_TexCoord's elements as smooth inputs; flat and centroid
+// inputs are left alone, a second declaration on a line is found, and the
+// shader's own lines keep their numbers (#line).
 TEST(GlslRewrite, InterpolatedInputsAreReadAtThePixelCentre) {
   const std::string fs =
       "#version 330\nin vec2 uv;\nnoperspective in vec3 n;\nflat in int id;\ncentroid in vec4 c;\n"
-      "uniform sampler2D t;\nout vec4 o;\nvec2 at() { return uv * 2.0; }\n"
-      "void main() { o = texture(t, at()) + vec4(n, float(id)) + c + gl_Color + gl_TexCoord[1]; }\n";
+      "in float f; in vec4 g;\nuniform sampler2D t;\nout vec4 o;\nvec2 at() { return uv * 2.0; }\n"
+      "void main() { o = texture(t, at()) + vec4(n, float(id)) + c + gl_Color + gl_TexCoord[1] + f + g; }\n";
   const Rewritten r = instrument_fragment_shader(fs, GlslProfile::kCompatibility, 3);
   ASSERT_EQ(r.error, "");
   const std::string& s = r.source;
   for (const char* want :
-       {"#define uv ropsim_c_uv", "#define n ropsim_c_n", "ropsim_c_uv = interpolateAtOffset(uv, ropsim_pixel_offset);",
-        "ropsim_c_n = interpolateAtOffset(n, ropsim_pixel_offset);", "#undef uv", "#undef n",
-        "ropsim_c_gl_Color = interpolateAtOffset(gl_Color, ropsim_pixel_offset);",
-        "ropsim_c_gl_TexCoord[1] = gl_TexCoord[1] + dFdx(gl_TexCoord[1]) * ropsim_pixel_offset.x",
-        "uniform vec2 ropsim_pixel_offset;"})
+       {"#define uv ropsim_c_uv", "#define n ropsim_c_n", "#define f ropsim_c_f", "#define g ropsim_c_g",
+        "float ropsim_q = gl_FragCoord.w;", "float ropsim_q_at = ropsim_at_offset(ropsim_q);",
+        "ropsim_c_uv = ropsim_moved ? ropsim_at_offset(uv * ropsim_q) / ropsim_q_at : uv;",
+        "ropsim_c_n = ropsim_moved ? ropsim_at_offset(n) : n;",
+        "ropsim_c_g = ropsim_moved ? ropsim_at_offset(g * ropsim_q) / ropsim_q_at : g;", "#undef uv", "#undef n",
+        "ropsim_c_gl_Color = ropsim_moved ? ropsim_at_offset(gl_Color * ropsim_q) / ropsim_q_at : gl_Color;",
+        "ropsim_c_gl_TexCoord[1] = ropsim_moved ? ropsim_at_offset(gl_TexCoord[1] * ropsim_q) / ropsim_q_at",
+        "uniform vec2 ropsim_pixel_offset;",
+        "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)"})
     EXPECT_NE(s.find(want), std::string::npos) << want << " in\n" << s;
-  for (const char* not_there : {"ropsim_c_id", "ropsim_c_c ", "interpolateAtOffset(c,", "ropsim_c_t"})
+  for (const char* not_there :
+       {"ropsim_c_id", "ropsim_c_c ", "ropsim_at_offset(c", "ropsim_c_t", "interpolateAtOffset"})
     EXPECT_EQ(s.find(not_there), std::string::npos) << not_there << " in\n" << s;
   // The copies are filled before the application's main runs.
-  EXPECT_LT(s.find("ropsim_c_uv = interpolateAtOffset"), s.find("  ropsim_app_main();"));
+  EXPECT_LT(s.find("ropsim_c_uv = ropsim_moved"), s.find("  ropsim_app_main();"));
   // What follows `in vec2 uv;` on its line (shader line 2) is numbered 2
   // again, and `noperspective in vec3 n;` keeps its line 3.
   EXPECT_NE(s.find("#define uv ropsim_c_uv\n#line 2\n\nnoperspective in vec3 n;"), std::string::npos) << s;
   // No interpolated input: nothing added but the uniform.
   const Rewritten plain =
       instrument_fragment_shader("flat in int k;\nvoid main() { gl_FragColor = vec4(k); }", GlslProfile::kCore, 3);
-  EXPECT_EQ(plain.source.find("interpolateAtOffset"), std::string::npos) << plain.source;
-  EXPECT_EQ(plain.source.find("#define"), std::string::npos) << plain.source;
+  EXPECT_EQ(plain.source.find("ropsim_c_"), std::string::npos) << plain.source;
+  EXPECT_EQ(plain.source.find("ropsim_q"), std::string::npos) << plain.source;
 }
 
 }  // namespace

@@ -73,38 +73,49 @@ bool uses(const std::string& s, const char* name) {
   return std::regex_search(s, re);
 }
 
+/// A fragment-shader input that the wrapper reads at the pixel centre.
+struct CentreInput {
+  std::string type, name;
+  bool perspective;  ///< smooth (perspective-correct), not noperspective
+};
+
 /// The fragment shader's interpolated inputs, read at the pixel centre: each
 /// global `[layout(...)] [smooth|noperspective] in|varying [precision]
-/// float|vecN NAME;` gets a global copy `ropsim_c_NAME` and a #define that
-/// sends the shader's reads to it (a #line after keeps the application's line
-/// numbers). Returns the names; the wrapper's main fills each copy with
-/// interpolateAtOffset(NAME, ropsim_pixel_offset) after #undef-ing it.
-/// Flat, centroid and sample inputs, arrays, blocks and GL's built-in inputs
-/// are left as they are.
-std::vector<std::pair<std::string, std::string>> centre_inputs(std::string& s) {
+/// float|vecN NAME;` (at the start of a line or after a `;` or `}`) gets a
+/// global copy `ropsim_c_NAME` and a #define that sends the shader's reads
+/// to it (a #line after keeps the application's line numbers). Returns the
+/// inputs; the wrapper's main fills each copy with interpolateAtOffset(NAME,
+/// ropsim_pixel_offset) after #undef-ing it. Flat, centroid and sample
+/// inputs, arrays, blocks and GL's built-in inputs are left as they are.
+std::vector<CentreInput> centre_inputs(std::string& s) {
   static const std::regex kIn(
-      R"((^|[;\n])[ \t]*(layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
+      R"((layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
       R"((float|vec2|vec3|vec4)\s+([A-Za-z_][A-Za-z0-9_]*)\s*;)");
   const std::string g = global_scope(s);
   struct Hit {
     size_t end;
-    std::string type, name;
+    CentreInput in;
   };
   std::vector<Hit> hits;
   for (auto it = std::sregex_iterator(g.begin(), g.end(), kIn); it != std::sregex_iterator(); ++it) {
     const std::smatch& m = *it;
-    const std::string name = m[9].str();
+    // A declaration of its own: what comes before it on its line is
+    // nothing, or the end of another statement (not `flat`, `centroid`).
+    size_t k = size_t(m.position(0));
+    while (k > 0 && (g[k - 1] == ' ' || g[k - 1] == '\t')) --k;
+    if (k > 0 && g[k - 1] != '\n' && g[k - 1] != ';' && g[k - 1] != '}') continue;
+    const std::string name = m[8].str();
     if (name.compare(0, 3, "gl_") == 0 || name.compare(0, 7, "ropsim_") == 0) continue;
-    hits.push_back({size_t(m.position(0) + m.length(0)), m[8].str(), name});
+    hits.push_back({size_t(m.position(0) + m.length(0)), {m[7].str(), name, m[3].str() != "noperspective"}});
   }
-  std::vector<std::pair<std::string, std::string>> names;
+  std::vector<CentreInput> inputs;
   for (auto h = hits.rbegin(); h != hits.rend(); ++h) {
     const size_t line = size_t(std::count(s.begin(), s.begin() + std::ptrdiff_t(h->end), '\n')) + 1;
-    s.insert(h->end, "\n" + h->type + " ropsim_c_" + h->name + ";\n#define " + h->name + " ropsim_c_" + h->name +
-                         "\n#line " + std::to_string(line) + "\n");
-    names.emplace_back(h->type, h->name);
+    s.insert(h->end, "\n" + h->in.type + " ropsim_c_" + h->in.name + ";\n#define " + h->in.name + " ropsim_c_" +
+                         h->in.name + "\n#line " + std::to_string(line) + "\n");
+    inputs.push_back(h->in);
   }
-  return names;
+  return inputs;
 }
 
 /// GL's built-in interpolated inputs of the compatibility profile that the
@@ -121,11 +132,13 @@ std::pair<std::string, std::string> centre_builtin_inputs(std::string& s) {
   };
   static const Builtin kBuiltins[] = {
       {"gl_Color", "vec4 ropsim_c_gl_Color;",
-       "  ropsim_c_gl_Color = interpolateAtOffset(gl_Color, ropsim_pixel_offset);\n"},
+       "  ropsim_c_gl_Color = ropsim_moved ? ropsim_at_offset(gl_Color * ropsim_q) / ropsim_q_at : gl_Color;\n"},
       {"gl_SecondaryColor", "vec4 ropsim_c_gl_SecondaryColor;",
-       "  ropsim_c_gl_SecondaryColor = interpolateAtOffset(gl_SecondaryColor, ropsim_pixel_offset);\n"},
+       "  ropsim_c_gl_SecondaryColor =\n"
+       "      ropsim_moved ? ropsim_at_offset(gl_SecondaryColor * ropsim_q) / ropsim_q_at : gl_SecondaryColor;\n"},
       {"gl_FogFragCoord", "float ropsim_c_gl_FogFragCoord;",
-       "  ropsim_c_gl_FogFragCoord = interpolateAtOffset(gl_FogFragCoord, ropsim_pixel_offset);\n"},
+       "  ropsim_c_gl_FogFragCoord =\n"
+       "      ropsim_moved ? ropsim_at_offset(gl_FogFragCoord * ropsim_q) / ropsim_q_at : gl_FogFragCoord;\n"},
   };
   const std::string g = global_scope(s);
   std::string decls, undefs, fills;
@@ -152,9 +165,8 @@ std::pair<std::string, std::string> centre_builtin_inputs(std::string& s) {
           "vec4 ropsim_c_gl_TexCoord[" + std::to_string(top + 1) + "];\n#define gl_TexCoord ropsim_c_gl_TexCoord\n";
       undefs += "\n#undef gl_TexCoord";
       for (int k = 0; k <= top; ++k)
-        fills += "  ropsim_c_gl_TexCoord[" + std::to_string(k) + "] = gl_TexCoord[" + std::to_string(k) +
-                 "] + dFdx(gl_TexCoord[" + std::to_string(k) + "]) * ropsim_pixel_offset.x + dFdy(gl_TexCoord[" +
-                 std::to_string(k) + "]) * ropsim_pixel_offset.y;\n";
+        fills += "  ropsim_c_gl_TexCoord[" + std::to_string(k) + "] = ropsim_moved ? ropsim_at_offset(gl_TexCoord[" +
+                 std::to_string(k) + "] * ropsim_q) / ropsim_q_at : gl_TexCoord[" + std::to_string(k) + "];\n";
     }
   }
   if (decls.empty()) return {"", ""};
@@ -247,12 +259,29 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
   const auto [builtin_undefs, builtin_fills] = centre_builtin_inputs(s);
   s += builtin_undefs;
   std::string centre = builtin_fills;
-  for (const auto& [type, name] : inputs) {
-    s += "\n#undef " + name;
-    centre += "  ropsim_c_" + name + " = interpolateAtOffset(" + name + ", ropsim_pixel_offset);\n";
+  for (const CentreInput& in : inputs) {
+    s += "\n#undef " + in.name;
+    centre += "  ropsim_c_" + in.name + " = ropsim_moved ? " +
+              (in.perspective ? "ropsim_at_offset(" + in.name + " * ropsim_q) / ropsim_q_at"
+                              : "ropsim_at_offset(" + in.name + ")") +
+              " : " + in.name + ";\n";
   }
+  // An input at the pixel centre, ropsim_pixel_offset from where the pass
+  // shades, from its derivatives: exact for what is affine in window
+  // coordinates, as a noperspective input is, and as a smooth input times
+  // 1/w (gl_FragCoord.w) is, which is then divided by 1/w at the centre. No
+  // interpolateAtOffset: llvmpipe's divides a smooth input read at an offset
+  // by w at the fragment, not at the offset. Without a shift (the centre
+  // pass, the 4x reference) each input is read as it is.
+  if (!centre.empty())
+    centre =
+        "  bool ropsim_moved = ropsim_pixel_offset != vec2(0.0);\n"
+        "  float ropsim_q = gl_FragCoord.w;\n"
+        "  float ropsim_q_at = ropsim_at_offset(ropsim_q);\n" +
+        centre;
   s += "\n// ropsim capture: one record per fragment that survives the shader, its inputs read at the pixel centre\n"
        "uniform vec2 ropsim_pixel_offset;\n"
+       "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)\n"
        "layout(std430, binding = " +
        std::to_string(binding) +
        ") buffer RopsimFragments { uint ropsim_count; uint ropsim_pad; uint ropsim_rec[]; };\n"
