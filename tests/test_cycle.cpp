@@ -305,6 +305,26 @@ TEST(BitExactDrawRoutes, EverySinglePassMethodOnMixedDrawStatesMatchesTheGoldenM
       }
 }
 
+TEST(BitExactDrawRoutes, ThePrepassMethodsOnMixedDrawStatesMatchTheGoldenModel) {
+  // wboit, slab and the +depth+ac methods on the mixed frame: a pre-pass of
+  // its opaque and blended draws, then their own passes over its src-over
+  // draws; every committed design, unorm8 and float, lockstep once.
+  std::vector<HwConfig> designs;
+  for (const auto& config : config_files()) designs.push_back(load_hw_config(config));
+  for (const HwConfig& hw : designs)
+    for (TargetEncoding e : {TargetEncoding::kUnorm8, TargetEncoding::kFloat})
+      for (int spp : {4, 16}) {
+        const auto [h, frags] = mixed_state_frame(spp, e);
+        for (Method m : {Method::kWboit, Method::kSlab, Method::kLkDepthAc, Method::kEndertonDepthAc}) {
+          ASSERT_EQ(run_passes(h, m).pass[0], PassKind::kPrepass) << to_string(m);
+          const std::string what =
+              std::string(to_string(m)) + " " + to_string(e) + " " + std::to_string(spp) + " spp on " + hw.name;
+          expect_bit_exact(h, frags, method_config(m, hw.blend.formats), hw, what,
+                           m == Method::kLkDepthAc && spp == 4 && e == TargetEncoding::kUnorm8);
+        }
+      }
+}
+
 TEST(BitExactDrawRoutes, TheApproximateFidelityCountsWhatTheGoldenModelCounts) {
   // The approximate fidelity runs the same functional stages on the mixed
   // frame: its counters are the golden model's, and its DRAM traffic covers
@@ -318,15 +338,20 @@ TEST(BitExactDrawRoutes, TheApproximateFidelityCountsWhatTheGoldenModelCounts) {
   }
   InputSpec in;
   in.trace_path = path;
-  StochasticModel golden(h, method_config(Method::kLk));
-  for (const Fragment& f : frags) golden.draw(f);
-  const ApproxRun a = run_approximate(in, method_config(Method::kLk), HwConfig{});
-  std::vector<uint64_t> want, got;
-  golden.counters().for_each([&](const char*, uint64_t v) { want.push_back(v); });
-  a.counters.for_each([&](const char*, uint64_t v) { got.push_back(v); });
-  EXPECT_EQ(got, want);
-  EXPECT_GT(golden.counters().target_bytes_read, 0u) << "the mixed frame has blended draws";
-  EXPECT_GT(golden.kind_fragments()[size_t(DrawKind::kSrcOver)], 0u) << "the mixed frame has src-over draws";
+  for (Method m : {Method::kLk, Method::kWboit, Method::kSlab, Method::kLkDepthAc}) {
+    StochasticModel golden(h, method_config(m));
+    for (int p = 0; p < golden.passes(); ++p) {
+      golden.begin_pass(p);
+      for (const Fragment& f : frags) golden.draw(f);
+    }
+    const ApproxRun a = run_approximate(in, method_config(m), HwConfig{});
+    std::vector<uint64_t> want, got;
+    golden.counters().for_each([&](const char*, uint64_t v) { want.push_back(v); });
+    a.counters.for_each([&](const char*, uint64_t v) { got.push_back(v); });
+    EXPECT_EQ(got, want) << to_string(m);
+    EXPECT_GT(golden.counters().target_bytes_read, 0u) << "the mixed frame has blended draws";
+    EXPECT_GT(golden.kind_fragments()[size_t(DrawKind::kSrcOver)], 0u) << "the mixed frame has src-over draws";
+  }
   std::remove(path.c_str());
 }
 

@@ -14,6 +14,7 @@
 #include "composite.h"
 #include "framebuffer_blend.h"
 #include "golden_model.h"
+#include "image_io.h"
 #include "sample_patterns.h"
 
 using namespace ropsim;
@@ -240,12 +241,84 @@ TEST(DrawRoutes, AnAdditiveDrawIsAddedWhereverItPassesTheDepthTest) {
   }
 }
 
-TEST(DrawRoutes, MethodsWithoutPerSampleColourRefuseOpaqueDraws) {
-  // The composite methods resolve over the clear colour and slab keeps
-  // layers: they run frames of src-over draws only, and say which draw is not.
+/// The methods that composite over a background (or slab its layers) and
+/// run a frame of draw states with a pre-pass of its opaque and blended draws.
+const std::vector<Method> kPrepass = {Method::kWboit, Method::kSlab, Method::kLkDepthAc, Method::kEndertonDepthAc};
+
+TEST(DrawRoutes, ThePrepassMethodsRunAFramesOpaqueAndBlendedDrawsFirst) {
+  // The passes: the pre-pass only on a frame with opaque or blended draws,
+  // and only for the methods that composite over a background.
+  const TargetEncoding e = TargetEncoding::kUnorm8;
+  const TraceHeader mixed = header(2, 2, 4, {src_over(0, e), opaque_draw(1, e)});
+  const TraceHeader clear = header(2, 2, 4, {src_over(0, e), src_over(1, e, true)});
+  for (Method m : kPrepass) {
+    const PassList p = run_passes(mixed, m), own = passes_of(m);
+    ASSERT_EQ(p.count, own.count + 1) << to_string(m);
+    EXPECT_EQ(p.pass[0], PassKind::kPrepass) << to_string(m);
+    for (int i = 0; i < own.count; ++i) EXPECT_EQ(p.pass[i + 1], own.pass[i]) << to_string(m);
+    EXPECT_EQ(run_passes(clear, m).count, own.count) << to_string(m) << ": no pre-pass without opaque draws";
+  }
+  for (Method m : {Method::kLk, Method::kBlend, Method::kOpaque})
+    EXPECT_EQ(run_passes(mixed, m).count, 1) << to_string(m) << " routes the draws in its one pass";
+}
+
+TEST(DrawRoutes, AFrameWithoutSrcOverDrawsIsThePrepassMethodsBackground) {
+  // Without src-over draws, wboit, slab and the +depth+ac methods show the
+  // pre-pass's colour buffer: blend's frame, to the rounding of resolving
+  // working values rather than stored 8-bit codes (half a code).
+  for (int spp : {1, 4, 16}) {
+    TraceHeader h;
+    const std::vector<Fragment> f = opaque_frame(h, spp);
+    const Image want = run(h, f, Method::kBlend)->resolve();
+    for (Method m : kPrepass) {
+      const Image got = run(h, f, m)->resolve();
+      double worst = 0;
+      for (uint32_t y = 0; y < want.height; ++y)
+        for (uint32_t x = 0; x < want.width; ++x)
+          for (int c = 0; c < 3; ++c)
+            worst = std::max(worst, std::abs(255.0 * double(linear_to_srgb(got.at(x, y)[c])) -
+                                             255.0 * double(linear_to_srgb(want.at(x, y)[c]))));
+      EXPECT_LE(worst, 0.5 + 1e-3) << to_string(m) << " at " << spp << " spp: codes off blend's";
+    }
+  }
+}
+
+TEST(DrawRoutes, ThePrepassMethodsCompositeSrcOverOverTheOpaqueDraws) {
+  // An opaque draw, a src-over draw at alpha 1/2 in front of it and one
+  // behind it (float target): one layer in front, so every pre-pass method's
+  // estimate is exact, the over composite (the reference's), to binary16
+  // rounding; the draw behind is hidden. And the opaque draw costs them what
+  // it costs a z-buffer: its fragments' depth and colour written once.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  const TraceHeader h = header(4, 4, 16, {opaque_draw(0, e), src_over(1, e), src_over(2, e)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 4, 4, 0.5f, {0.2f, 0.4f, 0.8f, 0.25f}, 16);
+  rect(f, 1, 0, 0, 4, 4, 0.3f, {1.0f, 0.5f, 0.0f, 0.5f}, 16);
+  rect(f, 2, 0, 0, 4, 4, 0.7f, {0.0f, 1.0f, 1.0f, 0.5f}, 16);  // behind the opaque draw
+  const float want[3] = {0.5f * 1.0f + 0.5f * 0.2f, 0.5f * 0.5f + 0.5f * 0.4f, 0.5f * 0.8f};
+  const Image ref = run(h, f, Method::kReference)->resolve();
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(ref.at(1, 1)[c], want[c], 1e-3) << "reference channel " << c;
+  for (Method m : kPrepass) {
+    auto model = run(h, f, m);
+    const Image img = model->resolve();
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(img.at(1, 1)[c], want[c], 1e-3) << to_string(m) << " channel " << c;
+    // Every pass reads the whole trace; the src-over draws are tested in the
+    // method's passes only, the opaque draw in the pre-pass only.
+    const Counters c = model->counters();
+    const uint64_t passes = uint64_t(run_passes(h, m).count);
+    EXPECT_EQ(c.fragments, passes * 48u) << to_string(m);
+    EXPECT_EQ(c.color_bytes_written, 16u * 16u * kColorSampleBytes) << to_string(m) << ": the opaque draw's colour";
+    EXPECT_EQ(model->kind_fragments()[size_t(DrawKind::kOpaque)], 16u) << to_string(m) << ": counted once";
+  }
+}
+
+TEST(DrawRoutes, MethodsThatTellTransparentSamplesByDepthRefuseOpaqueDraws) {
+  // +ac and +depth (not +depth+ac) composite by which samples the stochastic
+  // pass wrote, which a pre-pass's depth would hide: they run frames of
+  // src-over draws only, and say which draw is not.
   const TargetEncoding e = TargetEncoding::kUnorm8;
   const TraceHeader h = header(2, 2, 4, {src_over(0, e), opaque_draw(7, e)});
-  for (Method m : {Method::kWboit, Method::kLkAc, Method::kLkDepth, Method::kEndertonDepthAc, Method::kSlab}) {
+  for (Method m : {Method::kLkAc, Method::kLkDepth, Method::kEndertonAc, Method::kEndertonDepth}) {
     try {
       run(h, {}, m);
       ADD_FAILURE() << to_string(m) << " ran a frame with an opaque draw";
@@ -253,6 +326,7 @@ TEST(DrawRoutes, MethodsWithoutPerSampleColourRefuseOpaqueDraws) {
       EXPECT_NE(std::string(err.what()).find("draw 7 is opaque"), std::string::npos) << err.what();
     }
   }
+  for (Method m : kPrepass) EXPECT_NO_THROW(run(h, {}, m)) << to_string(m);
   // A frame of src-over draws only runs.
-  EXPECT_NO_THROW(run(header(2, 2, 4, {src_over(0, e), src_over(1, e, true)}), {}, Method::kWboit));
+  EXPECT_NO_THROW(run(header(2, 2, 4, {src_over(0, e), src_over(1, e, true)}), {}, Method::kLkAc));
 }

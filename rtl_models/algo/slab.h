@@ -118,4 +118,24 @@ inline void slab_resolve(const SlabPixel& p, int bits, const float (*rgb)[3], co
   for (int c = 0; c < 3; ++c) out[c] = float((sum[c] + double(clear[c]) * open) / bits);
 }
 
+/// slab_resolve over a background that varies by sample (a pre-pass's
+/// opaque and blended draws): each bit no layer covers takes the colour of
+/// the sample that owns it (bits_of: slab_sample_bits), background holding
+/// spp RGB triples.
+inline void slab_resolve_over(const SlabPixel& p, int bits, const float (*rgb)[3], const uint64_t* bits_of, int spp,
+                              const float* background, float out[3]) {
+  double sum[3] = {0, 0, 0};
+  uint64_t covered = 0;
+  for (int i = 0; i < p.count; ++i) {
+    const int n = __builtin_popcountll(p.mask[i] & ~covered);
+    covered |= p.mask[i];
+    for (int c = 0; c < 3; ++c) sum[c] += double(rgb[i][c]) * n;
+  }
+  for (int s = 0; s < spp; ++s) {
+    const int n = __builtin_popcountll(bits_of[s] & ~covered);
+    for (int c = 0; c < 3; ++c) sum[c] += double(background[3 * s + c]) * n;
+  }
+  for (int c = 0; c < 3; ++c) out[c] = float(sum[c] / bits);
+}
+
 }  // namespace ropsim

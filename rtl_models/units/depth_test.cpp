@@ -18,9 +18,15 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   // Load the pixel's state: the depth lines of the tested samples, and the tracker.
   uint64_t ready = now;
   const Owner o = t->owner();
-  if (rop_.setup().cfg.method == Method::kSlab) {  // slab: the pixel's layers, no per-sample depth
+  if (rop_.setup().cfg.method == Method::kSlab && t->route == DrawRoute::kMethod) {
+    // slab: the pixel's layers, no per-sample depth (over a pre-pass's
+    // background: and the covered samples' depth, which its layers test).
     amap_.for_each_layer_line(
         t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now, o)); });
+    if (rop_.setup().prepass)
+      amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->f->coverage, [&](uint64_t line) {
+        ready = std::max(ready, cache_.read(line, Buffer::kDepth, now, o));
+      });
     return ready;
   }
   // Hierarchical Z: a fragment whose tested samples all lie beyond its

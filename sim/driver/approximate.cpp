@@ -305,6 +305,7 @@ class Model {
     reference_on_ = mt.reference && !blend_pass_;
     tracker_unit_ = mt.tracker && !blend_pass_;
     slab_ = rop.setup().cfg.method == Method::kSlab;
+    prepass_ = rop.setup().prepass;
     color_ = stochastic_writes_color(rop.setup().cfg.method);
     const PassKind p = rop.pass();
     trans_ = p == PassKind::kTotalAlpha || p == PassKind::kWboit;
@@ -336,8 +337,10 @@ class Model {
       wait = std::max(wait, lat);
     };
     const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
-    if (slab_) {
+    if (slab_ && w.route == DrawRoute::kMethod) {
       amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kLayers); });
+      if (prepass_)  // over a pre-pass's background: the covered samples' depth too
+        amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
     } else {
       amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
       if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kTracker); });
@@ -529,7 +532,7 @@ class Model {
   std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
   std::vector<size_t> window_at_;
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
-  bool slab_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
+  bool slab_ = false, prepass_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
   uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
   double t_ = 0;                 // the pipeline's cycles so far (the epochs')
   std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start

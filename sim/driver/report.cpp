@@ -152,12 +152,13 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
     }
   }
   if (has_blend_pass(ctx.config.method)) {
-    const PassList pl = passes_of(ctx.config.method);
+    const PassList pl = run_passes(run.header, ctx.config.method);
     std::vector<std::string> names;
     for (int i = 0; i < pl.count; ++i) names.push_back(to_string(pl.pass[i]));
     r.put(
         "passes", names, "-",
-        "methods with blend passes: the passes over the input, in order (total_alpha, stochastic, accumulate, wboit)");
+        "methods with blend passes: the passes over the input, in order (prepass: a frame's opaque and blended draws; "
+        "total_alpha, stochastic, accumulate, wboit)");
     Fields t = r.obj("render_targets");
     if (uses_transmittance(ctx.config.method))
       t.put("transmittance", to_string(ctx.config.formats.transmittance), "-",

@@ -8,7 +8,7 @@
 
 namespace ropsim {
 
-Image composite(const SampleStore& store, Method m) {
+Image composite(const SampleStore& store, Method m, bool background_per_sample) {
   const TraceHeader& h = store.header();
   const MethodTraits& t = traits(m);
   const BlendFormats& fmt = store.targets().formats;
@@ -25,11 +25,17 @@ Image composite(const SampleStore& store, Method m) {
       if (x >= img.width || y >= img.height) continue;
       const PixelView v = store.view(x, y);
       // Sums in sample order (deterministic).
-      double trans = 0, rgb[3] = {0, 0, 0}, acc[4] = {0, 0, 0, 0}, out[3] = {0, 0, 0};
+      double trans = 0, rgb[3] = {0, 0, 0}, acc[4] = {0, 0, 0, 0}, out[3] = {0, 0, 0}, over[3] = {0, 0, 0};
       int written = 0;
       for (int s = 0; s < spp; ++s) {
         const double T = v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
         trans += T;
+        double bs[3] = {bg[0], bg[1], bg[2]};  // the background behind sample s
+        if (background_per_sample)
+          for (int c = 0; c < 3; ++c) {
+            bs[c] = half_to_float(v.rgb[3 * s + c]);
+            over[c] += T * bs[c];
+          }
         const bool w = depth_bits(v.depth[s]) != clear_z;
         written += w;
         if (w && stochastic_writes_color(m))
@@ -38,7 +44,7 @@ Image composite(const SampleStore& store, Method m) {
           const uint8_t* a = v.accum + size_t(s) * ab;
           if (t.wboit) {
             const double wa = wboit_clamp_weight(target_load(fmt.accum, a, 3));
-            for (int c = 0; c < 3; ++c) out[c] += target_load(fmt.accum, a, c) / wa * (1.0 - T) + T * bg[c];
+            for (int c = 0; c < 3; ++c) out[c] += target_load(fmt.accum, a, c) / wa * (1.0 - T) + T * bs[c];
           } else {
             for (int c = 0; c < 4; ++c) acc[c] += target_load(fmt.accum, a, c);
           }
@@ -48,7 +54,8 @@ Image composite(const SampleStore& store, Method m) {
       if (t.wboit) {
         for (int c = 0; c < 3; ++c) out[c] /= S;
       } else if (t.depth_based && t.total_alpha) {
-        for (int c = 0; c < 3; ++c) out[c] = (acc[3] > 0 ? A * acc[c] / acc[3] : 0.0) + trans / S * bg[c];
+        for (int c = 0; c < 3; ++c)
+          out[c] = (acc[3] > 0 ? A * acc[c] / acc[3] : 0.0) + (background_per_sample ? over[c] / S : trans / S * bg[c]);
       } else if (t.depth_based) {
         for (int c = 0; c < 3; ++c) out[c] = acc[c] / S + double(spp - written) / S * bg[c];
       } else {  // +ac

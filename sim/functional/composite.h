@@ -12,7 +12,10 @@
 //
 // T_s is the transmittance target (the product of 1 - alpha over the
 // fragments at sample s), accum_s the accumulation target; a written sample
-// is one whose depth is not the clear depth (docs/methods.md).
+// is one whose depth is not the clear depth (docs/methods.md). The
+// background is the clear colour, or, after a pre-pass of a frame's opaque
+// and blended draws (PassKind::kPrepass), each sample's colour buffer:
+// mean_s(T_s) * background is then mean_s(T_s * background_s).
 #pragma once
 #include <cstddef>
 
@@ -22,8 +25,10 @@
 
 namespace ropsim {
 
-/// The image of a method with blend passes from its final state.
-Image composite(const SampleStore& store, Method m);
+/// The image of a method with blend passes from its final state; over each
+/// sample's colour buffer when a pre-pass drew the background into it
+/// (wboit and +depth+ac; +ac and +depth refuse such frames).
+Image composite(const SampleStore& store, Method m, bool background_per_sample = false);
 
 /// blend's image: each pixel's framebuffer samples resolved in the frame's
 /// encoding (framebuffer_resolve_pixel, frame_encoding), as linear light. An

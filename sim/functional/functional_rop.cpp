@@ -18,7 +18,7 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
       }()),
       traits(ropsim::traits(c.method)),
       selection(selection_of(c.method)),
-      passes(passes_of(c.method)),
+      passes(run_passes(h, c.method)),
       pass(passes.pass[0]),
       spp(h.spp),
       hilbert_n(hilbert_side(h.width, h.height)),
@@ -32,7 +32,8 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   }
   draw_states = !h.draws.empty();
   encoding = frame_encoding(h.draws);
-  for (const DrawState& d : h.draws.states()) routed |= route_of(draw_kind(d)) != DrawRoute::kMethod;
+  routed = has_routed_draws(h);
+  prepass = passes.pass[0] == PassKind::kPrepass;
   if (const std::string why = draw_state_refusal(h, c.method); !why.empty()) throw std::invalid_argument(why);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
@@ -40,17 +41,33 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   }
 }
 
+bool has_routed_draws(const TraceHeader& h) {
+  for (const DrawState& d : h.draws.states())
+    if (route_of(draw_kind(d)) != DrawRoute::kMethod) return true;
+  return false;
+}
+
+PassList run_passes(const TraceHeader& h, Method m) {
+  const PassList own = passes_of(m);
+  if (!composites_over_background(m) || !has_routed_draws(h)) return own;
+  PassList p;
+  p.pass[p.count++] = PassKind::kPrepass;
+  for (int i = 0; i < own.count; ++i) p.pass[p.count++] = own.pass[i];
+  return p;
+}
+
 std::string draw_state_refusal(const TraceHeader& h, Method m) {
-  // Opaque and blended draws go into the colour buffer in submission order;
-  // a method that composites its own targets over the clear colour, or keeps
-  // layers in place of per-sample colour, would need an opaque pre-pass first.
-  if (traits(m).framebuffer || !(has_blend_pass(m) || m == Method::kSlab)) return "";
+  // Opaque and blended draws go into the colour and depth buffers first (the
+  // pre-pass); a composite that must tell a transparent sample's depth from
+  // the background's would need a second depth buffer.
+  if (!composites_over_background(m) || !composite_reads_stochastic_depth(m)) return "";
   for (const DrawState& d : h.draws.states())
     if (route_of(draw_kind(d)) != DrawRoute::kMethod)
       return std::string("the ") + traits(m).name + " method runs frames whose draws are all src-over; draw " +
              std::to_string(d.draw_id) + " is " + to_string(draw_kind(d)) +
-             " (its opaque pre-pass is not modelled; lk, enderton, naive, a2c, hashed, hashed-a2c, opaque, blend and "
-             "reference run the frame)";
+             " (its composite would need a second depth buffer, to tell the transparent samples from the "
+             "background's; wboit, slab and the +depth+ac methods run the frame with a pre-pass, and lk, enderton, "
+             "naive, a2c, hashed, hashed-a2c, opaque, blend and reference run it in one)";
   return "";
 }
 
@@ -83,8 +100,10 @@ void FunctionalRop::process_as(FragWork& w) {
   }
   depth_.run_as<M>(w);
   if (w.killed()) return;
-  if constexpr (M != Method::kBlend && !has_blend_pass(M) && M != Method::kSlab) {
-    if (w.route != DrawRoute::kMethod) {  // a frame's opaque or blended draw: a z-buffer's write or a blend
+  if constexpr (M != Method::kBlend) {
+    // A frame's opaque or blended draw (single-pass methods, and the
+    // pre-pass of the others): a z-buffer's write or a blend.
+    if (w.route != DrawRoute::kMethod) {
       write_.run_routed(w);
       return;
     }
@@ -183,10 +202,11 @@ void FunctionalRop::begin_pass(int i) {
 
 Image FunctionalRop::resolve() const {
   if (setup_.traits.framebuffer) return framebuffer_image(store_);
-  const bool per_sample = setup_.passes.count == 1 && !setup_.traits.wboit;
+  // (The method's own passes: a pre-pass draws the background, not the image.)
+  const bool per_sample = passes_of(setup_.cfg.method).count == 1 && !setup_.traits.wboit;
   if (per_sample && setup_.encoding != TargetEncoding::kFloat && setup_.cfg.method != Method::kSlab)
     return colour_buffer_image(store_, setup_.encoding);
-  Image img = per_sample ? store_.resolve() : composite(store_, setup_.cfg.method);
+  Image img = per_sample ? store_.resolve(setup_.prepass) : composite(store_, setup_.cfg.method, setup_.prepass);
   encode_resolved(img, setup_.encoding);
   return img;
 }

@@ -52,6 +52,10 @@ struct RopSetup {
   /// Some draw takes another route than the method's (DrawRoute): opaque,
   /// additive or other blended draws.
   bool routed = false;
+  /// The passes begin with the pre-pass of the frame's opaque and blended
+  /// draws (a composite method or slab on a routed frame: run_passes); the
+  /// method's own passes then skip those draws.
+  bool prepass = false;
   TargetEncoding encoding = TargetEncoding::kFloat;  ///< the frame's (frame_encoding)
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
@@ -67,9 +71,19 @@ inline void RopSetup::sample_depths(const Fragment& f, uint64_t mask, float* z) 
                         offset_y.data(), f.z.data(), [z](int i, float zi) { z[i] = zi; });
 }
 
+/// Does some draw of the frame take another route than the method's (an
+/// opaque, additive or other blended draw)?
+bool has_routed_draws(const TraceHeader& h);
+
+/// The passes a run of method m makes over the trace of header h: the
+/// method's (passes_of), after the pre-pass of the opaque and blended draws
+/// when the method composites over a background and the frame has such
+/// draws (docs/methods.md "Methods on a frame of draw states").
+PassList run_passes(const TraceHeader& h, Method m);
+
 /// Why method m cannot run a frame of header h's draw states ("" when it
-/// can): the composite methods and slab run frames of src-over draws only
-/// (docs/methods.md "Methods on a frame of draw states").
+/// can): +ac and +depth (not +depth+ac) run frames of src-over draws only
+/// (composite_reads_stochastic_depth).
 std::string draw_state_refusal(const TraceHeader& h, Method m);
 
 /// The per-pixel buffers a run of cfg on a trace of header h keeps beyond
@@ -224,7 +238,7 @@ class FunctionalRop {
   void begin_pass(int i);
   PassKind pass() const { return setup_.pass; }
   /// Does the current pass read and write the lk tracker?
-  bool pass_uses_tracker() const { return setup_.traits.tracker && !is_blend_pass(setup_.pass); }
+  bool pass_uses_tracker() const { return setup_.traits.tracker && setup_.pass == PassKind::kStochastic; }
   /// The method's image from the final state: the box-filter resolve, or its
   /// composite (alpha correction, depth-based, wboit: composite.h).
   Image resolve() const;

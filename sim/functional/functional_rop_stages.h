@@ -71,7 +71,7 @@ inline const DrawState& DepthStage::look_up_draw(FragWork& w) {
     memo_draw_id_ = id;
     memo_kind_ = draw_kind(*memo_draw_);
   }
-  ++kind_fragments_[size_t(memo_kind_)];
+  if (s_.pass == s_.passes.pass[0]) ++kind_fragments_[size_t(memo_kind_)];  // once per run, not per pass
   w.draw = memo_draw_;
   w.route = route_of(memo_kind_);
   return *memo_draw_;
@@ -103,13 +103,13 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   const Fragment& f = *w.f;
   const uint32_t covered = uint32_t(__builtin_popcountll(f.coverage));
   ++c_.fragments;
-  c_.samples_tested += covered;
   uint64_t tested = f.coverage;
   // Blend passes: the plain test, no coverage selection, no tracker.
   [[maybe_unused]] const bool stochastic = !has_blend_pass(M) || !is_blend_pass(s_.pass);
   if constexpr (M == Method::kBlend) {
     // Every fragment: its draw's own test and blend (framebuffer_blend.h);
     // one route, the framebuffer's.
+    c_.samples_tested += covered;
     const DrawState& d = look_up_draw(w);
     w.route = DrawRoute::kMethod;
     return draw_depth_test(w, d);
@@ -117,9 +117,19 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
   w.route = DrawRoute::kMethod;
   if (s_.draw_states) {
     // A frame of draw states: opaque and blended draws take their own depth
-    // test and leave the method's stages (docs/methods.md).
+    // test and leave the method's stages (docs/methods.md). With a pre-pass,
+    // they are its only fragments, and the method's passes skip them.
     const DrawState& d = look_up_draw(w);
-    if (w.route != DrawRoute::kMethod) return draw_depth_test(w, d);
+    const bool own = w.route != DrawRoute::kMethod;
+    if (s_.prepass && own != (s_.pass == PassKind::kPrepass)) {
+      w.covered = w.survivors = 0;  // not this pass's: it tests and reads nothing
+      w.m = 0;
+      return 0;
+    }
+    c_.samples_tested += covered;
+    if (own) return draw_depth_test(w, d);
+  } else {
+    c_.samples_tested += covered;
   }
   if constexpr (kT.coverage_select) {
     // The opacity decision as a sample mask, made before the depth test.
@@ -153,10 +163,19 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.layer_bytes_read += s_.slab_bytes;
     float z[64];
     s_.sample_depths(f, f.coverage, z);
+    if (s_.prepass) {
+      // Over a pre-pass's background: only the samples in front of its
+      // depth (LESS_EQUAL), each covered sample's depth read.
+      c_.depth_bytes_read += kDepthSampleBytes * covered;
+      for (uint64_t m = f.coverage; m; m &= m - 1) {
+        const int i = __builtin_ctzll(m);
+        if (!depth_passes(z[i], w.px.depth[i])) tested &= ~(uint64_t{1} << i);
+      }
+    }
     float zf = 0;
     uint64_t candidates = 0;
     bool first = true;
-    for (uint64_t m = f.coverage; m; m &= m - 1) {
+    for (uint64_t m = tested; m; m &= m - 1) {
       const int i = __builtin_ctzll(m);
       zf = first || z[i] < zf ? z[i] : zf;
       first = false;
@@ -171,9 +190,9 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     const bool open = mask != 0 && !slab_occluded(*w.px.slab, zf, mask);
     w.slab.z = zf;
     w.slab.mask = mask;
-    w.covered = tested;
+    w.covered = f.coverage;  // every covered sample is examined
     w.survivors = open ? tested : 0;
-    w.m = open ? covered : 0;
+    w.m = open ? uint32_t(__builtin_popcountll(tested)) : 0;
     c_.samples_depth_passed += w.m;
     return covered;
   }

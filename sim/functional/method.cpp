@@ -37,6 +37,8 @@ const char* to_string(PassKind p) {
       return "wboit";
     case PassKind::kFramebuffer:
       return "framebuffer";
+    case PassKind::kPrepass:
+      return "prepass";
   }
   return "?";
 }

@@ -48,12 +48,18 @@ inline constexpr Method kLastMethod = Method::kBlend;
 /// - kWboit: non-writing depth test, accum += (alpha c w, alpha w) and
 ///   transmittance *= 1 - alpha;
 /// - kFramebuffer: the draw's depth test (and write, as its mask says), then
-///   the draw's blend into the framebuffer (framebuffer_blend.h).
-enum class PassKind : uint8_t { kTotalAlpha, kStochastic, kAccumulate, kWboit, kFramebuffer };
+///   the draw's blend into the framebuffer (framebuffer_blend.h);
+/// - kPrepass: on a frame of draw states, before a composite method's or
+///   slab's passes: the opaque and blended draws only, each with its own
+///   depth test and write and its blend into the colour buffer, which then
+///   holds the background the method composites over (run_passes).
+enum class PassKind : uint8_t { kTotalAlpha, kStochastic, kAccumulate, kWboit, kFramebuffer, kPrepass };
 const char* to_string(PassKind p);
 /// Does the pass blend into the render targets (the blend unit) rather than
 /// write through the stochastic path (tracker, sorter, references, writeback)?
-constexpr bool is_blend_pass(PassKind p) { return p != PassKind::kStochastic; }
+/// The pre-pass writes through the stochastic path, its units passing the
+/// opaque and blended draws through.
+constexpr bool is_blend_pass(PassKind p) { return p != PassKind::kStochastic && p != PassKind::kPrepass; }
 
 /// What a method needs of the ROP. Every method with a pipeline has the depth
 /// test and the writeback (opacity test and write); the rest is per method.
@@ -129,9 +135,10 @@ constexpr const MethodTraits& traits(Method m) {
 /// otherwise.
 constexpr Method selection_of(Method m) { return traits(m).base < 0 ? m : Method(traits(m).base); }
 
-/// The passes of a method over its input, in order (at most 3).
+/// The passes of a method over its input, in order (at most 4, with the
+/// pre-pass of a frame of draw states).
 struct PassList {
-  PassKind pass[3]{};
+  PassKind pass[4]{};
   int count = 0;
 };
 constexpr PassList passes_of(Method m) {
@@ -158,6 +165,18 @@ constexpr bool uses_accum(Method m) { return traits(m).depth_based || traits(m).
 constexpr bool has_blend_pass(Method m) { return uses_transmittance(m) || uses_accum(m); }
 /// Does its stochastic pass write colour (not for depth-based methods)?
 constexpr bool stochastic_writes_color(Method m) { return !traits(m).depth_based; }
+/// Does the method composite its own targets (or slab its layers) over a
+/// background, so that a frame's opaque and blended draws go first, in a
+/// pre-pass (PassKind::kPrepass), rather than into the method's own buffers?
+constexpr bool composites_over_background(Method m) {
+  return !traits(m).framebuffer && (has_blend_pass(m) || m == Method::kSlab);
+}
+/// Does its composite need to tell the samples a transparent fragment wrote
+/// from those the background's depth holds (+ac, +depth)? With a pre-pass
+/// that takes a second depth buffer, which is not modelled: such a method
+/// refuses a frame with opaque or blended draws. (+depth+ac composites by
+/// transmittance and needs none; wboit and slab write no depth.)
+constexpr bool composite_reads_stochastic_depth(Method m) { return traits(m).total_alpha != traits(m).depth_based; }
 
 const char* to_string(Method m);
 /// Parses a method name; returns false for an unknown name.

@@ -144,13 +144,15 @@ PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   return PixelView{r.depth, r.rgb, r.tracker, r.slab, r.trans, r.accum};
 }
 
-Image SampleStore::resolve() const {
+Image SampleStore::resolve(bool background_per_sample) const {
   const float clear[3] = {half_to_float(clear_rgb16_[0]), half_to_float(clear_rgb16_[1]),
                           half_to_float(clear_rgb16_[2])};
   // Untouched tiles stay the clear colour and take no memory.
   Image img(header_.width, header_.height, {clear[0], clear[1], clear[2]});
   const int spp = header_.spp;
   const float inv = 1.0f / float(spp);  // exact: spp is a power of two
+  const std::array<uint64_t, 64> bits_of =
+      slab_bits_ > 0 && background_per_sample ? slab_sample_bits(spp, slab_bits_) : std::array<uint64_t, 64>{};
   tiles_.for_each([&](uint32_t x0, uint32_t y0, const SampleTile& t) {
     for (int p = 0; p < 64; ++p) {
       const uint32_t x = x0 + (p & 7), y = y0 + (p >> 3);
@@ -165,7 +167,13 @@ Image SampleStore::resolve() const {
         float rgb[kMaxSlabLayers][3];
         for (int l = 0; l < sp.count; ++l)
           for (int ch = 0; ch < 3; ++ch) rgb[l][ch] = half_to_float(sp.rgb[l][ch]);
-        slab_resolve(sp, slab_bits_, rgb, clear, o);
+        if (background_per_sample) {
+          float bg[64 * 3];
+          for (int k = 0; k < 3 * spp; ++k) bg[k] = half_to_float(c[k]);
+          slab_resolve_over(sp, slab_bits_, rgb, bits_of.data(), spp, bg, o);
+        } else {
+          slab_resolve(sp, slab_bits_, rgb, clear, o);
+        }
         continue;
       }
       for (int ch = 0; ch < 3; ++ch) o[ch] = sum[ch] * inv;

@@ -115,8 +115,10 @@ class SampleStore {
     if (r.tracker) __builtin_prefetch(r.tracker, 1);
   }
   /// Box-filter resolve of every pixel, samples summed in sample order;
-  /// untouched pixels get the clear colour.
-  Image resolve() const;
+  /// untouched pixels get the clear colour. slab: its layers over the clear
+  /// colour, or with background_per_sample over each sample's colour (a
+  /// pre-pass's opaque and blended draws: slab_resolve_over).
+  Image resolve(bool background_per_sample = false) const;
   size_t state_bytes() const;
   /// Moves every tile of o, a store of the same screen and buffers holding
   /// none of this store's tiles, into this one (the golden model's threads
