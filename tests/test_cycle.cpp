@@ -1962,6 +1962,96 @@ TEST(Sampled, EveryUnitEndsInTheGoldenState) {
   }
 }
 
+// A frame of draw states (opaque, blended and src-over draws) is sampled as
+// any other: one unit over it is the full cycle run; each unit ends in the
+// golden state; the warming is the fragments' own touches, an opaque or
+// blended draw's with its colour read and its depth mask, and no tracker.
+TEST(Sampled, AFrameOfOpaqueAndBlendedDrawsIsSampled) {
+  const auto [h, frags] = mixed_state_frame(4, TargetEncoding::kUnorm8);
+  const std::string path = temp_path("sampled_routes.rtr");
+  {
+    TraceWriter w(path, h);
+    for (const Fragment& f : frags) w.write(f);
+    w.finish();
+  }
+  InputSpec in;
+  in.trace_path = path;
+  const HwConfig hw;
+  for (Method m : {Method::kLk, Method::kOpaque}) {
+    const GoldenConfig cfg = method_config(m);
+    const std::string what = to_string(m);
+    {
+      SamplingParams whole;
+      whole.units = 1;
+      whole.unit_fragments = ~uint64_t{0} >> 1;
+      whole.warmup_fragments = 0;
+      const LivePoints lib = record_livepoints(in, cfg, whole);
+      const UnitRun u = simulate_livepoint(lib, 0, hw);
+      const CycleRun full = run_cycle(in, cfg, hw);
+      EXPECT_EQ(u.total_cycles, full.stats.total_cycles) << what;
+      EXPECT_EQ(u.window_bytes_read + u.tail_bytes_read, full.stats.dram.total_bytes_read()) << what;
+      EXPECT_EQ(u.window_bytes_written + u.tail_bytes_written, full.stats.dram.total_bytes_written()) << what;
+      EXPECT_EQ(first_state_difference(*u.state, *full.state), "") << what;
+    }
+    // Every fragment's touch, observed.
+    std::vector<Touch> touches(frags.size());
+    StochasticModel model(h, cfg, 1);
+    model.set_observer([&](size_t i, const FragWork& w) { touches[i] = touch_of(w, false); });
+    model.draw_batch(frags.data(), frags.size());
+    SamplingParams p;
+    p.units = 3;
+    p.unit_fragments = 60;
+    p.warmup_fragments = 60;
+    p.cooldown_fragments = 30;
+    p.warming_fragments = 100000;
+    const LivePoints lib = record_livepoints(in, cfg, p);
+    ASSERT_FALSE(lib.whole) << what;
+    ASSERT_EQ(lib.points.size(), 3u) << what;
+    for (size_t k = 0; k < lib.points.size(); ++k) {
+      const LivePoint& lp = lib.points[k];
+      FunctionalRop golden(h, cfg);
+      FragWork w;
+      for (uint64_t i = 0; i < lp.first + lp.fragments.size(); ++i) {
+        w.f = &frags[i];
+        golden.process(w);
+      }
+      const UnitRun u = simulate_livepoint(lib, k, hw);
+      EXPECT_EQ(pixels_differ(*u.state, golden.store(), lp.fragments), "") << what << " unit " << k;
+      ASSERT_EQ(lp.warming.size(), lp.first) << what;
+      for (size_t i = 0; i < lp.warming.size(); ++i) {
+        const Touch &a = lp.warming[i], &b = touches[i];
+        ASSERT_TRUE(a.covered == b.covered && a.written == b.written && a.reached_write == b.reached_write &&
+                    a.routed == b.routed && a.reads_colour == b.reads_colour && a.depth_write == b.depth_write)
+            << what << " unit " << k << ": warming touch " << i << " is not fragment " << i << "'s";
+      }
+    }
+    // The lines of the touches: a blended draw that keeps depth reads the
+    // colour it writes and writes no depth; no routed touch has a tracker line.
+    const AddressMap amap(h.width, h.spp, tracker_state_bytes(h.spp, cfg.numerics.surface_id_bits),
+                          hw.cache.line_bytes, cfg.formats, 0);
+    bool seen = false;
+    for (size_t i = 0; i < touches.size(); ++i) {
+      const Touch& t = touches[i];
+      if (!t.routed) continue;
+      EXPECT_EQ(t.depth_write, t.reached_write && draw_writes_depth(h.draws.at(frags[i].draw_id))) << what << " " << i;
+      int colour_reads = 0, depth_writes = 0, tracker = 0;
+      for_each_touch_line(t, amap, m == Method::kLk, false, [&](uint64_t, bool write, Buffer b) {
+        colour_reads += b == Buffer::kColor && !write;
+        depth_writes += b == Buffer::kDepth && write;
+        tracker += b == Buffer::kTracker;
+      });
+      EXPECT_EQ(tracker, 0) << what << ": touch " << i << " of an opaque or blended draw has a tracker line";
+      if (t.written && t.reads_colour && !t.depth_write) {
+        seen = true;
+        EXPECT_GT(colour_reads, 0) << what << ": touch " << i;
+        EXPECT_EQ(depth_writes, 0) << what << ": touch " << i;
+      }
+    }
+    EXPECT_TRUE(seen) << what << ": the mixed frame has a blended draw that keeps its depth";
+  }
+  std::remove(path.c_str());
+}
+
 // An input whose units would simulate half of it or more in detail is
 // simulated whole, as one unit without warm-up: every estimate is the full
 // cycle run's figure exactly, with an interval of zero width.

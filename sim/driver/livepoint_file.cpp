@@ -388,7 +388,8 @@ void put_touch(Put& p, const Touch& t) {
   p.u64(t.written);
   p.u16(t.x);
   p.u16(t.y);
-  p.u8(uint8_t(t.reached_write) | uint8_t(t.slab_kept) << 1);
+  p.u8(uint8_t(t.reached_write) | uint8_t(t.slab_kept) << 1 | uint8_t(t.routed) << 2 | uint8_t(t.reads_colour) << 3 |
+       uint8_t(t.depth_write) << 4);
 }
 
 Touch get_touch(Get& g) {
@@ -398,9 +399,14 @@ Touch get_touch(Get& g) {
   t.x = g.u16();
   t.y = g.u16();
   const uint8_t fl = g.u8();
-  if (fl > 3) g.fail("a touch's flags are " + std::to_string(fl));
+  // Bits: reached the write, slab kept, routed, reads colour, writes depth
+  // (the last two only for a routed draw).
+  if (fl > 31 || (!(fl & 4) && (fl & 24))) g.fail("a touch's flags are " + std::to_string(fl));
   t.reached_write = fl & 1;
   t.slab_kept = fl & 2;
+  t.routed = fl & 4;
+  t.reads_colour = fl & 8;
+  t.depth_write = fl & 16;
   return t;
 }
 

@@ -113,20 +113,25 @@ void read_pre_state(const StochasticModel& model, const TraceHeader& h, const Pi
 }
 
 /// Calls f(line) for every line a touch reads or writes, in the order the
-/// pipeline does (depth reads, tracker read, then the writes).
+/// pipeline does (depth reads, tracker read, a blended draw's colour read,
+/// then the writes).
 template <class F>
 void touch_lines(const Touch& x, const AddressMap& amap, bool tracker, bool slab, F&& f) {
-  if (slab) {
+  if (slab && !x.routed) {
     amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { f(l, false, Buffer::kLayers); });
     if (x.slab_kept) amap.for_each_layer_line(x.x, x.y, [&](uint64_t l) { f(l, true, Buffer::kLayers); });
     return;
   }
+  const bool own = tracker && !x.routed;  // an opaque or blended draw bypasses the tracker
   amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.covered, [&](uint64_t l) { f(l, false, Buffer::kDepth); });
-  if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, false, Buffer::kTracker); });
+  if (own) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, false, Buffer::kTracker); });
+  if (x.routed && x.reads_colour)
+    amap.for_each_sample_line(Buffer::kColor, x.x, x.y, x.written, [&](uint64_t l) { f(l, false, Buffer::kColor); });
   if (!x.reached_write) return;
-  amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.written, [&](uint64_t l) { f(l, true, Buffer::kDepth); });
+  if (!x.routed || x.depth_write)
+    amap.for_each_sample_line(Buffer::kDepth, x.x, x.y, x.written, [&](uint64_t l) { f(l, true, Buffer::kDepth); });
   amap.for_each_sample_line(Buffer::kColor, x.x, x.y, x.written, [&](uint64_t l) { f(l, true, Buffer::kColor); });
-  if (tracker) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, true, Buffer::kTracker); });
+  if (own) amap.for_each_tracker_line(x.x, x.y, [&](uint64_t l) { f(l, true, Buffer::kTracker); });
 }
 
 /// The distinct lines the warming must reach: R x the design's cache lines.
@@ -215,14 +220,12 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   lib.method = method;
   lib.params = p;
   auto src = open_fragments(in);
-  // A live-point's touches hold the samples written, one mask for depth and
-  // colour: an opaque or blended draw's own depth mask and colour read are
-  // not in them.
-  for (const DrawState& d : src->header().draws.states())
-    if (route_of(draw_kind(d)) != DrawRoute::kMethod)
-      throw UserError("sampled simulation runs frames whose draws are all src-over; draw " + std::to_string(d.draw_id) +
-                      " of " + in.describe() + " is " + to_string(draw_kind(d)) +
-                      " (run it at the functional, approximate or cycle fidelity)");
+  // slab runs a frame with opaque or blended draws in two passes (a pre-pass first).
+  if (run_passes(src->header(), method.method).count != 1)
+    throw UserError(std::string("sampled simulation runs single-pass methods; ") + to_string(method.method) + " on " +
+                    in.describe() +
+                    " draws its opaque and blended draws in a pre-pass first (run it at the functional, approximate "
+                    "or cycle fidelity)");
   if (const std::optional<uint64_t> known = src->fragments_known()) {
     lib.fragments = *known;  // N from the trace's header (the reader holds the trace to it)
   } else {                   // N: the sampling design needs the input's length
@@ -284,12 +287,7 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
     size_t at = ring_at + i - skip;
     if (at >= ring_size) at -= ring_size;
     Touch& t = ring[at];
-    t.x = w.f->x;
-    t.y = w.f->y;
-    t.covered = w.covered;
-    t.reached_write = !w.killed();
-    t.written = t.reached_write ? w.written : 0;
-    t.slab_kept = t.reached_write && slab && w.slab.kept;
+    t = touch_of(w, slab);
   };
   bool observing = false;
   // Only the T fragments before each live-point (and the live-points' own,
@@ -914,6 +912,25 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   out.sim_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.cpu_seconds = process_cpu_seconds() - cpu0 + worker_cpu;
   return out;
+}
+
+Touch touch_of(const FragWork& w, bool slab) {
+  Touch t;
+  t.x = w.f->x;
+  t.y = w.f->y;
+  t.covered = w.covered;
+  t.reached_write = !w.killed();
+  t.written = t.reached_write ? w.written : 0;
+  t.slab_kept = t.reached_write && slab && w.slab.kept;
+  t.routed = w.route != DrawRoute::kMethod;
+  t.reads_colour = t.routed && w.draw && draw_reads_colour(*w.draw);
+  t.depth_write = t.routed && t.reached_write && w.depth_written != 0;
+  return t;
+}
+
+void for_each_touch_line(const Touch& x, const AddressMap& amap, bool tracker, bool slab,
+                         const std::function<void(uint64_t, bool, Buffer)>& f) {
+  touch_lines(x, amap, tracker, slab, f);
 }
 
 }  // namespace ropsim

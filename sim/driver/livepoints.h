@@ -29,11 +29,15 @@
 // the caches' reach makes rare.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "address_map.h"
+#include "buffers.h"
 #include "cycle_run.h"
+#include "frag_work.h"
 #include "fragment_source.h"
 #include "hw_config.h"
 #include "image.h"
@@ -70,11 +74,24 @@ struct SamplingParams {
 /// (design-independent): the samples whose depth it read, those it wrote.
 struct Touch {
   uint64_t covered = 0;  ///< samples tested (their depth lines read)
-  uint64_t written = 0;  ///< samples written (depth and colour lines)
+  uint64_t written = 0;  ///< samples written (depth and colour lines; a routed draw's depth as depth_write says)
   uint16_t x = 0, y = 0;
   bool reached_write = false;  ///< not killed by the depth test: the writeback saw it (the tracker line)
   bool slab_kept = false;      ///< slab: its layers were rewritten
+  /// A frame's opaque or blended draw (DrawRoute): no tracker line; its
+  /// written samples' colour read first when reads_colour, their depth
+  /// written only when depth_write.
+  bool routed = false;
+  bool reads_colour = false;
+  bool depth_write = false;
 };
+/// The touch of fragment work w (after the functional stages ran on it).
+Touch touch_of(const FragWork& w, bool slab);
+/// Calls f(line, write, buffer) for every line a touch reads or writes, in
+/// the order the pipeline does: the depth test's reads (depth, tracker, the
+/// colour a blended draw reads), then the writeback's writes.
+void for_each_touch_line(const Touch& x, const AddressMap& amap, bool tracker, bool slab,
+                         const std::function<void(uint64_t, bool, Buffer)>& f);
 
 /// A pixel of a live-point's tiles that held written values before its first
 /// fragment: its lines are taken to be in DRAM (see above).
