@@ -193,7 +193,8 @@ std::pair<TraceHeader, std::vector<Fragment>> mixed_state_frame(int spp, TargetE
   }
   d[0].blend = false;  // opaque, LESS, writing
   d[0].depth_write = true;
-  d[2].src_rgb = F::kOne;  // additive
+  d[1].depth_test = false;  // src-over with its depth test off (a HUD)
+  d[2].src_rgb = F::kOne;   // additive
   d[2].dst_rgb = F::kOne;
   d[3].src_rgb = F::kDstColor;  // multiply, GREATER
   d[3].dst_rgb = F::kZero;
@@ -2027,8 +2028,8 @@ TEST(Sampled, AFrameOfOpaqueAndBlendedDrawsIsSampled) {
     }
     // The lines of the touches: a blended draw that keeps depth reads the
     // colour it writes and writes no depth; no routed touch has a tracker line.
-    const AddressMap amap(h.width, h.spp, tracker_state_bytes(h.spp, cfg.numerics.surface_id_bits),
-                          hw.cache.line_bytes, cfg.formats, 0);
+    const AddressMap amap(h.width, h.spp, tracker_state_bytes(h.spp, cfg.numerics.surface_id_bits), hw.cache.line_bytes,
+                          cfg.formats, 0);
     bool seen = false;
     for (size_t i = 0; i < touches.size(); ++i) {
       const Touch& t = touches[i];

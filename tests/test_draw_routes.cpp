@@ -312,6 +312,34 @@ TEST(DrawRoutes, ThePrepassMethodsCompositeSrcOverOverTheOpaqueDraws) {
   }
 }
 
+TEST(DrawRoutes, ASrcOverDrawWithItsDepthTestOffIsNeverHidden) {
+  // A HUD: an opaque draw near the eye, then a src-over draw at alpha 1
+  // behind it with its depth test off. Every method shows the HUD, as blend
+  // does; with its depth test on, every method hides it.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  for (bool test : {false, true}) {
+    DrawState hud = src_over(1, e);
+    hud.depth_test = test;
+    const TraceHeader h = header(4, 4, 16, {opaque_draw(0, e), hud});
+    std::vector<Fragment> f;
+    rect(f, 0, 0, 0, 4, 4, 0.3f, {0.2f, 0.4f, 0.8f, 1.0f}, 16);
+    rect(f, 1, 0, 0, 4, 4, 0.9f, {1.0f, 0.5f, 0.0f, 1.0f}, 16);
+    const std::array<float, 3> want =
+        test ? std::array<float, 3>{0.2f, 0.4f, 0.8f} : std::array<float, 3>{1.0f, 0.5f, 0.0f};
+    std::vector<Method> methods = kSinglePass;
+    methods.insert(methods.end(), kPrepass.begin(), kPrepass.end());
+    methods.push_back(Method::kReference);
+    methods.push_back(Method::kBlend);
+    for (Method m : methods) {
+      const Image img = run(h, f, m)->resolve();
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(img.at(2, 2)[c], want[size_t(c)], 1e-3)
+            << to_string(m) << " channel " << c
+            << (test ? ": the depth-tested draw behind shows" : ": the HUD is hidden");
+    }
+  }
+}
+
 TEST(DrawRoutes, MethodsThatTellTransparentSamplesByDepthRefuseOpaqueDraws) {
   // +ac and +depth (not +depth+ac) composite by which samples the stochastic
   // pass wrote, which a pre-pass's depth would hide: they run frames of

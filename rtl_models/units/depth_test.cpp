@@ -23,7 +23,7 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
     // background: and the covered samples' depth, which its layers test).
     amap_.for_each_layer_line(
         t->f->x, t->f->y, [&](uint64_t line) { ready = std::max(ready, cache_.read(line, Buffer::kLayers, now, o)); });
-    if (rop_.setup().prepass)
+    if (rop_.setup().prepass && t->draw->depth_test)
       amap_.for_each_sample_line(Buffer::kDepth, t->f->x, t->f->y, t->f->coverage, [&](uint64_t line) {
         ready = std::max(ready, cache_.read(line, Buffer::kDepth, now, o));
       });
@@ -34,10 +34,11 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   // retires here (compression_model.h gives the update rule). Only for the
   // methods' own test and for draws testing LESS or LEQUAL (blend's draws and
   // the opaque and blended draws of a frame test with their own functions).
+  // (A src-over draw with its depth test off passes every sample: no Hi-Z.)
   const bool own_test = rop_.setup().cfg.method == Method::kBlend || t->route != DrawRoute::kMethod;
-  const bool hiz_applies =
-      !own_test ||
-      (t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess || t->draw->depth_func == DepthFunc::kLequal));
+  const bool hiz_applies = !own_test ? !t->draw || t->draw->depth_test
+                                     : t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess ||
+                                                               t->draw->depth_func == DepthFunc::kLequal);
   if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered && hiz_applies) {
     float zmin = 1.0f;
     for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);

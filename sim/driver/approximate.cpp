@@ -270,12 +270,14 @@ struct FragRec {
   uint16_t x = 0, y = 0;
   uint16_t m = 0;                                  ///< popcount(survivors); 0: killed by the depth test
   uint16_t hashes = 0, examined = 0, blended = 0;  ///< the reference, writeback and blend stages' counts
-  bool slab_kept = false;                          ///< slab: its layers were rewritten
   /// A frame's opaque or blended draw (DrawRoute): its colour is written, and
   /// read when reads_colour; its depth only when depth_write.
   DrawRoute route = DrawRoute::kMethod;
-  bool reads_colour = false;  ///< a blend pass (blend) or a routed draw reads the colour it writes
-  bool depth_write = false;   ///< a routed draw: it writes depth
+  bool slab_kept : 1;     ///< slab: its layers were rewritten
+  bool reads_colour : 1;  ///< a blend pass (blend) or a routed draw reads the colour it writes
+  bool depth_write : 1;   ///< a routed draw: it writes depth
+  bool depth_test : 1;    ///< its draw tests depth (slab over a pre-pass: it reads the covered samples' depth)
+  FragRec() : slab_kept(false), reads_colour(false), depth_write(false), depth_test(true) {}
   bool killed() const { return m == 0; }
 };
 static_assert(sizeof(FragRec) == kApproxRecordBytes, "memory_estimate.h's kApproxRecordBytes is a FragRec's size");
@@ -339,7 +341,7 @@ class Model {
     const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
     if (slab_ && w.route == DrawRoute::kMethod) {
       amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kLayers); });
-      if (prepass_)  // over a pre-pass's background: the covered samples' depth too
+      if (prepass_ && w.depth_test)  // over a pre-pass's background: the covered samples' depth too
         amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
     } else {
       amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
@@ -613,6 +615,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
       r.covered = w.covered;
       r.survivors = w.survivors;
       r.m = uint16_t(w.m);
+      r.depth_test = !w.draw || w.draw->depth_test;
       if (!w.killed()) {
         if (blend_pass) {
           r.blended = uint16_t(rop->blend().run(w));

@@ -163,7 +163,7 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     c_.layer_bytes_read += s_.slab_bytes;
     float z[64];
     s_.sample_depths(f, f.coverage, z);
-    if (s_.prepass) {
+    if (s_.prepass && w.draw->depth_test) {
       // Over a pre-pass's background: only the samples in front of its
       // depth (LESS_EQUAL), each covered sample's depth read.
       c_.depth_bytes_read += kDepthSampleBytes * covered;
@@ -221,6 +221,9 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
                             S |= uint64_t{depth_passes(zi, stored[i])} << i;
                           });
   }
+  // A src-over draw with its depth test off (a HUD, a UI): every tested
+  // sample survives; the method's write still stores its depth.
+  if (s_.draw_states && !w.draw->depth_test) S = tested;
   w.covered = tested;
   w.survivors = S;
   w.m = uint32_t(__builtin_popcountll(S));

@@ -225,8 +225,10 @@ Counters ReferenceModel::counters() const {
 
 void ReferenceModel::draw(const Fragment& f) {
   std::array<float, 3> rgb = f.rgb;
+  bool depth_test = true;
   if (setup_.draw_states) {
     const DrawState& d = header_.draws.at(f.draw_id);
+    depth_test = d.depth_test;
     const DrawKind k = draw_kind(d);
     ++kinds_[size_t(k)];
     if (route_of(k) != DrawRoute::kMethod) {  // the colour and depth buffer's, in submission order
@@ -254,6 +256,7 @@ void ReferenceModel::draw(const Fragment& f) {
   e.alpha = f.alpha;
   e.seq = head < 0 ? 0 : entries_[size_t(head)].seq + 1;
   e.next = head;
+  e.depth_test = depth_test;
   float z[64];
   setup_.sample_depths(f, f.coverage, z);
   grow_for(z_, size_t(covered), mem_);
@@ -299,11 +302,12 @@ Image ReferenceModel::resolve() const {
       for (int s = 0; s < spp; ++s) {
         auto& L = layers[s];
         // Behind the colour buffer's depth: hidden, as the methods' depth test
-        // (LESS_EQUAL) hides it.
+        // (LESS_EQUAL) hides it (not a fragment whose draw tests no depth).
         double bg[3] = {clear[0], clear[1], clear[2]};
         if (base_) {
           const float zb = bv.depth ? bv.depth[s] : clear_z;
-          L.erase(std::remove_if(L.begin(), L.end(), [zb](const Layer& l) { return !(l.z <= zb); }), L.end());
+          L.erase(std::remove_if(L.begin(), L.end(), [zb](const Layer& l) { return l.e->depth_test && !(l.z <= zb); }),
+                  L.end());
           if (bv.rgb)
             for (int ch = 0; ch < 3; ++ch) bg[ch] = half_to_float(bv.rgb[3 * s + ch]);
         }

@@ -154,8 +154,9 @@ class ReferenceModel : public FunctionalModel {
     size_t z_offset;  // into z_, popcount(coverage) depths in sample order
     std::array<float, 3> rgb;
     float alpha;
-    uint32_t seq;  // API order within the pixel's list
-    int64_t next;  // previous entry of the same pixel, -1 at the end
+    uint32_t seq;            // API order within the pixel's list
+    int64_t next;            // previous entry of the same pixel, -1 at the end
+    bool depth_test = true;  // its draw's depth test is on (off: never hidden by the colour buffer's depth)
   };
   struct HeadTile {
     std::array<int64_t, 64> head;
