@@ -26,15 +26,9 @@
 #include <string>
 #include <vector>
 
+#include "sanitizer.h"
 #include "study_test_util.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define ROPSIM_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ROPSIM_TEST_ASAN 1
-#endif
-#endif
 
 namespace {
 
