@@ -23,14 +23,7 @@
 #include "line_set.h"
 #include "memory_estimate.h"
 #include "rop_pipeline.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define ROPSIM_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ROPSIM_TEST_ASAN 1
-#endif
-#endif
+#include "sanitizer.h"
 #include "sim_context.h"
 
 namespace {
