@@ -15,7 +15,6 @@
 #include "sanitizer.h"
 #include "study_test_util.h"
 
-
 namespace {
 
 using namespace ropsim_test;

@@ -29,7 +29,6 @@
 #include "sanitizer.h"
 #include "study_test_util.h"
 
-
 namespace {
 
 using namespace ropsim_test;
