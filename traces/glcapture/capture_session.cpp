@@ -861,6 +861,10 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
             passed += r;
           }
           t = std::chrono::steady_clock::now();
+          // Room for every pass as large as the first: one allocation, not a doubling's copies.
+          if (pass == 0 && k == 0 && records_.capacity() < size_t(n) * size_t(passes) * parts.size()) {
+            records_.reserve(size_t(n) * size_t(passes) * parts.size() + (size_t(1) << 16));
+          }
           const std::string err = decode_records(raw_.data(), n, uint32_t(target_.width), uint32_t(target_.height),
                                                  uint32_t(k), s, records_);
           times_s_.decode += seconds_since(t);
