@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
+#include <thread>
 #include <tuple>
 
 #include "glsl_rewrite.h"
@@ -72,20 +74,55 @@ std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, ui
 
 std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
                             const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out) {
+  // The work is split over threads by records, then by pixels; each split's
+  // result is merged in a fixed order, so the fragments do not depend on the
+  // thread count.
+  const size_t nthreads =
+      records.size() < (size_t(1) << 20) ? 1 : std::max<size_t>(1, std::min(8u, std::thread::hardware_concurrency()));
+  auto in_parallel = [nthreads](const std::function<void(size_t)>& work) {
+    std::vector<std::thread> threads;
+    for (size_t t = 1; t < nthreads; ++t) threads.emplace_back(work, t);
+    work(0);
+    for (std::thread& th : threads) th.join();
+  };
+  auto slice = [](size_t n, size_t t, size_t parts_) { return std::make_pair(n * t / parts_, n * (t + 1) / parts_); };
+
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the records show more) and its instances.
+  struct Extent {
+    uint32_t width = 0, height = 0;
+    std::vector<uint64_t> per_instance, instances;
+  };
+  std::vector<Extent> ext(nthreads);
+  in_parallel([&](size_t t) {
+    Extent& e = ext[t];
+    const auto [lo, hi] = slice(records.size(), t, nthreads);
+    for (size_t i = lo; i < hi; ++i) {
+      const PassRecord& r = records[i];
+      if (r.part >= e.per_instance.size()) {
+        e.per_instance.resize(size_t(r.part) + 1, 0);
+        e.instances.resize(size_t(r.part) + 1, 0);
+      }
+      e.per_instance[r.part] = std::max<uint64_t>(e.per_instance[r.part], uint64_t(r.prim) + 1);
+      e.instances[r.part] = std::max<uint64_t>(e.instances[r.part], uint64_t(r.instance) + 1);
+      e.width = std::max<uint32_t>(e.width, uint32_t(r.x) + 1);
+      e.height = std::max<uint32_t>(e.height, uint32_t(r.y) + 1);
+    }
+  });
   uint32_t width = 0, height = 0;
   std::vector<uint64_t> per_instance(parts.size(), 0), instances(parts.size(), 0);
   for (size_t k = 0; k < parts.size(); ++k) per_instance[k] = parts[k].prims_per_instance;
-  for (const PassRecord& r : records) {
-    if (r.part >= per_instance.size()) {
-      per_instance.resize(size_t(r.part) + 1, 0);
-      instances.resize(size_t(r.part) + 1, 0);
+  for (const Extent& e : ext) {
+    width = std::max(width, e.width);
+    height = std::max(height, e.height);
+    if (e.per_instance.size() > per_instance.size()) {
+      per_instance.resize(e.per_instance.size(), 0);
+      instances.resize(e.per_instance.size(), 0);
     }
-    per_instance[r.part] = std::max<uint64_t>(per_instance[r.part], uint64_t(r.prim) + 1);
-    instances[r.part] = std::max<uint64_t>(instances[r.part], uint64_t(r.instance) + 1);
-    width = std::max<uint32_t>(width, uint32_t(r.x) + 1);
-    height = std::max<uint32_t>(height, uint32_t(r.y) + 1);
+    for (size_t k = 0; k < e.per_instance.size(); ++k) {
+      per_instance[k] = std::max(per_instance[k], e.per_instance[k]);
+      instances[k] = std::max(instances[k], e.instances[k]);
+    }
   }
   std::vector<uint64_t> base(per_instance.size() + 1, 0);
   for (size_t k = 0; k < per_instance.size(); ++k) base[k + 1] = base[k] + per_instance[k] * instances[k];
@@ -107,18 +144,34 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     uint32_t z, index;
   };
   const size_t pixels = size_t(width) * height;
+  std::vector<std::vector<uint32_t>> next(nthreads);  // each thread's next slot in each pixel's bucket
+  in_parallel([&](size_t t) {
+    next[t].assign(pixels, 0);
+    const auto [lo, hi] = slice(records.size(), t, nthreads);
+    for (size_t i = lo; i < hi; ++i) ++next[t][size_t(records[i].y) * width + records[i].x];
+  });
   std::vector<uint32_t> start(pixels + 1, 0);
-  for (const PassRecord& r : records) ++start[size_t(r.y) * width + r.x + 1];
-  for (size_t p = 0; p < pixels; ++p) start[p + 1] += start[p];
+  for (size_t p = 0; p < pixels; ++p) {
+    uint32_t at = start[p];
+    for (size_t t = 0; t < nthreads; ++t) {
+      const uint32_t c = next[t][p];
+      next[t][p] = at;
+      at += c;
+    }
+    start[p + 1] = at;
+  }
   const std::unique_ptr<Key[]> keys(new Key[records.size()]);  // no zeroing: every key is written
-  {
-    std::vector<uint32_t> next(start.begin(), start.end() - 1);
-    for (size_t i = 0; i < records.size(); ++i) {
+  in_parallel([&](size_t t) {
+    std::vector<uint32_t>& at = next[t];
+    const auto [lo, hi] = slice(records.size(), t, nthreads);
+    for (size_t i = lo; i < hi; ++i) {
       const PassRecord& r = records[i];
       const uint64_t prim = base[r.part] + uint64_t(r.instance) * per_instance[r.part] + r.prim;
-      keys[next[size_t(r.y) * width + r.x]++] = Key{prim << 8 | r.sample, bits(r.z), uint32_t(i)};
+      keys[at[size_t(r.y) * width + r.x]++] = Key{prim << 8 | r.sample, bits(r.z), uint32_t(i)};
     }
-  }
+  });
+  next.clear();
+  next.shrink_to_fit();
   auto less = [&records](const Key& a, const Key& b) {
     if (a.prim_sample != b.prim_sample) return a.prim_sample < b.prim_sample;
     if (a.z != b.z) return a.z < b.z;
@@ -129,66 +182,77 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     return false;
   };
 
-  // Each pixel's fragments, pixel by pixel; then all of them into API
-  // order by (prim_id, row, column), one fragment a (prim_id, pixel).
+  // Each pixel's fragments, pixel by pixel (a thread a range of pixels);
+  // then all of them into API order by (prim_id, row, column), one
+  // fragment a (prim_id, pixel).
   struct Made {
     uint64_t order;  ///< prim_id << 32 | row << 16 | column
-    uint32_t index;  ///< in made
+    uint32_t index;  ///< in its thread's made, then in all of them
   };
-  std::vector<CapturedFragment> made;
-  std::vector<Made> order;
-  for (size_t p = 0; p < pixels; ++p) {
-    Key* const first = keys.get() + start[p];
-    Key* const last = keys.get() + start[p + 1];
-    if (first == last) continue;
-    if (last - first > 48) {
-      std::sort(first, last, less);
-    } else if (last - first > 1) {
-      // Insertion sort: a pixel mostly has a few records.
-      for (Key* k = first + 1; k < last; ++k) {
-        const Key v = *k;
-        Key* j = k;
-        for (; j > first && less(v, j[-1]); --j) *j = j[-1];
-        *j = v;
-      }
-    }
-    const uint16_t x = uint16_t(p % width), y = uint16_t(p / width);
-    for (Key* i = first; i < last;) {
-      const uint64_t prim = i->prim_sample >> 8;
-      uint64_t coverage = 0;
-      uint32_t centre = UINT32_MAX, lowest = UINT32_MAX;
-      float z[64];
-      int covered = 0;
-      Key* j = i;
-      for (; j < last && j->prim_sample >> 8 == prim; ++j) {
-        const unsigned sample = unsigned(j->prim_sample & 0xFF);
-        if (sample == kCentrePass) {
-          if (centre == UINT32_MAX) centre = j->index;  // a repeat: the smallest depth came first
-          continue;
+  std::vector<std::vector<CapturedFragment>> made(nthreads);
+  std::vector<std::vector<Made>> made_order(nthreads);
+  in_parallel([&](size_t t) {
+    const auto [plo, phi] = slice(pixels, t, nthreads);
+    for (size_t p = plo; p < phi; ++p) {
+      Key* const first = keys.get() + start[p];
+      Key* const last = keys.get() + start[p + 1];
+      if (first == last) continue;
+      if (last - first > 48) {
+        std::sort(first, last, less);
+      } else if (last - first > 1) {
+        // Insertion sort: a pixel mostly has a few records.
+        for (Key* k = first + 1; k < last; ++k) {
+          const Key v = *k;
+          Key* j = k;
+          for (; j > first && less(v, j[-1]); --j) *j = j[-1];
+          *j = v;
         }
-        const uint64_t bit = uint64_t(1) << sample;
-        if (coverage & bit) continue;
-        if (lowest == UINT32_MAX) lowest = j->index;
-        coverage |= bit;
-        z[covered++] = word_float(j->z);
       }
-      if (coverage != 0) {
-        CapturedFragment f;
-        f.draw_id = draw_id;
-        f.prim_id = uint32_t(prim);
-        f.x = x;
-        f.y = y;
-        f.coverage = coverage;
-        f.z.assign(z, z + covered);
-        const PassRecord& colour = records[centre != UINT32_MAX ? centre : lowest];
-        for (size_t c = 0; c < 4; ++c)
-          f.rgba[c] = clamp || c == 3 ? clamp_unit(colour.rgba[c]) : clamp_non_negative(colour.rgba[c]);
-        order.push_back(Made{prim << 32 | uint64_t(y) << 16 | x, uint32_t(made.size())});
-        made.push_back(std::move(f));
+      const uint16_t x = uint16_t(p % width), y = uint16_t(p / width);
+      for (Key* i = first; i < last;) {
+        const uint64_t prim = i->prim_sample >> 8;
+        uint64_t coverage = 0;
+        uint32_t centre = UINT32_MAX, lowest = UINT32_MAX;
+        float z[64];
+        int covered = 0;
+        Key* j = i;
+        for (; j < last && j->prim_sample >> 8 == prim; ++j) {
+          const unsigned sample = unsigned(j->prim_sample & 0xFF);
+          if (sample == kCentrePass) {
+            if (centre == UINT32_MAX) centre = j->index;  // a repeat: the smallest depth came first
+            continue;
+          }
+          const uint64_t bit = uint64_t(1) << sample;
+          if (coverage & bit) continue;
+          if (lowest == UINT32_MAX) lowest = j->index;
+          coverage |= bit;
+          z[covered++] = word_float(j->z);
+        }
+        if (coverage != 0) {
+          CapturedFragment f;
+          f.draw_id = draw_id;
+          f.prim_id = uint32_t(prim);
+          f.x = x;
+          f.y = y;
+          f.coverage = coverage;
+          f.z.assign(z, z + covered);
+          const PassRecord& colour = records[centre != UINT32_MAX ? centre : lowest];
+          for (size_t c = 0; c < 4; ++c)
+            f.rgba[c] = clamp || c == 3 ? clamp_unit(colour.rgba[c]) : clamp_non_negative(colour.rgba[c]);
+          made_order[t].push_back(Made{prim << 32 | uint64_t(y) << 16 | x, uint32_t(made[t].size())});
+          made[t].push_back(std::move(f));
+        }
+        i = j;
       }
-      i = j;
     }
+  });
+  std::vector<Made> order;
+  std::vector<CapturedFragment*> fragment;
+  for (size_t t = 0; t < nthreads; ++t) {
+    for (Made m : made_order[t]) order.push_back(Made{m.order, uint32_t(fragment.size() + m.index)});
+    for (CapturedFragment& f : made[t]) fragment.push_back(&f);
   }
+  made_order.clear();
   // A stable least-significant-digit radix sort of the (unique) order keys:
   // a byte a pass, the bytes every key shares skipped.
   {
@@ -203,7 +267,7 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     }
   }
   out.reserve(out.size() + order.size());
-  for (const Made& m : order) out.push_back(std::move(made[m.index]));
+  for (const Made& m : order) out.push_back(std::move(*fragment[m.index]));
   return "";
 }
 
