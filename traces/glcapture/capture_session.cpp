@@ -340,8 +340,8 @@ class Session final : public CaptureSession {
   std::vector<FramebufferInfo> framebuffers_;
   std::vector<DrawRecord> draws_;
   std::vector<Unsupported> unsupported_;
-  std::vector<CapturedFragment> fragments_;
-  uint32_t target_draws_ = 0;  ///< draws into the target so far (the next trace draw id)
+  std::vector<std::vector<CapturedFragment>> fragments_;  ///< a draw's in API order, draw by draw
+  uint32_t target_draws_ = 0;                             ///< draws into the target so far (the next trace draw id)
   bool target_known_ = false;
   bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
@@ -887,15 +887,16 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   saved.restore(binding_);
   std::vector<DrawPart> shape;
   for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
-  const size_t before = fragments_.size();
+  std::vector<CapturedFragment> made;  // a vector a draw: no earlier draw's fragments move
   const bool clamp = target_.encoding != TargetEncoding::kFloat;
   const auto t = std::chrono::steady_clock::now();
-  const std::string err = build_fragments(records_, d.trace_id, shape, clamp, fragments_);
+  const std::string err =
+      build_fragments(records_, d.trace_id, shape, clamp, made, uint32_t(target_.width), uint32_t(target_.height));
   if (!err.empty()) fail(err);
   times_s_.build += seconds_since(t);
-  d.fragments = fragments_.size() - before;
-  for (size_t i = before; i < fragments_.size(); ++i) d.covered_samples += fragments_[i].z.size();
-  if (list_only_) fragments_.resize(before);  // counted, no trace to write
+  d.fragments = made.size();
+  for (const CapturedFragment& f : made) d.covered_samples += f.z.size();
+  if (!list_only_) fragments_.push_back(std::move(made));  // else counted, no trace to write
   d.counted = count;
   d.samples_passed = passed;
 }
@@ -1197,7 +1198,8 @@ void Session::finish_frame() {
     const auto t = std::chrono::steady_clock::now();
     try {
       TraceWriter w(out_, h, kTraceZstdLevel);
-      for (const CapturedFragment& f : fragments_) w.write(to_trace_fragment(f));
+      for (const std::vector<CapturedFragment>& draw : fragments_)
+        for (const CapturedFragment& f : draw) w.write(to_trace_fragment(f));
       w.finish();
     } catch (const std::exception& e) {
       fail(e.what());

@@ -73,7 +73,8 @@ std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, ui
 }
 
 std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
-                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out) {
+                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out,
+                            uint32_t width, uint32_t height) {
   // The work is split over threads by records, then by pixels; each split's
   // result is merged in a fixed order, so the fragments do not depend on the
   // thread count.
@@ -87,15 +88,28 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
   };
   auto slice = [](size_t n, size_t t, size_t parts_) { return std::make_pair(n * t / parts_, n * (t + 1) / parts_); };
 
+  if (width == 0 || height == 0) {  // the pixels' extent from the records
+    width = height = 0;
+    for (const PassRecord& r : records) {
+      width = std::max<uint32_t>(width, uint32_t(r.x) + 1);
+      height = std::max<uint32_t>(height, uint32_t(r.y) + 1);
+    }
+  }
+  const size_t pixels = size_t(width) * height;
+
   // Primitive numbering: each part's primitives per instance (the call's
-  // count, or more when the records show more) and its instances.
+  // count, or more when the records show more) and its instances; in the
+  // same scan, each thread's count of records in each pixel.
   struct Extent {
-    uint32_t width = 0, height = 0;
+    bool outside = false;
     std::vector<uint64_t> per_instance, instances;
   };
   std::vector<Extent> ext(nthreads);
+  std::vector<std::vector<uint32_t>> next(nthreads);  // then each thread's next slot in each pixel's bucket
   in_parallel([&](size_t t) {
     Extent& e = ext[t];
+    std::vector<uint32_t>& n = next[t];
+    n.assign(pixels, 0);
     const auto [lo, hi] = slice(records.size(), t, nthreads);
     for (size_t i = lo; i < hi; ++i) {
       const PassRecord& r = records[i];
@@ -105,16 +119,19 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
       }
       e.per_instance[r.part] = std::max<uint64_t>(e.per_instance[r.part], uint64_t(r.prim) + 1);
       e.instances[r.part] = std::max<uint64_t>(e.instances[r.part], uint64_t(r.instance) + 1);
-      e.width = std::max<uint32_t>(e.width, uint32_t(r.x) + 1);
-      e.height = std::max<uint32_t>(e.height, uint32_t(r.y) + 1);
+      if (r.x >= width || r.y >= height) {
+        e.outside = true;
+        continue;
+      }
+      ++n[size_t(r.y) * width + r.x];
     }
   });
-  uint32_t width = 0, height = 0;
   std::vector<uint64_t> per_instance(parts.size(), 0), instances(parts.size(), 0);
   for (size_t k = 0; k < parts.size(); ++k) per_instance[k] = parts[k].prims_per_instance;
   for (const Extent& e : ext) {
-    width = std::max(width, e.width);
-    height = std::max(height, e.height);
+    if (e.outside)
+      return "draw " + std::to_string(draw_id) + " has a record outside the " + std::to_string(width) + "x" +
+             std::to_string(height) + " target";
     if (e.per_instance.size() > per_instance.size()) {
       per_instance.resize(e.per_instance.size(), 0);
       instances.resize(e.per_instance.size(), 0);
@@ -143,13 +160,6 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     uint64_t prim_sample;
     uint32_t z, index;
   };
-  const size_t pixels = size_t(width) * height;
-  std::vector<std::vector<uint32_t>> next(nthreads);  // each thread's next slot in each pixel's bucket
-  in_parallel([&](size_t t) {
-    next[t].assign(pixels, 0);
-    const auto [lo, hi] = slice(records.size(), t, nthreads);
-    for (size_t i = lo; i < hi; ++i) ++next[t][size_t(records[i].y) * width + records[i].x];
-  });
   std::vector<uint32_t> start(pixels + 1, 0);
   for (size_t p = 0; p < pixels; ++p) {
     uint32_t at = start[p];
