@@ -361,8 +361,9 @@ class Session final : public CaptureSession {
   } times_s_;
 };
 
-/// The trace's zstd level: 1, not the writer's default 3 (a 3.3-million-fragment
-/// frame compresses in about half the time, for a trace some 10 % larger).
+/// The trace's zstd level: 1, not the writer's default 3 (jellyfish's
+/// 1920 x 1080 16-spp frame, 308 MB of records, compresses in 0.5 s instead
+/// of 0.85 s, into a trace 2 % larger).
 constexpr int kTraceZstdLevel = 1;
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
