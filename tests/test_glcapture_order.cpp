@@ -194,6 +194,19 @@ TEST(GlCaptureOrder, FragmentsMatchTheRuleWrittenOutDirectly) {
     i = j;
   }
   ASSERT_EQ(got.size(), want.size());
+  // The target's size given: its pixels as buckets, and, for a target far
+  // larger than the records cover, only the pixels they hit; the same fragments.
+  for (uint32_t side : {100u, 32768u}) {
+    std::vector<CapturedFragment> sized;
+    ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, sized, side, side), "");
+    ASSERT_EQ(sized.size(), got.size()) << side;
+    for (size_t i = 0; i < got.size(); ++i)
+      ASSERT_TRUE(sized[i].prim_id == got[i].prim_id && sized[i].x == got[i].x && sized[i].y == got[i].y &&
+                  sized[i].coverage == got[i].coverage && sized[i].z == got[i].z && sized[i].rgba == got[i].rgba)
+          << side << " x " << side << ": fragment " << i;
+  }
+  std::vector<CapturedFragment> small;
+  EXPECT_NE(build_fragments(r, 2, {{4}, {4}}, true, small, 50, 50).find("outside the 50x50 target"), std::string::npos);
   for (size_t i = 0; i < got.size(); ++i) {
     ASSERT_EQ(got[i].draw_id, 2u);
     ASSERT_EQ(got[i].prim_id, want[i].prim_id) << i;

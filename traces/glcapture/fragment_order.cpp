@@ -95,7 +95,22 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
       height = std::max<uint32_t>(height, uint32_t(r.y) + 1);
     }
   }
-  const size_t pixels = size_t(width) * height;
+  // The buckets: every pixel of the target; or, when the records are few
+  // for its area (a large target), only the pixels they hit (sorted ids).
+  const bool dense = size_t(width) * height <= 2 * records.size() + (size_t(1) << 20);
+  std::vector<uint32_t> hit;
+  if (!dense) {
+    hit.reserve(records.size());
+    for (const PassRecord& r : records)
+      if (r.x < width && r.y < height) hit.push_back(uint32_t(r.y) * width + r.x);
+    std::sort(hit.begin(), hit.end());
+    hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
+  }
+  const size_t pixels = dense ? size_t(width) * height : hit.size();
+  auto bucket = [&](const PassRecord& r) -> size_t {
+    const uint32_t id = uint32_t(r.y) * width + r.x;
+    return dense ? id : size_t(std::lower_bound(hit.begin(), hit.end(), id) - hit.begin());
+  };
 
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the records show more) and its instances; in the
@@ -123,7 +138,7 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
         e.outside = true;
         continue;
       }
-      ++n[size_t(r.y) * width + r.x];
+      ++n[bucket(r)];
     }
   });
   std::vector<uint64_t> per_instance(parts.size(), 0), instances(parts.size(), 0);
@@ -177,7 +192,7 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
     for (size_t i = lo; i < hi; ++i) {
       const PassRecord& r = records[i];
       const uint64_t prim = base[r.part] + uint64_t(r.instance) * per_instance[r.part] + r.prim;
-      keys[at[size_t(r.y) * width + r.x]++] = Key{prim << 8 | r.sample, bits(r.z), uint32_t(i)};
+      keys[at[bucket(r)]++] = Key{prim << 8 | r.sample, bits(r.z), uint32_t(i)};
     }
   });
   next.clear();
@@ -218,7 +233,8 @@ std::string build_fragments(const std::vector<PassRecord>& records, uint32_t dra
           *j = v;
         }
       }
-      const uint16_t x = uint16_t(p % width), y = uint16_t(p / width);
+      const uint32_t id = dense ? uint32_t(p) : hit[p];
+      const uint16_t x = uint16_t(id % width), y = uint16_t(id / width);
       for (Key* i = first; i < last;) {
         const uint64_t prim = i->prim_sample >> 8;
         uint64_t coverage = 0;
