@@ -866,10 +866,11 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
             passed += r;
           }
           t = std::chrono::steady_clock::now();
-          // Room for every pass as large as the first: one allocation, not a doubling's copies.
-          if (pass == 0 && k == 0 && records_.capacity() < size_t(n) * size_t(passes) * parts.size()) {
-            records_.reserve(size_t(n) * size_t(passes) * parts.size() + (size_t(1) << 16));
-          }
+          // Room for the part's every pass as large as its first: for a draw
+          // of one part one allocation, not a doubling's copies.
+          if (pass == 0 && records_.capacity() < records_.size() + size_t(n) * size_t(passes))
+            records_.reserve(std::max(records_.size() + size_t(n) * size_t(passes) + (size_t(1) << 16),
+                                      k == 0 ? size_t(0) : 2 * records_.capacity()));
           const std::string err = decode_records(raw_.data(), n, uint32_t(target_.width), uint32_t(target_.height),
                                                  uint32_t(k), s, records_);
           times_s_.decode += seconds_since(t);
