@@ -857,8 +857,17 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
         times_s_.passes += seconds_since(t);
         if (n <= capacity_) {
           t = std::chrono::steady_clock::now();
-          raw_.resize(size_t(n) * kRecordWords);
-          if (n) g.GetNamedBufferSubData(record_buffer_, GLintptr(head), GLsizeiptr(raw_.size() * 4), raw_.data());
+          // The records read in place (mapped), else copied out.
+          const GLsizeiptr bytes = GLsizeiptr(uint64_t(n) * record_bytes);
+          const uint32_t* words = nullptr;
+          if (n)
+            words = static_cast<const uint32_t*>(
+                g.MapNamedBufferRange(record_buffer_, GLintptr(head), bytes, GL_MAP_READ_BIT));
+          if (n && !words) {
+            raw_.resize(size_t(n) * kRecordWords);
+            g.GetNamedBufferSubData(record_buffer_, GLintptr(head), bytes, raw_.data());
+            words = raw_.data();
+          }
           times_s_.read_back += seconds_since(t);
           if (count && s != kCentrePass) {  // the centre pass adds colour, no coverage
             GLuint64 r = 0;
@@ -871,8 +880,9 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
           if (pass == 0 && records_.capacity() < records_.size() + size_t(n) * size_t(passes))
             records_.reserve(std::max(records_.size() + size_t(n) * size_t(passes) + (size_t(1) << 16),
                                       k == 0 ? size_t(0) : 2 * records_.capacity()));
-          const std::string err = decode_records(raw_.data(), n, uint32_t(target_.width), uint32_t(target_.height),
-                                                 uint32_t(k), s, records_);
+          const std::string err =
+              decode_records(words, n, uint32_t(target_.width), uint32_t(target_.height), uint32_t(k), s, records_);
+          if (n && words != raw_.data()) g.UnmapNamedBuffer(record_buffer_);
           times_s_.decode += seconds_since(t);
           if (!err.empty()) fail("draw " + std::to_string(d.index) + " (" + d.name + "): " + err);
           break;

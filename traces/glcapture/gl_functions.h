@@ -112,6 +112,8 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLNAMEDBUFFERDATAPROC, NamedBufferData)                                                         \
   X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)                                                   \
   X(PFNGLGETNAMEDBUFFERSUBDATAPROC, GetNamedBufferSubData)                                             \
+  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)                                                 \
+  X(PFNGLUNMAPNAMEDBUFFERPROC, UnmapNamedBuffer)                                                       \
   X(PFNGLBINDBUFFERPROC, BindBuffer)                                                                   \
   X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                                                           \
   X(PFNGLBINDBUFFERRANGEPROC, BindBufferRange)                                                         \
