@@ -889,6 +889,31 @@ TEST(CaptureGl, ReplayCapturesWhatTheApplicationDrewLive) {
 #endif
 }
 
+// The benchmark's modes (scripts/bench_capture_gl.sh): ROPSIM_GL_TIMES writes
+// the capture's phase times; ROPSIM_GL_RENDER_PASSES=1 renders the passes with
+// the application's programs and makes no records, only with a list.
+TEST(CaptureGl, TheBenchmarksModesTimeThePhasesAndRenderThePassesAlone) {
+  ROPSIM_NEEDS_LIBRARY();
+  Sandbox box;
+  const std::string app = " -- " + gl_program("gl_order") + " --frames 3";
+  ASSERT_EQ(box.run("capture gl --frame 1 --spp 4 --quiet -o t.trace" + app,
+                    kLib + "ROPSIM_GL_TIMES=" + box.path("capture.json"))
+                .code,
+            0);
+  const json c = json::parse(slurp(box.path("capture.json")));
+  for (const char* phase : {"passes", "read_back", "decode", "build", "write"})
+    EXPECT_GT(c.at(phase).get<double>(), 0.0) << phase << "\n" << c.dump();
+  const Result r = box.run("capture gl --frame 1 --spp 4 --list --json" + app,
+                           kLib + "ROPSIM_GL_RENDER_PASSES=1 ROPSIM_GL_TIMES=" + box.path("passes.json"));
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const json p = json::parse(slurp(box.path("passes.json")));
+  EXPECT_GT(p.at("passes").get<double>(), 0.0) << p.dump();
+  for (const char* phase : {"read_back", "decode", "build", "write"})
+    EXPECT_EQ(p.at(phase).get<double>(), 0.0) << phase << ": the passes alone make no records\n" << p.dump();
+  expect_error(box, "capture gl --frame 1 --spp 4 -o u.trace" + app, kLib + "ROPSIM_GL_RENDER_PASSES=1",
+               {"ROPSIM_GL_RENDER_PASSES=1 needs ROPSIM_GL_LIST_ONLY=1"});
+}
+
 // The real library's errors: an application that exits before frame N, a
 // frame past the end of a replayed trace.
 TEST(CaptureGl, FramesThatNeverComeAreErrors) {

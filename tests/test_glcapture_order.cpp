@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <tuple>
 
 #include "fragment_order.h"
 #include "glsl_rewrite.h"
@@ -129,6 +130,91 @@ TEST(GlCaptureOrder, FragmentsComeInApiOrderWhateverTheRecordOrder) {
       EXPECT_EQ(got[i].coverage, expected[i].coverage);
       EXPECT_EQ(got[i].z, expected[i].z);
     }
+  }
+}
+
+// The fragments equal those of the rule written out directly (each
+// (prim_id, pixel)'s records in (sample, depth, colour) order: the first
+// record of each sample, the first centre record's colour, else the lowest
+// sample's), in (prim_id, row, column) order, for records with repeats,
+// parts, instances, centre-only pixels and a pixel with many primitives.
+TEST(GlCaptureOrder, FragmentsMatchTheRuleWrittenOutDirectly) {
+  std::mt19937 rng(7);
+  std::vector<PassRecord> r;
+  // More than 2^20 records: build_fragments then splits its work over threads.
+  for (int i = 0; i < 1100000; ++i) {
+    const int sample = int(rng() % 5) == 0 ? kCentrePass : int(rng() % 16);
+    PassRecord a = rec(rng() % 2, rng() % 3, rng() % 4, uint16_t(rng() % 90), uint16_t(rng() % 50), sample,
+                       float(rng() % 8) / 8.0f, float(rng() % 4) / 4.0f);
+    r.push_back(a);
+  }
+  for (uint32_t prim = 0; prim < 4; ++prim)  // pixel (8, 4): 4 x 2 x 3 x 17 more records
+    for (uint32_t inst = 0; inst < 3; ++inst)
+      for (uint32_t part = 0; part < 2; ++part)
+        for (int s = 0; s <= 16; ++s) r.push_back(rec(part, inst, prim, 8, 4, s == 16 ? kCentrePass : s, 0.5f));
+  std::vector<CapturedFragment> got;
+  ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, got), "");
+
+  auto id = [](const PassRecord& a) { return a.part * 12 + a.instance * 4 + a.prim; };
+  auto bits = [](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    return u;
+  };
+  std::vector<PassRecord> sorted = r;
+  std::sort(sorted.begin(), sorted.end(), [&](const PassRecord& a, const PassRecord& b) {
+    auto ka = std::make_tuple(id(a), a.y, a.x, a.sample, bits(a.z), bits(a.rgba[0]));
+    auto kb = std::make_tuple(id(b), b.y, b.x, b.sample, bits(b.z), bits(b.rgba[0]));
+    return ka < kb;
+  });
+  std::vector<CapturedFragment> want;
+  for (size_t i = 0; i < sorted.size();) {
+    size_t j = i;
+    CapturedFragment f;
+    const PassRecord *centre = nullptr, *lowest = nullptr;
+    for (; j < sorted.size() && id(sorted[j]) == id(sorted[i]) && sorted[j].x == sorted[i].x &&
+           sorted[j].y == sorted[i].y;
+         ++j) {
+      const PassRecord& a = sorted[j];
+      if (a.sample == kCentrePass) {
+        if (!centre) centre = &a;
+      } else if (!(f.coverage >> a.sample & 1)) {
+        if (!lowest) lowest = &a;
+        f.coverage |= uint64_t(1) << a.sample;
+        f.z.push_back(a.z);
+      }
+    }
+    if (f.coverage) {
+      f.prim_id = id(sorted[i]);
+      f.x = sorted[i].x;
+      f.y = sorted[i].y;
+      f.rgba = (centre ? centre : lowest)->rgba;
+      want.push_back(f);
+    }
+    i = j;
+  }
+  ASSERT_EQ(got.size(), want.size());
+  // The target's size given: its pixels as buckets, and, for a target far
+  // larger than the records cover, only the pixels they hit; the same fragments.
+  for (uint32_t side : {100u, 32768u}) {
+    std::vector<CapturedFragment> sized;
+    ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, sized, side, side), "");
+    ASSERT_EQ(sized.size(), got.size()) << side;
+    for (size_t i = 0; i < got.size(); ++i)
+      ASSERT_TRUE(sized[i].prim_id == got[i].prim_id && sized[i].x == got[i].x && sized[i].y == got[i].y &&
+                  sized[i].coverage == got[i].coverage && sized[i].z == got[i].z && sized[i].rgba == got[i].rgba)
+          << side << " x " << side << ": fragment " << i;
+  }
+  std::vector<CapturedFragment> small;
+  EXPECT_NE(build_fragments(r, 2, {{4}, {4}}, true, small, 50, 50).find("outside the 50x50 target"), std::string::npos);
+  for (size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].draw_id, 2u);
+    ASSERT_EQ(got[i].prim_id, want[i].prim_id) << i;
+    ASSERT_EQ(got[i].x, want[i].x) << i;
+    ASSERT_EQ(got[i].y, want[i].y) << i;
+    ASSERT_EQ(got[i].coverage, want[i].coverage) << i;
+    ASSERT_EQ(got[i].z, want[i].z) << i;
+    ASSERT_EQ(got[i].rgba, want[i].rgba) << i;
   }
 }
 

@@ -72,9 +72,12 @@ struct CapturedFragment {
 /// and colour to >= 0 (what a trace holds). The result does not depend on
 /// the records' order (a record that repeats a
 /// (part, instance, primitive, pixel, sample) keeps the smallest depth, then
-/// colour, bit for bit). Returns "" or why the ids overflow 32 bits.
+/// colour, bit for bit). width x height: the target (0 x 0: the records'
+/// extent). Returns "" or why the ids overflow 32 bits (or a record lies
+/// outside the target).
 std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
-                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out);
+                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out,
+                            uint32_t width = 0, uint32_t height = 0);
 
 /// A CapturedFragment as the trace's Fragment (DepthMode::kPerSample).
 Fragment to_trace_fragment(const CapturedFragment& f);

@@ -85,6 +85,7 @@ using PfnGlEnd = decltype(&::glEnd);
   X(decltype(&::glPixelStorei), PixelStorei)                                                           \
   X(decltype(&::glFinish), Finish)                                                                     \
   X(decltype(&::glViewport), Viewport)                                                                 \
+  X(PFNGLVIEWPORTINDEXEDFPROC, ViewportIndexedf)                                                       \
   X(decltype(&::glScissor), Scissor)                                                                   \
   X(decltype(&::glFrontFace), FrontFace)                                                               \
   X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                                       \
@@ -111,6 +112,8 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLNAMEDBUFFERDATAPROC, NamedBufferData)                                                         \
   X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)                                                   \
   X(PFNGLGETNAMEDBUFFERSUBDATAPROC, GetNamedBufferSubData)                                             \
+  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)                                                 \
+  X(PFNGLUNMAPNAMEDBUFFERPROC, UnmapNamedBuffer)                                                       \
   X(PFNGLBINDBUFFERPROC, BindBuffer)                                                                   \
   X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                                                           \
   X(PFNGLBINDBUFFERRANGEPROC, BindBufferRange)                                                         \

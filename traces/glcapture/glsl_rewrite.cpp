@@ -284,7 +284,7 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)\n"
        "layout(std430, binding = " +
        std::to_string(binding) +
-       ") buffer RopsimFragments { uint ropsim_count; uint ropsim_pad; uint ropsim_rec[]; };\n"
+       ") buffer RopsimFragments { uint ropsim_count; uvec4 ropsim_rec[]; };\n"
        "uniform uint ropsim_capacity;\n"
        "flat in int ropsim_instance;\n"
        "void main() {\n" +
@@ -296,17 +296,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        ";\n"
        "    uint i = atomicAdd(ropsim_count, 1u);\n"
        "    if (i < ropsim_capacity) {\n"
-       "      uint b = i * " +
-       std::to_string(kRecordWords) +
-       "u;\n"
-       "      ropsim_rec[b + 0u] = uint(gl_FragCoord.x) | (uint(gl_FragCoord.y) << 16);\n"
-       "      ropsim_rec[b + 1u] = uint(gl_PrimitiveID);\n"
-       "      ropsim_rec[b + 2u] = uint(ropsim_instance);\n"
-       "      ropsim_rec[b + 3u] = floatBitsToUint(gl_FragCoord.z);\n"
-       "      ropsim_rec[b + 4u] = floatBitsToUint(ropsim_color.r);\n"
-       "      ropsim_rec[b + 5u] = floatBitsToUint(ropsim_color.g);\n"
-       "      ropsim_rec[b + 6u] = floatBitsToUint(ropsim_color.b);\n"
-       "      ropsim_rec[b + 7u] = floatBitsToUint(ropsim_color.a);\n"
+       "      ropsim_rec[2u * i] = uvec4(uint(gl_FragCoord.x) | (uint(gl_FragCoord.y) << 16), uint(gl_PrimitiveID),\n"
+       "                                 uint(ropsim_instance), floatBitsToUint(gl_FragCoord.z));\n"
+       "      ropsim_rec[2u * i + 1u] = floatBitsToUint(ropsim_color);\n"
        "    }\n"
        "  }\n"
        "}\n";

@@ -17,8 +17,9 @@ enum class GlslProfile { kCompatibility, kCore };
 /// << 16, GL window coordinates), gl_PrimitiveID, the instance, gl_FragCoord.z
 /// (float bits), and the colour's r, g, b, a (float bits).
 inline constexpr unsigned kRecordWords = 8;
-/// Words before the records: the atomic count and one pad word.
-inline constexpr unsigned kRecordHeaderWords = 2;
+/// Words before the records: the atomic count and three pad words (the
+/// records are two uvec4 each, 16-byte aligned in std430).
+inline constexpr unsigned kRecordHeaderWords = 4;
 
 struct Rewritten {
   std::string source;  ///< empty when error is set
