@@ -10,13 +10,19 @@ namespace ropsim {
 
 Image composite(const SampleStore& store, Method m, bool background_per_sample) {
   const TraceHeader& h = store.header();
+  const TargetEncoding e = frame_encoding(h.draws);
+  const bool e8 = e != TargetEncoding::kFloat;
   const MethodTraits& t = traits(m);
   const BlendFormats& fmt = store.targets().formats;
   const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
   double bg[3];
   const std::array<float, 3> clear = colour_buffer_clear(frame_encoding(h.draws), h.clear_color);
   for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(clear[size_t(c)]));  // as the colour buffer holds it
-  Image img(h.width, h.height, {float(bg[0]), float(bg[1]), float(bg[2])});            // untouched tiles: no memory
+  // Untouched tiles (no memory): the clear colour, as light on an 8-bit target.
+  Image img(
+      h.width, h.height,
+      e8 ? std::array<float, 3>{resolved_light(e, clear[0]), resolved_light(e, clear[1]), resolved_light(e, clear[2])}
+         : std::array<float, 3>{float(bg[0]), float(bg[1]), float(bg[2])});
   const int spp = h.spp;
   const uint32_t clear_z = depth_bits(canonical_depth(h.clear_depth));
   store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
@@ -51,6 +57,39 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
         }
       }
       const double S = spp, A = 1.0 - trans / S;
+      if (e8) {
+        // An 8-bit target: each sample's composite stored as the target
+        // stores it and the pixel resolved as blend resolves its framebuffer
+        // (as colour_buffer_image): mean_s of these is the formula below.
+        float samples[64 * 4], res[3];
+        for (int s = 0; s < spp; ++s) {
+          const double T = v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
+          double bs[3] = {bg[0], bg[1], bg[2]};
+          if (background_per_sample)
+            for (int c = 0; c < 3; ++c) bs[c] = half_to_float(v.rgb[3 * s + c]);
+          const bool w = depth_bits(v.depth[s]) != clear_z;
+          const uint8_t* a = v.accum ? v.accum + size_t(s) * ab : nullptr;
+          for (int c = 0; c < 3; ++c) {
+            double o;
+            if (t.wboit) {
+              o = target_load(fmt.accum, a, c) / wboit_clamp_weight(target_load(fmt.accum, a, 3)) * (1.0 - T) +
+                  T * bs[c];
+            } else if (t.depth_based && t.total_alpha) {
+              o = (acc[3] > 0 ? A * acc[c] / acc[3] : 0.0) + T * bs[c];
+            } else if (t.depth_based) {
+              o = target_load(fmt.accum, a, c) + (w ? 0.0 : bs[c]);
+            } else {  // +ac
+              o = (written > 0 ? A * rgb[c] / written : 0.0) + T * bs[c];
+            }
+            samples[4 * s + c] = framebuffer_store(e, c, float(o));
+          }
+          samples[4 * s + 3] = 1.0f;
+        }
+        framebuffer_resolve_pixel(e, samples, spp, res);
+        float* o = img.at(x, y);
+        for (int c = 0; c < 3; ++c) o[c] = framebuffer_light(e, res[c]);
+        continue;
+      }
       if (t.wboit) {
         for (int c = 0; c < 3; ++c) out[c] /= S;
       } else if (t.depth_based && t.total_alpha) {

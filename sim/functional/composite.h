@@ -27,7 +27,11 @@ namespace ropsim {
 
 /// The image of a method with blend passes from its final state; over each
 /// sample's colour buffer when a pre-pass drew the background into it
-/// (wboit and +depth+ac; +ac and +depth refuse such frames).
+/// (wboit and +depth+ac; +ac and +depth refuse such frames). On a frame
+/// whose target has an 8-bit encoding, each sample's composite (the
+/// formula's term for sample s) is stored as the target stores it and the
+/// pixel resolved as blend resolves its framebuffer, as light
+/// (colour_buffer_image); on a float target the image is the formula's.
 Image composite(const SampleStore& store, Method m, bool background_per_sample = false);
 
 /// blend's image: each pixel's framebuffer samples resolved in the frame's

@@ -206,7 +206,8 @@ Image FunctionalRop::resolve() const {
   const bool per_sample = passes_of(setup_.cfg.method).count == 1 && !setup_.traits.wboit;
   if (per_sample && setup_.encoding != TargetEncoding::kFloat && setup_.cfg.method != Method::kSlab)
     return colour_buffer_image(store_, setup_.encoding);
-  Image img = per_sample ? store_.resolve(setup_.prepass) : composite(store_, setup_.cfg.method, setup_.prepass);
+  if (!per_sample) return composite(store_, setup_.cfg.method, setup_.prepass);  // (light on 8-bit targets)
+  Image img = store_.resolve(setup_.prepass);
   encode_resolved(img, setup_.encoding);
   return img;
 }
