@@ -119,18 +119,15 @@ inline uint32_t DepthStage::run_as(FragWork& w) {
     // A frame of draw states: opaque and blended draws take their own depth
     // test and leave the method's stages (docs/methods.md). With a pre-pass,
     // they are its only fragments, and the method's passes skip them.
-    const DrawState& d = look_up_draw(w);
-    const bool own = w.route != DrawRoute::kMethod;
-    if (s_.prepass && own != (s_.pass == PassKind::kPrepass)) {
+    look_up_draw(w);
+    if (s_.prepass && (w.route != DrawRoute::kMethod) != (s_.pass == PassKind::kPrepass)) {
       w.covered = w.survivors = 0;  // not this pass's: it tests and reads nothing
       w.m = 0;
       return 0;
     }
-    c_.samples_tested += covered;
-    if (own) return draw_depth_test(w, d);
-  } else {
-    c_.samples_tested += covered;
   }
+  c_.samples_tested += covered;
+  if (w.route != DrawRoute::kMethod) return draw_depth_test(w, *w.draw);
   if constexpr (kT.coverage_select) {
     // The opacity decision as a sample mask, made before the depth test.
     const uint64_t a = memo_.fixed_alpha(f.alpha);
