@@ -16,7 +16,7 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
   const BlendFormats& fmt = store.targets().formats;
   const uint32_t tb = sample_bytes(fmt.transmittance), ab = sample_bytes(fmt.accum);
   double bg[3];
-  const std::array<float, 3> clear = colour_buffer_clear(frame_encoding(h.draws), h.clear_color);
+  const std::array<float, 3> clear = colour_buffer_clear(e, h.clear_color);
   for (int c = 0; c < 3; ++c) bg[c] = half_to_float(float_to_half(clear[size_t(c)]));  // as the colour buffer holds it
   // Untouched tiles (no memory): the clear colour, as light on an 8-bit target.
   Image img(
@@ -30,18 +30,22 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
       const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
       if (x >= img.width || y >= img.height) continue;
       const PixelView v = store.view(x, y);
+      // Sample s's transmittance, and the background behind it.
+      auto transmittance = [&](int s) {
+        return v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
+      };
+      auto background = [&](int s, double bs[3]) {
+        for (int c = 0; c < 3; ++c) bs[c] = background_per_sample ? double(half_to_float(v.rgb[3 * s + c])) : bg[c];
+      };
       // Sums in sample order (deterministic).
       double trans = 0, rgb[3] = {0, 0, 0}, acc[4] = {0, 0, 0, 0}, out[3] = {0, 0, 0}, over[3] = {0, 0, 0};
       int written = 0;
       for (int s = 0; s < spp; ++s) {
-        const double T = v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
+        const double T = transmittance(s);
         trans += T;
-        double bs[3] = {bg[0], bg[1], bg[2]};  // the background behind sample s
-        if (background_per_sample)
-          for (int c = 0; c < 3; ++c) {
-            bs[c] = half_to_float(v.rgb[3 * s + c]);
-            over[c] += T * bs[c];
-          }
+        double bs[3];
+        background(s, bs);
+        for (int c = 0; c < 3; ++c) over[c] += T * bs[c];
         const bool w = depth_bits(v.depth[s]) != clear_z;
         written += w;
         if (w && stochastic_writes_color(m))
@@ -63,10 +67,9 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
         // (as colour_buffer_image): mean_s of these is the formula below.
         float samples[64 * 4], res[3];
         for (int s = 0; s < spp; ++s) {
-          const double T = v.trans ? target_load(fmt.transmittance, v.trans + size_t(s) * tb, 0) : 1.0;
-          double bs[3] = {bg[0], bg[1], bg[2]};
-          if (background_per_sample)
-            for (int c = 0; c < 3; ++c) bs[c] = half_to_float(v.rgb[3 * s + c]);
+          const double T = transmittance(s);
+          double bs[3];
+          background(s, bs);
           const bool w = depth_bits(v.depth[s]) != clear_z;
           const uint8_t* a = v.accum ? v.accum + size_t(s) * ab : nullptr;
           for (int c = 0; c < 3; ++c) {
