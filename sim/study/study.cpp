@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "child_process.h"
 #include "errors.h"
 #include "livepoint_file.h"
 #include "random_hash.h"
@@ -395,9 +396,9 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
   if (const toml::table* in = t["inputs"].as_table()) {
     for (const auto& [k, node] : *in) {
       const std::string key = "inputs." + std::string(k.str());
-      if (key != "inputs.scenes" && key != "inputs.traces" && key != "inputs.meshes")
-        fail(s, key, "unknown key (scenes, traces, meshes)");
-      const bool scene = key == "inputs.scenes", trace = key == "inputs.traces";
+      if (key != "inputs.scenes" && key != "inputs.traces" && key != "inputs.meshes" && key != "inputs.apps")
+        fail(s, key, "unknown key (scenes, traces, meshes, apps)");
+      const bool scene = key == "inputs.scenes", trace = key == "inputs.traces", app = key == "inputs.apps";
       const std::string what = scene ? "scene" : "path";
       const std::string expected =
           fmt::format("expected a non-empty list of {} or of tables {{{} = \"...\", name = \"...\"}}",
@@ -433,10 +434,19 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
           std::filesystem::path p(v);
           if (p.is_relative()) p = dir / p;
           if (!std::filesystem::is_regular_file(p))
-            fail(s, si.at, v + (trace ? ": no such trace file" : ": no such scene file"));
-          (trace ? si.trace : si.mesh) = p.lexically_normal().string();
+            fail(s, si.at,
+                 v + (trace ? ": no such trace file"
+                      : app ? ": no such application entry file"
+                            : ": no such scene file"));
+          (trace ? si.trace : app ? si.app : si.mesh) = p.lexically_normal().string();
           si.label = p.stem().string();
-          if (!trace) {
+          if (app) {
+            try {
+              si.label = load_app_entry(si.app).name;  // checked now: a bad entry runs nothing
+            } catch (const std::exception& ex) {
+              fail(s, si.at, ex.what());
+            }
+          } else if (!trace) {
             try {
               si.label = load_scene_file(si.mesh, scene_overrides(s)).name;  // checked now: a bad file runs nothing
             } catch (const std::exception& ex) {
@@ -455,13 +465,14 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
     }
   }
   if (s.inputs.empty()) fail(s, "inputs", "a study needs at least one input (inputs.scenes or inputs.traces)");
-  bool has_trace = false, has_mesh = false, has_scene = false;
+  bool has_trace = false, has_mesh = false, has_scene = false, has_app = false;
   for (const auto& in : s.inputs) {
     has_trace = has_trace || !in.trace.empty();
     has_mesh = has_mesh || !in.mesh.empty();
+    has_app = has_app || !in.app.empty();
     has_scene = has_scene || !in.scene.empty();
   }
-  if (has_mesh && s.reference_spp) fail(s, "study.reference_spp", "applies to built-in scenes only");
+  if ((has_mesh || has_app) && s.reference_spp) fail(s, "study.reference_spp", "applies to built-in scenes only");
   if (has_trace && s.reference_spp) fail(s, "study.reference_spp", "applies to scenes only (a trace's spp is fixed)");
 
   bool any_cycle = false, any_hw = false;
@@ -475,8 +486,10 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
            "surface_id_bits, width, height, scene_seed, repeat, order, slab_layers, slab_bits, enderton_selection; or "
            "a hardware key: ropsim config --markdown; or the named cases: cases)");
     if (has_trace && (key == "spp" || key == "width" || key == "height" || key == "scene_seed"))
-      fail(s, at, "applies to scenes and meshes only: the study has trace inputs");
-    if (key == "order" && (has_trace || has_scene))
+      fail(s, at, "applies to scenes, meshes and apps only: the study has trace inputs");
+    if (key == "scene_seed" && has_app)
+      fail(s, at, "applies to scenes and meshes only: the study has application inputs (inputs.apps)");
+    if (key == "order" && (has_trace || has_scene || has_app))
       fail(s, at, "applies to mesh inputs only (inputs.meshes): the study has other inputs");
     if (key.rfind("numerics.", 0) == 0)
       fail(s, at,
@@ -649,7 +662,9 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       nlohmann::ordered_json id;
       id["input"] = !in.trace.empty()  ? "trace:" + in.trace
                     : !in.mesh.empty() ? "mesh:" + in.mesh
+                    : !in.app.empty()  ? "app:" + in.app
                                        : "scene:" + in.scene;
+      if (!in.app.empty()) id["app"] = read_text(in.app);  // the entry's content: an edited entry is a new point
       id["params"] = p.params_json();
       if (auto d = p.params.find("design"); d != p.params.end())  // the design's content, not only its name
         id["design"] = read_text(design_path(s, std::get<std::string>(d->second)));
@@ -669,6 +684,20 @@ void check_study_inputs(const Study& s) {
       throw UserError(fmt::format("{}: {} (line {}): {}", s.path, in.at, in.line, why));
     };
     if (!in.trace.empty() && !is_regular_file(in.trace)) missing(in.trace + ": no such trace file");
+    if (!in.app.empty()) {
+      AppEntry e;
+      try {
+        e = load_app_entry(in.app);
+      } catch (const std::exception& ex) {
+        missing(ex.what());
+      }
+      if (find_executable(e.command[0]).empty())
+        missing(
+            fmt::format("{}: {} is not installed: install the Debian package {} (scripts/deps.sh --apps "
+                        "installs it)",
+                        in.app, e.command[0], e.package));
+      continue;
+    }
     if (in.mesh.empty()) continue;
     SceneSpec spec;
     try {
@@ -701,7 +730,22 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     const StudyValue* v = get(key);
     return v ? std::get<int64_t>(*v) : def;
   };
-  if (!in.mesh.empty()) {
+  if (!in.app.empty()) {
+    r.capture_app = in.app;
+    AppOverrides& o = r.capture_app_overrides;
+    if (get("spp")) o.spp = int(get_int("spp", 1));
+    if (get("width")) o.width = unsigned(get_int("width", 0));
+    if (get("height")) o.height = unsigned(get_int("height", 0));
+    const AppEntry e = load_app_entry(in.app, o);
+    nlohmann::ordered_json id;
+    id["app"] = in.app;
+    id["entry"] = read_text(in.app);
+    id["spp"] = e.spp;
+    id["width"] = e.width;
+    id["height"] = e.height;
+    r.capture_key = hex16(hash_text(id.dump()));
+    r.input.trace_path = (std::filesystem::path(dir) / "traces" / (r.capture_key + ".rtr")).string();
+  } else if (!in.mesh.empty()) {
     r.capture_scene = in.mesh;
     SceneOverrides& o = r.capture_overrides;
     o = scene_overrides(s);
@@ -785,9 +829,9 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     r.reference_input = r.input;
     if (s.reference_spp) r.reference_input.scene.spp = s.reference_spp;
     nlohmann::ordered_json id;
-    id["input"] = !in.trace.empty()  ? "trace:" + in.trace
-                  : !in.mesh.empty() ? "capture:" + r.capture_key
-                                     : "scene:" + in.scene;
+    id["input"] = !in.trace.empty()                     ? "trace:" + in.trace
+                  : !in.mesh.empty() || !in.app.empty() ? "capture:" + r.capture_key
+                                                        : "scene:" + in.scene;
     id["spp"] = r.reference_input.scene.spp;
     id["width"] = r.reference_input.scene.width;
     id["height"] = r.reference_input.scene.height;

@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "app_entry.h"
 #include "driver.h"
 #include "hw_config.h"
 #include "livepoints.h"
@@ -24,7 +25,7 @@ std::string to_string(const StudyValue& v);
 nlohmann::ordered_json to_json(const StudyValue& v);
 
 /// One input of a study: a built-in scene, a trace file, or a mesh scene file
-/// captured on demand.
+/// or an application entry captured on demand.
 struct StudyInput {
   /// The name the results use: the study's `name` for the entry when given,
   /// else the scene's own name (a built-in scene's, a mesh scene file's `name`
@@ -32,7 +33,8 @@ struct StudyInput {
   std::string label;
   std::string scene;  ///< a built-in scene, or
   std::string trace;  ///< a trace file (absolute, resolved against the study file's folder), or
-  std::string mesh;   ///< a mesh scene file (absolute), captured once per resolution, spp, seed and order
+  std::string mesh;   ///< a mesh scene file (absolute), captured once per resolution, spp, seed and order, or
+  std::string app;    ///< an application entry (absolute, traces/apps), captured once per resolution and spp
   std::string at;     ///< the study file's entry that names it, e.g. "inputs.meshes[1]"
   int line = 0;       ///< the line of that entry in the study file
 };
@@ -124,9 +126,11 @@ std::vector<StudyPoint> expand_study(const Study& s);
 /// What a point runs: the input, the method, the fidelity and the design.
 /// Throws UserError (e.g. a cache shape only this combination breaks).
 struct ResolvedPoint {
-  std::string capture_key;           ///< mesh inputs: the capture, DIR/traces/<key>.rtr ("" otherwise)
-  std::string capture_scene;         ///< mesh inputs: the scene file
-  SceneOverrides capture_overrides;  ///< mesh inputs: spp, resolution, seed and draw order
+  std::string capture_key;             ///< mesh and app inputs: the capture, DIR/traces/<key>.rtr ("" otherwise)
+  std::string capture_scene;           ///< mesh inputs: the scene file
+  SceneOverrides capture_overrides;    ///< mesh inputs: spp, resolution, seed and draw order
+  std::string capture_app;             ///< app inputs: the application entry
+  AppOverrides capture_app_overrides;  ///< app inputs: spp and resolution
   InputSpec input;
   MethodConfig method;
   std::string fidelity = "functional";  ///< functional, cycle, sampled or approximate

@@ -27,6 +27,7 @@
 #include "cycle_report.h"
 #include "cycle_run.h"
 #include "errors.h"
+#include "gl_capture.h"
 #include "host_threads.h"
 #include "image_io.h"
 #include "livepoint_file.h"
@@ -165,10 +166,26 @@ void require_inputs(const ResolvedPoint& r, const std::string& dir, bool with_re
     require(ref_path(dir, r.reference_key), ref_error_path(dir, r.reference_key), "reference");
 }
 
-/// The capture of a point's mesh input.
+/// The capture of a point's mesh or application input.
 void capture_input(const Study& s, const StudyPoint& p, const std::string& dir) {
   const ResolvedPoint r = resolve_point(s, p, dir);
-  capture_to_file(load_scene_file(r.capture_scene, r.capture_overrides), capture_path(dir, r.capture_key).string());
+  if (!r.capture_app.empty()) {
+    const AppEntry e = load_app_entry(r.capture_app, r.capture_app_overrides);
+    GlCaptureRequest q;
+    q.app = app_command(e);
+    q.frame = e.frame;
+    q.spp = e.spp;
+    q.width = e.width;
+    q.height = e.height;
+    q.target = e.target;
+    q.timeout = e.timeout;
+    q.what = e.path;
+    q.package = e.package;
+    q.out = capture_path(dir, r.capture_key).string();
+    run_gl_capture(q);
+  } else {
+    capture_to_file(load_scene_file(r.capture_scene, r.capture_overrides), capture_path(dir, r.capture_key).string());
+  }
   fs::remove(capture_error_path(dir, r.capture_key));  // an earlier attempt's
   fs::remove(host_error_path(capture_error_path(dir, r.capture_key)));
 }

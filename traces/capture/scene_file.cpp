@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "toml_guard.h"
+#include "toml_keys.h"
 #include "utf8.h"
 
 namespace ropsim {
@@ -18,101 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// Reads the keys of one TOML table, remembering which were used, so that
-/// finish() can name the first unknown key. Every error names file:line: key.
-class Keys {
- public:
-  Keys(const toml::table& t, std::string file, std::string prefix)
-      : t_(t), file_(std::move(file)), prefix_(std::move(prefix)) {}
-
-  [[noreturn]] void fail(const toml::node* n, const std::string& key, const std::string& what) const {
-    std::string where = file_;
-    const toml::node* at = n ? n : &t_;
-    if (at->source().begin.line) where += ":" + std::to_string(at->source().begin.line);
-    throw CaptureError(where + ": " + prefix_ + key + ": " + what);
-  }
-  const toml::node* node(const std::string& key) {
-    used_.insert(key);
-    return t_.get(key);
-  }
-  std::optional<double> number(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    if (!n->is_number()) fail(n, key, "must be a number");
-    double v = *n->value<double>();
-    if (!std::isfinite(v)) fail(n, key, "must be finite");
-    return v;
-  }
-  double number_in(const std::string& key, double def, double lo, double hi, const char* range) {
-    auto v = number(key);
-    if (!v) return def;
-    if (!(*v >= lo && *v <= hi)) fail(node(key), key, std::string("must be in ") + range);
-    return *v;
-  }
-  std::optional<int64_t> integer(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    if (!n->is_integer()) fail(n, key, "must be an integer");
-    return *n->value<int64_t>();
-  }
-  std::optional<bool> boolean(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    if (!n->is_boolean()) fail(n, key, "must be true or false");
-    return *n->value<bool>();
-  }
-  std::optional<std::string> string(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    if (!n->is_string()) fail(n, key, "must be a string");
-    return *n->value<std::string>();
-  }
-  std::string choice(const std::string& key, const std::string& def, const std::vector<std::string>& allowed) {
-    auto v = string(key);
-    if (!v) return def;
-    for (const auto& a : allowed)
-      if (*v == a) return a;
-    std::string list;
-    for (const auto& a : allowed) list += (list.empty() ? "\"" : ", \"") + a + "\"";
-    fail(node(key), key, "\"" + *v + "\" is not one of " + list);
-  }
-  std::optional<Vec3d> vec3(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const toml::array* a = n->as_array();
-    if (!a || a->size() != 3) fail(n, key, "must be an array of 3 numbers");
-    Vec3d v{};
-    for (size_t i = 0; i < 3; ++i) {
-      const toml::node& e = *a->get(i);
-      if (!e.is_number() || !std::isfinite(*e.value<double>())) fail(n, key, "must be an array of 3 finite numbers");
-      v[i] = *e.value<double>();
-    }
-    return v;
-  }
-  std::optional<std::array<float, 3>> rgb(const std::string& key) {
-    auto v = vec3(key);
-    if (!v) return std::nullopt;
-    for (double c : *v)
-      if (c < 0) fail(node(key), key, "colour components must be >= 0 (linear RGB)");
-    return std::array<float, 3>{float((*v)[0]), float((*v)[1]), float((*v)[2])};
-  }
-  const toml::table* table(const std::string& key) {
-    const toml::node* n = node(key);
-    if (!n) return nullptr;
-    if (!n->is_table()) fail(n, key, "must be a table");
-    return n->as_table();
-  }
-  void finish() const {
-    for (auto&& [k, v] : t_)
-      if (!used_.count(std::string(k.str()))) fail(&v, std::string(k.str()), "unknown key");
-  }
-  const std::string& file() const { return file_; }
-
- private:
-  const toml::table& t_;
-  std::string file_, prefix_;
-  std::set<std::string> used_;
-};
+using TomlKeys = detail::TomlKeys<CaptureError>;
 
 double norm(const Vec3d& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
@@ -133,7 +40,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   }
   SceneSpec s;
   s.path = path;
-  Keys k(root, path, "");
+  TomlKeys k(root, path, "");
   s.name = k.string("name").value_or(fs::path(path).stem().string());
   if (!is_valid_utf8(s.name))  // a TOML string is UTF-8: the file name is not
     throw CaptureError(path + ": the file name is not valid UTF-8: give the scene a name (name = \"...\")");
@@ -181,7 +88,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   const toml::table* cam = k.table("camera");
   if (!cam) k.fail(nullptr, "camera", "missing: give [camera] with eye, target, fov_y, near, far");
   {
-    Keys c(*cam, path, "camera.");
+    TomlKeys c(*cam, path, "camera.");
     auto eye = c.vec3("eye"), target = c.vec3("target");
     if (!eye) c.fail(nullptr, "eye", "missing");
     if (!target) c.fail(nullptr, "target", "missing");
@@ -201,7 +108,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   }
   // light
   if (const toml::table* lt = k.table("light")) {
-    Keys l(*lt, path, "light.");
+    TomlKeys l(*lt, path, "light.");
     if (auto d = l.vec3("direction")) {
       if (norm(*d) == 0) l.fail(l.node("direction"), "direction", "must not be zero");
       s.light.headlight = false;
@@ -219,7 +126,7 @@ SceneSpec parse_scene_text(const std::string& text, const std::string& path, con
   for (size_t i = 0; i < arr->size(); ++i) {
     const toml::table& t = *arr->get(i)->as_table();
     const std::string pre = "object[" + std::to_string(i) + "].";
-    Keys ok(t, path, pre);
+    TomlKeys ok(t, path, pre);
     ObjectSpec ob;
     ob.name = ok.string("name").value_or("object[" + std::to_string(i) + "]");
     ob.kind = ok.choice("type", "mesh", {"mesh", "billboards"}) == "mesh" ? ObjectKind::kMesh : ObjectKind::kBillboards;
