@@ -38,6 +38,7 @@
 #include "child_process.h"
 #include "image_io.h"
 #include "scene_file.h"
+#include "study_test_util.h"
 #include "trace.h"
 
 #ifndef ROPSIM_BINARY
@@ -902,6 +903,107 @@ TEST(CaptureGl, TheBenchmarksModesTimeThePhasesAndRenderThePassesAlone) {
     EXPECT_EQ(p.at(phase).get<double>(), 0.0) << phase << ": the passes alone make no records\n" << p.dump();
   expect_error(box, "capture gl --frame 1 --spp 4 -o u.trace" + app, kLib + "ROPSIM_GL_RENDER_PASSES=1",
                {"ROPSIM_GL_RENDER_PASSES=1 needs ROPSIM_GL_LIST_ONLY=1"});
+}
+
+// The suite's glmark2 entries (traces/apps) capture with `capture gl --app`,
+// and trace info's statistics of each are right: its draws by kind are the
+// capture list's draws into the target, and its share of covered samples
+// that are transparent (src-over and premultiplied-over draws) equals the
+// share computed independently from each draw's occlusion query
+// (GL_SAMPLES_PASSED with the depth test off, in the same run), exactly.
+TEST(CaptureGl, TheSuitesGlmark2EntriesCaptureAndTheirStatisticsAreRight) {
+  ROPSIM_NEEDS_LIBRARY();
+  ASSERT_FALSE(ropsim::find_executable("glmark2").empty())
+      << "glmark2 not found: install glmark2-x11 (scripts/deps.sh)";
+  const fs::path apps = fs::path(ROPSIM_SOURCE_DIR) / "traces" / "apps";
+  size_t entries = 0;
+  for (const char* name : {"glmark2-jellyfish", "glmark2-pulsar", "glmark2-desktop", "glmark2-build"}) {
+    SCOPED_TRACE(name);
+    Sandbox box;
+    const std::string entry = (apps / (std::string(name) + ".toml")).string();
+    const Result c =
+        box.run("capture gl --app '" + entry + "' --count-samples --keep-control kc -o t.rtr --quiet", kLib);
+    ASSERT_EQ(c.code, 0) << c.describe();
+    ++entries;
+    const json list = json::parse(slurp(box.work() / "kc" / "list.json"));
+    const json status = json::parse(slurp(box.work() / "kc" / "status.json"));
+    const std::string target = status.at("target").get<std::string>();
+    const std::string fb = target.rfind("fbo:", 0) == 0 ? "fbo " + target.substr(4) : target;
+    uint64_t all = 0, transparent = 0, draws = 0;
+    std::map<std::string, uint64_t> kinds;
+    for (const json& d : list.at("draws")) {
+      if (d.at("framebuffer").get<std::string>() != fb) continue;
+      ASSERT_TRUE(d.at("samples_passed").is_number()) << d.dump();
+      const uint64_t passed = d.at("samples_passed").get<uint64_t>();
+      const std::string kind = d.at("kind").get<std::string>();
+      all += passed;
+      if (kind == "src-over" || kind == "premultiplied-over") transparent += passed;
+      ++kinds[kind];
+      ++draws;
+    }
+    ASSERT_GT(all, 0u) << "the entry's frame draws nothing into " << fb;
+    const Result info = box.run("trace info t.rtr --json");
+    ASSERT_EQ(info.code, 0) << info.describe();
+    const json j = json::parse(info.out);
+    EXPECT_EQ(j.at("covered_samples").get<uint64_t>(), all) << "covered samples against the occlusion queries";
+    EXPECT_EQ(j.at("transparent").at("covered_samples").get<uint64_t>(), transparent);
+    EXPECT_DOUBLE_EQ(j.at("transparent").at("covered_samples_share").get<double>(), double(transparent) / double(all));
+    EXPECT_EQ(j.at("draws").get<uint64_t>(), draws);
+    for (const auto& [kind, n] : kinds) EXPECT_EQ(j.at("draw_kinds").at(kind).at("draws").get<uint64_t>(), n) << kind;
+    if (std::string(name) == "glmark2-build")
+      EXPECT_EQ(transparent, 0u) << "the opaque control has no transparent sample";
+    else
+      EXPECT_GT(transparent, 0u) << "a blending scene's frame has transparent samples";
+  }
+  EXPECT_EQ(entries, 4u);
+}
+
+// A study of the suite's glmark2 entries (captured by the study, once per
+// spp, at the entries' 128 x 128) with a subset of studies/real-frames.toml's
+// axes: every point is in results.db, with its reference's RMSE and its
+// cycles; on the opaque control every method's image is blend's (RMSE 0
+// against the same reference, and the same max error).
+TEST(CaptureGl, TheRealFramesStudyRunsOnTheGlmark2Entries) {
+  ROPSIM_NEEDS_LIBRARY();
+  ASSERT_FALSE(ropsim::find_executable("glmark2").empty())
+      << "glmark2 not found: install glmark2-x11 (scripts/deps.sh)";
+  Sandbox box;
+  const fs::path apps = fs::path(ROPSIM_SOURCE_DIR) / "traces" / "apps";
+  std::ofstream(box.work() / "s.toml") << "[study]\nname = \"real-frames-ci\"\n[inputs]\napps = [\"" +
+                                              (apps / "glmark2-jellyfish.toml").string() + "\", \"" +
+                                              (apps / "glmark2-desktop.toml").string() + "\", \"" +
+                                              (apps / "glmark2-build.toml").string() +
+                                              "\"]\n[axes]\nmethod = [\"blend\", \"lk\", \"hashed-a2c\", \"wboit\", "
+                                              "\"lk+depth+ac\"]\nspp = [4]\nfidelity = \"cycle\"\n";
+  const Result r = box.run("study run s.toml --out st -j 2 --quiet", kLib);
+  ASSERT_EQ(r.code, 0) << r.describe();
+  const Result e = box.run("study export st --out r.csv");
+  ASSERT_EQ(e.code, 0) << e.describe();
+  std::ifstream csv(box.work() / "r.csv");
+  std::string head;
+  std::getline(csv, head);
+  const std::vector<std::string> cols = ropsim_test::csv_fields(head);
+  auto col = [&](const std::string& name) {
+    const auto it = std::find(cols.begin(), cols.end(), name);
+    EXPECT_NE(it, cols.end()) << name << " is not a column of the export";
+    return size_t(it - cols.begin());
+  };
+  const size_t input = col("input"), method = col("method"), status = col("status"),
+               rmse = col("vs_reference.rmse_8bit"), cycles = col("timing.total_cycles");
+  std::set<std::pair<std::string, std::string>> seen;
+  std::map<std::string, std::string> build_rmse;
+  for (std::string line; std::getline(csv, line);) {
+    const std::vector<std::string> f = ropsim_test::csv_fields(line);
+    ASSERT_GT(f.size(), std::max({input, method, status, rmse, cycles})) << line;
+    EXPECT_EQ(f[status], "ok") << line;
+    EXPECT_FALSE(f[rmse].empty()) << f[input] << " " << f[method] << ": no RMSE";
+    EXPECT_GT(std::atof(f[cycles].c_str()), 0.0) << f[input] << " " << f[method] << ": no cycles";
+    seen.emplace(f[input], f[method]);
+    if (f[input] == "glmark2-build") build_rmse[f[method]] = f[rmse];
+  }
+  EXPECT_EQ(seen.size(), 15u) << "3 entries x 5 methods";
+  ASSERT_EQ(build_rmse.size(), 5u);
+  for (const auto& [m, v] : build_rmse) EXPECT_EQ(v, build_rmse.at("blend")) << m << " on the opaque control";
 }
 
 // The real library's errors: an application that exits before frame N, a
