@@ -835,7 +835,7 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   const uint64_t masks[] = {0x1, 0x3, 0x7, 0xF, 0x6, 0x9, 0x8};
   std::vector<Fragment> frags;
   for (int i = 0; i < 37; ++i)
-    frags.push_back(frag(uint32_t(i % 5), uint16_t(i % 4), uint16_t(i / 4 % 2), masks[i % 7]));
+    frags.push_back(frag(uint32_t(i % 5), uint16_t(i % 4), uint16_t(i / 4 % 2), masks[i % 7], i % 3 ? 0.5f : 1.0f));
   const std::string path = tmp.path("kinds.trace");
   {
     TraceWriter w(path, h);
@@ -846,7 +846,7 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   std::map<std::string, std::array<uint64_t, 3>> want;  // kind: draws, fragments, covered samples
   for (int k = 0; k < kDrawKinds; ++k) want[to_string(DrawKind(k))] = {0, 0, 0};
   for (DrawKind k : kinds) ++want[to_string(k)][0];
-  uint64_t covered = 0, see_covered = 0;
+  uint64_t covered = 0, see_covered = 0, translucent = 0, translucent_covered = 0;
   std::map<int, uint64_t> per_pixel, union_mask;
   for (const Fragment& f : frags) {
     const DrawKind k = kinds[f.draw_id];
@@ -856,6 +856,10 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
     covered += c;
     if (k == DrawKind::kSrcOver || k == DrawKind::kPremultipliedOver) {
       see_covered += c;
+      if (f.alpha < 1.0f) {
+        ++translucent;
+        translucent_covered += c;
+      }
       ++per_pixel[f.y * 4 + f.x];
       union_mask[f.y * 4 + f.x] |= f.coverage;
     }
@@ -883,6 +887,13 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   EXPECT_EQ(t["fragments_per_pixel"]["max"], see_max);
   EXPECT_EQ(t["samples"], see_samples);
   EXPECT_DOUBLE_EQ(t["fragments_per_covered_sample"]["mean"].get<double>(), double(see_covered) / double(see_samples));
+  EXPECT_DOUBLE_EQ(t["screen_samples_share"].get<double>(), double(see_samples) / (4.0 * 2.0 * 4.0));
+  ASSERT_GT(translucent, 0u);
+  ASSERT_LT(translucent_covered, see_covered) << "the test's trace should have transparent fragments at alpha 1";
+  EXPECT_EQ(t["translucent"]["fragments"], translucent);
+  EXPECT_EQ(t["translucent"]["covered_samples"], translucent_covered);
+  EXPECT_DOUBLE_EQ(t["translucent"]["covered_samples_share"].get<double>(),
+                   double(translucent_covered) / double(covered));
   EXPECT_EQ(j["header"]["draws"].size(), 6u) << "the header's table";
   // The text output: a line per kind and the transparent share.
   const CliResult text = run_ropsim(tmp, "trace info '" + path + "'");

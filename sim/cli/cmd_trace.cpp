@@ -54,6 +54,9 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   for (const DrawState& s : table.states()) kind_of.push_back(draw_kind(s));
   const DrawKind default_kind = draw_kind(default_draw_state(0));
   std::array<uint64_t, kDrawKinds> kind_fragments{}, kind_covered{};
+  // The transparent fragments whose alpha is below 1 (translucent: an over
+  // draw's fragment at alpha 1 covers what is behind it as an opaque one does).
+  uint64_t translucent_fragments = 0, translucent_covered = 0;
   while (r.next(f)) {
     const int c = __builtin_popcountll(f.coverage);
     covered += uint64_t(c);
@@ -70,6 +73,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
       const size_t i = (f.y & 7u) * 8 + (f.x & 7u);
       ++t.n[i];
       t.covered[i] |= f.coverage;
+      if (f.alpha < 1.0f) {
+        ++translucent_fragments;
+        translucent_covered += uint64_t(c);
+      }
     }
   }
   const uint64_t n = r.records_read();
@@ -102,6 +109,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   const uint64_t see_covered =
       kind_covered[size_t(DrawKind::kSrcOver)] + kind_covered[size_t(DrawKind::kPremultipliedOver)];
   const double see_share = covered ? double(see_covered) / double(covered) : 0.0;
+  const double screen_samples = double(r.header().width) * double(r.header().height) * double(r.header().spp);
+  const double see_screen_share =
+      screen_samples > 0 ? double(see_samples) / screen_samples : 0.0;  // samples behind a transparent fragment
+  const double translucent_share = covered ? double(translucent_covered) / double(covered) : 0.0;
   const double see_per_pixel = see_pixels ? double(see_fragments) / double(see_pixels) : 0.0;
   const double see_per_sample = see_samples ? double(see_covered) / double(see_samples) : 0.0;
   const auto& h = r.header();
@@ -157,6 +168,11 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     j["transparent"] = {{"kinds", {to_string(DrawKind::kSrcOver), to_string(DrawKind::kPremultipliedOver)}},
                         {"covered_samples", see_covered},
                         {"covered_samples_share", see_share},
+                        {"screen_samples_share", see_screen_share},
+                        {"translucent",
+                         {{"fragments", translucent_fragments},
+                          {"covered_samples", translucent_covered},
+                          {"covered_samples_share", translucent_share}}},
                         {"pixels", see_pixels},
                         {"fragments_per_pixel", {{"mean", see_per_pixel}, {"max", see_max}}},
                         {"samples", see_samples},
@@ -196,9 +212,12 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
                kind_draws[size_t(k)], kind_fragments[size_t(k)], kind_covered[size_t(k)],
                covered ? 100.0 * double(kind_covered[size_t(k)]) / double(covered) : 0.0);
   fmt::print(
-      "  transparent (src-over, premultiplied-over): {:.2f}% of the covered samples; {} pixels, fragments per "
-      "pixel: mean {:.2f}, max {}; fragments per covered sample: mean {:.2f}\n",
-      100.0 * see_share, see_pixels, see_per_pixel, see_max, see_per_sample);
+      "  transparent (src-over, premultiplied-over): {:.2f}% of the covered samples (at {:.2f}% of the screen's "
+      "samples); {} pixels, fragments per pixel: mean {:.2f}, max {}; fragments per covered sample: mean {:.2f}\n",
+      100.0 * see_share, 100.0 * see_screen_share, see_pixels, see_per_pixel, see_max, see_per_sample);
+  fmt::print(
+      "    of them translucent (alpha below 1): {} fragments, {} covered samples, {:.2f}% of the covered samples\n",
+      translucent_fragments, translucent_covered, 100.0 * translucent_share);
   return 0;
 }
 
