@@ -122,10 +122,28 @@ int run_capture_gl(GlCaptureOpts o, const CLI::App& sub) {
   std::string by_kind;
   for (const char* k : {"opaque", "src-over", "premultiplied-over", "additive", "other"})
     if (kinds.count(k)) by_kind += (by_kind.empty() ? "" : ", ") + fmt::format("{} {}", kinds[k], k);
-  for (const auto& u : unsupported)
-    std::fprintf(stderr, "ropsim: warning: %s: draw %llu (%s) is not in the trace: %s\n", what.c_str(),
-                 static_cast<unsigned long long>(json_field<uint64_t>(u, "draw", 0)),
-                 json_field<std::string>(u, "name", "?").c_str(), json_field<std::string>(u, "reason", "?").c_str());
+  // The draws not captured, consecutive draws of one name and reason as one
+  // range ("draws 0-138").
+  struct LeftOut {
+    uint64_t first, last;
+    std::string name, reason;
+    std::string draws() const {
+      return first == last ? fmt::format("draw {}", first) : fmt::format("draws {}-{}", first, last);
+    }
+  };
+  std::vector<LeftOut> runs;
+  for (const auto& u : unsupported) {
+    const uint64_t d = json_field<uint64_t>(u, "draw", 0);
+    const std::string name = json_field<std::string>(u, "name", "?"),
+                      reason = json_field<std::string>(u, "reason", "?");
+    if (!runs.empty() && runs.back().last + 1 == d && runs.back().name == name && runs.back().reason == reason)
+      runs.back().last = d;
+    else
+      runs.push_back({d, d, name, reason});
+  }
+  for (const LeftOut& l : runs)
+    std::fprintf(stderr, "ropsim: warning: %s: %s (%s) %s not in the trace: %s\n", what.c_str(), l.draws().c_str(),
+                 l.name.c_str(), l.first == l.last ? "is" : "are", l.reason.c_str());
   if (!o.quiet) {
     const uint64_t draws = json_field<uint64_t>(status, "draws", 0);
     fmt::print("wrote {}: {} bytes, frame {} of {} ({} {}x{}), {} spp, {}{}, {} fragments", o.out, bytes, o.frame, what,
@@ -134,9 +152,7 @@ int run_capture_gl(GlCaptureOpts o, const CLI::App& sub) {
                by_kind.empty() ? "" : " (" + by_kind + ")", json_field<uint64_t>(status, "fragments", 0));
     if (!unsupported.empty()) fmt::print(", {} not captured (unsupported)", unsupported.size());
     fmt::print("\n");
-    for (const auto& u : unsupported)
-      fmt::print("  not captured: draw {} ({}): {}\n", json_field<uint64_t>(u, "draw", 0),
-                 json_field<std::string>(u, "name", "?"), json_field<std::string>(u, "reason", "?"));
+    for (const LeftOut& l : runs) fmt::print("  not captured: {} ({}): {}\n", l.draws(), l.name, l.reason);
   }
   return 0;
 }
