@@ -257,6 +257,7 @@ TEST(StudySpec, EveryShippedStudyLoadsExpandsAndNamesEachInputOnce) {
     for (const auto& in : st.inputs) {
       const std::string what = !in.scene.empty()  ? "scene " + in.scene
                                : !in.mesh.empty() ? "mesh " + fs::path(in.mesh).lexically_normal().string()
+                               : !in.app.empty()  ? "app " + fs::path(in.app).lexically_normal().string()
                                                   : "trace " + fs::path(in.trace).lexically_normal().string();
       const auto [it, fresh] = name_of.emplace(what, std::make_pair(in.label, e.path().filename().string()));
       EXPECT_EQ(in.label, it->second.first) << what << " is named " << in.label << " in " << e.path().filename()

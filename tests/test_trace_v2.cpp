@@ -906,6 +906,22 @@ TEST(TraceV2Info, DrawsByKindAndTheTransparentShare) {
   char share[64];
   std::snprintf(share, sizeof share, "%.2f%% of the covered samples", 100.0 * double(see_covered) / double(covered));
   EXPECT_NE(text.out.find(share), std::string::npos) << text.out;
+  // A run's report of the frame carries the same figures, whatever the
+  // method and fidelity.
+  for (const char* how : {"--method lk", "--method blend --fidelity cycle"}) {
+    const CliResult run = run_ropsim(tmp, "run --trace '" + path + "' " + how + " --report -");
+    ASSERT_EQ(run.code, 0) << run.describe();
+    const auto rj = nlohmann::json::parse(run.out);
+    ASSERT_TRUE(rj.contains("frame")) << how << ": " << run.out.substr(0, 400);
+    const auto& fr = rj["frame"];
+    EXPECT_EQ(fr["covered_samples"], covered) << how;
+    EXPECT_DOUBLE_EQ(fr["transparent_share"].get<double>(), double(see_covered) / double(covered)) << how;
+    EXPECT_DOUBLE_EQ(fr["translucent_share"].get<double>(), double(translucent_covered) / double(covered)) << how;
+    EXPECT_DOUBLE_EQ(fr["transparent_screen_share"].get<double>(), double(see_samples) / 32.0) << how;
+    EXPECT_DOUBLE_EQ(fr["transparent_depth_complexity"].get<double>(), double(see_covered) / double(see_samples))
+        << how;
+    EXPECT_EQ(fr["transparent_fragments_per_pixel_max"], see_max) << how;
+  }
   // trace validate names the table.
   const CliResult val = run_ropsim(tmp, "trace validate '" + path + "'");
   EXPECT_EQ(val.out, path + ": valid, 37 fragments, 6 draw states (no checksum)\n") << val.describe();

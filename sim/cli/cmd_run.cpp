@@ -351,7 +351,7 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   CycleRun run = run_cycle(in, cfg, hw, opt);
   progress->update(1.0, run.counters.fragments);
   progress->finish();
-  ReportContext ctx{cmdline, in, cfg, {}, {}};
+  ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
   if (!o.vcd.empty()) {
     ctx.outputs.push_back(o.vcd);
     ctx.outputs.push_back(opt.gtkw_path);
@@ -417,7 +417,8 @@ int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& r
   from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const SampledRun s = run_sampled(lib, hw, o.jobs > 0 ? o.jobs : available_cores());
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ReportContext ctx{cmdline, library ? lib.input.spec : in, run_cfg, {}, {}};
+  // (a library's frame statistics are not kept: its trace may be elsewhere)
+  ReportContext ctx{cmdline, library ? lib.input.spec : in, run_cfg, {}, {}, library ? std::nullopt : frame_of(in)};
   write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall, from).dump(2); });
   if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall, from).c_str(), stdout);
   return 0;
@@ -426,7 +427,7 @@ int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& r
 int cmd_run_approximate(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, const RunOpts& o,
                         const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
   const ApproxRun run = run_approximate(in, cfg, hw);
-  ReportContext ctx{cmdline, in, cfg, {}, {}};
+  ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
   write_outputs(ctx, run.image, outs, report, [&] { return approximate_report(ctx, run).dump(2); });
   if (!o.quiet && report != "-") std::fputs(approximate_summary(ctx, run).c_str(), stdout);
   return 0;
@@ -518,7 +519,7 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   if (sampled) return cmd_run_sampled(o, in, run_cfg, hw, library ? &*library : nullptr, t0, outs, report, cmdline);
   if (approximate) return cmd_run_approximate(in, cfg, hw, o, outs, report, cmdline);
   FunctionalRun run = run_functional(in, cfg, o.vs_reference, 0, o.breakdown());
-  ReportContext ctx{cmdline, in, cfg, {}, {}};
+  ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
   ctx.design = rtl_design_of(hw);  // the silicon cost: the --hw design (or the built-in one)
   std::vector<TextOutput> texts;
   add_breakdown_outputs(o, run.breakdown.get(), false, run.image, run.reference, texts);

@@ -11,6 +11,7 @@
 
 #include "cli_common.h"
 #include "driver.h"
+#include "frame_stats.h"
 #include "pixel_kinds.h"
 #include "tile_map.h"
 #include "trace.h"
@@ -27,9 +28,6 @@ struct TraceOpts {
   uint64_t seed = 1;
 };
 
-/// The kinds that are transparent to `trace info`: the over operators.
-bool transparent(DrawKind k) { return k == DrawKind::kSrcOver || k == DrawKind::kPremultipliedOver; }
-
 int cmd_trace_info(const std::string& path, bool validate_only, bool json = false) {
   TraceReader r(path);
   Fragment f;
@@ -40,44 +38,15 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
     std::array<uint32_t, 64> n{};
   };
   TileMap<Counts> counts(r.header().width, r.header().height);
-  // The transparent fragments (DrawKind src-over and premultiplied-over) per
-  // pixel, and the union of their coverage, in sparse 8x8 tiles.
-  struct TransparentCounts {
-    std::array<uint32_t, 64> n{};
-    std::array<uint64_t, 64> covered{};
-  };
-  TileMap<TransparentCounts> see_through(r.header().width, r.header().height);
-  // Per kind: fragments and covered samples. The table's kinds by its order
-  // (an empty table: every draw is default_draw_state()'s kind).
+  FrameStatsCounter frame(r.header());
   const DrawTable& table = r.header().draws;
-  std::vector<DrawKind> kind_of;
-  for (const DrawState& s : table.states()) kind_of.push_back(draw_kind(s));
-  const DrawKind default_kind = draw_kind(default_draw_state(0));
-  std::array<uint64_t, kDrawKinds> kind_fragments{}, kind_covered{};
-  // The transparent fragments whose alpha is below 1 (translucent: an over
-  // draw's fragment at alpha 1 covers what is behind it as an opaque one does).
-  uint64_t translucent_fragments = 0, translucent_covered = 0;
   while (r.next(f)) {
-    const int c = __builtin_popcountll(f.coverage);
-    covered += uint64_t(c);
+    covered += uint64_t(__builtin_popcountll(f.coverage));
     max_draw = std::max(max_draw, f.draw_id);
     if (validate_only) continue;
     ++counts.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<Counts>(); })
           .n[(f.y & 7u) * 8 + (f.x & 7u)];
-    const DrawKind k = table.empty() ? default_kind : kind_of[size_t(table.find(f.draw_id) - table.states().data())];
-    ++kind_fragments[size_t(k)];
-    kind_covered[size_t(k)] += uint64_t(c);
-    if (transparent(k)) {
-      TransparentCounts& t =
-          see_through.get(f.x, f.y, [](uint32_t, uint32_t) { return std::make_unique<TransparentCounts>(); });
-      const size_t i = (f.y & 7u) * 8 + (f.x & 7u);
-      ++t.n[i];
-      t.covered[i] |= f.coverage;
-      if (f.alpha < 1.0f) {
-        ++translucent_fragments;
-        translucent_covered += uint64_t(c);
-      }
-    }
+    frame.add(f);
   }
   const uint64_t n = r.records_read();
   if (validate_only) {
@@ -89,32 +58,10 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
       fmt::print("{}: valid, {} fragments{} (no checksum)\n", path, n, draws);
     return 0;
   }
-  // Draws per kind: the table's states, or (no table) every draw id up to
-  // the largest, each of the default state's kind.
-  std::array<uint64_t, kDrawKinds> kind_draws{};
-  if (table.empty())
-    kind_draws[size_t(default_kind)] = n ? uint64_t(max_draw) + 1 : 0;
-  else
-    for (DrawKind k : kind_of) ++kind_draws[size_t(k)];
-  uint64_t see_pixels = 0, see_fragments = 0, see_max = 0, see_samples = 0;
-  see_through.for_each([&](uint32_t, uint32_t, const TransparentCounts& t) {
-    for (size_t i = 0; i < 64; ++i) {
-      if (!t.n[i]) continue;
-      ++see_pixels;
-      see_fragments += t.n[i];
-      see_max = std::max<uint64_t>(see_max, t.n[i]);
-      see_samples += uint64_t(__builtin_popcountll(t.covered[i]));
-    }
-  });
-  const uint64_t see_covered =
-      kind_covered[size_t(DrawKind::kSrcOver)] + kind_covered[size_t(DrawKind::kPremultipliedOver)];
-  const double see_share = covered ? double(see_covered) / double(covered) : 0.0;
-  const double screen_samples = double(r.header().width) * double(r.header().height) * double(r.header().spp);
-  const double see_screen_share =
-      screen_samples > 0 ? double(see_samples) / screen_samples : 0.0;  // samples behind a transparent fragment
-  const double translucent_share = covered ? double(translucent_covered) / double(covered) : 0.0;
-  const double see_per_pixel = see_pixels ? double(see_fragments) / double(see_pixels) : 0.0;
-  const double see_per_sample = see_samples ? double(see_covered) / double(see_samples) : 0.0;
+  const FrameStats st = frame.finish();
+  const auto& kind_draws = st.kind_draws;
+  const auto& kind_fragments = st.kind_fragments;
+  const auto& kind_covered = st.kind_covered;
   const auto& h = r.header();
   const auto file_bytes = std::filesystem::file_size(path);
   // The full histogram: touched pixels by their exact number of fragments.
@@ -166,17 +113,17 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
                                     {"covered_samples", kind_covered[size_t(k)]}};
     j["draw_kinds"] = kj;
     j["transparent"] = {{"kinds", {to_string(DrawKind::kSrcOver), to_string(DrawKind::kPremultipliedOver)}},
-                        {"covered_samples", see_covered},
-                        {"covered_samples_share", see_share},
-                        {"screen_samples_share", see_screen_share},
+                        {"covered_samples", st.transparent_covered},
+                        {"covered_samples_share", st.transparent_share()},
+                        {"screen_samples_share", st.transparent_screen_share()},
                         {"translucent",
-                         {{"fragments", translucent_fragments},
-                          {"covered_samples", translucent_covered},
-                          {"covered_samples_share", translucent_share}}},
-                        {"pixels", see_pixels},
-                        {"fragments_per_pixel", {{"mean", see_per_pixel}, {"max", see_max}}},
-                        {"samples", see_samples},
-                        {"fragments_per_covered_sample", {{"mean", see_per_sample}}}};
+                         {{"fragments", st.translucent_fragments},
+                          {"covered_samples", st.translucent_covered},
+                          {"covered_samples_share", st.translucent_share()}}},
+                        {"pixels", st.transparent_pixels},
+                        {"fragments_per_pixel", {{"mean", st.transparent_per_pixel()}, {"max", st.transparent_max}}},
+                        {"samples", st.transparent_samples},
+                        {"fragments_per_covered_sample", {{"mean", st.transparent_per_sample()}}}};
     fmt::print("{}\n", j.dump(2));
     return 0;
   }
@@ -214,10 +161,11 @@ int cmd_trace_info(const std::string& path, bool validate_only, bool json = fals
   fmt::print(
       "  transparent (src-over, premultiplied-over): {:.2f}% of the covered samples (at {:.2f}% of the screen's "
       "samples); {} pixels, fragments per pixel: mean {:.2f}, max {}; fragments per covered sample: mean {:.2f}\n",
-      100.0 * see_share, 100.0 * see_screen_share, see_pixels, see_per_pixel, see_max, see_per_sample);
+      100.0 * st.transparent_share(), 100.0 * st.transparent_screen_share(), st.transparent_pixels,
+      st.transparent_per_pixel(), st.transparent_max, st.transparent_per_sample());
   fmt::print(
       "    of them translucent (alpha below 1): {} fragments, {} covered samples, {:.2f}% of the covered samples\n",
-      translucent_fragments, translucent_covered, 100.0 * translucent_share);
+      st.translucent_fragments, st.translucent_covered, 100.0 * st.translucent_share());
   return 0;
 }
 

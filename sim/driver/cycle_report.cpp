@@ -551,7 +551,9 @@ std::vector<FieldDoc> report_field_docs() {
     FunctionalRun d = run_functional(in, m, false);
     d.header.draws = DrawTable({default_draw_state(0)});
     d.kind_fragments[size_t(DrawKind::kSrcOver)] = d.counters.fragments;
-    functional_report(ctx, d, &sink);
+    ReportContext dc = ctx;
+    dc.frame = FrameStats{};
+    functional_report(dc, d, &sink);
   }
   CycleOptions with_draws;
   with_draws.breakdown.per_draw = true;

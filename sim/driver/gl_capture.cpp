@@ -167,7 +167,7 @@ GlCaptureResult run_gl_capture(const GlCaptureRequest& o, StopSignals* signals) 
     program = find_executable(o.app[0]);
     if (program.empty())
       throw UserError(fmt::format(
-          "{}: application {} not found ({}){}", what, o.app[0],
+          "{}: application not found: {} ({}){}", what, o.app[0],
           o.app[0].find('/') != std::string::npos ? "no such executable file" : "no such program on PATH",
           o.package.empty()
               ? ""

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "frame_stats.h"
 #include "image_io.h"
 #include "memory_budget.h"
 #include "output_file.h"
@@ -42,6 +43,28 @@ nlohmann::ordered_json or_null(const std::optional<T>& v) {
   return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json(nullptr);
 }
 }  // namespace
+
+/// A frame of draw states: its statistics by the draws' kinds
+/// (frame_stats.h), whatever the method: what the frame is.
+void put_frame_stats(Fields f, const FrameStats& s) {
+  f.put("covered_samples", s.covered, "samples", "a frame of draw states: its fragments' covered samples");
+  f.put("transparent_share", s.transparent_share(), "-",
+        "a frame of draw states: the share of the covered samples that src-over and premultiplied-over draws cover");
+  f.put("translucent_share", s.translucent_share(), "-",
+        "a frame of draw states: the share of the covered samples that transparent fragments below alpha 1 cover");
+  f.put("transparent_screen_share", s.transparent_screen_share(), "-",
+        "a frame of draw states: the share of the screen's samples (width x height x spp) that a transparent "
+        "fragment covers");
+  f.put("transparent_depth_complexity", s.transparent_per_sample(), "fragments",
+        "a frame of draw states: transparent fragments per sample they cover, the mean");
+  f.put("transparent_fragments_per_pixel_max", s.transparent_max, "fragments",
+        "a frame of draw states: the most transparent fragments in one pixel");
+}
+
+std::optional<FrameStats> frame_of(const InputSpec& in) {
+  if (!in.from_trace()) return std::nullopt;
+  return frame_stats_of(in.trace_path);
+}
 
 void put_silicon(Fields s, const ReportContext& ctx, const TraceHeader& header) {
   s.put("source", "docs/data/rtl_synth_sweep.csv", "-",
@@ -151,6 +174,7 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
             std::string("a frame of draw states: fragments of ") + to_string(dk) + " draws: " + path);
     }
   }
+  if (draw_states && ctx.frame) put_frame_stats(r.obj("frame"), *ctx.frame);
   if (has_blend_pass(ctx.config.method)) {
     const PassList pl = run_passes(run.header, ctx.config.method);
     std::vector<std::string> names;

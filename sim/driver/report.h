@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "driver.h"
+#include "frame_stats.h"
 #include "report_fields.h"
 #include "rtl_cost.h"
 
@@ -28,7 +29,14 @@ struct ReportContext {
   /// (rtl_design_of in cycle_report.h; the run's spp, screen, method and
   /// numerics are filled in by the report). Absent: `silicon` says so.
   std::optional<RtlDesign> design;
+  /// The input frame's statistics (frame_of): the report's `frame.*` when
+  /// the frame has draw states.
+  std::optional<FrameStats> frame;
 };
+
+/// The statistics of a trace input's frame (streams the trace once); none
+/// for a scene or mesh input.
+std::optional<FrameStats> frame_of(const InputSpec& in);
 
 /// The "silicon" section: the NAND2-equivalent estimate, flip-flops and
 /// logic levels of each LK unit of one ROP of the design, per ROP and for

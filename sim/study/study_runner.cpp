@@ -301,7 +301,8 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
     reference = read_image(ref_path(dir, r.reference_key).string());
     write_text_output((pd / "reference.txt").string(), r.reference_key + "\n");
   }
-  ReportContext ctx{"ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}, {}};
+  ReportContext ctx{
+      "ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}, {}, frame_of(r.input)};
   nlohmann::ordered_json report;
   std::string summary, note;
   Image image;
