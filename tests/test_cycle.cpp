@@ -307,16 +307,19 @@ TEST(BitExactDrawRoutes, EverySinglePassMethodOnMixedDrawStatesMatchesTheGoldenM
 }
 
 TEST(BitExactDrawRoutes, ThePrepassMethodsOnMixedDrawStatesMatchTheGoldenModel) {
-  // wboit, slab and the +depth+ac methods on the mixed frame: a pre-pass of
-  // its opaque and blended draws, then their own passes over its src-over
-  // draws; every committed design, unorm8 and float, lockstep once.
+  // wboit, slab, +ac, +depth and +depth+ac on the mixed frame: a pre-pass
+  // of its opaque and blended draws, then their own passes over its src-over
+  // draws (+ac's colour into the accumulation target, +depth's mark into the
+  // transmittance target); every committed design, unorm8 and float,
+  // lockstep once.
   std::vector<HwConfig> designs;
   for (const auto& config : config_files()) designs.push_back(load_hw_config(config));
   for (const HwConfig& hw : designs)
     for (TargetEncoding e : {TargetEncoding::kUnorm8, TargetEncoding::kFloat})
       for (int spp : {4, 16}) {
         const auto [h, frags] = mixed_state_frame(spp, e);
-        for (Method m : {Method::kWboit, Method::kSlab, Method::kLkDepthAc, Method::kEndertonDepthAc}) {
+        for (Method m : {Method::kWboit, Method::kSlab, Method::kLkAc, Method::kEndertonAc, Method::kLkDepth,
+                         Method::kEndertonDepth, Method::kLkDepthAc, Method::kEndertonDepthAc}) {
           ASSERT_EQ(run_passes(h, m).pass[0], PassKind::kPrepass) << to_string(m);
           const std::string what =
               std::string(to_string(m)) + " " + to_string(e) + " " + std::to_string(spp) + " spp on " + hw.name;
@@ -324,6 +327,43 @@ TEST(BitExactDrawRoutes, ThePrepassMethodsOnMixedDrawStatesMatchTheGoldenModel) 
                            m == Method::kLkDepthAc && spp == 4 && e == TargetEncoding::kUnorm8);
         }
       }
+}
+
+TEST(BitExactDrawRoutes, OverAPrepassAcAndDepthWriteTheirMarkTargetNotTheColourBuffer) {
+  // On the mixed frame (a pre-pass), +ac's stochastic pass moves accum
+  // bytes and no colour bytes, +depth's depth-only pass transmittance bytes
+  // (its mask), and the report lists the target; on a frame of its src-over
+  // draws only (no pre-pass) they write as without draw states: +ac colour,
+  // +depth depth only, neither target listed.
+  const auto idx = [](Buffer b) { return size_t(b); };
+  const auto [h, frags] = mixed_state_frame(16, TargetEncoding::kFloat);
+  TraceHeader plain = h;
+  std::vector<DrawState> d(h.draws.states().begin(), h.draws.states().end());
+  for (DrawState& s : d) {  // every draw src-over
+    s = default_draw_state(s.draw_id);
+    s.encoding = TargetEncoding::kFloat;
+  }
+  plain.draws = DrawTable(d);
+  for (Method m : {Method::kLkAc, Method::kEndertonAc, Method::kLkDepth, Method::kEndertonDepth}) {
+    const bool ac = traits(m).total_alpha;
+    const Buffer mark = ac ? Buffer::kAccum : Buffer::kTransmittance;
+    for (bool prepass : {true, false}) {
+      const TraceHeader& hh = prepass ? h : plain;
+      const std::string what = std::string(to_string(m)) + (prepass ? " over a pre-pass" : " without one");
+      const CycleRun r = run_cycle([&] { return fragments_from(hh, frags); }, method_config(m), HwConfig{});
+      ASSERT_EQ(r.stats.passes.size(), size_t(passes_of(m).count + (prepass ? 1 : 0))) << what;
+      const PassStats& st = r.stats.passes[size_t(prepass) + (ac ? 1 : 0)];
+      ASSERT_EQ(st.name, "stochastic") << what;
+      EXPECT_EQ(r.stats.lists(int(mark)), prepass) << what;
+      if (prepass) {
+        EXPECT_GT(st.dram.bytes_written[idx(mark)], 0u) << what << ": the stochastic pass's mark";
+        EXPECT_EQ(st.dram.bytes_written[idx(Buffer::kColor)], 0u) << what << ": the background's colour kept";
+      } else {
+        EXPECT_EQ(st.dram.bytes_written[idx(mark)], 0u) << what;
+        EXPECT_EQ(st.dram.bytes_written[idx(Buffer::kColor)] > 0, ac) << what;
+      }
+    }
+  }
 }
 
 TEST(BitExactDrawRoutes, TheApproximateFidelityCountsWhatTheGoldenModelCounts) {
@@ -339,7 +379,8 @@ TEST(BitExactDrawRoutes, TheApproximateFidelityCountsWhatTheGoldenModelCounts) {
   }
   InputSpec in;
   in.trace_path = path;
-  for (Method m : {Method::kLk, Method::kWboit, Method::kSlab, Method::kLkDepthAc}) {
+  for (Method m :
+       {Method::kLk, Method::kWboit, Method::kSlab, Method::kLkAc, Method::kEndertonDepth, Method::kLkDepthAc}) {
     StochasticModel golden(h, method_config(m));
     for (int p = 0; p < golden.passes(); ++p) {
       golden.begin_pass(p);

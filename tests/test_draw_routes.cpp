@@ -243,7 +243,9 @@ TEST(DrawRoutes, AnAdditiveDrawIsAddedWhereverItPassesTheDepthTest) {
 
 /// The methods that composite over a background (or slab its layers) and
 /// run a frame of draw states with a pre-pass of its opaque and blended draws.
-const std::vector<Method> kPrepass = {Method::kWboit, Method::kSlab, Method::kLkDepthAc, Method::kEndertonDepthAc};
+const std::vector<Method> kPrepass = {Method::kWboit,      Method::kSlab,           Method::kLkAc,
+                                      Method::kEndertonAc, Method::kLkDepth,        Method::kEndertonDepth,
+                                      Method::kLkDepthAc,  Method::kEndertonDepthAc};
 
 TEST(DrawRoutes, ThePrepassMethodsRunAFramesOpaqueAndBlendedDrawsFirst) {
   // The passes: the pre-pass only on a frame with opaque or blended draws,
@@ -263,10 +265,10 @@ TEST(DrawRoutes, ThePrepassMethodsRunAFramesOpaqueAndBlendedDrawsFirst) {
 }
 
 TEST(DrawRoutes, AFrameWithoutSrcOverDrawsIsThePrepassMethodsBackground) {
-  // Without src-over draws, wboit, slab and the +depth+ac methods show the
-  // pre-pass's colour buffer: blend's frame. The composites store each
-  // sample's value as the target stores it and resolve as blend does, so
-  // wboit's and +depth+ac's PNG is blend's byte for byte; slab resolves its
+  // Without src-over draws, every pre-pass method shows the pre-pass's
+  // colour buffer: blend's frame. The composites store each sample's value
+  // as the target stores it and resolve as blend does, so wboit's, +ac's,
+  // +depth's and +depth+ac's PNG is blend's byte for byte; slab resolves its
   // layers' working values, to half a code.
   for (int spp : {1, 4, 16}) {
     TraceHeader h;
@@ -293,8 +295,12 @@ TEST(DrawRoutes, ThePrepassMethodsCompositeSrcOverOverTheOpaqueDraws) {
   // An opaque draw, a src-over draw at alpha 1/2 in front of it and one
   // behind it (float target): one layer in front, so every pre-pass method's
   // estimate is exact, the over composite (the reference's), to binary16
-  // rounding; the draw behind is hidden. And the opaque draw costs them what
-  // it costs a z-buffer: its fragments' depth and colour written once.
+  // rounding (1e-3): +ac's A = 1/2 exactly whichever samples its stochastic
+  // pass writes, and at alpha 1/2 and 16 spp lk and enderton write R = 8,
+  // so +depth's (S - R) / S is 1/2 too; the draw behind is hidden. And the
+  // opaque draw costs them what it costs a z-buffer: its fragments' depth
+  // and colour written once (+ac's stochastic colour goes to its
+  // accumulation target, not the colour buffer).
   const TargetEncoding e = TargetEncoding::kFloat;
   const TraceHeader h = header(4, 4, 16, {opaque_draw(0, e), src_over(1, e), src_over(2, e)});
   std::vector<Fragment> f;
@@ -346,21 +352,52 @@ TEST(DrawRoutes, ASrcOverDrawWithItsDepthTestOffIsNeverHidden) {
   }
 }
 
-TEST(DrawRoutes, MethodsThatTellTransparentSamplesByDepthRefuseOpaqueDraws) {
-  // +ac and +depth (not +depth+ac) composite by which samples the stochastic
-  // pass wrote, which a pre-pass's depth would hide: they run frames of
-  // src-over draws only, and say which draw is not.
-  const TargetEncoding e = TargetEncoding::kUnorm8;
-  const TraceHeader h = header(2, 2, 4, {src_over(0, e), opaque_draw(7, e)});
-  for (Method m : {Method::kLkAc, Method::kLkDepth, Method::kEndertonAc, Method::kEndertonDepth}) {
-    try {
-      run(h, {}, m);
-      ADD_FAILURE() << to_string(m) << " ran a frame with an opaque draw";
-    } catch (const std::invalid_argument& err) {
-      EXPECT_NE(std::string(err.what()).find("draw 7 is opaque"), std::string::npos) << err.what();
-    }
+TEST(DrawRoutes, OverAPrepassAcAndDepthMarkTheirWrittenSamplesOutsideTheDepthBuffer) {
+  // Over a pre-pass the depth buffer holds the opaque draw's depth, which
+  // the stochastic pass overwrites: +ac writes its colour as (c, 1) into
+  // the accumulation target and leaves the colour buffer the background;
+  // +depth writes 0 into the transmittance target. Each marks exactly the
+  // samples whose depth the stochastic pass wrote (the src-over draw's, in
+  // front), and a frame of src-over draws keeps the targets without them.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  const TraceHeader h = header(2, 2, 16, {opaque_draw(0, e), src_over(1, e)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 2, 2, 0.5f, {0.2f, 0.4f, 0.8f, 1.0f}, 16);
+  rect(f, 1, 0, 0, 2, 2, 0.3f, {1.0f, 0.5f, 0.0f, 0.5f}, 16);
+  const float z_back = canonical_depth(0.5f);
+  for (Method m : {Method::kLkAc, Method::kEndertonAc, Method::kLkDepth, Method::kEndertonDepth}) {
+    const bool ac = traits(m).total_alpha;
+    auto model = run(h, f, m);
+    const auto* golden = dynamic_cast<const StochasticModel*>(model.get());
+    ASSERT_NE(golden, nullptr);
+    const BlendFormats fmt = golden->store().targets().formats;
+    int written = 0;
+    for (uint32_t y = 0; y < 2; ++y)
+      for (uint32_t x = 0; x < 2; ++x) {
+        const PixelView v = golden->pixel_view(x, y);
+        ASSERT_TRUE(ac ? v.accum != nullptr : v.trans != nullptr) << to_string(m);
+        for (int s = 0; s < 16; ++s) {
+          const bool w = v.depth[s] != z_back;  // the stochastic pass's depth
+          written += w;
+          for (int c = 0; c < 3; ++c)
+            EXPECT_EQ(half_to_float(v.rgb[3 * s + c]), half_to_float(float_to_half(std::array{0.2f, 0.4f, 0.8f}[c])))
+                << to_string(m) << ": the colour buffer holds the background";
+          if (ac) {
+            const uint8_t* a = v.accum + size_t(s) * sample_bytes(fmt.accum);
+            EXPECT_EQ(target_load(fmt.accum, a, 3), w ? 1.0f : 0.0f) << to_string(m) << " sample " << s;
+            if (w) {
+              EXPECT_EQ(target_load(fmt.accum, a, 0), 1.0f) << to_string(m) << ": the src-over colour";
+            }
+          } else {
+            const uint8_t* t = v.trans + size_t(s) * sample_bytes(fmt.transmittance);
+            EXPECT_EQ(target_load(fmt.transmittance, t, 0), w ? 0.0f : 1.0f) << to_string(m) << " sample " << s;
+          }
+        }
+      }
+    EXPECT_EQ(written, 4 * 8) << to_string(m) << ": R = 8 of 16 samples per pixel at alpha 1/2";
+    // Without an opaque draw: today's targets, no mark.
+    const StoreTargets plain = store_targets(header(2, 2, 16, {src_over(1, e)}), config(m));
+    EXPECT_EQ(plain.accum, uses_accum(m)) << to_string(m);
+    EXPECT_EQ(plain.transmittance, uses_transmittance(m)) << to_string(m);
   }
-  for (Method m : kPrepass) EXPECT_NO_THROW(run(h, {}, m)) << to_string(m);
-  // A frame of src-over draws only runs.
-  EXPECT_NO_THROW(run(header(2, 2, 4, {src_over(0, e), src_over(1, e, true)}), {}, Method::kLkAc));
 }

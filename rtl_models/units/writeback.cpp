@@ -11,11 +11,19 @@ Writeback::Writeback(const sc_core::sc_module_name& name, const Clock& clk, Func
 uint32_t Writeback::process(FragToken* t, uint64_t now) {
   // What the write replaces in the surfaces the compressor tracks (pixel_snapshot.h).
   // Depth-based methods store depth only; a frame's opaque and blended draws write colour.
-  const bool color = stochastic_writes_color(rop_.setup().cfg.method) || t->route != DrawRoute::kMethod;
-  PixelSnapshot depth, rgb;
+  // Over a pre-pass, +ac's colour goes to the accumulation target and +depth
+  // marks the transmittance target (method.h).
+  const Method m = rop_.setup().cfg.method;
+  const bool own = t->route == DrawRoute::kMethod, prepass = rop_.setup().prepass;
+  const bool color = stochastic_writes_colour_buffer(m, prepass) || !own;
+  const bool accum = own && stochastic_colour_in_accum(m, prepass);
+  const bool mark = own && stochastic_marks_transmittance(m, prepass);
+  PixelSnapshot depth, rgb, target;
   if (CompressionModel* cm = cache_.compression()) {
     depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
     if (color) rgb.take(cm, amap_, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
+    if (accum) target.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
+    if (mark) target.take(cm, amap_, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
   }
   const uint32_t examined = run_stage(rop_.write(), *t);
   const Owner o = t->owner();
@@ -27,12 +35,17 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
     amap_.for_each_sample_line(Buffer::kColor, t->f->x, t->f->y, t->written, [&](uint64_t line) {
       cache_.post_write(line, Buffer::kColor, now, o, rgb.patch(line));
     });
+  if (accum || mark) {
+    const Buffer b = accum ? Buffer::kAccum : Buffer::kTransmittance;
+    amap_.for_each_sample_line(b, t->f->x, t->f->y, t->written,
+                               [&](uint64_t line) { cache_.post_write(line, b, now, o, target.patch(line)); });
+  }
   // lk: the tracker's updated state (written whatever the opacity test said).
   if (rop_.pass_uses_tracker() && t->route == DrawRoute::kMethod)
     amap_.for_each_tracker_line(t->f->x, t->f->y,
                                 [&](uint64_t line) { cache_.post_write(line, Buffer::kTracker, now, o); });
   // slab: the pixel's layers, rewritten when the fragment was inserted.
-  if (rop_.setup().cfg.method == Method::kSlab && t->slab.kept)
+  if (m == Method::kSlab && t->slab.kept)
     amap_.for_each_layer_line(t->f->x, t->f->y,
                               [&](uint64_t line) { cache_.post_write(line, Buffer::kLayers, now, o); });
   return examined;

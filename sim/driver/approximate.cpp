@@ -308,7 +308,11 @@ class Model {
     tracker_unit_ = mt.tracker && !blend_pass_;
     slab_ = rop.setup().cfg.method == Method::kSlab;
     prepass_ = rop.setup().prepass;
-    color_ = stochastic_writes_color(rop.setup().cfg.method);
+    color_ = stochastic_writes_colour_buffer(rop.setup().cfg.method, prepass_);
+    // Over a pre-pass, +ac's stochastic colour goes to the accumulation
+    // target and +depth marks the transmittance target (method.h).
+    if (stochastic_colour_in_accum(rop.setup().cfg.method, prepass_)) marks_ = Buffer::kAccum;
+    if (stochastic_marks_transmittance(rop.setup().cfg.method, prepass_)) marks_ = Buffer::kTransmittance;
     const PassKind p = rop.pass();
     trans_ = p == PassKind::kTotalAlpha || p == PassKind::kWboit;
     accum_ = p == PassKind::kAccumulate || p == PassKind::kWboit || p == PassKind::kFramebuffer;
@@ -408,6 +412,8 @@ class Model {
         if (color_)
           amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.written,
                                      [&](uint64_t l) { c.write(l, Buffer::kColor); });
+        if (marks_ != Buffer::kDepth)
+          amap_.for_each_sample_line(marks_, f.x, f.y, w.written, [&](uint64_t l) { c.write(l, marks_); });
         if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kTracker); });
         if (slab_ && w.slab_kept) amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { c.write(l, Buffer::kLayers); });
       }
@@ -535,6 +541,7 @@ class Model {
   std::vector<size_t> window_at_;
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, prepass_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
+  Buffer marks_ = Buffer::kDepth;  // the target the stochastic pass writes besides depth and colour (kDepth: none)
   uint64_t epoch_ = 1, in_epoch_ = 0, epochs_ = 0, fill_ = 0;
   double t_ = 0;                 // the pipeline's cycles so far (the epochs')
   std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start
@@ -556,8 +563,6 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   const auto t0 = std::chrono::steady_clock::now();
   ApproxRun run;
   std::unique_ptr<FragmentSource> src = open_fragments(in);
-  if (const std::string why = draw_state_refusal(src->header(), method.method); !why.empty())
-    throw UserError(in.describe() + ": " + why);
   run.header = src->header();
   // The tag-only model's structures, charged before any is built (memory_estimate.h).
   const MemoryEstimate estimate = estimate_memory(
@@ -570,8 +575,8 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   s.hw = hw;
   s.hw.numerics = method.numerics;
   s.hw.blend.formats = target_formats(method);
-  if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
-  if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
+  if (run_uses_transmittance(method.method, rop->setup().prepass)) s.listed |= 1u << int(Buffer::kTransmittance);
+  if (run_uses_accum(method.method, rop->setup().prepass)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   LineSet in_dram(hw.cache.line_bytes);
   std::array<double, kUnitKinds> unit_cycles{};

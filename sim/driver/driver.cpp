@@ -29,8 +29,6 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   FunctionalRun run;
   auto src = open_fragments(in);
   run.header = src->header();
-  if (const std::string why = draw_state_refusal(run.header, cfg.method); !why.empty())
-    throw UserError(in.describe() + ": " + why);
   if (with_reference || cfg.method == Method::kReference) check_reference_estimate(*src);
   std::unique_ptr<FunctionalModel> model = make_functional_model(run.header, cfg, threads), ref;
   if (with_reference && cfg.method != Method::kReference) {

@@ -184,12 +184,15 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
         "methods with blend passes: the passes over the input, in order (prepass: a frame's opaque and blended draws; "
         "total_alpha, stochastic, accumulate, wboit)");
     Fields t = r.obj("render_targets");
-    if (uses_transmittance(ctx.config.method))
+    const bool prepass = runs_prepass(run.header, ctx.config.method);
+    if (run_uses_transmittance(ctx.config.method, prepass))
       t.put("transmittance", to_string(ctx.config.formats.transmittance), "-",
-            "the transmittance target's format (product of 1 - alpha per sample)");
-    if (uses_accum(ctx.config.method))
+            "the transmittance target's format (product of 1 - alpha per sample; +depth over a pre-pass: 0 where "
+            "its stochastic pass wrote)");
+    if (run_uses_accum(ctx.config.method, prepass))
       t.put("accum", to_string(ctx.config.formats.accum), "-",
-            "the accumulation target's format (alpha-weighted colour and alpha per sample)");
+            "the accumulation target's format (alpha-weighted colour and alpha per sample; +ac over a pre-pass: "
+            "its stochastic pass's colour and 1)");
   }
   if (ctx.config.compression.any() && run.compression.measured)
     put_compressibility(r.obj("compressibility"), run.compression, ctx.config.compression);

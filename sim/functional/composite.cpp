@@ -25,6 +25,8 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
          : std::array<float, 3>{float(bg[0]), float(bg[1]), float(bg[2])});
   const int spp = h.spp;
   const uint32_t clear_z = depth_bits(canonical_depth(h.clear_depth));
+  const bool in_accum = stochastic_colour_in_accum(m, background_per_sample);
+  const bool marked = stochastic_marks_transmittance(m, background_per_sample);
   store.tile_map().for_each([&](uint32_t x0, uint32_t y0, const SampleTile&) {
     for (int p = 0; p < 64; ++p) {
       const uint32_t x = x0 + uint32_t(p & 7), y = y0 + uint32_t(p >> 3);
@@ -37,8 +39,20 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
       auto background = [&](int s, double bs[3]) {
         for (int c = 0; c < 3; ++c) bs[c] = background_per_sample ? double(half_to_float(v.rgb[3 * s + c])) : bg[c];
       };
+      // Did the stochastic pass write sample s (method.h: over a pre-pass,
+      // +ac's alpha in the accumulation target, +depth's transmittance mark;
+      // otherwise a depth that is not the clear depth)? And +ac: its colour.
+      auto written_at = [&](int s) {
+        if (in_accum) return target_load(fmt.accum, v.accum + size_t(s) * ab, 3) != 0.0;
+        if (marked) return transmittance(s) == 0.0;
+        return depth_bits(v.depth[s]) != clear_z;
+      };
+      auto written_colour = [&](int s, int c) {
+        return in_accum ? target_load(fmt.accum, v.accum + size_t(s) * ab, c) : double(half_to_float(v.rgb[3 * s + c]));
+      };
       // Sums in sample order (deterministic).
       double trans = 0, rgb[3] = {0, 0, 0}, acc[4] = {0, 0, 0, 0}, out[3] = {0, 0, 0}, over[3] = {0, 0, 0};
+      double open[3] = {0, 0, 0};  // +depth over a pre-pass: the background of the samples not written
       int written = 0;
       for (int s = 0; s < spp; ++s) {
         const double T = transmittance(s);
@@ -46,11 +60,13 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
         double bs[3];
         background(s, bs);
         for (int c = 0; c < 3; ++c) over[c] += T * bs[c];
-        const bool w = depth_bits(v.depth[s]) != clear_z;
+        const bool w = written_at(s);
         written += w;
+        if (!w)
+          for (int c = 0; c < 3; ++c) open[c] += bs[c];
         if (w && stochastic_writes_color(m))
-          for (int c = 0; c < 3; ++c) rgb[c] += half_to_float(v.rgb[3 * s + c]);
-        if (v.accum) {
+          for (int c = 0; c < 3; ++c) rgb[c] += written_colour(s, c);
+        if (v.accum && !in_accum) {
           const uint8_t* a = v.accum + size_t(s) * ab;
           if (t.wboit) {
             const double wa = wboit_clamp_weight(target_load(fmt.accum, a, 3));
@@ -70,7 +86,7 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
           const double T = transmittance(s);
           double bs[3];
           background(s, bs);
-          const bool w = depth_bits(v.depth[s]) != clear_z;
+          const bool w = written_at(s);
           const uint8_t* a = v.accum ? v.accum + size_t(s) * ab : nullptr;
           for (int c = 0; c < 3; ++c) {
             double o;
@@ -99,9 +115,12 @@ Image composite(const SampleStore& store, Method m, bool background_per_sample) 
         for (int c = 0; c < 3; ++c)
           out[c] = (acc[3] > 0 ? A * acc[c] / acc[3] : 0.0) + (background_per_sample ? over[c] / S : trans / S * bg[c]);
       } else if (t.depth_based) {
-        for (int c = 0; c < 3; ++c) out[c] = acc[c] / S + double(spp - written) / S * bg[c];
+        for (int c = 0; c < 3; ++c)
+          out[c] = acc[c] / S + (background_per_sample ? open[c] / S : double(spp - written) / S * bg[c]);
       } else {  // +ac
-        for (int c = 0; c < 3; ++c) out[c] = (written > 0 ? A * rgb[c] / written : 0.0) + trans / S * bg[c];
+        for (int c = 0; c < 3; ++c)
+          out[c] =
+              (written > 0 ? A * rgb[c] / written : 0.0) + (background_per_sample ? over[c] / S : trans / S * bg[c]);
       }
       float* o = img.at(x, y);
       for (int c = 0; c < 3; ++c) o[c] = float(out[c]);

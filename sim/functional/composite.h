@@ -15,7 +15,13 @@
 // is one whose depth is not the clear depth (docs/methods.md). The
 // background is the clear colour, or, after a pre-pass of a frame's opaque
 // and blended draws (PassKind::kPrepass), each sample's colour buffer:
-// mean_s(T_s) * background is then mean_s(T_s * background_s).
+// mean_s(T_s) * background is then mean_s(T_s * background_s), and +depth's
+// (S - R) / S * background is mean_s (written_s ? 0 : background_s). Over a
+// pre-pass the depth buffer no longer tells the written samples: +ac's
+// stochastic pass writes (c, 1) into the accumulation target (written:
+// accum_s.a != 0, its colour accum_s.rgb) and +depth's marks the
+// transmittance target with 0 (written: T_s = 0; method.h,
+// stochastic_colour_in_accum, stochastic_marks_transmittance).
 #pragma once
 #include <cstddef>
 
@@ -27,7 +33,8 @@ namespace ropsim {
 
 /// The image of a method with blend passes from its final state; over each
 /// sample's colour buffer when a pre-pass drew the background into it
-/// (wboit and +depth+ac; +ac and +depth refuse such frames). On a frame
+/// (background_per_sample: every composite method on a frame with opaque or
+/// blended draws). On a frame
 /// whose target has an 8-bit encoding, each sample's composite (the
 /// formula's term for sample s) is stored as the target stores it and the
 /// pixel resolved as blend resolves its framebuffer, as light

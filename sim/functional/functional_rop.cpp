@@ -34,7 +34,6 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   encoding = frame_encoding(h.draws);
   routed = has_routed_draws(h);
   prepass = passes.pass[0] == PassKind::kPrepass;
-  if (const std::string why = draw_state_refusal(h, c.method); !why.empty()) throw std::invalid_argument(why);
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
@@ -56,24 +55,12 @@ PassList run_passes(const TraceHeader& h, Method m) {
   return p;
 }
 
-std::string draw_state_refusal(const TraceHeader& h, Method m) {
-  // Opaque and blended draws go into the colour and depth buffers first (the
-  // pre-pass); a composite that must tell a transparent sample's depth from
-  // the background's would need a second depth buffer.
-  if (!composites_over_background(m) || !composite_reads_stochastic_depth(m)) return "";
-  for (const DrawState& d : h.draws.states())
-    if (route_of(draw_kind(d)) != DrawRoute::kMethod)
-      return std::string("the ") + traits(m).name + " method runs frames whose draws are all src-over; draw " +
-             std::to_string(d.draw_id) + " is " + to_string(draw_kind(d)) +
-             " (its composite would need a second depth buffer, to tell the transparent samples from the "
-             "background's; wboit, slab and the +depth+ac methods run the frame with a pre-pass, and lk, enderton, "
-             "naive, a2c, hashed, hashed-a2c, opaque, blend and reference run it in one)";
-  return "";
-}
+bool runs_prepass(const TraceHeader& h, Method m) { return run_passes(h, m).pass[0] == PassKind::kPrepass; }
 
 StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
-  StoreTargets t{uses_transmittance(cfg.method),
-                 uses_accum(cfg.method),
+  const bool prepass = runs_prepass(h, cfg.method);
+  StoreTargets t{run_uses_transmittance(cfg.method, prepass),
+                 run_uses_accum(cfg.method, prepass),
                  target_formats(cfg),
                  {0.0f, 0.0f, 0.0f, 0.0f},
                  cfg.method == Method::kSlab ? cfg.slab_bits : 0};

@@ -81,10 +81,10 @@ bool has_routed_draws(const TraceHeader& h);
 /// draws (docs/methods.md "Methods on a frame of draw states").
 PassList run_passes(const TraceHeader& h, Method m);
 
-/// Why method m cannot run a frame of header h's draw states ("" when it
-/// can): +ac and +depth (not +depth+ac) run frames of src-over draws only
-/// (composite_reads_stochastic_depth).
-std::string draw_state_refusal(const TraceHeader& h, Method m);
+/// Does a run of method m on a trace of header h begin with the pre-pass
+/// (run_passes)? Its render targets then follow run_uses_transmittance and
+/// run_uses_accum (method.h).
+bool runs_prepass(const TraceHeader& h, Method m);
 
 /// The per-pixel buffers a run of cfg on a trace of header h keeps beyond
 /// depth and colour (the golden model's and the cycle model's store).

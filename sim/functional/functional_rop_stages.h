@@ -307,14 +307,33 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   uint32_t examined = w.m;
   PixelRef px = w.px;
   const float* z = w.z;
-  // Depth-based methods' stochastic pass stores depth only (Enderton et al. 3.4).
+  // Depth-based methods' stochastic pass stores depth only (Enderton et al.
+  // 3.4). Over a pre-pass (method.h): +ac stores (c, 1) in the accumulation
+  // target, leaving the colour buffer's background; +depth marks the
+  // sample in the transmittance target (0).
   constexpr bool kColor = stochastic_writes_color(M);
-  [[maybe_unused]] auto write = [&px, rgb16](int i, float zi) {
+  constexpr bool kMayAccum = stochastic_colour_in_accum(M, true), kMayMark = stochastic_marks_transmittance(M, true);
+  [[maybe_unused]] const bool to_accum = kMayAccum && s_.prepass, mark = kMayMark && s_.prepass;
+  [[maybe_unused]] const BlendFormats& fmt = s_.cfg.formats;
+  [[maybe_unused]] float c1[4] = {0, 0, 0, 1};
+  if constexpr (kMayAccum)
+    if (to_accum)
+      for (int c = 0; c < 3; ++c) c1[c] = half_to_float(rgb16[c]);
+  [[maybe_unused]] auto write = [&](int i, float zi) {
     if constexpr (kColor) {
+      if constexpr (kMayAccum) {
+        if (to_accum) {
+          px.depth[i] = zi;
+          uint8_t* a = px.accum + size_t(i) * sample_bytes(fmt.accum);
+          for (int c = 0; c < 4; ++c) target_store(fmt.accum, a, c, c1[c]);
+          return;
+        }
+      }
       px.write_sample(i, zi, rgb16);
     } else {
-      (void)rgb16;  // depth only
-      px.depth[i] = zi;
+      px.depth[i] = zi;  // depth only
+      if constexpr (kMayMark)
+        if (mark) target_store(fmt.transmittance, px.trans + size_t(i) * sample_bytes(fmt.transmittance), 0, 0.0f);
     }
   };
   if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
@@ -377,7 +396,16 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
   c_.samples_written += n;
   c_.depth_bytes_written += kDepthSampleBytes * n;
-  if constexpr (kColor) c_.color_bytes_written += kColorSampleBytes * n;
+  if constexpr (kMayAccum) {
+    if (to_accum)
+      c_.target_bytes_written += uint64_t(sample_bytes(fmt.accum)) * n;
+    else
+      c_.color_bytes_written += kColorSampleBytes * n;
+  } else if constexpr (kColor) {
+    c_.color_bytes_written += kColorSampleBytes * n;
+  }
+  if constexpr (kMayMark)
+    if (mark) c_.target_bytes_written += uint64_t(sample_bytes(fmt.transmittance)) * n;
   w.written = wrote;
   w.depth_written = wrote;
   return examined;

@@ -42,7 +42,9 @@ inline constexpr Method kLastMethod = Method::kBlend;
 /// What one pass over the input does (docs/methods.md):
 /// - kTotalAlpha: non-writing depth test, transmittance *= 1 - alpha;
 /// - kStochastic: the method's stochastic z-buffer (writes depth, and colour
-///   unless the method is depth-based);
+///   unless the method is depth-based; over a pre-pass, +ac's colour goes to
+///   the accumulation target and +depth marks the transmittance target:
+///   stochastic_colour_in_accum, stochastic_marks_transmittance);
 /// - kAccumulate: non-writing depth test against the stochastic depth,
 ///   accum += (alpha c, alpha);
 /// - kWboit: non-writing depth test, accum += (alpha c w, alpha w) and
@@ -171,12 +173,35 @@ constexpr bool stochastic_writes_color(Method m) { return !traits(m).depth_based
 constexpr bool composites_over_background(Method m) {
   return !traits(m).framebuffer && (has_blend_pass(m) || m == Method::kSlab);
 }
-/// Does its composite need to tell the samples a transparent fragment wrote
-/// from those the background's depth holds (+ac, +depth)? With a pre-pass
-/// that takes a second depth buffer, which is not modelled: such a method
-/// refuses a frame with opaque or blended draws. (+depth+ac composites by
-/// transmittance and needs none; wboit and slab write no depth.)
-constexpr bool composite_reads_stochastic_depth(Method m) { return traits(m).total_alpha != traits(m).depth_based; }
+/// Over a pre-pass, the colour buffer holds the background, which the
+/// stochastic pass must leave for the composite; and the depth buffer holds
+/// the background's depth, which the stochastic pass overwrites, so that a
+/// written sample cannot be told by its depth. So on a run with a pre-pass:
+/// - +ac's stochastic pass writes (c, 1) into the accumulation target (a
+///   separate multisampled target, as Enderton et al.'s implementation
+///   renders it) instead of c into the colour buffer: written is accum.a != 0;
+/// - +depth's depth-only pass writes 0 into the transmittance target, which
+///   the method otherwise leaves unused, as a one-channel mask of the samples
+///   it wrote: written is T = 0.
+/// Without a pre-pass both write as the method's passes say (colour buffer,
+/// depth only) and a written sample is one whose depth is not the clear depth.
+constexpr bool stochastic_colour_in_accum(Method m, bool prepass) {
+  return prepass && traits(m).total_alpha && !traits(m).depth_based;
+}
+constexpr bool stochastic_marks_transmittance(Method m, bool prepass) {
+  return prepass && traits(m).depth_based && !traits(m).total_alpha;
+}
+/// Does the stochastic pass write colour into the colour buffer?
+constexpr bool stochastic_writes_colour_buffer(Method m, bool prepass) {
+  return stochastic_writes_color(m) && !stochastic_colour_in_accum(m, prepass);
+}
+/// The render targets a run of method m keeps, with or without a pre-pass.
+constexpr bool run_uses_transmittance(Method m, bool prepass) {
+  return uses_transmittance(m) || stochastic_marks_transmittance(m, prepass);
+}
+constexpr bool run_uses_accum(Method m, bool prepass) {
+  return uses_accum(m) || stochastic_colour_in_accum(m, prepass);
+}
 
 const char* to_string(Method m);
 /// Parses a method name; returns false for an unknown name.

@@ -125,14 +125,7 @@ class StoreTileSource : public TileSource {
 }  // namespace
 
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
-  return run_cycle(
-      [&in, &method] {
-        auto src = open_fragments(in);
-        if (const std::string why = draw_state_refusal(src->header(), method.method); !why.empty())
-          throw UserError(in.describe() + ": " + why);
-        return src;
-      },
-      method, hw, opt);
+  return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
 }
 
 CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_input, const GoldenConfig& method,
@@ -164,9 +157,10 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
     std::array<uint32_t, kBuffers> bps{};
     bps[size_t(Buffer::kDepth)] = kDepthSampleBytes;
     bps[size_t(Buffer::kColor)] = kColorSampleBytes;
-    if (uses_transmittance(method.method))
+    if (run_uses_transmittance(method.method, rop->setup().prepass))
       bps[size_t(Buffer::kTransmittance)] = sample_bytes(method.formats.transmittance);
-    if (uses_accum(method.method)) bps[size_t(Buffer::kAccum)] = sample_bytes(target_formats(method).accum);
+    if (run_uses_accum(method.method, rop->setup().prepass))
+      bps[size_t(Buffer::kAccum)] = sample_bytes(target_formats(method).accum);
     comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
                                               canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
@@ -181,8 +175,8 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   s.hw.numerics = method.numerics;  // what ran: the method's (the CLI resolves flags and design into both)
   s.hw.blend.formats = target_formats(method);
   s.decoupled = decoupled;
-  if (uses_transmittance(method.method)) s.listed |= 1u << int(Buffer::kTransmittance);
-  if (uses_accum(method.method)) s.listed |= 1u << int(Buffer::kAccum);
+  if (run_uses_transmittance(method.method, rop->setup().prepass)) s.listed |= 1u << int(Buffer::kTransmittance);
+  if (run_uses_accum(method.method, rop->setup().prepass)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   uint64_t progress_base = 0;
   // The waveform of every pass, one after the other (--vcd), opened before
