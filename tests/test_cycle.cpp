@@ -336,7 +336,9 @@ TEST(BitExactDrawRoutes, OverAPrepassAcAndDepthWriteTheirMarkTargetNotTheColourB
   // draws only (no pre-pass) they write as without draw states: +ac colour,
   // +depth depth only, neither target listed.
   const auto idx = [](Buffer b) { return size_t(b); };
-  const auto [h, frags] = mixed_state_frame(16, TargetEncoding::kFloat);
+  const auto frame = mixed_state_frame(16, TargetEncoding::kFloat);
+  const TraceHeader& h = frame.first;
+  const auto& frags = frame.second;
   TraceHeader plain = h;
   std::vector<DrawState> d(h.draws.states().begin(), h.draws.states().end());
   for (DrawState& s : d) {  // every draw src-over
