@@ -269,6 +269,30 @@ TEST(BitExactBlend, MixedDrawStatesMatchTheGoldenModelInEveryEncoding) {
       }
 }
 
+TEST(BitExactBlend, AnEightBitTargetMovesItsColourAsRgba8) {
+  // The cycle model's address map and DRAM traffic use the surfaces' bytes
+  // in memory (surface_bytes.h): on the mixed frame at 16 spp an 8-bit
+  // target's colour (lk) and framebuffer (blend) move fewer bytes than the
+  // same frame's float target (6 and 16 bytes a sample), with the same
+  // fragments and samples; depth moves the same.
+  for (Method m : {Method::kBlend, Method::kLk}) {
+    const Buffer b = m == Method::kBlend ? Buffer::kAccum : Buffer::kColor;
+    std::array<uint64_t, 2> written{}, depth{};
+    for (TargetEncoding e : {TargetEncoding::kUnorm8, TargetEncoding::kFloat}) {
+      const auto frame = mixed_state_frame(16, e);
+      const CycleRun r =
+          run_cycle([&] { return fragments_from(frame.first, frame.second); }, method_config(m), HwConfig{});
+      const size_t i = e == TargetEncoding::kFloat;
+      written[i] = r.stats.dram.bytes_written[size_t(b)];
+      depth[i] = r.stats.dram.bytes_written[size_t(Buffer::kDepth)];
+    }
+    const std::string what = std::string(to_string(m)) + "'s " + to_string(b);
+    EXPECT_GT(written[0], 0u) << what;
+    EXPECT_LT(written[0], written[1]) << what << ": unorm8 against float";
+    EXPECT_EQ(depth[0], depth[1]) << to_string(m) << ": depth is binary32 in both";
+  }
+}
+
 TEST(BitExactBlend, TheFrameExercisesEveryPathOfTheRule) {
   // The mixed frame is worth its name: some samples fail their depth test,
   // some depths are written, and the result differs between the encodings.
@@ -1362,30 +1386,38 @@ TEST(Decoupling, OccupancyStatsDoNotDependOnHostOrder) {
 }
 
 // The line walk of the address map visits exactly the lines that hold a
-// sample of the mask, in increasing order, once each.
+// sample of the mask, in increasing order, once each, for every sample size
+// a surface takes: a frame without draw states (depth 4, colour 6, accum
+// RGBA16F 8), an 8-bit frame (colour RGBA8 4) and blend's float framebuffer
+// (16).
 TEST(AddressMapLines, LineWalkMatchesAPerSampleWalk) {
   std::mt19937_64 rng(3);
-  for (int spp : {1, 4, 8, 16, 32, 64})
-    for (uint32_t line : {16u, 32u, 64u, 128u})
-      for (Buffer b : {Buffer::kDepth, Buffer::kColor}) {
-        AddressMap am(40, spp, 3, line);
-        for (int trial = 0; trial < 40; ++trial) {
-          const uint32_t x = uint32_t(rng() % 40), y = uint32_t(rng() % 40);
-          uint64_t mask = rng() & (spp == 64 ? ~0ull : (1ull << spp) - 1);
-          if (trial == 0) mask = spp == 64 ? ~0ull : (1ull << spp) - 1;
-          std::vector<uint64_t> got, want;
-          am.for_each_sample_line(b, x, y, mask, [&](uint64_t l) { got.push_back(l); });
-          const uint64_t bps = b == Buffer::kDepth ? 4 : 6;
-          const uint64_t start = AddressMap::base(b) + am.pixel_index(x, y) * uint64_t(spp) * bps;
-          for (int s = 0; s < spp; ++s)
-            if (mask >> s & 1)
-              for (uint64_t a = start + uint64_t(s) * bps; a < start + uint64_t(s + 1) * bps; ++a) {
-                const uint64_t l = a / line * line;
-                if (want.empty() || want.back() != l) want.push_back(l);
-              }
-          EXPECT_EQ(got, want) << "spp " << spp << " line " << line << " " << to_string(b) << " mask " << mask;
+  SampleBytes rgba8 = plain_sample_bytes(), float_fb = plain_sample_bytes();
+  rgba8[size_t(Buffer::kColor)] = rgba8[size_t(Buffer::kAccum)] = 4;
+  float_fb[size_t(Buffer::kAccum)] = 16;
+  for (const SampleBytes& sizes : {plain_sample_bytes(), rgba8, float_fb})
+    for (int spp : {1, 4, 8, 16, 32, 64})
+      for (uint32_t line : {16u, 32u, 64u, 128u})
+        for (Buffer b : {Buffer::kDepth, Buffer::kColor, Buffer::kAccum}) {
+          AddressMap am(40, spp, 3, line, sizes);
+          for (int trial = 0; trial < 40; ++trial) {
+            const uint32_t x = uint32_t(rng() % 40), y = uint32_t(rng() % 40);
+            uint64_t mask = rng() & (spp == 64 ? ~0ull : (1ull << spp) - 1);
+            if (trial == 0) mask = spp == 64 ? ~0ull : (1ull << spp) - 1;
+            std::vector<uint64_t> got, want;
+            am.for_each_sample_line(b, x, y, mask, [&](uint64_t l) { got.push_back(l); });
+            const uint64_t bps = sizes[size_t(b)];
+            const uint64_t start = AddressMap::base(b) + am.pixel_index(x, y) * uint64_t(spp) * bps;
+            for (int s = 0; s < spp; ++s)
+              if (mask >> s & 1)
+                for (uint64_t a = start + uint64_t(s) * bps; a < start + uint64_t(s + 1) * bps; ++a) {
+                  const uint64_t l = a / line * line;
+                  if (want.empty() || want.back() != l) want.push_back(l);
+                }
+            EXPECT_EQ(got, want) << "spp " << spp << " line " << line << " " << to_string(b) << " of " << bps
+                                 << " bytes mask " << mask;
+          }
         }
-      }
 }
 
 // ------------------------------------------------------------ report fields
@@ -2072,7 +2104,7 @@ TEST(Sampled, AFrameOfOpaqueAndBlendedDrawsIsSampled) {
     // The lines of the touches: a blended draw that keeps depth reads the
     // colour it writes and writes no depth; no routed touch has a tracker line.
     const AddressMap amap(h.width, h.spp, tracker_state_bytes(h.spp, cfg.numerics.surface_id_bits), hw.cache.line_bytes,
-                          cfg.formats, 0);
+                          FunctionalRop(h, cfg).setup().bytes.stored, 0);
     bool seen = false;
     for (size_t i = 0; i < touches.size(); ++i) {
       const Touch& t = touches[i];

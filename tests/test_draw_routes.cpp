@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "composite.h"
+#include "compressibility.h"
 #include "framebuffer_blend.h"
 #include "golden_model.h"
 #include "image_io.h"
@@ -161,10 +162,10 @@ TEST(DrawRoutes, OpaqueAndBlendedDrawsCostLkWhatTheyCostAZBuffer) {
   EXPECT_EQ(lk.tracker_bytes_read, 0u);
   EXPECT_EQ(lk.sorts, 0u);
   // The blended draws read the colour they blend into, the opaque ones do not:
-  // 6 bytes per blended sample (draws 3 and 4: 18 and 25 fragments, 16 spp,
-  // each wholly visible in front of the opaque draws).
+  // 4 bytes per blended sample of the unorm8 target (draws 3 and 4: 18 and 25
+  // fragments, 16 spp, each wholly visible in front of the opaque draws).
   EXPECT_EQ(lk.samples_blended, (18u + 25u) * 16u);
-  EXPECT_EQ(lk.target_bytes_read, (18u + 25u) * 16u * kColorSampleBytes);
+  EXPECT_EQ(lk.target_bytes_read, (18u + 25u) * 16u * kRgba8SampleBytes);
 }
 
 TEST(DrawRoutes, FragmentsAreCountedByTheirDrawsKind) {
@@ -400,4 +401,92 @@ TEST(DrawRoutes, OverAPrepassAcAndDepthMarkTheirWrittenSamplesOutsideTheDepthBuf
     EXPECT_EQ(plain.accum, uses_accum(m)) << to_string(m);
     EXPECT_EQ(plain.transmittance, uses_transmittance(m)) << to_string(m);
   }
+}
+
+namespace {
+
+/// The opaque frame's draws retargeted to encoding e.
+TraceHeader with_encoding(TraceHeader h, TargetEncoding e) {
+  std::vector<DrawState> d = h.draws.states();
+  for (DrawState& s : d) s.encoding = e;
+  h.draws = DrawTable(d);
+  return h;
+}
+
+StochasticModel run_stochastic(const TraceHeader& h, const std::vector<Fragment>& frags, Method m) {
+  StochasticModel model(h, config(m));
+  for (int p = 0; p < model.passes(); ++p) {
+    model.begin_pass(p);
+    for (const Fragment& f : frags) model.draw(f);
+  }
+  return model;
+}
+
+}  // namespace
+
+TEST(DrawRoutes, AnEightBitTargetsColourIsRgba8InMemory) {
+  // The surfaces' bytes a sample in memory (surface_bytes.h): an 8-bit
+  // target's colour buffer and blend's framebuffer are RGBA8, 4 bytes; a
+  // float target keeps the store's RGB binary16 (6) and RGBA binary32 (16),
+  // as does a frame without draw states; the methods' own targets keep the
+  // design's formats. The counters follow, sample for sample.
+  TraceHeader h8;
+  const std::vector<Fragment> f = opaque_frame(h8, 16);
+  const TraceHeader hf = with_encoding(h8, TargetEncoding::kFloat);
+  TraceHeader plain = h8;
+  plain.draws = DrawTable();
+  const BlendFormats fmt;
+  for (TargetEncoding e : {TargetEncoding::kUnorm8, TargetEncoding::kSrgb8, TargetEncoding::kFloat}) {
+    const TraceHeader h = with_encoding(h8, e);
+    const bool rgba8 = e != TargetEncoding::kFloat;
+    const SurfaceBytes blend = FunctionalRop(h, config(Method::kBlend)).setup().bytes;
+    const SurfaceBytes wboit = FunctionalRop(h, config(Method::kWboit)).setup().bytes;
+    EXPECT_EQ(blend.of(Buffer::kColor), rgba8 ? 4u : 6u) << to_string(e);
+    EXPECT_EQ(blend.of(Buffer::kAccum), rgba8 ? 4u : 16u) << to_string(e) << ": blend's framebuffer";
+    EXPECT_EQ(blend.of(Buffer::kDepth), 4u) << to_string(e);
+    EXPECT_EQ(wboit.of(Buffer::kAccum), sample_bytes(fmt.accum)) << to_string(e) << ": wboit's own target";
+    EXPECT_EQ(wboit.of(Buffer::kTransmittance), sample_bytes(fmt.transmittance)) << to_string(e);
+  }
+  const SurfaceBytes none = FunctionalRop(plain, config(Method::kLk)).setup().bytes;
+  EXPECT_EQ(none.of(Buffer::kColor), kColorSampleBytes) << "a frame without draw states";
+  EXPECT_FALSE(none.converts(Buffer::kColor));
+  const Counters b8 = run(h8, f, Method::kBlend)->counters(), bf = run(hf, f, Method::kBlend)->counters();
+  ASSERT_GT(b8.target_bytes_written, 0u);
+  EXPECT_EQ(b8.samples_blended, bf.samples_blended);
+  EXPECT_EQ(b8.target_bytes_written * 16, bf.target_bytes_written * 4) << "blend's framebuffer: 4 bytes against 16";
+  EXPECT_EQ(b8.target_bytes_read * 16, bf.target_bytes_read * 4);
+  const Counters l8 = run(h8, f, Method::kLk)->counters(), lf = run(hf, f, Method::kLk)->counters();
+  ASSERT_GT(l8.color_bytes_written, 0u);
+  EXPECT_EQ(l8.samples_written, lf.samples_written);
+  EXPECT_EQ(l8.color_bytes_written * 6, lf.color_bytes_written * 4) << "lk's colour buffer: 4 bytes against 6";
+  // Compression sees the same tiles, each of tile_pixels x spp x 4 bytes.
+  CompressionSetup cs;
+  cs.depth = cs.color = true;
+  const CompressionStats c8 = measure_compressibility(run_stochastic(h8, f, Method::kLk).store(), cs);
+  const CompressionStats cf = measure_compressibility(run_stochastic(hf, f, Method::kLk).store(), cs);
+  const BufferCompression &k8 = c8.buffers[size_t(Buffer::kColor)], &kf = cf.buffers[size_t(Buffer::kColor)];
+  ASSERT_GT(kf.bytes_uncompressed, 0u);
+  EXPECT_EQ(k8.tiles_cleared, kf.tiles_cleared);
+  EXPECT_EQ(k8.bytes_uncompressed * 6, kf.bytes_uncompressed * 4) << "the colour surface's uncompressed bytes";
+  EXPECT_LE(k8.bytes_compressed, k8.bytes_uncompressed);
+}
+
+TEST(DrawRoutes, AnEightBitTargetStoresEachWrittenColourAsItsCode) {
+  // A method's colour buffer holds what the target stores: on a unorm8
+  // target a written colour is its 8-bit code, so src-over draws at alpha 1
+  // (every method keeps every nearest sample) give exactly blend's image.
+  // The pixel below holds two fragments' colours on 4 and 12 of its 16
+  // samples, each colour 0.45 of a code above its code (77 and 128): the
+  // stored codes resolve to (77 + 3 x 128) / 4 = 115.25, so code 115, where
+  // unrounded colours would resolve to 115.7, code 116.
+  const TargetEncoding e = TargetEncoding::kUnorm8;
+  const TraceHeader h = header(2, 1, 16, {src_over(0, e), src_over(1, e)});
+  const float a = 77.45f / 255.0f, b = 128.45f / 255.0f;
+  std::vector<Fragment> f = {frag(0, 0, 0, 0.5f, {a, a, a, 1.0f}, 0x000Full),
+                             frag(1, 0, 0, 0.5f, {b, b, b, 1.0f}, 0xFFF0ull),
+                             frag(0, 1, 0, 0.6f, {b, a, b, 1.0f}, all_samples(16)),  // behind the next
+                             frag(1, 1, 0, 0.4f, {a, b, a, 1.0f}, all_samples(16))};
+  const Image want = run(h, f, Method::kBlend)->resolve();
+  EXPECT_EQ(want.at(0, 0)[0], fb::srgb_decode_code(115)) << "blend's resolve of the stored codes (as light)";
+  for (Method m : kSinglePass) expect_same_image(run(h, f, m)->resolve(), want, to_string(m));
 }

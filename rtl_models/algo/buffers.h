@@ -1,6 +1,12 @@
 // The ROP's per-pixel surfaces (buffers), named once for the address map,
 // the caches' statistics and surface compression.
 #pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+#include "blend.h"
+#include "numerics.h"
 
 namespace ropsim {
 
@@ -25,6 +31,20 @@ inline const char* to_string(Buffer b) {
       return "layers";
   }
   return "?";
+}
+
+/// Bytes of one sample of each per-sample surface (depth, colour and the
+/// render targets; 0 for the per-pixel tracker and layers).
+using SampleBytes = std::array<uint32_t, kBuffers>;
+/// The sizes of a frame without draw states: depth 4, colour 6, the render
+/// targets in formats f.
+inline SampleBytes plain_sample_bytes(const BlendFormats& f = {}) {
+  SampleBytes b{};
+  b[size_t(Buffer::kDepth)] = kDepthSampleBytes;
+  b[size_t(Buffer::kColor)] = kColorSampleBytes;
+  b[size_t(Buffer::kTransmittance)] = sample_bytes(f.transmittance);
+  b[size_t(Buffer::kAccum)] = sample_bytes(f.accum);
+  return b;
 }
 
 }  // namespace ropsim

@@ -11,10 +11,11 @@ namespace ropsim {
 inline constexpr int kMaxSpp = 64;
 
 /// Bytes of one sample in the ROP's buffers: depth is binary32, colour RGB
-/// binary16 (docs/numerics.md). The counters, the address map and the host
-/// store all use these.
+/// binary16 (docs/numerics.md); the host store keeps these. An 8-bit
+/// target's sample in memory is RGBA8 (surface_bytes.h).
 inline constexpr uint32_t kDepthSampleBytes = 4;
 inline constexpr uint32_t kColorSampleBytes = 6;
+inline constexpr uint32_t kRgba8SampleBytes = 4;
 
 /// Widths of the datapaths that a what-if study may narrow. Defaults are the
 /// 32-bit arithmetic of Laine & Karras 2011, Figure 4.

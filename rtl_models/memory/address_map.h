@@ -1,11 +1,12 @@
 // Where the ROP's per-pixel buffers live in memory: surfaces (depth, colour,
 // tracker, the blend methods' transmittance and accumulation render targets,
 // and slab's layers), each laid out in 8 x 8-pixel tiles, pixel-major inside a
-// tile and sample-major inside a pixel. Depth is binary32 (4 bytes/sample),
-// colour RGB binary16 (6 bytes/sample), the tracker ceil((spp + id bits) / 8)
-// bytes per pixel, the render targets their format's bytes per sample
-// (blend.h), slab's layers slab_pixel_bytes per pixel. Buffers are 2^48
-// bytes apart.
+// tile and sample-major inside a pixel. A per-sample surface's sample takes
+// the bytes the run's surfaces give it (surface_bytes.h; without draw
+// states depth is binary32, 4 bytes, colour RGB binary16, 6 bytes, and the
+// render targets their format's bytes, blend.h), the tracker
+// ceil((spp + id bits) / 8) bytes per pixel, slab's layers slab_pixel_bytes
+// per pixel. Buffers are 2^48 bytes apart.
 #pragma once
 #include <cstdint>
 
@@ -18,26 +19,20 @@ namespace ropsim {
 
 class AddressMap {
  public:
-  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes, const BlendFormats& formats = {},
-             uint32_t layer_bytes = 0)
+  AddressMap(uint32_t width, int spp, uint32_t tracker_bytes, uint32_t line_bytes,
+             const SampleBytes& bytes = plain_sample_bytes(), uint32_t layer_bytes = 0)
       : tiles_x_(ceil_div(width, 8u)),
         spp_(uint32_t(spp)),
         tracker_bytes_(tracker_bytes),
         layer_bytes_(layer_bytes),
         line_shift_(log2_ceil(line_bytes)),
-        trans_bytes_(sample_bytes(formats.transmittance)),
-        accum_bytes_(sample_bytes(formats.accum)) {}
+        bytes_(bytes) {}
   uint64_t pixel_index(uint32_t x, uint32_t y) const {
     return (uint64_t(y >> 3) * tiles_x_ + (x >> 3)) * 64 + ((y & 7u) << 3 | (x & 7u));
   }
   static uint64_t base(Buffer b) { return uint64_t(b) << 48; }
   /// Bytes of a sample of the per-sample surfaces (depth, colour, render targets).
-  uint64_t bytes_per_sample(Buffer b) const {
-    return b == Buffer::kDepth           ? kDepthSampleBytes
-           : b == Buffer::kColor         ? kColorSampleBytes
-           : b == Buffer::kTransmittance ? trans_bytes_
-                                         : accum_bytes_;
-  }
+  uint64_t bytes_per_sample(Buffer b) const { return bytes_[size_t(b)]; }
   /// The address of pixel (x, y)'s first sample in a per-sample surface, and its bytes.
   uint64_t pixel_address(Buffer b, uint32_t x, uint32_t y) const {
     return base(b) + pixel_index(x, y) * spp_ * bytes_per_sample(b);
@@ -85,7 +80,7 @@ class AddressMap {
   uint64_t tiles_x_;
   uint64_t spp_, tracker_bytes_, layer_bytes_;
   int line_shift_;
-  uint64_t trans_bytes_, accum_bytes_;
+  SampleBytes bytes_;
 };
 
 }  // namespace ropsim

@@ -14,9 +14,10 @@ uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
   PixelSnapshot trans, accum, depth;
   const bool fb = p == PassKind::kFramebuffer;
   if (CompressionModel* cm = cache_.compression()) {
-    if (pass_blends_transmittance(p)) trans.take(cm, amap_, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
-    if (pass_blends_accum(p)) accum.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
-    if (fb) depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
+    if (pass_blends_transmittance(p))
+      trans.take(cm, amap_, rop_.setup().bytes, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
+    if (pass_blends_accum(p)) accum.take(cm, amap_, rop_.setup().bytes, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
+    if (fb) depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
   }
   const uint32_t n = run_stage(rop_.blend(), *t);
   const Owner o = t->owner();

@@ -1,6 +1,7 @@
 // What a unit's functional write replaces in a surface the compressor tracks
-// (compression_model.h): the pixel's bytes, taken before the write, and the
-// part of them each posted line write carries as its patch.
+// (compression_model.h): the pixel's bytes as memory holds them
+// (surface_bytes.h), taken before the write, and the part of them each
+// posted line write carries as its patch.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -8,20 +9,25 @@
 
 #include "address_map.h"
 #include "compression_model.h"
+#include "surface_bytes.h"
 
 namespace ropsim {
 
 class PixelSnapshot {
  public:
   /// Takes the pixel's bytes of surface b when cm tracks it (ptr: the
-  /// functional store's bytes of the pixel in b).
-  void take(CompressionModel* cm, const AddressMap& amap, Buffer b, uint32_t x, uint32_t y, const void* ptr) {
+  /// functional store's bytes of the pixel in b; sb: how memory holds them).
+  void take(CompressionModel* cm, const AddressMap& amap, const SurfaceBytes& sb, Buffer b, uint32_t x, uint32_t y,
+            const void* ptr) {
     cm_ = cm && cm->tracks(b) ? cm : nullptr;
     if (!cm_) return;
     b_ = b;
     addr_ = amap.pixel_address(b, x, y);
     bytes_ = amap.pixel_bytes(b);
-    std::memcpy(old_.data(), ptr, bytes_);
+    if (sb.converts(b))
+      sb.store(b, static_cast<const uint8_t*>(ptr), bytes_ / sb.of(b), old_.data());
+    else
+      std::memcpy(old_.data(), ptr, bytes_);
   }
   /// The patch of a posted write of `line` (CompressionModel::kNoPatch when untracked).
   uint32_t patch(uint64_t line) const {

@@ -20,10 +20,10 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   const bool mark = own && stochastic_marks_transmittance(m, prepass);
   PixelSnapshot depth, rgb, target;
   if (CompressionModel* cm = cache_.compression()) {
-    depth.take(cm, amap_, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
-    if (color) rgb.take(cm, amap_, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
-    if (accum) target.take(cm, amap_, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
-    if (mark) target.take(cm, amap_, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
+    depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
+    if (color) rgb.take(cm, amap_, rop_.setup().bytes, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
+    if (accum) target.take(cm, amap_, rop_.setup().bytes, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
+    if (mark) target.take(cm, amap_, rop_.setup().bytes, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
   }
   const uint32_t examined = run_stage(rop_.write(), *t);
   const Owner o = t->owner();

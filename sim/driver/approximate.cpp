@@ -290,7 +290,7 @@ class Model {
         out_(out),
         owner_(hw.distributor, rop.header().width),
         amap_(rop.header().width, rop.header().spp, rop.setup().tracker_bytes, hw.cache.line_bytes,
-              rop.setup().cfg.formats, rop.setup().slab_bytes),
+              rop.setup().bytes.stored, rop.setup().slab_bytes),
         dram_(hw.dram),
         sorter_(make_sorter(hw.sorter.kind, rop.header().spp)),
         rops_(hw.distributor.rop_units),

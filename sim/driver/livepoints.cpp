@@ -400,7 +400,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
   const TraceHeader& h = lib.header;
   auto rop = std::make_unique<FunctionalRop>(h, lib.method);
   LineSet in_dram(hw.cache.line_bytes);
-  const AddressMap amap(h.width, h.spp, rop->setup().tracker_bytes, hw.cache.line_bytes, lib.method.formats,
+  const AddressMap amap(h.width, h.spp, rop->setup().tracker_bytes, hw.cache.line_bytes, rop->setup().bytes.stored,
                         rop->setup().slab_bytes);
   const bool tracker = rop->store().has_tracker(), slab = rop->store().has_slab();
   auto insert = [&in_dram](uint64_t line) { in_dram.insert(line); };

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "frame_stats.h"
+#include "functional_rop.h"
 #include "image_io.h"
 #include "memory_budget.h"
 #include "output_file.h"
@@ -190,9 +191,27 @@ nlohmann::ordered_json functional_report(const ReportContext& ctx, const Functio
             "the transmittance target's format (product of 1 - alpha per sample; +depth over a pre-pass: 0 where "
             "its stochastic pass wrote)");
     if (run_uses_accum(ctx.config.method, prepass))
-      t.put("accum", to_string(ctx.config.formats.accum), "-",
-            "the accumulation target's format (alpha-weighted colour and alpha per sample; +ac over a pre-pass: "
-            "its stochastic pass's colour and 1)");
+      t.put("accum", to_string(target_formats(ctx.config).accum), "-",
+            "the accumulation target's format in the functional store (alpha-weighted colour and alpha per "
+            "sample; +ac over a pre-pass: its stochastic pass's colour and 1; blend: the framebuffer, rgba32f)");
+  }
+  if (ctx.config.method != Method::kReference) {
+    // The surfaces' bytes a sample in memory (surface_bytes.h), as every
+    // fidelity's traffic and compression count them.
+    const SurfaceBytes sb = surface_bytes(run.header, store_targets(run.header, ctx.config));
+    const bool prepass = runs_prepass(run.header, ctx.config.method);
+    Fields s = r.obj("sample_bytes");
+    s.put("depth", sb.of(Buffer::kDepth), "bytes", "one sample of the depth buffer in memory (binary32)");
+    s.put("color", sb.of(Buffer::kColor), "bytes",
+          "one sample of the colour buffer in memory: RGB binary16, or RGBA8 on a frame of an 8-bit target "
+          "(blend keeps its framebuffer in accum)");
+    if (run_uses_transmittance(ctx.config.method, prepass))
+      s.put("transmittance", sb.of(Buffer::kTransmittance), "bytes",
+            "one sample of the transmittance target in memory (its format)");
+    if (run_uses_accum(ctx.config.method, prepass))
+      s.put("accum", sb.of(Buffer::kAccum), "bytes",
+            "one sample of the accumulation target in memory (its format; blend: the framebuffer, RGBA8 on an "
+            "8-bit target, RGBA binary32 otherwise)");
   }
   if (ctx.config.compression.any() && run.compression.measured)
     put_compressibility(r.obj("compressibility"), run.compression, ctx.config.compression);

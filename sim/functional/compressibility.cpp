@@ -7,25 +7,11 @@
 
 #include "bits.h"
 #include "depth.h"
+#include "surface_bytes.h"
 
 namespace ropsim {
 
 namespace {
-
-uint32_t bytes_per_sample(Buffer b, const SampleStore& s) {
-  switch (b) {
-    case Buffer::kDepth:
-      return kDepthSampleBytes;
-    case Buffer::kColor:
-      return kColorSampleBytes;
-    case Buffer::kTransmittance:
-      return sample_bytes(s.targets().formats.transmittance);
-    case Buffer::kAccum:
-      return sample_bytes(s.targets().formats.accum);
-    default:
-      return 0;
-  }
-}
 
 const uint8_t* buffer_bytes(Buffer b, const SampleTile& t) {
   switch (b) {
@@ -42,6 +28,18 @@ const uint8_t* buffer_bytes(Buffer b, const SampleTile& t) {
   }
 }
 
+/// The pixels [first, first + tile_pixels) of t's surface b as memory holds
+/// them (surface_bytes.h): t's own bytes, or converted into scratch.
+const uint8_t* memory_bytes(const SurfaceBytes& sb, const SampleTile& t, Buffer b, uint32_t first, uint32_t tile_pixels,
+                            uint32_t spp, std::vector<uint8_t>& scratch) {
+  const uint8_t* host = buffer_bytes(b, t) + size_t(first) * spp * sb.host[size_t(b)];
+  if (!sb.converts(b)) return host;
+  const size_t n = size_t(tile_pixels) * spp;
+  scratch.resize(n * sb.of(b));
+  sb.store(b, host, n, scratch.data());
+  return scratch.data();
+}
+
 /// A cleared tile of the store's buffers (to tell cleared memory tiles).
 struct ClearTile {
   SampleStore store;
@@ -52,19 +50,20 @@ struct ClearTile {
   }
 };
 
-/// The memory tile of pixels [first, first + tile_pixels) of t in surface
-/// b, whose bytes are `data` (t's own, or a patched copy).
-TileState state_of(const SampleStore& store, const uint8_t* data, const SampleTile& clear, Buffer b, uint32_t first,
-                   const CompressionFormat& f, bool size = true) {
+/// The memory tile of pixels [first, first + tile_pixels) in surface b,
+/// whose bytes as memory holds them are `data`; clear: a cleared tile.
+TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8_t* data, const SampleTile& clear,
+                   Buffer b, uint32_t first, const CompressionFormat& f, bool size = true) {
   TileState st;
-  const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
-  const size_t off = size_t(first) * spp * bps, len = size_t(f.tile_pixels) * spp * bps;
+  const uint32_t spp = uint32_t(store.header().spp), bps = sb.of(b);
+  const size_t len = size_t(f.tile_pixels) * spp * bps;
   if (b == Buffer::kDepth) {
     const float* z = reinterpret_cast<const float*>(data);
     st.max_depth = *std::max_element(z, z + size_t(f.tile_pixels) * spp);
   }
   if (!size) return st;
-  if (std::memcmp(data, buffer_bytes(b, clear) + off, len) == 0) {
+  thread_local std::vector<uint8_t> clear_scratch;
+  if (std::memcmp(data, memory_bytes(sb, clear, b, first, f.tile_pixels, spp, clear_scratch), len) == 0) {
     st.cleared = true;
     return st;
   }
@@ -81,10 +80,11 @@ TileState state_of(const SampleStore& store, const uint8_t* data, const SampleTi
   }
   return st;
 }
-TileState state_of(const SampleStore& store, const SampleTile& t, const SampleTile& clear, Buffer b, uint32_t first,
-                   const CompressionFormat& f, bool size = true) {
-  const uint32_t spp = uint32_t(store.header().spp), bps = bytes_per_sample(b, store);
-  return state_of(store, buffer_bytes(b, t) + size_t(first) * spp * bps, clear, b, first, f, size);
+TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const SampleTile& t, const SampleTile& clear,
+                   Buffer b, uint32_t first, const CompressionFormat& f, bool size = true) {
+  thread_local std::vector<uint8_t> scratch;
+  const uint8_t* data = memory_bytes(sb, t, b, first, f.tile_pixels, uint32_t(store.header().spp), scratch);
+  return state_of(store, sb, data, clear, b, first, f, size);
 }
 
 }  // namespace
@@ -113,6 +113,7 @@ CompressionStats measure_compressibility(const SampleStore& store, const Compres
   const uint64_t screen_tiles =
       uint64_t(ceil_div(h.width, 8u)) * uint64_t(ceil_div(h.height, 8u)) * (64u / f.tile_pixels);
   const ClearTile clear(store);
+  const SurfaceBytes sb = surface_bytes(h, store.targets());
   for (int bi = 0; bi < kBuffers; ++bi) {
     const Buffer b = Buffer(bi);
     if (!compressible(b, setup, store)) continue;
@@ -120,12 +121,12 @@ CompressionStats measure_compressibility(const SampleStore& store, const Compres
     BufferCompression& bc = cs.buffers[size_t(bi)];
     bc.tiles = screen_tiles;
     bc.metadata_bytes = ceil_div(screen_tiles * uint64_t(metadata_bits(f)), uint64_t{8});
-    const uint64_t U = uint64_t(f.tile_pixels) * uint64_t(h.spp) * bytes_per_sample(b, store);
+    const uint64_t U = uint64_t(f.tile_pixels) * uint64_t(h.spp) * sb.of(b);
     uint64_t seen = 0;
     store.tile_map().for_each([&](uint32_t, uint32_t, const SampleTile& t) {
       for (uint32_t first = 0; first < 64; first += f.tile_pixels) {
         ++seen;
-        const TileState st = state_of(store, t, *clear.tile, b, first, f);
+        const TileState st = state_of(store, sb, t, *clear.tile, b, first, f);
         if (st.cleared) {
           ++bc.tiles_cleared;
           continue;
@@ -145,7 +146,10 @@ struct TileCompressor::Clear : ClearTile {
 };
 
 TileCompressor::TileCompressor(const SampleStore& store, const CompressionFormat& f)
-    : store_(store), f_(f), clear_(std::make_unique<Clear>(store)) {}
+    : store_(store),
+      f_(f),
+      bytes_(surface_bytes(store.header(), store.targets())),
+      clear_(std::make_unique<Clear>(store)) {}
 TileCompressor::~TileCompressor() = default;
 
 TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size, const TilePatch* patches, size_t n) const {
@@ -157,19 +161,21 @@ TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size, con
     return st;
   }
   const uint32_t first = uint32_t(pixel_in_tile(x, y)) / f_.tile_pixels * f_.tile_pixels;
-  if (n == 0) return state_of(store_, *t, *clear_->tile, b, first, f_, size);
-  // The tile's bytes with the patches over them (as floats: depth reads them so).
-  const uint32_t spp = uint32_t(store_.header().spp), bps = bytes_per_sample(b, store_);
-  const size_t len = size_t(f_.tile_pixels) * spp * bps;
+  if (n == 0) return state_of(store_, bytes_, *t, *clear_->tile, b, first, f_, size);
+  // The tile's bytes as memory holds them with the patches (the same bytes,
+  // surface_bytes.h) over them (as floats: depth reads them so).
+  const uint32_t spp = uint32_t(store_.header().spp);
+  const size_t len = size_t(f_.tile_pixels) * spp * bytes_.of(b);
   thread_local std::vector<float> copy;
+  thread_local std::vector<uint8_t> scratch;
   copy.resize((len + 3) / 4);
   uint8_t* bytes = reinterpret_cast<uint8_t*>(copy.data());
-  std::memcpy(bytes, buffer_bytes(b, *t) + size_t(first) * spp * bps, len);
+  std::memcpy(bytes, memory_bytes(bytes_, *t, b, first, f_.tile_pixels, spp, scratch), len);
   for (size_t i = 0; i < n; ++i) {
     if (size_t(patches[i].offset) + patches[i].len > len) throw std::logic_error("a tile patch lies outside its tile");
     std::memcpy(bytes + patches[i].offset, patches[i].old, patches[i].len);
   }
-  return state_of(store_, bytes, *clear_->tile, b, first, f_, size);
+  return state_of(store_, bytes_, bytes, *clear_->tile, b, first, f_, size);
 }
 
 }  // namespace ropsim

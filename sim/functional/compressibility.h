@@ -1,7 +1,8 @@
 // The compressibility of a ROP's final buffers (the functional fidelity's
 // view of surface compression, compression.h): every memory tile of the
 // depth, colour and render-target surfaces compressed once at the end of the
-// frame, and counted by block-size class. Needs no cycle model, so studies
+// frame, as memory holds them (surface_bytes.h), and counted by block-size
+// class. Needs no cycle model, so studies
 // can use it cheaply; the cycle model's traffic uses the same tile sizes.
 #pragma once
 #include <array>
@@ -11,6 +12,7 @@
 #include "buffers.h"
 #include "compression.h"
 #include "sample_store.h"
+#include "surface_bytes.h"
 
 namespace ropsim {
 
@@ -71,6 +73,7 @@ class TileCompressor {
   struct Clear;
   const SampleStore& store_;
   CompressionFormat f_;
+  SurfaceBytes bytes_;  ///< the store's surfaces in memory
   std::unique_ptr<Clear> clear_;
 };
 

@@ -29,7 +29,7 @@ namespace ropsim {
     "discarded fragment; slab: none, its layers hold the depth)",                                                   \
     kAll)                                                                                                           \
   X(depth_bytes_written, "bytes", "4 per written sample", kAll)                                                     \
-  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16)", kAll)                                      \
+  X(color_bytes_written, "bytes", "6 per written sample (RGB binary16); 4 on an 8-bit target (RGBA8)", kAll)        \
   X(tracker_bytes_read, "bytes", "lk: ceil((spp + surface_id_bits) / 8) per fragment", kAll)                        \
   X(tracker_bytes_written, "bytes", "lk: the same, per fragment with a surviving sample", kAll)                     \
   X(tiles_touched, "tiles", "8 x 8-pixel tiles whose state was allocated", kAll)                                    \
@@ -39,7 +39,7 @@ namespace ropsim {
     kBlend)                                                                                                         \
   X(target_bytes_read, "bytes",                                                                                     \
     "render-target bytes read by the blend (read-modify-write; blend: none for a draw replacing every channel); a " \
-    "frame's blended draws: 6 per sample of the colour they blend into",                                            \
+    "frame's blended draws: 6 per sample of the colour they blend into (4 on an 8-bit target)",                     \
     kBlend)                                                                                                         \
   X(target_bytes_written, "bytes", "blend passes: render-target bytes written by the blend", kBlend)                \
   X(layer_bytes_read, "bytes", "slab: the pixel's layers, k (4 + 6 + ceil(b / 8)) + 1 per fragment", kSlab)         \

@@ -297,9 +297,10 @@ inline void framebuffer_resolve_pixel(TargetEncoding e, const float* samples, in
 //
 // Every method but blend keeps one RGB binary16 colour per sample. On a
 // frame of draw states (docs/methods.md "Methods on a frame of draw states")
-// it holds the working value of the target's encoding (framebuffer_read):
-// linear light for srgb8, the stored value for unorm8 and float. Destination
-// alpha is not kept: it reads as 1.
+// it holds the working value of the target's encoding (framebuffer_read) of
+// what the target stores: linear light of an 8-bit code for srgb8, the code
+// value for unorm8, the colour for float. Destination alpha is not kept: it
+// reads as 1. In memory an 8-bit target's sample is RGBA8 (surface_bytes.h).
 
 /// The colour a src-over draw's fragment contributes, as straight (not
 /// premultiplied) colour: premultiplied draws' colour divided by alpha (0 for
@@ -311,6 +312,17 @@ inline std::array<float, 3> transparent_rgb(const DrawState& d, const std::array
   if (d.encoding != TargetEncoding::kFloat)
     for (float& v : c) v = fb::clamp01(v);
   return c;
+}
+
+/// The working value the colour buffer stores for straight colour rgb that
+/// a method writes over a sample: the colour stored in the frame's target
+/// encoding e and read back (an 8-bit target holds codes; the colour itself
+/// for a float target).
+inline std::array<float, 3> colour_buffer_value(TargetEncoding e, const std::array<float, 3>& rgb) {
+  if (e == TargetEncoding::kFloat) return rgb;
+  std::array<float, 3> v{};
+  for (int c = 0; c < 3; ++c) v[size_t(c)] = framebuffer_read(e, c, framebuffer_store(e, c, rgb[size_t(c)]));
+  return v;
 }
 
 /// An opaque or blended draw's fragment (colour rgba) on one stored sample

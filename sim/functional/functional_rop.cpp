@@ -34,6 +34,7 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
   encoding = frame_encoding(h.draws);
   routed = has_routed_draws(h);
   prepass = passes.pass[0] == PassKind::kPrepass;
+  bytes = surface_bytes(h, store_targets(h, c));
   for (int i = 0; i < h.spp; ++i) {
     offset_x[size_t(i)] = sample_offset(h.positions[size_t(i)].x);
     offset_y[size_t(i)] = sample_offset(h.positions[size_t(i)].y);
@@ -63,7 +64,8 @@ StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
                  run_uses_accum(cfg.method, prepass),
                  target_formats(cfg),
                  {0.0f, 0.0f, 0.0f, 0.0f},
-                 cfg.method == Method::kSlab ? cfg.slab_bits : 0};
+                 cfg.method == Method::kSlab ? cfg.slab_bits : 0,
+                 traits(cfg.method).framebuffer};
   if (traits(cfg.method).framebuffer) t.accum_clear = framebuffer_clear(frame_encoding(h.draws), h.clear_color);
   return t;
 }

@@ -23,6 +23,7 @@
 #include "method.h"
 #include "rop_observer.h"
 #include "sample_store.h"
+#include "surface_bytes.h"
 #include "trace.h"
 
 namespace ropsim {
@@ -57,6 +58,9 @@ struct RopSetup {
   /// method's own passes then skip those draws.
   bool prepass = false;
   TargetEncoding encoding = TargetEncoding::kFloat;  ///< the frame's (frame_encoding)
+  /// Each surface's bytes a sample in memory (surface_bytes.h): what the
+  /// byte counters, the address map and compression count.
+  SurfaceBytes bytes;
 
   /// The fragment's depth at each sample of mask (docs/numerics.md "Depth"):
   /// from its plane, or its stored per-sample depths.

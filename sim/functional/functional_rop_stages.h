@@ -303,6 +303,17 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   // A frame of draw states: the src-over draw's straight colour (transparent_rgb).
   const uint16_t* rgb16 = s_.draw_states ? memo_.half_color(transparent_rgb(*w.draw, w.f->rgb, w.f->alpha))
                                          : memo_.half_color(w.f->rgb);  // (no copy of the colour)
+  // What the colour buffer stores: on an 8-bit target the colour as the
+  // target stores it (colour_buffer_value); +ac's accumulation target and
+  // slab's layers keep rgb16.
+  [[maybe_unused]] uint16_t stored16[3];
+  [[maybe_unused]] const uint16_t* colour16 = rgb16;
+  if constexpr (stochastic_writes_color(M) && M != Method::kSlab)
+    if (s_.draw_states && s_.encoding != TargetEncoding::kFloat) {
+      const std::array<float, 3> v = colour_buffer_value(s_.encoding, transparent_rgb(*w.draw, w.f->rgb, w.f->alpha));
+      for (int c = 0; c < 3; ++c) stored16[c] = float_to_half(v[size_t(c)]);
+      colour16 = stored16;
+    }
   uint64_t wrote = 0;
   uint32_t examined = w.m;
   PixelRef px = w.px;
@@ -329,7 +340,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
           return;
         }
       }
-      px.write_sample(i, zi, rgb16);
+      px.write_sample(i, zi, colour16);
     } else {
       px.depth[i] = zi;  // depth only
       if constexpr (kMayMark)
@@ -380,7 +391,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
       if (opacity_passes(a, num.alpha_bits, w.naive.ref[i], 32)) {
-        px.write_sample(i, z[i], rgb16);
+        px.write_sample(i, z[i], colour16);
         wrote |= uint64_t{1} << i;
       }
     }
@@ -388,7 +399,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   } else {  // a2c, hashed, hashed-a2c (their opacity decision was the mask, before the depth test), opaque
     for (uint64_t s = w.survivors; s; s &= s - 1) {
       const int i = __builtin_ctzll(s);
-      px.write_sample(i, z[i], rgb16);
+      px.write_sample(i, z[i], colour16);
     }
     wrote = w.survivors;
     if constexpr (M == Method::kOpaque) c_.samples_opacity_passed += w.m;
@@ -400,9 +411,9 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     if (to_accum)
       c_.target_bytes_written += uint64_t(sample_bytes(fmt.accum)) * n;
     else
-      c_.color_bytes_written += kColorSampleBytes * n;
+      c_.color_bytes_written += uint64_t(s_.bytes.of(Buffer::kColor)) * n;
   } else if constexpr (kColor) {
-    c_.color_bytes_written += kColorSampleBytes * n;
+    c_.color_bytes_written += uint64_t(s_.bytes.of(Buffer::kColor)) * n;
   }
   if constexpr (kMayMark)
     if (mark) c_.target_bytes_written += uint64_t(sample_bytes(fmt.transmittance)) * n;
@@ -440,10 +451,10 @@ inline uint32_t WriteStage::run_routed(FragWork& w) {
   w.depth_written = zw ? w.survivors : 0;
   c_.samples_written += n;
   c_.depth_bytes_written += kDepthSampleBytes * nz;
-  c_.color_bytes_written += kColorSampleBytes * n;
+  c_.color_bytes_written += uint64_t(s_.bytes.of(Buffer::kColor)) * n;
   if (reads) {  // a read-modify-write of the colour
     c_.samples_blended += n;
-    c_.target_bytes_read += kColorSampleBytes * n;
+    c_.target_bytes_read += uint64_t(s_.bytes.of(Buffer::kColor)) * n;
   }
   return n;
 }
@@ -490,8 +501,8 @@ inline uint32_t BlendStage::run(FragWork& w) {
   const BlendFormats& fmt = s_.cfg.formats;
   const PassKind pass = s_.pass;
   if (pass == PassKind::kFramebuffer) {
-    // blend: each survivor's framebuffer sample (RGBA binary32, read,
-    // blended, written) and, as the draw's depth mask says, its depth.
+    // blend: each survivor's framebuffer sample (RGBA binary32 in the store,
+    // read, blended, written) and, as the draw's depth mask says, its depth.
     const DrawState& d = *w.draw;
     const Fragment& f = *w.f;
     const float src[4] = {f.rgb[0], f.rgb[1], f.rgb[2], f.alpha};
@@ -509,8 +520,9 @@ inline uint32_t BlendStage::run(FragWork& w) {
     w.written = w.survivors;
     w.depth_written = zw ? w.survivors : 0;
     c_.samples_blended += n;
-    if (draw_reads_colour(d)) c_.target_bytes_read += uint64_t(n) * 16;  // an opaque draw replaces it unread
-    c_.target_bytes_written += uint64_t(n) * 16;
+    const uint64_t fb = s_.bytes.of(Buffer::kAccum);                     // the framebuffer's sample in memory
+    if (draw_reads_colour(d)) c_.target_bytes_read += uint64_t(n) * fb;  // an opaque draw replaces it unread
+    c_.target_bytes_written += uint64_t(n) * fb;
     const uint32_t nz = zw ? n : 0;
     c_.samples_written += nz;
     c_.depth_bytes_written += kDepthSampleBytes * nz;

@@ -60,7 +60,8 @@ struct StoreTargets {
   /// The accumulation target's clear value per channel (blend: the
   /// framebuffer's clear colour, framebuffer_blend.h).
   std::array<float, 4> accum_clear{0.0f, 0.0f, 0.0f, 0.0f};
-  int slab_bits = 0;  ///< slab: b, the bits of each layer's mask (0: no SLAB layers)
+  int slab_bits = 0;         ///< slab: b, the bits of each layer's mask (0: no SLAB layers)
+  bool framebuffer = false;  ///< blend: the accumulation target is the application's framebuffer
 };
 
 /// Mutable pointers to one pixel's state.

@@ -154,13 +154,14 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   std::unique_ptr<CompressionModel> comp;
   std::unique_ptr<StoreTileSource> tiles;
   if (hw.compression.any() || hw.hiz.enable) {
+    // The surfaces the run uses, in their bytes in memory (surface_bytes.h).
+    const SurfaceBytes& sb = rop->setup().bytes;
     std::array<uint32_t, kBuffers> bps{};
-    bps[size_t(Buffer::kDepth)] = kDepthSampleBytes;
-    bps[size_t(Buffer::kColor)] = kColorSampleBytes;
+    bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
+    bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
     if (run_uses_transmittance(method.method, rop->setup().prepass))
-      bps[size_t(Buffer::kTransmittance)] = sample_bytes(method.formats.transmittance);
-    if (run_uses_accum(method.method, rop->setup().prepass))
-      bps[size_t(Buffer::kAccum)] = sample_bytes(target_formats(method).accum);
+      bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
+    if (run_uses_accum(method.method, rop->setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
     comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
                                               canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);

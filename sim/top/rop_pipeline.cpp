@@ -20,7 +20,7 @@ RopPipeline::RopPipeline(const sc_core::sc_module_name& name, std::unique_ptr<Fr
       rop_(rop),
       retirement_(pool_),
       amap_(input_->header().width, input_->header().spp, rop_.setup().tracker_bytes, hw.cache.line_bytes,
-            rop_.setup().cfg.formats, rop_.setup().slab_bytes),
+            rop_.setup().bytes.stored, rop_.setup().slab_bytes),
       dram_(hw.dram),
       in_dram_(in_dram) {
   const MethodTraits& mt = rop_.traits();
