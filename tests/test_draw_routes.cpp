@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -413,11 +414,11 @@ TraceHeader with_encoding(TraceHeader h, TargetEncoding e) {
   return h;
 }
 
-StochasticModel run_stochastic(const TraceHeader& h, const std::vector<Fragment>& frags, Method m) {
-  StochasticModel model(h, config(m));
-  for (int p = 0; p < model.passes(); ++p) {
-    model.begin_pass(p);
-    for (const Fragment& f : frags) model.draw(f);
+std::unique_ptr<StochasticModel> run_stochastic(const TraceHeader& h, const std::vector<Fragment>& frags, Method m) {
+  auto model = std::make_unique<StochasticModel>(h, config(m));
+  for (int p = 0; p < model->passes(); ++p) {
+    model->begin_pass(p);
+    for (const Fragment& f : frags) model->draw(f);
   }
   return model;
 }
@@ -462,8 +463,8 @@ TEST(DrawRoutes, AnEightBitTargetsColourIsRgba8InMemory) {
   // Compression sees the same tiles, each of tile_pixels x spp x 4 bytes.
   CompressionSetup cs;
   cs.depth = cs.color = true;
-  const CompressionStats c8 = measure_compressibility(run_stochastic(h8, f, Method::kLk).store(), cs);
-  const CompressionStats cf = measure_compressibility(run_stochastic(hf, f, Method::kLk).store(), cs);
+  const CompressionStats c8 = measure_compressibility(run_stochastic(h8, f, Method::kLk)->store(), cs);
+  const CompressionStats cf = measure_compressibility(run_stochastic(hf, f, Method::kLk)->store(), cs);
   const BufferCompression &k8 = c8.buffers[size_t(Buffer::kColor)], &kf = cf.buffers[size_t(Buffer::kColor)];
   ASSERT_GT(kf.bytes_uncompressed, 0u);
   EXPECT_EQ(k8.tiles_cleared, kf.tiles_cleared);
