@@ -617,3 +617,76 @@ TEST(StudyReport, TheBuiltInSmokeStudyRunsEndToEnd) {
     EXPECT_GT(shot.dark, long(kWindowWidth) * 20) << "the screenshot shows text and plots";
   }
 }
+
+// The section "Against blend" from a results table of known values (written
+// with Python's sqlite3, as `ropsim study run` writes it): the ratios to
+// blend, whether blend's error is the larger, the marginal cost, the spp at
+// which a method reaches blend's RMSE, and the opaque frame's table.
+TEST(StudyReport, AgainstBlendGivesRatiosMarginalCostAndTheSppThatReachesBlend) {
+  ReportScratch s;
+  s.put("study.toml", R"(
+[study]
+name = "against-blend"
+[axes]
+method = ["blend", "lk"]
+spp = [4, 16, 64]
+)");
+  // glass: blend's order error is 2.04 at every spp; lk's RMSE is
+  // 12/sqrt(spp) (6, 3, 1.5), so it reaches 2.04 at (12/2.04)^2 = 34.6 spp.
+  // lk costs 1.5x blend's cycles and 2x its DRAM bytes. box: all opaque,
+  // lk's image is blend's and it costs 100 cycles and 64 bytes more.
+  s.put("make.py", R"py(import sqlite3
+con = sqlite3.connect("st/results.db")
+con.execute('CREATE TABLE results (point TEXT, point_index INTEGER, status TEXT, input TEXT, method TEXT, spp INTEGER,'
+            ' fidelity TEXT, "vs_reference.rmse_8bit" REAL, "timing.total_cycles" REAL,'
+            ' "timing.dram.bytes_read" REAL, "timing.dram.bytes_written" REAL, "frame.transparent_share" REAL)')
+con.execute("CREATE TABLE study (key TEXT, value TEXT)")
+con.execute("INSERT INTO study VALUES ('name', 'against-blend')")
+rows, i = [], 0
+for spp in (4, 16, 64):
+    rows.append(("glass", "blend", spp, 2.04, 1000 * spp, 300 * spp, 100 * spp, 0.5))
+    rows.append(("glass", "lk", spp, 12 / spp ** 0.5, 1500 * spp, 600 * spp, 200 * spp, 0.5))
+    rows.append(("box", "blend", spp, 0.0, 500 * spp, 100 * spp, 100 * spp, 0.0))
+    rows.append(("box", "lk", spp, 0.0, 500 * spp + 100, 100 * spp + 64, 100 * spp, 0.0))
+for r in rows:
+    con.execute("INSERT INTO results VALUES (?, ?, 'ok', ?, ?, ?, 'cycle', ?, ?, ?, ?, ?)", ("p%d" % i, i) + r)
+    i += 1
+con.commit()
+)py");
+  fs::create_directories(s.dir / "st");
+  fs::copy_file(s.dir / "study.toml", s.dir / "st" / "study.toml");
+  ASSERT_EQ(shell(s.dir, "/usr/bin/python3 make.py").status, 0);
+  const Ran rep = ropsim(s.dir, "study report st");
+  ASSERT_EQ(rep.status, 0) << rep.err << rep.out;
+  const std::string md = slurp(s.dir / "st" / "report" / "summary.md");
+  const size_t at = md.find("## Against blend\n");
+  ASSERT_NE(at, std::string::npos) << md;
+  const std::string sec = md.substr(at, md.find("\n## ", at + 1) - at);
+  // input | point | method | RMSE | blend's RMSE | blend's error larger | cycles | x blend | DRAM bytes | x blend
+  EXPECT_NE(sec.find("| glass | spp=4 | lk | 6 | 2.04 | no | 6000 | 1.5 | 3200 | 2 |"), std::string::npos) << sec;
+  EXPECT_NE(sec.find("| glass | spp=64 | lk | 1.5 | 2.04 | yes | 96000 | 1.5 | 51200 | 2 |"), std::string::npos) << sec;
+  // The marginal cost by spp and where lk reaches blend's RMSE.
+  EXPECT_NE(sec.find("| glass |  | lk | 4: +2,000, 16: +8,000, 64: +32,000 | 4: +1,600 (+100%), 16: +6,400 (+100%), "
+                     "64: +25,600 (+100%) | 34.6 spp; blend 2.04 |"),
+            std::string::npos)
+      << sec;
+  EXPECT_NE(sec.find("| box |  | lk | 4: +100, 16: +100, 64: +100 | 4: +64 (+8%), 16: +64 (+2%), 64: +64 (+0%) | "
+                     "at or below 4 spp; blend 0 |"),
+            std::string::npos)
+      << sec;
+  // The all-opaque frame's table: lk's image is blend's; what its opaque draws cost beyond.
+  EXPECT_NE(sec.find("| box | spp=16 | lk | 0 | +100 | +64 |"), std::string::npos) << sec;
+  EXPECT_EQ(sec.find("| glass | spp=16 | lk | 0 |"), std::string::npos)
+      << "a frame with transparent samples is not in it";
+  // docs/results.md's tables and figure of the same (analysis/real_frames.py).
+  const Ran rf = shell(
+      s.dir, "/usr/bin/python3 '" ROPSIM_SOURCE_DIR "/analysis/real_frames.py' st --markdown rf.md --plot rf.png");
+  ASSERT_EQ(rf.status, 0) << rf.err << rf.out;
+  const std::string t = slurp(s.dir / "rf.md");
+  EXPECT_NE(t.find("| glass |  | lk | 3 | no | 24,000 | 1.500 | 12,800 | 2.000 |"), std::string::npos) << t;
+  EXPECT_NE(t.find("| glass |  | lk | 4: +2,000 (+50%); 16: +8,000 (+50%); 64: +32,000 (+50%) | 4: +1,600 (+100%); "
+                   "16: +6,400 (+100%); 64: +25,600 (+100%) | 2.04 | 34.6 |"),
+            std::string::npos)
+      << t;
+  EXPECT_GT(fs::file_size(s.dir / "rf.png"), 10000u) << "the figure";
+}
