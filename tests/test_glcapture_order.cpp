@@ -349,5 +349,39 @@ TEST(GlslRewrite, InterpolatedInputsAreReadAtThePixelCentre) {
   EXPECT_EQ(plain.source.find("ropsim_q"), std::string::npos) << plain.source;
 }
 
+TEST(GlslRewrite, InputsUnderPreprocessorBranchesAreReadAtTheCentreOnlyWhereTheBranchIsCertain) {
+  // Minetest's node shader declares its texture coordinate once for GLSL ES
+  // and once, centroid, for desktop GL: the GLSL ES line is never compiled
+  // here, so it gets no copy (which would be undeclared), and the centroid
+  // one is left as it is. A branch that is certain (#ifndef GL_ES, #if 1, a
+  // macro the shader defines) is read at the centre; one that depends on what
+  // the rewrite cannot know (an extension macro) is left as it is.
+  const std::string fs =
+      "#version 120\n#define USE_FOG\n"
+      "#ifdef GL_ES\nvarying mediump vec2 varTexCoord;\n#else\ncentroid varying vec2 varTexCoord;\n#endif\n"
+      "#ifndef GL_ES\nvarying vec3 eyeVec;\n#endif\n"
+      "#if 1\nvarying float fogDepth;\n#endif\n"
+      "#if 0\nvarying vec4 never;\n#endif\n"
+      "#ifdef USE_FOG\nvarying vec3 fogColour;\n#else\nvarying vec3 noFog;\n#endif\n"
+      "#ifdef GL_ARB_something\nvarying vec2 maybe;\n#endif\n"
+      "uniform sampler2D t;\n"
+      "void main() { gl_FragColor = texture2D(t, varTexCoord) + vec4(eyeVec + fogColour, fogDepth); }\n";
+  const Rewritten r = instrument_fragment_shader(fs, GlslProfile::kCompatibility, 3);
+  ASSERT_EQ(r.error, "");
+  const std::string& s = r.source;
+  for (const char* want :
+       {"#define eyeVec ropsim_c_eyeVec", "#define fogDepth ropsim_c_fogDepth", "#define fogColour ropsim_c_fogColour"})
+    EXPECT_NE(s.find(want), std::string::npos) << want << " in\n" << s;
+  for (const char* not_there : {"ropsim_c_varTexCoord", "ropsim_c_never", "ropsim_c_noFog", "ropsim_c_maybe"})
+    EXPECT_EQ(s.find(not_there), std::string::npos) << not_there << " in\n" << s;
+  // In a core-profile source GL_compatibility_profile is not defined.
+  const Rewritten core = instrument_fragment_shader(
+      "#version 450\n#ifdef GL_compatibility_profile\nin vec2 a;\n#else\nin vec2 b;\n#endif\nout vec4 o;\n"
+      "void main() { o = vec4(b, 0.0, 1.0); }\n",
+      GlslProfile::kCore, 3);
+  EXPECT_NE(core.source.find("#define b ropsim_c_b"), std::string::npos) << core.source;
+  EXPECT_EQ(core.source.find("ropsim_c_a"), std::string::npos) << core.source;
+}
+
 }  // namespace
 }  // namespace ropsim::glcapture
