@@ -730,6 +730,14 @@ TEST(CaptureGl, FixedFunctionMatchesTheEquivalentShader) {
     }
   };
   expect_same(a, b, "fixed function against the shader");
+  // A GLSL program under GL's alpha test: the capture applies the test before
+  // its record, so the fragments are those of the shader that discards.
+  const Result at = box.run("capture gl --frame 1 --spp 4 -o at.trace -- " + gl_program("gl_fixed_function") +
+                                " --size 64x64 --mode shader-alpha-test",
+                            kLib);
+  ASSERT_EQ(at.code, 0) << at.describe();
+  EXPECT_EQ(at.err.find("not in the trace"), std::string::npos) << at.describe();
+  expect_same(b, read_trace(box.path("at.trace")), "GL's alpha test against the shader's discard");
   for (const char* mode : {"ff", "shader"}) {
     const std::string t = std::string(mode) + "-immediate.trace";
     const Result r = box.run("capture gl --frame 1 --spp 4 -o " + t + " -- " + gl_program("gl_fixed_function") +

@@ -4,7 +4,9 @@
 // GL_GREATER 0.5 (texels of alpha 0.25 are dropped). ff draws it with no
 // program; shader with a GLSL program computing colour x texel and discarding
 // alpha <= 0.5, from the same vertex data (compatibility built-ins: gl_Vertex,
-// gl_Color, gl_MultiTexCoord0). --submit arrays (default) gives the vertices
+// gl_Color, gl_MultiTexCoord0); shader-alpha-test with the same program
+// without its discard, under GL's own alpha test (GL_ALPHA_TEST, GL_GREATER
+// 0.5), which a compatibility context applies after the shader. --submit arrays (default) gives the vertices
 // through fixed-function arrays in a buffer (glVertexPointer, glColorPointer,
 // glTexCoordPointer) and one glDrawArrays(GL_TRIANGLE_FAN); --submit
 // immediate through glBegin(GL_QUADS) ... glEnd.
@@ -13,7 +15,8 @@
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_fixed_function");
   const std::string mode = gltest::arg(argc, argv, "--mode", "ff");
-  if (mode != "ff" && mode != "shader") gltest::die(a, "--mode " + mode + ": not ff or shader");
+  if (mode != "ff" && mode != "shader" && mode != "shader-alpha-test")
+    gltest::die(a, "--mode " + mode + ": not ff, shader or shader-alpha-test");
   const std::string submit = gltest::arg(argc, argv, "--submit", "arrays");
   if (submit != "arrays" && submit != "immediate") gltest::die(a, "--submit " + submit + ": not arrays or immediate");
   unsigned char texels[4 * 4 * 4];
@@ -34,7 +37,15 @@ int main(int argc, char** argv) {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   GLuint prog = 0;
-  if (mode == "shader")
+  const std::string fs = std::string(
+                             "#version 450 compatibility\n"
+                             "uniform sampler2D tex;\n"
+                             "void main() {\n"
+                             "  vec4 c = gl_Color * texture(tex, gl_TexCoord[0].st);\n") +
+                         (mode == "shader" ? "  if (!(c.a > 0.5)) discard;\n" : "") +
+                         "  gl_FragColor = c;\n"
+                         "}\n";
+  if (mode != "ff")
     prog = gltest::program(a,
                            "#version 450 compatibility\n"
                            "void main() {\n"
@@ -42,14 +53,7 @@ int main(int argc, char** argv) {
                            "  gl_FrontColor = gl_Color;\n"
                            "  gl_TexCoord[0] = gl_MultiTexCoord0;\n"
                            "}\n",
-                           "#version 450 compatibility\n"
-                           "uniform sampler2D tex;\n"
-                           "void main() {\n"
-                           "  vec4 c = gl_Color * texture(tex, gl_TexCoord[0].st);\n"
-                           "  if (!(c.a > 0.5)) discard;\n"
-                           "  gl_FragColor = c;\n"
-                           "}\n",
-                           "modulate-alpha-test");
+                           fs.c_str(), "modulate-alpha-test");
   // Corners: position (x, y), colour, texture coordinate.
   const float v[4][8] = {{-0.8f, -0.7f, 1.0f, 0.2f, 0.2f, 1.0f, 0.0f, 0.0f},
                          {0.9f, -0.8f, 0.2f, 1.0f, 0.2f, 0.9f, 1.0f, 0.0f},
@@ -70,6 +74,10 @@ int main(int argc, char** argv) {
     if (prog) {
       glUseProgram(prog);
       glUniform1i(glGetUniformLocation(prog, "tex"), 0);
+      if (mode == "shader-alpha-test") {
+        glEnable(GL_ALPHA_TEST);
+        glAlphaFunc(GL_GREATER, 0.5f);
+      }
     } else {
       glUseProgram(0);
       glEnable(GL_TEXTURE_2D);

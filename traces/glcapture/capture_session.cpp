@@ -304,6 +304,8 @@ class Session final : public CaptureSession {
   /// The fixed-function state's program, instrumented; or the reason it is not captured.
   Instrumented* fixed_function(std::string& unsupported);
   void capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts, DrawRecord& d);
+  /// The wrapper's alpha test for this draw (on: a GLSL program with GL_ALPHA_TEST on).
+  void set_alpha_test(const Instrumented& ins, bool on);
   void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
   void render_passes(const std::vector<DrawCallPart>& parts);
   void finish_frame();
@@ -1016,6 +1018,31 @@ void Session::reference_draw(GLuint program, const Instrumented& ins, const std:
   g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic));
 }
 
+void Session::set_alpha_test(const Instrumented& ins, bool on) {
+  // A GLSL program's draw with GL_ALPHA_TEST on (a compatibility context):
+  // the wrapper applies the test before its record, as GL does after the
+  // shader (glsl_rewrite.cpp). Off, and for the fixed-function programs,
+  // which apply it themselves: function 0.
+  const GlFunctions& g = real_gl();
+  GLint func = 0;
+  GLfloat ref = 0, one = 0;
+  if (on) {
+    g.GetIntegerv(GL_ALPHA_TEST_FUNC, &func);
+    func = func >= GL_NEVER && func <= GL_ALWAYS ? func - GL_NEVER + 1 : 8;
+    g.GetFloatv(GL_ALPHA_TEST_REF, &ref);
+    ref = std::isnan(ref) ? 0.0f : std::clamp(ref, 0.0f, 1.0f);
+    GLint bits = 0;  // the application's target, bound now: llvmpipe compares in its precision up to 8 bits
+    g.GetIntegerv(GL_RED_BITS, &bits);
+    if (bits >= 1 && bits <= 8) {
+      one = float((1 << bits) - 1);
+      ref = std::nearbyint(ref * one);  // ties to even in the default rounding mode, as roundEven
+    }
+  }
+  if (ins.loc_alpha_func >= 0) g.ProgramUniform1i(ins.program, ins.loc_alpha_func, func);
+  if (ins.loc_alpha_ref >= 0) g.ProgramUniform1fv(ins.program, ins.loc_alpha_ref, 1, &ref);
+  if (ins.loc_alpha_one >= 0) g.ProgramUniform1fv(ins.program, ins.loc_alpha_one, 1, &one);
+}
+
 void Session::draw(const std::function<void()>& app, const std::vector<DrawCallPart>& parts) {
   const GlFunctions& g = real_gl();
   GLint fbo = 0, program = 0, pipeline = 0;
@@ -1052,10 +1079,9 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
       ins = fixed_function(unsupported);
   } else if (unsupported.empty() && (msaa_fbo_ || !list_only_ || count_samples_)) {
     ins = &instrumented(GLuint(program));  // a list without counts re-executes nothing
-    if (compatibility_ && g.IsEnabled(GL_ALPHA_TEST))
-      unsupported = "the alpha test (GL_ALPHA_TEST) with a GLSL program runs after the fragment shader's record";
   }
   if (ins && !ins->error.empty()) fail(ins->error);
+  if (ins) set_alpha_test(*ins, program != 0 && compatibility_ && g.IsEnabled(GL_ALPHA_TEST));
   GLboolean tf = GL_FALSE;
   g.GetBooleanv(GL_TRANSFORM_FEEDBACK_ACTIVE, &tf);
   if (unsupported.empty() && tf) unsupported = "transform feedback is active (re-executing would append to it)";

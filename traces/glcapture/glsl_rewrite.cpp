@@ -369,13 +369,37 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        ") buffer RopsimFragments { uint ropsim_count; uvec4 ropsim_rec[]; };\n"
        "uniform uint ropsim_capacity;\n"
        "flat in int ropsim_instance;\n"
+       // A compatibility context's alpha test (GL_ALPHA_TEST) with a GLSL
+       // program: GL applies it after the shader, so the wrapper applies it
+       // first, before the record. ropsim_alpha_func: 0 off, else the
+       // function's enum less GL_NEVER - 1 (1 never ... 8 always);
+       // ropsim_alpha_one: 0 compares floats, else 2^bits - 1 for a target
+       // of <= 8 bits a channel, compared as llvmpipe does there: both rounded
+       // to that many bits, ties to even (the reference rounded by the host).
+       "uniform int ropsim_alpha_func;\n"
+       "uniform float ropsim_alpha_ref;\n"
+       "uniform float ropsim_alpha_one;\n"
+       "bool ropsim_alpha_passes(float a) {\n"
+       "  if (ropsim_alpha_one > 0.0) a = roundEven(clamp(a, 0.0, 1.0) * ropsim_alpha_one);\n"
+       "  switch (ropsim_alpha_func) {\n"
+       "    case 1: return false;\n"
+       "    case 2: return a < ropsim_alpha_ref;\n"
+       "    case 3: return a == ropsim_alpha_ref;\n"
+       "    case 4: return a <= ropsim_alpha_ref;\n"
+       "    case 5: return a > ropsim_alpha_ref;\n"
+       "    case 6: return a != ropsim_alpha_ref;\n"
+       "    case 7: return a >= ropsim_alpha_ref;\n"
+       "    default: return true;\n"
+       "  }\n"
+       "}\n"
        "void main() {\n" +
        centre +
        "  ropsim_app_main();\n"
-       "  if (!gl_HelperInvocation) {\n"
-       "    vec4 ropsim_color = " +
+       "  vec4 ropsim_color = " +
        color +
        ";\n"
+       "  if (ropsim_alpha_func != 0 && !ropsim_alpha_passes(ropsim_color.a)) discard;\n"
+       "  if (!gl_HelperInvocation) {\n"
        "    uint i = atomicAdd(ropsim_count, 1u);\n"
        "    if (i < ropsim_capacity) {\n"
        "      ropsim_rec[2u * i] = uvec4(uint(gl_FragCoord.x) | (uint(gl_FragCoord.y) << 16), uint(gl_PrimitiveID),\n"

@@ -174,6 +174,9 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
   ins.loc_capacity = g.GetUniformLocation(q, "ropsim_capacity");
   ins.loc_upside_down = g.GetUniformLocation(q, "ropsim_upside_down");
   ins.loc_pixel_offset = g.GetUniformLocation(q, "ropsim_pixel_offset");
+  ins.loc_alpha_func = g.GetUniformLocation(q, "ropsim_alpha_func");
+  ins.loc_alpha_ref = g.GetUniformLocation(q, "ropsim_alpha_ref");
+  ins.loc_alpha_one = g.GetUniformLocation(q, "ropsim_alpha_one");
   if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;

@@ -34,6 +34,9 @@ struct Instrumented {
   /// ropsim_pixel_offset, the pass's geometry shift in pixels (window
   /// coordinates); -1 when the fragment shader has no interpolated input.
   GLint loc_pixel_offset = -1;
+  /// ropsim_alpha_func, ropsim_alpha_ref, ropsim_alpha_one: the alpha test
+  /// the wrapper applies (glsl_rewrite.cpp); -1 where the program has none.
+  GLint loc_alpha_func = -1, loc_alpha_ref = -1, loc_alpha_one = -1;
   std::vector<UniformCopy> uniforms;
   std::vector<std::pair<GLuint, GLuint>> uniform_blocks, storage_blocks;  ///< (application's, ours)
 };
