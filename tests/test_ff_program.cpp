@@ -354,6 +354,35 @@ class FfProgram : public ::testing::Test {
         << what << " must change the image: " << differ << " of " << grid << " grid pixels differ by more than 2/255";
   }
 
+  /// A GL_COMBINE environment: every parameter, GL's initial values unless set.
+  struct Combine {
+    GLenum rgb = GL_MODULATE, alpha = GL_MODULATE;
+    GLenum src_rgb[3] = {GL_TEXTURE, GL_PREVIOUS, GL_CONSTANT};
+    GLenum op_rgb[3] = {GL_SRC_COLOR, GL_SRC_COLOR, GL_SRC_ALPHA};
+    GLenum src_alpha[3] = {GL_TEXTURE, GL_PREVIOUS, GL_CONSTANT};
+    GLenum op_alpha[3] = {GL_SRC_ALPHA, GL_SRC_ALPHA, GL_SRC_ALPHA};
+    float rgb_scale = 1, alpha_scale = 1;
+  };
+
+  /// Sets GL_TEXTURE_ENV_MODE GL_COMBINE and all of `c` on the active unit.
+  static void set_combine(const Combine& c) {
+    glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
+    glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GLint(c.rgb));
+    glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_ALPHA, GLint(c.alpha));
+    const GLenum src_rgb[] = {GL_SRC0_RGB, GL_SRC1_RGB, GL_SRC2_RGB};
+    const GLenum src_alpha[] = {GL_SRC0_ALPHA, GL_SRC1_ALPHA, GL_SRC2_ALPHA};
+    const GLenum op_rgb[] = {GL_OPERAND0_RGB, GL_OPERAND1_RGB, GL_OPERAND2_RGB};
+    const GLenum op_alpha[] = {GL_OPERAND0_ALPHA, GL_OPERAND1_ALPHA, GL_OPERAND2_ALPHA};
+    for (int i = 0; i < 3; ++i) {
+      glTexEnvi(GL_TEXTURE_ENV, src_rgb[i], GLint(c.src_rgb[i]));
+      glTexEnvi(GL_TEXTURE_ENV, src_alpha[i], GLint(c.src_alpha[i]));
+      glTexEnvi(GL_TEXTURE_ENV, op_rgb[i], GLint(c.op_rgb[i]));
+      glTexEnvi(GL_TEXTURE_ENV, op_alpha[i], GLint(c.op_alpha[i]));
+    }
+    glTexEnvf(GL_TEXTURE_ENV, GL_RGB_SCALE, c.rgb_scale);
+    glTexEnvf(GL_TEXTURE_ENV, GL_ALPHA_SCALE, c.alpha_scale);
+  }
+
   OSMesaContext ctx_ = nullptr;
   std::vector<unsigned char> buffer_;
   std::vector<GLuint> textures_;
@@ -501,6 +530,215 @@ TEST_F(FfProgram, TwoTextureUnitsMatchFixedFunction) {
   GLint unit = 0;
   glGetIntegerv(GL_ACTIVE_TEXTURE, &unit);
   EXPECT_EQ(unit, GL_TEXTURE0) << "read_fixed_function_state must restore the active texture unit";
+}
+
+// GL_COMBINE on one unit: each RGB function (REPLACE, MODULATE, ADD,
+// ADD_SIGNED, INTERPOLATE, SUBTRACT, DOT3_RGB, DOT3_RGBA) and ALPHA function,
+// each source (TEXTURE, CONSTANT, PRIMARY_COLOR, PREVIOUS) and operand, and
+// RGB_SCALE / ALPHA_SCALE 1, 2 and 4; Irrlicht's 2D setup (MODULATE of TEXTURE
+// and PRIMARY_COLOR for RGB and ALPHA) on textures of every base format (the
+// texture source components per base format).
+TEST_F(FfProgram, TextureCombineMatchesFixedFunction) {
+  const float env_color[] = {0.9f, 0.3f, 0.6f, 0.4f};
+  glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, env_color);
+  texture(GL_RGBA8, GL_RGBA);
+  glEnable(GL_TEXTURE_2D);
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+  const Image modulate = expect_match("GL_MODULATE (not combine)");
+
+  // Irrlicht's 2D images and vertex-alpha materials.
+  Combine irrlicht;
+  irrlicht.src_rgb[1] = GL_PRIMARY_COLOR;
+  irrlicht.src_alpha[1] = GL_PRIMARY_COLOR;
+  set_combine(irrlicht);
+  FixedFunctionState s = read();
+  EXPECT_EQ(s.units[0].env, TexEnvMode::kCombine);
+  EXPECT_EQ(s.units[0].combine.rgb, CombineFunc::kModulate);
+  EXPECT_EQ(s.units[0].combine.rgb_args[1].source, CombineSource::kPrimaryColor);
+  EXPECT_EQ(s.units[0].combine.alpha_args[1].source, CombineSource::kPrimaryColor);
+  EXPECT_EQ(s.units[0].combine.rgb_args[2], CombineState{}.rgb_args[2]) << "MODULATE does not read Arg2";
+  const Image irr = expect_match("COMBINE MODULATE(TEXTURE, PRIMARY_COLOR) rgb and alpha");
+  EXPECT_GE(compare(modulate, irr, 0).within, 0.999) << "the same function as GL_MODULATE on an RGBA texture";
+
+  struct Case {
+    const char* name;
+    Combine c;
+    double differs;  ///< the fraction of pixels that must differ from Irrlicht's setup
+  };
+  std::vector<Case> cases;
+  auto add = [&](const char* name, double differs, const std::function<void(Combine&)>& f) {
+    Combine c = irrlicht;
+    f(c);
+    cases.push_back({name, c, differs});
+  };
+  add("MODULATE(TEXTURE, PRIMARY_COLOR), RGB_SCALE 2", 0.3, [](Combine& c) { c.rgb_scale = 2; });
+  add("MODULATE, RGB_SCALE 4, ALPHA_SCALE 2", 0.3, [](Combine& c) { c.rgb_scale = 4, c.alpha_scale = 2; });
+  add("REPLACE(TEXTURE), REPLACE(PRIMARY_COLOR alpha)", 0.3, [](Combine& c) {
+    c.rgb = GL_REPLACE, c.alpha = GL_REPLACE;
+    c.src_alpha[0] = GL_PRIMARY_COLOR;
+  });
+  add("INTERPOLATE(TEXTURE, CONSTANT, PRIMARY_COLOR alpha)", 0.3, [](Combine& c) {
+    c.rgb = c.alpha = GL_INTERPOLATE;
+    c.src_rgb[1] = GL_CONSTANT, c.src_rgb[2] = GL_PRIMARY_COLOR;
+    c.src_alpha[1] = GL_CONSTANT, c.src_alpha[2] = GL_PRIMARY_COLOR;
+  });
+  add("INTERPOLATE(CONSTANT, PREVIOUS, ONE_MINUS_SRC_COLOR of TEXTURE)", 0.3, [](Combine& c) {
+    c.rgb = GL_INTERPOLATE;
+    c.src_rgb[0] = GL_CONSTANT, c.src_rgb[1] = GL_PREVIOUS, c.src_rgb[2] = GL_TEXTURE;
+    c.op_rgb[2] = GL_ONE_MINUS_SRC_COLOR;
+  });
+  add("ADD(TEXTURE, PRIMARY_COLOR)", 0.3, [](Combine& c) { c.rgb = c.alpha = GL_ADD; });
+  add("ADD_SIGNED(TEXTURE, PRIMARY_COLOR), RGB_SCALE 2", 0.3, [](Combine& c) {
+    c.rgb = c.alpha = GL_ADD_SIGNED;
+    c.rgb_scale = 2;
+  });
+  add("SUBTRACT(TEXTURE, PRIMARY_COLOR), SUBTRACT(PRIMARY_COLOR, TEXTURE) alpha", 0.3, [](Combine& c) {
+    c.rgb = c.alpha = GL_SUBTRACT;
+    c.src_alpha[0] = GL_PRIMARY_COLOR, c.src_alpha[1] = GL_TEXTURE;
+  });
+  add("SUBTRACT with ONE_MINUS_SRC_COLOR, SRC_ALPHA, ONE_MINUS_SRC_ALPHA", 0.3, [](Combine& c) {
+    c.rgb = GL_SUBTRACT;
+    c.op_rgb[0] = GL_ONE_MINUS_SRC_COLOR, c.op_rgb[1] = GL_SRC_ALPHA;
+    c.alpha = GL_ADD;
+    c.op_alpha[0] = GL_ONE_MINUS_SRC_ALPHA;
+  });
+  add("MODULATE(TEXTURE, ONE_MINUS_SRC_ALPHA of PRIMARY_COLOR)", 0.3,
+      [](Combine& c) { c.op_rgb[1] = GL_ONE_MINUS_SRC_ALPHA; });
+  add("DOT3_RGB(TEXTURE, PRIMARY_COLOR)", 0.3, [](Combine& c) { c.rgb = GL_DOT3_RGB; });
+  add("DOT3_RGB(TEXTURE, CONSTANT), RGB_SCALE 2, alpha REPLACE(CONSTANT)", 0.3, [](Combine& c) {
+    c.rgb = GL_DOT3_RGB, c.src_rgb[1] = GL_CONSTANT, c.rgb_scale = 2;
+    c.alpha = GL_REPLACE, c.src_alpha[0] = GL_CONSTANT;
+  });
+  add("DOT3_RGBA(TEXTURE, PRIMARY_COLOR), ALPHA_SCALE 2", 0.3, [](Combine& c) {
+    c.rgb = GL_DOT3_RGBA, c.alpha_scale = 2;
+    c.alpha = GL_REPLACE;  // ignored
+  });
+  add("DOT3_RGBA(PREVIOUS, TEXTURE), ONE_MINUS_SRC_COLOR", 0.3, [](Combine& c) {
+    c.rgb = GL_DOT3_RGBA;
+    c.src_rgb[0] = GL_PREVIOUS, c.src_rgb[1] = GL_TEXTURE, c.op_rgb[1] = GL_ONE_MINUS_SRC_COLOR;
+  });
+  add("GL_TEXTURE0 (the unit itself) for GL_TEXTURE", 0.0, [](Combine& c) { c.src_rgb[0] = GL_TEXTURE0; });
+  for (const Case& k : cases) {
+    set_combine(k.c);
+    const Image img = expect_match(std::string("COMBINE ") + k.name);
+    if (k.differs > 0) expect_differs(irr, img, k.differs, k.name);
+  }
+  set_combine(irrlicht);
+  s = read();
+  set_combine(cases.back().c);
+  EXPECT_EQ(read(), s) << "GL_TEXTURE0 on unit 0 is GL_TEXTURE: the same state";
+
+  // Irrlicht's setup, and one with every operand, on each base format.
+  struct Format {
+    GLenum internal, format;
+    const char* name;
+  };
+  const Format formats[] = {{GL_RGB8, GL_RGB, "RGB8"},
+                            {GL_LUMINANCE8, GL_LUMINANCE, "LUMINANCE8"},
+                            {GL_LUMINANCE8_ALPHA8, GL_LUMINANCE_ALPHA, "LUMINANCE8_ALPHA8"},
+                            {GL_INTENSITY8, GL_LUMINANCE, "INTENSITY8"},
+                            {GL_ALPHA8, GL_ALPHA, "ALPHA8"},
+                            {GL_R8, GL_RED, "R8"}};
+  Combine operands = irrlicht;
+  operands.rgb = GL_INTERPOLATE;
+  operands.src_rgb[1] = GL_CONSTANT, operands.op_rgb[1] = GL_ONE_MINUS_SRC_COLOR;
+  operands.src_rgb[2] = GL_TEXTURE, operands.op_rgb[2] = GL_ONE_MINUS_SRC_ALPHA;
+  operands.alpha = GL_ADD_SIGNED, operands.op_alpha[0] = GL_ONE_MINUS_SRC_ALPHA;
+  for (const Format& f : formats) {
+    texture(f.internal, f.format, 2);
+    set_combine(irrlicht);
+    expect_match(std::string("COMBINE MODULATE(TEXTURE, PRIMARY_COLOR), ") + f.name);
+    set_combine(operands);
+    expect_match(std::string("COMBINE INTERPOLATE, every operand, ") + f.name);
+  }
+}
+
+// GL_COMBINE on two units with the crossbar: unit 1 reads unit 0's texture
+// (GL_TEXTURE0) and the previous stage, unit 0 reads unit 1's (GL_TEXTURE1);
+// unit 1 under GL_COMBINE after a legacy mode on unit 0, and PRIMARY_COLOR
+// against PREVIOUS on unit 1. Then a program of a state with one combine
+// field wrong fails the comparison.
+TEST_F(FfProgram, TextureCombineCrossbarMatchesFixedFunction) {
+  const float env0[] = {0.2f, 0.7f, 0.4f, 0.6f}, env1[] = {0.9f, 0.3f, 0.6f, 0.4f};
+  texture(GL_RGBA8, GL_RGBA);
+  glEnable(GL_TEXTURE_2D);
+  glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, env0);
+  Combine c0;
+  c0.src_rgb[1] = c0.src_alpha[1] = GL_PRIMARY_COLOR;
+  set_combine(c0);
+  ActiveTexture(GL_TEXTURE1);
+  texture(GL_RGB8, GL_RGB, 3);
+  glEnable(GL_TEXTURE_2D);
+  glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, env1);
+  glMatrixMode(GL_TEXTURE);
+  glLoadIdentity();
+  glRotatef(30, 0, 0, 1);
+  glMatrixMode(GL_MODELVIEW);
+  Combine c1;  // INTERPOLATE(TEXTURE0, PREVIOUS, TEXTURE1's colour), alpha MODULATE(TEXTURE0, PREVIOUS)
+  c1.rgb = GL_INTERPOLATE;
+  c1.src_rgb[0] = GL_TEXTURE0, c1.src_rgb[1] = GL_PREVIOUS, c1.src_rgb[2] = GL_TEXTURE;
+  c1.op_rgb[2] = GL_SRC_COLOR;
+  c1.src_alpha[0] = GL_TEXTURE0, c1.src_alpha[1] = GL_PREVIOUS;
+  set_combine(c1);
+  ActiveTexture(GL_TEXTURE0);
+  const FixedFunctionState right = read();
+  ASSERT_TRUE(right.units[0].active() && right.units[1].active());
+  EXPECT_EQ(right.units[1].combine.rgb_args[0].source, CombineSource::kTextureUnit);
+  EXPECT_EQ(right.units[1].combine.rgb_args[0].unit, 0);
+  const Image crossbar = expect_match("unit 1 INTERPOLATE(TEXTURE0, PREVIOUS, TEXTURE)");
+
+  ActiveTexture(GL_TEXTURE1);
+  Combine c1p = c1;
+  c1p.src_rgb[1] = GL_PRIMARY_COLOR;
+  set_combine(c1p);
+  ActiveTexture(GL_TEXTURE0);
+  const Image primary = expect_match("unit 1 INTERPOLATE(TEXTURE0, PRIMARY_COLOR, TEXTURE)");
+  expect_differs(crossbar, primary, 0.3, "PRIMARY_COLOR for PREVIOUS on unit 1");
+
+  // Unit 0 reads unit 1's texture (sampled before unit 0's stage).
+  Combine c0x = c0;
+  c0x.rgb = GL_ADD_SIGNED;
+  c0x.src_rgb[1] = GL_TEXTURE1;
+  c0x.alpha = GL_SUBTRACT;
+  c0x.src_alpha[0] = GL_TEXTURE1;
+  c0x.op_alpha[0] = GL_ONE_MINUS_SRC_ALPHA;
+  set_combine(c0x);
+  expect_match("unit 0 ADD_SIGNED(TEXTURE, TEXTURE1)");
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_DECAL);
+  expect_match("unit 0 GL_DECAL, unit 1 combine");
+
+  // A wrong combine field fails the comparison.
+  ActiveTexture(GL_TEXTURE1);
+  set_combine(c1);
+  ActiveTexture(GL_TEXTURE0);
+  set_combine(c0);
+  ASSERT_EQ(read(), right);
+  const Image ff = render(nullptr);
+  ASSERT_GE(compare(ff, render(&right), 1).within, 0.999);
+  auto expect_caught = [&](const char* what, const FixedFunctionState& wrong) {
+    EXPECT_NE(wrong, right) << what << ": the states must compare unequal";
+    const Image img = render(&wrong);
+    ASSERT_FALSE(img.rgba.empty()) << what;
+    EXPECT_LT(compare(ff, img, 1).within, 0.99) << what << ": the comparison must fail";
+  };
+  FixedFunctionState w = right;
+  w.units[1].combine.rgb_args[2].operand = CombineOperand::kOneMinusSrcColor;
+  expect_caught("ONE_MINUS_SRC_COLOR for SRC_COLOR", w);
+  w = right;
+  w.units[1].combine.rgb_args[0] = CombineArg{};
+  expect_caught("TEXTURE for TEXTURE0", w);
+  w = right;
+  w.units[1].combine.rgb_args[1].source = CombineSource::kPrimaryColor;
+  expect_caught("PRIMARY_COLOR for PREVIOUS", w);
+  w = right;
+  w.units[0].combine.rgb_scale = 2;
+  expect_caught("RGB_SCALE 2 for 1", w);
+  w = right;
+  w.units[0].combine.alpha = CombineFunc::kAdd;
+  expect_caught("ADD for MODULATE alpha", w);
+  w = right;
+  w.units[1].combine.rgb = CombineFunc::kAddSigned;
+  expect_caught("ADD_SIGNED for INTERPOLATE", w);
 }
 
 // GL_LIGHTING: a directional light and an attenuated point light, a
@@ -705,6 +943,46 @@ TEST_F(FfProgram, ProgramsOfManyStatesCompile) {
     ASSERT_NE(prog, 0u) << "state " << k;
     DeleteProgram(prog);
   }
+  // GL_COMBINE on one or both units: every function, source (the crossbar to
+  // the other unit when it is on), operand and scale.
+  for (int k = 0; k < 128; ++k) {
+    FixedFunctionState s;
+    s.flat_shading = next(2);
+    const int units = 1 + int(next(3));  // bit u: unit u on
+    for (int u = 0; u < FixedFunctionState::kUnits; ++u) {
+      if (!(units & (1 << u))) continue;
+      TextureUnitState& t = s.units[size_t(u)];
+      t.target = TexTarget::k2D;
+      t.complete = true;
+      t.base = TexBaseFormat(next(6));
+      t.env = next(4) ? TexEnvMode::kCombine : TexEnvMode::kModulate;
+      if (t.env != TexEnvMode::kCombine) continue;
+      auto arg = [&](bool alpha) {
+        CombineArg a;
+        a.source = CombineSource(next(5));
+        if (a.source == CombineSource::kTextureUnit) {
+          if (units == 3)
+            a.unit = uint8_t(1 - u);
+          else
+            a.source = CombineSource::kTexture;
+        }
+        a.operand =
+            alpha ? (next(2) ? CombineOperand::kSrcAlpha : CombineOperand::kOneMinusSrcAlpha) : CombineOperand(next(4));
+        return a;
+      };
+      CombineState& c = t.combine;
+      c.rgb = CombineFunc(next(8));
+      c.alpha = CombineFunc(next(6));
+      for (auto& a : c.rgb_args) a = arg(false);
+      for (auto& a : c.alpha_args) a = arg(true);
+      c.rgb_scale = uint8_t(1 << next(3));
+      c.alpha_scale = uint8_t(1 << next(3));
+    }
+    ASSERT_EQ(unsupported_reason(s), "") << "combine state " << k;
+    const GLuint prog = link(fixed_function_program(s));
+    ASSERT_NE(prog, 0u) << "combine state " << k;
+    DeleteProgram(prog);
+  }
 }
 
 // Features outside the subset are named, read from a real context.
@@ -714,8 +992,33 @@ TEST_F(FfProgram, UnsupportedFeaturesAreNamed) {
   EXPECT_EQ(unsupported_reason(read()), "");
 
   glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
-  EXPECT_EQ(unsupported_reason(read()), "GL_COMBINE texture environment on texture unit 0");
+  EXPECT_EQ(unsupported_reason(read()), "");
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC1_RGB, GL_TEXTURE1);
+  EXPECT_EQ(unsupported_reason(read()),
+            "GL_COMBINE: GL_SRC1_RGB = GL_TEXTURE1, a unit without an enabled complete texture (undefined in GL) on "
+            "texture unit 0");
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC1_RGB, GL_PREVIOUS);
+  glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_REPLACE);
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC1_RGB, GL_TEXTURE1);
+  EXPECT_EQ(unsupported_reason(read()), "") << "REPLACE does not read Arg1";
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC1_RGB, GL_PREVIOUS);
+  glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_MODULATE);
+  glGetError();
+  glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_MODULATE_ADD_ATI);
+  // ATI_texture_env_combine3 (Mesa has it): a function and a source outside the subset.
+  ASSERT_EQ(glGetError(), GLenum(GL_NO_ERROR)) << "GL_MODULATE_ADD_ATI";
+  EXPECT_EQ(unsupported_reason(read()),
+            "GL_COMBINE: a GL_COMBINE_RGB function other than REPLACE, MODULATE, ADD, ADD_SIGNED, INTERPOLATE, "
+            "SUBTRACT, DOT3_RGB, DOT3_RGBA on texture unit 0");
+  glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_MODULATE);
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC0_ALPHA, GL_ZERO);
+  ASSERT_EQ(glGetError(), GLenum(GL_NO_ERROR)) << "GL_ZERO as a combiner source";
+  EXPECT_EQ(unsupported_reason(read()),
+            "GL_COMBINE: a GL_SRC0_ALPHA other than TEXTURE, TEXTUREi, CONSTANT, PRIMARY_COLOR, PREVIOUS on texture "
+            "unit 0");
+  glTexEnvi(GL_TEXTURE_ENV, GL_SRC0_ALPHA, GL_TEXTURE);
   glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+  EXPECT_EQ(read().units[0].combine, CombineState{}) << "the combine state is read under GL_COMBINE only";
 
   glEnable(GL_TEXTURE_GEN_S);
   EXPECT_EQ(unsupported_reason(read()), "glTexGen on texture unit 0");
@@ -840,6 +1143,96 @@ TEST(FfProgramSource, IsDeterministicAndMinimal) {
   }
 }
 
+// The GL_COMBINE program: the function, its arguments (source and operand),
+// the scales and the crossbar in the source text; every combine field is part
+// of the state's equality (the cache key) and changes the source.
+TEST(FfProgramSource, CombineSourceAndCacheKey) {
+  FixedFunctionState s;
+  TextureUnitState& t = s.units[0];
+  t.target = TexTarget::k2D;
+  t.complete = true;
+  t.env = TexEnvMode::kCombine;
+  t.combine.rgb_args[1].source = t.combine.alpha_args[1].source = CombineSource::kPrimaryColor;
+  t.combine.rgb_scale = 2;
+  ASSERT_EQ(unsupported_reason(s), "");
+  std::string f = fixed_function_program(s).fragment;
+  EXPECT_NE(f.find("vec4 t0 = textureProj(ff_texture0, ff_texcoord0);"), std::string::npos) << f;
+  EXPECT_NE(f.find("vec3 rgb0 = t0.rgb * ff_color.rgb;"), std::string::npos) << f;
+  EXPECT_NE(f.find("float alpha0 = t0.a * ff_color.a;"), std::string::npos) << f;
+  EXPECT_NE(f.find("color = vec4(clamp(rgb0 * 2.0, 0.0, 1.0), clamp(alpha0, 0.0, 1.0));"), std::string::npos) << f;
+
+  // INTERPOLATE(CONSTANT, PREVIOUS, ONE_MINUS_SRC_ALPHA of TEXTURE), ALPHA ADD_SIGNED x 4.
+  t.combine.rgb = CombineFunc::kInterpolate;
+  t.combine.rgb_args = {CombineArg{CombineSource::kConstant, 0, CombineOperand::kSrcColor},
+                        CombineArg{CombineSource::kPrevious, 0, CombineOperand::kOneMinusSrcColor},
+                        CombineArg{CombineSource::kTexture, 0, CombineOperand::kOneMinusSrcAlpha}};
+  t.combine.alpha = CombineFunc::kAddSigned;
+  t.combine.alpha_scale = 4;
+  f = fixed_function_program(s).fragment;
+  EXPECT_NE(f.find("vec3 rgb0 = gl_TextureEnvColor[0].rgb * vec3(1.0 - t0.a) + (1.0 - color.rgb) * (1.0 - vec3(1.0 - "
+                   "t0.a));"),
+            std::string::npos)
+      << f;
+  EXPECT_NE(f.find("float alpha0 = t0.a + ff_color.a - 0.5;"), std::string::npos) << f;
+  EXPECT_NE(f.find("clamp(alpha0 * 4.0, 0.0, 1.0)"), std::string::npos) << f;
+
+  // DOT3_RGBA: the dot product in all four components, ALPHA's function ignored.
+  t.combine = CombineState{};
+  t.combine.rgb = CombineFunc::kDot3Rgba;
+  t.combine.rgb_args[1] = CombineArg{CombineSource::kPrimaryColor, 0, CombineOperand::kSrcAlpha};
+  f = fixed_function_program(s).fragment;
+  EXPECT_NE(f.find("float dot0 = 4.0 * dot(t0.rgb - 0.5, vec3(ff_color.a) - 0.5);"), std::string::npos) << f;
+  EXPECT_NE(f.find("float alpha0 = dot0;"), std::string::npos) << f;
+  t.combine.rgb = CombineFunc::kDot3Rgb;
+  f = fixed_function_program(s).fragment;
+  EXPECT_NE(f.find("vec3 rgb0 = vec3(dot0);"), std::string::npos) << f;
+  EXPECT_NE(f.find("float alpha0 = t0.a * color.a;"), std::string::npos) << f;
+
+  // The crossbar: unit 1 reads unit 0's texel, sampled before either stage.
+  FixedFunctionState two = s;
+  two.units[0].env = TexEnvMode::kModulate;
+  two.units[0].combine = CombineState{};
+  two.units[1] = t;
+  two.units[1].combine = CombineState{};
+  two.units[1].combine.rgb = CombineFunc::kSubtract;
+  two.units[1].combine.rgb_args[1] = CombineArg{CombineSource::kTextureUnit, 0, CombineOperand::kSrcColor};
+  ASSERT_EQ(unsupported_reason(two), "");
+  f = fixed_function_program(two).fragment;
+  EXPECT_NE(f.find("vec3 rgb1 = t1.rgb - t0.rgb;"), std::string::npos) << f;
+  EXPECT_LT(f.find("vec4 t1 = textureProj"), f.find("// unit 0")) << f;
+
+  // Every field is in the cache key and in the source.
+  FixedFunctionState base;
+  base.units[0] = t;
+  base.units[0].combine = CombineState{};
+  base.units[1] = base.units[0];
+  std::vector<FixedFunctionState> states(12, base);
+  states[1].units[0].env = TexEnvMode::kModulate;
+  states[2].units[0].combine.rgb = CombineFunc::kAdd;
+  states[3].units[0].combine.alpha = CombineFunc::kSubtract;
+  states[4].units[0].combine.rgb_args[0].operand = CombineOperand::kOneMinusSrcColor;
+  states[5].units[0].combine.rgb_args[1].source = CombineSource::kConstant;
+  states[6].units[0].combine.rgb_args[1] = CombineArg{CombineSource::kTextureUnit, 1, CombineOperand::kSrcColor};
+  states[7].units[1].combine.rgb_args[0] = CombineArg{CombineSource::kTextureUnit, 0, CombineOperand::kSrcColor};
+  states[8].units[0].combine.alpha_args[0].operand = CombineOperand::kOneMinusSrcAlpha;
+  states[9].units[0].combine.alpha_args[1].source = CombineSource::kPrimaryColor;
+  states[10].units[0].combine.rgb_scale = 4;
+  states[11].units[1].combine.alpha_scale = 2;
+  for (size_t i = 0; i < states.size(); ++i) {
+    ASSERT_EQ(unsupported_reason(states[i]), "") << "state " << i;
+    const GlslProgram p = fixed_function_program(states[i]);
+    for (size_t j = 0; j < i; ++j) {
+      EXPECT_NE(states[i], states[j]) << "states " << j << " and " << i;
+      const GlslProgram q = fixed_function_program(states[j]);
+      EXPECT_NE(p.vertex + p.fragment, q.vertex + q.fragment) << "states " << j << " and " << i;
+    }
+  }
+  FixedFunctionState copy = states[6];
+  EXPECT_EQ(copy, states[6]);
+  copy.units[0].combine.rgb_args[1].unit = 0;
+  EXPECT_NE(copy, states[6]) << "the crossbar's unit is in the key";
+}
+
 // unsupported_reason names each feature outside the subset (states built
 // directly, including those no context here can make).
 TEST(FfProgramSource, UnsupportedReasonNamesEachFeature) {
@@ -853,8 +1246,49 @@ TEST(FfProgramSource, UnsupportedReasonNamesEachFeature) {
   };
   EXPECT_EQ(with([](FixedFunctionState&) {}), "");
   EXPECT_EQ(with([](FixedFunctionState& s) { s.other_unit = 5; }), "texture unit 5 enabled");
-  EXPECT_EQ(with([](FixedFunctionState& s) { s.units[0].env = TexEnvMode::kCombine; }),
-            "GL_COMBINE texture environment on texture unit 0");
+  EXPECT_EQ(with([](FixedFunctionState& s) { s.units[0].env = TexEnvMode::kCombine; }), "");
+  auto combine = [&](const std::function<void(CombineState&)>& f) {
+    return with([&](FixedFunctionState& s) {
+      s.units[0].env = TexEnvMode::kCombine;
+      f(s.units[0].combine);
+    });
+  };
+  EXPECT_EQ(combine([](CombineState& c) { c.rgb = CombineFunc::kOther; }),
+            "GL_COMBINE: a GL_COMBINE_RGB function other than REPLACE, MODULATE, ADD, ADD_SIGNED, INTERPOLATE, "
+            "SUBTRACT, DOT3_RGB, DOT3_RGBA on texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) { c.alpha = CombineFunc::kDot3Rgb; }),
+            "GL_COMBINE: a GL_COMBINE_ALPHA function other than REPLACE, MODULATE, ADD, ADD_SIGNED, INTERPOLATE, "
+            "SUBTRACT on texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) { c.rgb = CombineFunc::kDot3Rgba, c.alpha = CombineFunc::kOther; }), "")
+      << "DOT3_RGBA ignores COMBINE_ALPHA";
+  EXPECT_EQ(combine([](CombineState& c) { c.rgb_args[1].source = CombineSource::kOther; }),
+            "GL_COMBINE: a GL_SRC1_RGB other than TEXTURE, TEXTUREi, CONSTANT, PRIMARY_COLOR, PREVIOUS on texture "
+            "unit 0");
+  EXPECT_EQ(combine([](CombineState& c) { c.rgb_args[2].source = CombineSource::kOther; }), "")
+      << "MODULATE does not read Arg2";
+  EXPECT_EQ(combine([](CombineState& c) { c.alpha_args[0].operand = CombineOperand::kSrcColor; }),
+            "GL_COMBINE: a GL_OPERAND0_ALPHA GL does not define on texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) {
+              c.rgb_args[0] = CombineArg{CombineSource::kTextureUnit, 1};
+            }),
+            "GL_COMBINE: GL_SRC0_RGB = GL_TEXTURE1, a unit without an enabled complete texture (undefined in GL) on "
+            "texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) {
+              c.alpha_args[1] = CombineArg{CombineSource::kTextureUnit, 4, CombineOperand::kSrcAlpha};
+            }),
+            "GL_COMBINE: GL_SRC1_ALPHA = GL_TEXTURE4, a unit without an enabled complete texture (undefined in GL) "
+            "on texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) { c.rgb_scale = 0; }),
+            "GL_COMBINE: a GL_RGB_SCALE other than 1, 2, 4 on texture unit 0");
+  EXPECT_EQ(combine([](CombineState& c) { c.alpha_scale = 0; }),
+            "GL_COMBINE: a GL_ALPHA_SCALE other than 1, 2, 4 on texture unit 0");
+  EXPECT_EQ(with([](FixedFunctionState& s) {
+              s.units[1] = s.units[0];
+              s.units[0].env = TexEnvMode::kCombine;
+              s.units[0].combine.rgb_args[0] = CombineArg{CombineSource::kTextureUnit, 1};
+            }),
+            "")
+      << "the crossbar to an enabled unit";
   EXPECT_EQ(with([](FixedFunctionState& s) { s.units[0].target = TexTarget::k3D; }), "GL_TEXTURE_3D on texture unit 0");
   EXPECT_EQ(with([](FixedFunctionState& s) { s.units[0].target = TexTarget::k1D; }), "GL_TEXTURE_1D on texture unit 0");
   EXPECT_EQ(with([](FixedFunctionState& s) { s.units[0].target = TexTarget::kRectangle; }),

@@ -12,9 +12,14 @@
 
 namespace ropsim::glcapture {
 
+bool CombineState::operator==(const CombineState& o) const {
+  return rgb == o.rgb && alpha == o.alpha && rgb_args == o.rgb_args && alpha_args == o.alpha_args &&
+         rgb_scale == o.rgb_scale && alpha_scale == o.alpha_scale;
+}
+
 bool TextureUnitState::operator==(const TextureUnitState& o) const {
-  return target == o.target && complete == o.complete && base == o.base && env == o.env && texgen == o.texgen &&
-         lod_bias == o.lod_bias;
+  return target == o.target && complete == o.complete && base == o.base && env == o.env && combine == o.combine &&
+         texgen == o.texgen && lod_bias == o.lod_bias;
 }
 
 bool LightState::operator==(const LightState& o) const {
@@ -145,6 +150,112 @@ TexEnvMode env_mode(GLint mode) {
   }
 }
 
+CombineFunc combine_func(GLint f) {
+  switch (f) {
+    case GL_REPLACE:
+      return CombineFunc::kReplace;
+    case GL_MODULATE:
+      return CombineFunc::kModulate;
+    case GL_ADD:
+      return CombineFunc::kAdd;
+    case GL_ADD_SIGNED:
+      return CombineFunc::kAddSigned;
+    case GL_INTERPOLATE:
+      return CombineFunc::kInterpolate;
+    case GL_SUBTRACT:
+      return CombineFunc::kSubtract;
+    case GL_DOT3_RGB:
+      return CombineFunc::kDot3Rgb;
+    case GL_DOT3_RGBA:
+      return CombineFunc::kDot3Rgba;
+    default:
+      return CombineFunc::kOther;
+  }
+}
+
+CombineOperand combine_operand(GLint o) {
+  switch (o) {
+    case GL_SRC_COLOR:
+      return CombineOperand::kSrcColor;
+    case GL_ONE_MINUS_SRC_COLOR:
+      return CombineOperand::kOneMinusSrcColor;
+    case GL_SRC_ALPHA:
+      return CombineOperand::kSrcAlpha;
+    case GL_ONE_MINUS_SRC_ALPHA:
+      return CombineOperand::kOneMinusSrcAlpha;
+    default:
+      return CombineOperand::kOther;
+  }
+}
+
+/// The argument of source `src` and operand `operand` on unit `unit`
+/// (GL_TEXTUREi of the unit itself is GL_TEXTURE).
+CombineArg combine_arg(GLint src, GLint operand, int unit) {
+  CombineArg a;
+  a.operand = combine_operand(operand);
+  if (src == GL_TEXTURE) {
+    a.source = CombineSource::kTexture;
+  } else if (src >= GL_TEXTURE0 && src <= GL_TEXTURE31) {
+    const int n = src - GL_TEXTURE0;
+    a.source = n == unit ? CombineSource::kTexture : CombineSource::kTextureUnit;
+    a.unit = n == unit ? 0 : uint8_t(n);
+  } else if (src == GL_CONSTANT) {
+    a.source = CombineSource::kConstant;
+  } else if (src == GL_PRIMARY_COLOR) {
+    a.source = CombineSource::kPrimaryColor;
+  } else if (src == GL_PREVIOUS) {
+    a.source = CombineSource::kPrevious;
+  } else {
+    a.source = CombineSource::kOther;
+  }
+  return a;
+}
+
+/// How many arguments (Arg0 ...) a combiner function reads.
+int combine_args(CombineFunc f) {
+  switch (f) {
+    case CombineFunc::kReplace:
+      return 1;
+    case CombineFunc::kInterpolate:
+      return 3;
+    case CombineFunc::kOther:
+      return 0;
+    default:
+      return 2;
+  }
+}
+
+uint8_t combine_scale(float v) { return v == 1 ? 1 : v == 2 ? 2 : v == 4 ? 4 : 0; }
+
+/// The GL_COMBINE state of the active unit `unit`, canonical (see CombineState).
+CombineState read_combine(const GlGetters& gl, int unit) {
+  auto env = [&](GLenum pname) {
+    GLint v = 0;
+    gl.GetTexEnviv(GL_TEXTURE_ENV, pname, &v);
+    return v;
+  };
+  const GLenum src_rgb[] = {GL_SRC0_RGB, GL_SRC1_RGB, GL_SRC2_RGB};
+  const GLenum src_alpha[] = {GL_SRC0_ALPHA, GL_SRC1_ALPHA, GL_SRC2_ALPHA};
+  const GLenum op_rgb[] = {GL_OPERAND0_RGB, GL_OPERAND1_RGB, GL_OPERAND2_RGB};
+  const GLenum op_alpha[] = {GL_OPERAND0_ALPHA, GL_OPERAND1_ALPHA, GL_OPERAND2_ALPHA};
+  CombineState c;
+  c.rgb = combine_func(env(GL_COMBINE_RGB));
+  for (int i = 0; i < combine_args(c.rgb); ++i)
+    c.rgb_args[size_t(i)] = combine_arg(env(src_rgb[i]), env(op_rgb[i]), unit);
+  if (c.rgb != CombineFunc::kDot3Rgba) {  // DOT3_RGBA ignores COMBINE_ALPHA
+    c.alpha = combine_func(env(GL_COMBINE_ALPHA));
+    for (int i = 0; i < combine_args(c.alpha); ++i)
+      c.alpha_args[size_t(i)] = combine_arg(env(src_alpha[i]), env(op_alpha[i]), unit);
+  }
+  float scale = 1;
+  gl.GetTexEnvfv(GL_TEXTURE_ENV, GL_RGB_SCALE, &scale);
+  c.rgb_scale = combine_scale(scale);
+  scale = 1;
+  gl.GetTexEnvfv(GL_TEXTURE_ENV, GL_ALPHA_SCALE, &scale);
+  c.alpha_scale = combine_scale(scale);
+  return c;
+}
+
 CompareFunc compare_func(GLint f) {
   switch (f) {
     case GL_NEVER:
@@ -241,6 +352,7 @@ FixedFunctionState read_fixed_function_state(const GlGetters& gl) {
     GLint mode = GL_MODULATE;
     gl.GetTexEnviv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, &mode);
     t.env = env_mode(mode);
+    if (t.env == TexEnvMode::kCombine) t.combine = read_combine(gl, int(u));
     t.texgen = r.on(GL_TEXTURE_GEN_S) || r.on(GL_TEXTURE_GEN_T) || r.on(GL_TEXTURE_GEN_R) || r.on(GL_TEXTURE_GEN_Q);
     float bias = 0;
     gl.GetTexEnvfv(GL_TEXTURE_FILTER_CONTROL, GL_TEXTURE_LOD_BIAS, &bias);
@@ -323,6 +435,64 @@ const char* base_name(TexBaseFormat b) {
   return "?";
 }
 
+const char* combine_func_name(CombineFunc f) {
+  switch (f) {
+    case CombineFunc::kReplace:
+      return "REPLACE";
+    case CombineFunc::kModulate:
+      return "MODULATE";
+    case CombineFunc::kAdd:
+      return "ADD";
+    case CombineFunc::kAddSigned:
+      return "ADD_SIGNED";
+    case CombineFunc::kInterpolate:
+      return "INTERPOLATE";
+    case CombineFunc::kSubtract:
+      return "SUBTRACT";
+    case CombineFunc::kDot3Rgb:
+      return "DOT3_RGB";
+    case CombineFunc::kDot3Rgba:
+      return "DOT3_RGBA";
+    case CombineFunc::kOther:
+      break;
+  }
+  return "?";
+}
+
+/// Why unit u's GL_COMBINE state is outside the subset ("" inside).
+std::string combine_unsupported(const FixedFunctionState& s, int u) {
+  const CombineState& c = s.units[size_t(u)].combine;
+  if (c.rgb == CombineFunc::kOther)
+    return "a GL_COMBINE_RGB function other than REPLACE, MODULATE, ADD, ADD_SIGNED, INTERPOLATE, SUBTRACT, DOT3_RGB, "
+           "DOT3_RGBA";
+  const bool alpha = c.rgb != CombineFunc::kDot3Rgba;
+  if (alpha &&
+      (c.alpha == CombineFunc::kOther || c.alpha == CombineFunc::kDot3Rgb || c.alpha == CombineFunc::kDot3Rgba))
+    return "a GL_COMBINE_ALPHA function other than REPLACE, MODULATE, ADD, ADD_SIGNED, INTERPOLATE, SUBTRACT";
+  for (int pass = 0; pass < (alpha ? 2 : 1); ++pass) {
+    const char* which = pass ? "ALPHA" : "RGB";
+    const CombineFunc f = pass ? c.alpha : c.rgb;
+    const auto& args = pass ? c.alpha_args : c.rgb_args;
+    for (int i = 0; i < combine_args(f); ++i) {
+      const CombineArg& a = args[size_t(i)];
+      const std::string n = std::to_string(i);
+      if (a.source == CombineSource::kOther)
+        return std::string("a GL_SRC") + n + "_" + which +
+               " other than TEXTURE, TEXTUREi, CONSTANT, PRIMARY_COLOR, PREVIOUS";
+      if (a.operand == CombineOperand::kOther ||
+          (pass && a.operand != CombineOperand::kSrcAlpha && a.operand != CombineOperand::kOneMinusSrcAlpha))
+        return std::string("a GL_OPERAND") + n + "_" + which + " GL does not define";
+      if (a.source == CombineSource::kTextureUnit &&
+          (a.unit >= FixedFunctionState::kUnits || !s.units[a.unit].active()))
+        return std::string("GL_SRC") + n + "_" + which + " = GL_TEXTURE" + std::to_string(a.unit) +
+               ", a unit without an enabled complete texture (undefined in GL)";
+    }
+  }
+  if (c.rgb_scale == 0) return "a GL_RGB_SCALE other than 1, 2, 4";
+  if (c.alpha_scale == 0) return "a GL_ALPHA_SCALE other than 1, 2, 4";
+  return "";
+}
+
 }  // namespace
 
 std::string unsupported_reason(const FixedFunctionState& s) {
@@ -335,7 +505,6 @@ std::string unsupported_reason(const FixedFunctionState& s) {
     if (!t.active()) continue;
     const std::string on = " on texture unit " + std::to_string(u);
     if (t.target != TexTarget::k2D) return std::string(target_name(t.target)) + on;
-    if (t.env == TexEnvMode::kCombine) return "GL_COMBINE texture environment" + on;
     if (t.env == TexEnvMode::kOther)
       return "a texture environment mode other than MODULATE, REPLACE, DECAL, ADD, BLEND, COMBINE" + on;
     if (t.texgen) return "glTexGen" + on;
@@ -343,6 +512,10 @@ std::string unsupported_reason(const FixedFunctionState& s) {
     if (t.base == TexBaseFormat::kDepth) return "a depth texture" + on;
     if (t.env == TexEnvMode::kDecal && t.base != TexBaseFormat::kRgb && t.base != TexBaseFormat::kRgba)
       return std::string("GL_DECAL with a ") + base_name(t.base) + " texture (undefined in GL)" + on;
+    if (t.env == TexEnvMode::kCombine) {
+      const std::string why = combine_unsupported(s, u);
+      if (!why.empty()) return "GL_COMBINE: " + why + on;
+    }
   }
   if (s.point_sprite) return "point sprite texture coordinates (GL_COORD_REPLACE)";
   if (s.point_attenuation) return "point size distance attenuation (GL_POINT_DISTANCE_ATTENUATION)";
@@ -490,7 +663,6 @@ void emit_lighting(const FixedFunctionState& s, std::string& v) {
 /// as every stage's result is.
 void emit_texture_env(const TextureUnitState& t, int u, std::string& f) {
   const std::string tex = "t" + std::to_string(u);
-  f += "  vec4 " + tex + " = textureProj(ff_texture" + std::to_string(u) + ", ff_texcoord" + std::to_string(u) + ");\n";
   const std::string env = "gl_TextureEnvColor[" + std::to_string(u) + "]";
   const bool has_color = t.base != TexBaseFormat::kAlpha;
   const bool has_alpha = t.base == TexBaseFormat::kAlpha || t.base == TexBaseFormat::kLuminanceAlpha ||
@@ -525,6 +697,103 @@ void emit_texture_env(const TextureUnitState& t, int u, std::string& f) {
        " texture\n";
   if (has_color) f += "  color.rgb = clamp(" + rgb + ", 0.0, 1.0);\n";
   if (has_alpha && !a.empty()) f += "  color.a = clamp(" + a + ", 0.0, 1.0);\n";
+}
+
+/// Argument `a` of unit u's combiner as a vec3 (RGB) or float (ALPHA)
+/// expression. A texture source is the unit's texel as sampled, which is the
+/// (Rt, Gt, Bt, At) of GL's table of texture source components for every
+/// base format (ALPHA (0, 0, 0, A), LUMINANCE (L, L, L, 1), INTENSITY
+/// (I, I, I, I) ...); PREVIOUS is the running colour (the primary colour on
+/// the first enabled unit), PRIMARY_COLOR the fragment's primary colour.
+std::string combine_operand_expr(const CombineArg& a, int u, bool alpha) {
+  std::string src;
+  switch (a.source) {
+    case CombineSource::kTexture:
+      src = "t" + std::to_string(u);
+      break;
+    case CombineSource::kTextureUnit:
+      src = "t" + std::to_string(a.unit);
+      break;
+    case CombineSource::kConstant:
+      src = "gl_TextureEnvColor[" + std::to_string(u) + "]";
+      break;
+    case CombineSource::kPrimaryColor:
+      src = "ff_color";
+      break;
+    case CombineSource::kPrevious:
+    case CombineSource::kOther:
+      src = "color";
+      break;
+  }
+  switch (a.operand) {
+    case CombineOperand::kSrcColor:
+      return alpha ? src + ".a" : src + ".rgb";
+    case CombineOperand::kOneMinusSrcColor:
+      return alpha ? "(1.0 - " + src + ".a)" : "(1.0 - " + src + ".rgb)";
+    case CombineOperand::kSrcAlpha:
+      return alpha ? src + ".a" : "vec3(" + src + ".a)";
+    case CombineOperand::kOneMinusSrcAlpha:
+    case CombineOperand::kOther:
+      break;
+  }
+  return alpha ? "(1.0 - " + src + ".a)" : "vec3(1.0 - " + src + ".a)";
+}
+
+/// The combiner function `fn` of arguments `args` (GL 2.1 compatibility,
+/// table 3.21), unscaled and unclamped.
+std::string combine_expr(CombineFunc fn, const std::array<CombineArg, 3>& args, int u, bool alpha) {
+  const std::string a0 = combine_operand_expr(args[0], u, alpha);
+  auto arg = [&](int i) { return combine_operand_expr(args[size_t(i)], u, alpha); };
+  switch (fn) {
+    case CombineFunc::kReplace:
+    case CombineFunc::kOther:
+      return a0;
+    case CombineFunc::kModulate:
+      return a0 + " * " + arg(1);
+    case CombineFunc::kAdd:
+      return a0 + " + " + arg(1);
+    case CombineFunc::kAddSigned:
+      return a0 + " + " + arg(1) + " - 0.5";
+    case CombineFunc::kInterpolate:
+      return a0 + " * " + arg(2) + " + " + arg(1) + " * (1.0 - " + arg(2) + ")";
+    case CombineFunc::kSubtract:
+      return a0 + " - " + arg(1);
+    case CombineFunc::kDot3Rgb:
+    case CombineFunc::kDot3Rgba:
+      // 4 x ((Arg0r - 0.5) x (Arg1r - 0.5) + ... g ... + ... b ...), the RGB arguments.
+      return "4.0 * dot(" + combine_operand_expr(args[0], u, false) + " - 0.5, " +
+             combine_operand_expr(args[1], u, false) + " - 0.5)";
+  }
+  return a0;
+}
+
+/// Unit u's GL_COMBINE environment on `color`: the RGB and ALPHA functions
+/// of the previous colour, each multiplied by its scale and clamped to
+/// [0, 1]; DOT3_RGB writes its dot product to R, G and B, DOT3_RGBA to all
+/// four components (COMBINE_ALPHA is ignored; ALPHA_SCALE still applies).
+void emit_texture_combine(const TextureUnitState& t, int u, std::string& f) {
+  const CombineState& c = t.combine;
+  const std::string n = std::to_string(u);
+  const bool dot3 = c.rgb == CombineFunc::kDot3Rgb || c.rgb == CombineFunc::kDot3Rgba;
+  f += "  // unit " + n + ": GL_COMBINE, RGB " + combine_func_name(c.rgb) + " x " + std::to_string(c.rgb_scale) +
+       ", ALPHA " + (c.rgb == CombineFunc::kDot3Rgba ? "DOT3_RGBA" : combine_func_name(c.alpha)) + " x " +
+       std::to_string(c.alpha_scale) + ", " + base_name(t.base) + " texture\n";
+  // Both are computed from the previous colour before either is written.
+  if (dot3) {
+    f += "  float dot" + n + " = " + combine_expr(c.rgb, c.rgb_args, u, false) + ";\n";
+    f += "  vec3 rgb" + n + " = vec3(dot" + n + ");\n";
+  } else {
+    f += "  vec3 rgb" + n + " = " + combine_expr(c.rgb, c.rgb_args, u, false) + ";\n";
+  }
+  if (c.rgb == CombineFunc::kDot3Rgba)
+    f += "  float alpha" + n + " = dot" + n + ";\n";
+  else
+    f += "  float alpha" + n + " = " + combine_expr(c.alpha, c.alpha_args, u, true) + ";\n";
+  auto scaled = [](const std::string& v, uint8_t scale) {
+    return scale == 1 ? v : v + " * " + glsl_float(float(scale == 0 ? 1 : scale));
+  };
+  f += "  color = vec4(clamp(" + scaled("rgb" + n, c.rgb_scale) + ", 0.0, 1.0), clamp(" +
+       scaled("alpha" + n, c.alpha_scale) + ", 0.0, 1.0));\n";
 }
 
 }  // namespace
@@ -591,8 +860,20 @@ GlslProgram fixed_function_program(const FixedFunctionState& s) {
   // Fragment shader body.
   f += "void main() {\n";
   f += "  vec4 color = ff_color;\n";
-  for (int u = 0; u < FixedFunctionState::kUnits; ++u)
-    if (s.units[size_t(u)].active()) emit_texture_env(s.units[size_t(u)], u, f);
+  // Every enabled unit's texel first: a GL_COMBINE source may read another unit's.
+  for (int u = 0; u < FixedFunctionState::kUnits; ++u) {
+    if (!s.units[size_t(u)].active()) continue;
+    const std::string n = std::to_string(u);
+    f += "  vec4 t" + n + " = textureProj(ff_texture" + n + ", ff_texcoord" + n + ");\n";
+  }
+  for (int u = 0; u < FixedFunctionState::kUnits; ++u) {
+    const TextureUnitState& t = s.units[size_t(u)];
+    if (!t.active()) continue;
+    if (t.env == TexEnvMode::kCombine)
+      emit_texture_combine(t, u, f);
+    else
+      emit_texture_env(t, u, f);
+  }
   if (secondary) f += "  color.rgb = min(color.rgb + ff_secondary.rgb, 1.0);\n";
   if (s.fog) {
     switch (s.fog_mode) {

@@ -53,6 +53,65 @@ enum class TexBaseFormat : uint8_t { kAlpha, kLuminance, kLuminanceAlpha, kInten
 /// GL_TEXTURE_ENV_MODE. kOther: a mode this module does not name.
 enum class TexEnvMode : uint8_t { kModulate, kReplace, kDecal, kAdd, kBlend, kCombine, kOther };
 
+/// GL_COMBINE_RGB / GL_COMBINE_ALPHA: the texture function of a GL_COMBINE
+/// environment (GL 2.1 compatibility, table 3.21). DOT3_RGB and DOT3_RGBA are
+/// valid for the RGB function only. kOther: a function this module does not
+/// name (EXT_texture_env_dot3's DOT3_RGB_EXT / DOT3_RGBA_EXT, the ATI
+/// MODULATE_ADD / MODULATE_SIGNED_ADD / MODULATE_SUBTRACT functions).
+enum class CombineFunc : uint8_t {
+  kReplace,
+  kModulate,
+  kAdd,
+  kAddSigned,
+  kInterpolate,
+  kSubtract,
+  kDot3Rgb,
+  kDot3Rgba,
+  kOther
+};
+
+/// GL_SRCn_RGB / GL_SRCn_ALPHA: where an argument of the combiner comes from.
+/// kTextureUnit is GL_TEXTUREi of the crossbar (the unit in
+/// CombineArg::unit) for a unit other than the environment's own; GL_TEXTUREi
+/// of the own unit reads as kTexture. kOther: a source this module does not
+/// name (ATI_texture_env_combine3's GL_ZERO and GL_ONE).
+enum class CombineSource : uint8_t { kTexture, kTextureUnit, kConstant, kPrimaryColor, kPrevious, kOther };
+
+/// GL_OPERANDn_RGB / GL_OPERANDn_ALPHA: which components of the source, and
+/// whether they are complemented (the ALPHA arguments take only kSrcAlpha and
+/// kOneMinusSrcAlpha). kOther: any other value.
+enum class CombineOperand : uint8_t { kSrcColor, kOneMinusSrcColor, kSrcAlpha, kOneMinusSrcAlpha, kOther };
+
+/// One argument of the combiner function (Arg0, Arg1 or Arg2).
+struct CombineArg {
+  CombineSource source = CombineSource::kTexture;
+  uint8_t unit = 0;  ///< the texture unit of a kTextureUnit source (0 otherwise)
+  CombineOperand operand = CombineOperand::kSrcColor;
+  bool operator==(const CombineArg& o) const { return source == o.source && unit == o.unit && operand == o.operand; }
+  bool operator!=(const CombineArg& o) const { return !(*this == o); }
+};
+
+/// The GL_COMBINE texture environment of a unit (ARB_texture_env_combine,
+/// ARB_texture_env_dot3, ARB_texture_env_crossbar as in GL 1.4). The defaults
+/// are GL's initial values. Canonical: the arguments a function does not read
+/// (REPLACE reads Arg0, INTERPOLATE Arg0..2, the others Arg0 and Arg1) and,
+/// under DOT3_RGBA, the whole ALPHA function and its arguments keep their
+/// initial values.
+struct CombineState {
+  CombineFunc rgb = CombineFunc::kModulate;    ///< GL_COMBINE_RGB
+  CombineFunc alpha = CombineFunc::kModulate;  ///< GL_COMBINE_ALPHA
+  std::array<CombineArg, 3> rgb_args{{{CombineSource::kTexture, 0, CombineOperand::kSrcColor},
+                                      {CombineSource::kPrevious, 0, CombineOperand::kSrcColor},
+                                      {CombineSource::kConstant, 0, CombineOperand::kSrcAlpha}}};
+  std::array<CombineArg, 3> alpha_args{{{CombineSource::kTexture, 0, CombineOperand::kSrcAlpha},
+                                        {CombineSource::kPrevious, 0, CombineOperand::kSrcAlpha},
+                                        {CombineSource::kConstant, 0, CombineOperand::kSrcAlpha}}};
+  /// GL_RGB_SCALE and GL_ALPHA_SCALE: 1, 2 or 4 (0: another value, unsupported)
+  uint8_t rgb_scale = 1, alpha_scale = 1;
+  bool operator==(const CombineState& o) const;
+  bool operator!=(const CombineState& o) const { return !(*this == o); }
+};
+
 /// One fixed-function texture unit (0 or 1). A unit that is not `active()`
 /// contributes nothing, and its other fields are left at their defaults.
 struct TextureUnitState {
@@ -60,6 +119,7 @@ struct TextureUnitState {
   bool complete = false;                      ///< the target's texture has its images (else FF skips the unit)
   TexBaseFormat base = TexBaseFormat::kRgba;  ///< base format of the texture's base level
   TexEnvMode env = TexEnvMode::kModulate;     ///< GL_TEXTURE_ENV_MODE
+  CombineState combine{};                     ///< the GL_COMBINE state (defaults unless env is kCombine)
   bool texgen = false;                        ///< any of GL_TEXTURE_GEN_S/T/R/Q enabled
   bool lod_bias = false;                      ///< GL_TEXTURE_LOD_BIAS of GL_TEXTURE_FILTER_CONTROL is not 0
   bool active() const { return target != TexTarget::kNone && complete; }
@@ -152,8 +212,7 @@ FixedFunctionState read_fixed_function_state(const GlGetters& gl);
 
 /// "" when the state is inside the supported subset; else the first
 /// unsupported feature in a fixed order, e.g. "texture unit 2 enabled",
-/// "GL_COMBINE texture environment on unit 0", "glTexGen on unit 1",
-/// "two-sided lighting".
+/// "glTexGen on texture unit 1", "two-sided lighting (GL_LIGHT_MODEL_TWO_SIDE)".
 std::string unsupported_reason(const FixedFunctionState& s);
 
 /// A vertex and fragment shader pair (GLSL 4.50 compatibility).
