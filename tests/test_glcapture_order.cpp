@@ -341,7 +341,9 @@ TEST(GlslRewrite, InterpolatedInputsAreReadAtThePixelCentre) {
   EXPECT_LT(s.find("ropsim_c_uv = ropsim_moved"), s.find("  ropsim_app_main();"));
   // What follows `in vec2 uv;` on its line (shader line 2) is numbered 2
   // again, and `noperspective in vec3 n;` keeps its line 3.
-  EXPECT_NE(s.find("#define uv ropsim_c_uv\n#line 2\n\nnoperspective in vec3 n;"), std::string::npos) << s;
+  EXPECT_NE(s.find("#define uv ropsim_c_uv\n#define ropsim_has_uv\n#line 2\n\nnoperspective in vec3 n;"),
+            std::string::npos)
+      << s;
   // No interpolated input: nothing added but the uniform.
   const Rewritten plain =
       instrument_fragment_shader("flat in int k;\nvoid main() { gl_FragColor = vec4(k); }", GlslProfile::kCore, 3);
@@ -349,38 +351,40 @@ TEST(GlslRewrite, InterpolatedInputsAreReadAtThePixelCentre) {
   EXPECT_EQ(plain.source.find("ropsim_q"), std::string::npos) << plain.source;
 }
 
-TEST(GlslRewrite, InputsUnderPreprocessorBranchesAreReadAtTheCentreOnlyWhereTheBranchIsCertain) {
+TEST(GlslRewrite, AnInputUnderAPreprocessorBranchIsFilledOnlyWhereTheBranchKeepsIt) {
   // Minetest's node shader declares its texture coordinate once for GLSL ES
-  // and once, centroid, for desktop GL: the GLSL ES line is never compiled
-  // here, so it gets no copy (which would be undeclared), and the centroid
-  // one is left as it is. A branch that is certain (#ifndef GL_ES, #if 1, a
-  // macro the shader defines) is read at the centre; one that depends on what
-  // the rewrite cannot know (an extension macro) is left as it is.
+  // and once, centroid, for desktop GL; OpenArena's under `#if
+  // defined(USE_LIGHT)`. Each copy is declared beside its input, with
+  // `#define ropsim_has_NAME`, so it exists only where the preprocessor keeps
+  // the declaration, and the wrapper fills it under `#ifdef ropsim_has_NAME`:
+  // a copy in a branch that is not compiled is never filled (it would be
+  // undeclared).
   const std::string fs =
-      "#version 120\n#define USE_FOG\n"
+      "#version 120\n"
       "#ifdef GL_ES\nvarying mediump vec2 varTexCoord;\n#else\ncentroid varying vec2 varTexCoord;\n#endif\n"
-      "#ifndef GL_ES\nvarying vec3 eyeVec;\n#endif\n"
-      "#if 1\nvarying float fogDepth;\n#endif\n"
-      "#if 0\nvarying vec4 never;\n#endif\n"
-      "#ifdef USE_FOG\nvarying vec3 fogColour;\n#else\nvarying vec3 noFog;\n#endif\n"
-      "#ifdef GL_ARB_something\nvarying vec2 maybe;\n#endif\n"
+      "#if defined(USE_LIGHT)\nvarying vec3 var_Normal;\n#endif\n"
       "uniform sampler2D t;\n"
-      "void main() { gl_FragColor = texture2D(t, varTexCoord) + vec4(eyeVec + fogColour, fogDepth); }\n";
+      "void main() { gl_FragColor = texture2D(t, varTexCoord);\n"
+      "#if defined(USE_LIGHT)\n  gl_FragColor.rgb *= var_Normal;\n#endif\n}\n";
   const Rewritten r = instrument_fragment_shader(fs, GlslProfile::kCompatibility, 3);
   ASSERT_EQ(r.error, "");
   const std::string& s = r.source;
-  for (const char* want :
-       {"#define eyeVec ropsim_c_eyeVec", "#define fogDepth ropsim_c_fogDepth", "#define fogColour ropsim_c_fogColour"})
-    EXPECT_NE(s.find(want), std::string::npos) << want << " in\n" << s;
-  for (const char* not_there : {"ropsim_c_varTexCoord", "ropsim_c_never", "ropsim_c_noFog", "ropsim_c_maybe"})
-    EXPECT_EQ(s.find(not_there), std::string::npos) << not_there << " in\n" << s;
-  // In a core-profile source GL_compatibility_profile is not defined.
-  const Rewritten core = instrument_fragment_shader(
-      "#version 450\n#ifdef GL_compatibility_profile\nin vec2 a;\n#else\nin vec2 b;\n#endif\nout vec4 o;\n"
-      "void main() { o = vec4(b, 0.0, 1.0); }\n",
-      GlslProfile::kCore, 3);
-  EXPECT_NE(core.source.find("#define b ropsim_c_b"), std::string::npos) << core.source;
-  EXPECT_EQ(core.source.find("ropsim_c_a"), std::string::npos) << core.source;
+  for (const char* name : {"varTexCoord", "var_Normal"}) {
+    const std::string n = name;
+    // The copy, its #define and its guard, inside the declaration's branch.
+    const size_t decl = s.find("varying " + std::string(n == "varTexCoord" ? "mediump vec2 " : "vec3 ") + n + ";");
+    const size_t copy = s.find(" ropsim_c_" + n + ";\n#define " + n + " ropsim_c_" + n + "\n#define ropsim_has_" + n);
+    ASSERT_NE(decl, std::string::npos) << n << " in\n" << s;
+    ASSERT_NE(copy, std::string::npos) << n << " in\n" << s;
+    EXPECT_LT(decl, copy) << n;
+    EXPECT_LT(copy, s.find("#endif", decl)) << n << ": the copy is in the declaration's branch";
+    // The fill, guarded.
+    EXPECT_NE(s.find("#ifdef ropsim_has_" + n + "\n  ropsim_c_" + n + " = ropsim_moved ? "), std::string::npos)
+        << n << " in\n"
+        << s;
+  }
+  // The centroid declaration is left as it is.
+  EXPECT_NE(s.find("centroid varying vec2 varTexCoord;\n#endif"), std::string::npos) << s;
 }
 
 }  // namespace

@@ -73,81 +73,6 @@ bool uses(const std::string& s, const char* name) {
   return std::regex_search(s, re);
 }
 
-/// Per line of s (0-based), whether the line is compiled for certain: every
-/// enclosing #if/#ifdef/#ifndef/#elif/#else branch is known to be taken.
-/// Known: #ifdef/#ifndef of GL_ES (never defined in desktop GLSL 4.50), of
-/// GL_core_profile and GL_compatibility_profile (the profile the source is
-/// compiled in), and of a macro the source #defines or #undefs before;
-/// `#if 0`, `#if 1`. Anything else (an extension macro, an expression) is
-/// unknown, and the lines under it are not certain.
-std::vector<char> certain_lines(const std::string& s, GlslProfile profile) {
-  enum State : char { kFalse, kTrue, kUnknown };
-  struct Level {
-    State branch;  ///< the current branch
-    bool taken;    ///< an earlier branch of this #if was known taken
-    bool unknown;  ///< an earlier branch was unknown
-  };
-  std::vector<Level> stack;
-  std::vector<std::string> defined = {profile == GlslProfile::kCompatibility ? "GL_compatibility_profile"
-                                                                             : "GL_core_profile"};
-  std::vector<std::string> undefined = {
-      "GL_ES", profile == GlslProfile::kCompatibility ? "GL_core_profile" : "GL_compatibility_profile"};
-  auto certain = [&] {
-    return std::all_of(stack.begin(), stack.end(), [](const Level& l) { return l.branch == kTrue; });
-  };
-  auto known = [&](const std::string& name) -> State {
-    if (std::find(defined.begin(), defined.end(), name) != defined.end()) return kTrue;
-    if (std::find(undefined.begin(), undefined.end(), name) != undefined.end()) return kFalse;
-    return kUnknown;
-  };
-  auto set = [](std::vector<std::string>& add, std::vector<std::string>& remove, const std::string& name) {
-    remove.erase(std::remove(remove.begin(), remove.end(), name), remove.end());
-    if (std::find(add.begin(), add.end(), name) == add.end()) add.push_back(name);
-  };
-  static const std::regex kDirective(R"(^[ \t]*#[ \t]*([a-z]+)[ \t]*([A-Za-z0-9_]*))");
-  std::vector<char> out;
-  size_t start = 0;
-  while (start <= s.size()) {
-    size_t end = s.find('\n', start);
-    if (end == std::string::npos) end = s.size();
-    const std::string line = s.substr(start, end - start);
-    std::smatch m;
-    bool directive_line = std::regex_search(line, m, kDirective);
-    out.push_back(certain() ? 1 : 0);
-    if (directive_line) {
-      const std::string d = m[1].str(), name = m[2].str();
-      if (d == "ifdef" || d == "ifndef") {
-        State k = known(name);
-        if (d == "ifndef" && k != kUnknown) k = k == kTrue ? kFalse : kTrue;
-        stack.push_back({k, k == kTrue, k == kUnknown});
-      } else if (d == "if") {
-        const State k = name == "0"                                                                      ? kFalse
-                        : name == "1" && line.find_first_not_of(" \t", m.length(0)) == std::string::npos ? kTrue
-                                                                                                         : kUnknown;
-        stack.push_back({k, k == kTrue, k == kUnknown});
-      } else if (d == "elif" && !stack.empty()) {
-        Level& l = stack.back();
-        l.unknown = l.unknown || l.branch == kUnknown;
-        l.taken = l.taken || l.branch == kTrue;
-        l.branch = l.taken ? kFalse : kUnknown;
-      } else if (d == "else" && !stack.empty()) {
-        Level& l = stack.back();
-        l.unknown = l.unknown || l.branch == kUnknown;
-        l.taken = l.taken || l.branch == kTrue;
-        l.branch = l.taken ? kFalse : l.unknown ? kUnknown : kTrue;
-      } else if (d == "endif" && !stack.empty()) {
-        stack.pop_back();
-      } else if (d == "define" && !name.empty() && certain()) {
-        set(defined, undefined, name);
-      } else if (d == "undef" && !name.empty() && certain()) {
-        set(undefined, defined, name);
-      }
-    }
-    start = end + 1;
-  }
-  return out;
-}
-
 /// A fragment-shader input that the wrapper reads at the pixel centre.
 struct CentreInput {
   std::string type, name;
@@ -160,16 +85,15 @@ struct CentreInput {
 /// global copy `ropsim_c_NAME` and a #define that sends the shader's reads
 /// to it (a #line after keeps the application's line numbers). Returns the
 /// inputs; the wrapper's main fills each copy with interpolateAtOffset(NAME,
-/// ropsim_pixel_offset) after #undef-ing it. Flat, centroid and sample
-/// inputs, arrays, blocks, GL's built-in inputs and declarations under a
-/// preprocessor branch that is not certain to be compiled (certain_lines)
-/// are left as they are.
-std::vector<CentreInput> centre_inputs(std::string& s, GlslProfile profile) {
+/// ropsim_pixel_offset) after #undef-ing it, where #define ropsim_has_NAME
+/// says the preprocessor kept the declaration (a declaration under an #if
+/// branch that is not compiled has no copy). Flat, centroid and sample
+/// inputs, arrays, blocks and GL's built-in inputs are left as they are.
+std::vector<CentreInput> centre_inputs(std::string& s) {
   static const std::regex kIn(
       R"((layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
       R"((float|vec2|vec3|vec4)\s+([A-Za-z_][A-Za-z0-9_]*)\s*;)");
   const std::string g = global_scope(s);
-  const std::vector<char> certain = certain_lines(s, profile);
   struct Hit {
     size_t end;
     CentreInput in;
@@ -184,17 +108,16 @@ std::vector<CentreInput> centre_inputs(std::string& s, GlslProfile profile) {
     if (k > 0 && g[k - 1] != '\n' && g[k - 1] != ';' && g[k - 1] != '}') continue;
     const std::string name = m[8].str();
     if (name.compare(0, 3, "gl_") == 0 || name.compare(0, 7, "ropsim_") == 0) continue;
-    // A declaration under a preprocessor branch that may not be compiled
-    // (`#ifdef GL_ES ... #else centroid varying ... #endif`) is left as it is.
-    const size_t line = size_t(std::count(g.begin(), g.begin() + m.position(0), '\n'));
-    if (line >= certain.size() || !certain[line]) continue;
     hits.push_back({size_t(m.position(0) + m.length(0)), {m[7].str(), name, m[3].str() != "noperspective"}});
   }
   std::vector<CentreInput> inputs;
   for (auto h = hits.rbegin(); h != hits.rend(); ++h) {
     const size_t line = size_t(std::count(s.begin(), s.begin() + std::ptrdiff_t(h->end), '\n')) + 1;
+    // ropsim_has_NAME: the copy exists where the preprocessor keeps the
+    // declaration (one under `#ifdef GL_ES` is not compiled here), and the
+    // wrapper fills it only then.
     s.insert(h->end, "\n" + h->in.type + " ropsim_c_" + h->in.name + ";\n#define " + h->in.name + " ropsim_c_" +
-                         h->in.name + "\n#line " + std::to_string(line) + "\n");
+                         h->in.name + "\n#define ropsim_has_" + h->in.name + "\n#line " + std::to_string(line) + "\n");
     inputs.push_back(h->in);
   }
   return inputs;
@@ -337,16 +260,16 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
   const std::string color = fragment_color_expression(s);
   const int mains = rename_main(s);
   if (mains == 0) return {s, ""};
-  const auto inputs = centre_inputs(s, profile);
+  const auto inputs = centre_inputs(s);
   const auto [builtin_undefs, builtin_fills] = centre_builtin_inputs(s);
   s += builtin_undefs;
   std::string centre = builtin_fills;
   for (const CentreInput& in : inputs) {
     s += "\n#undef " + in.name;
-    centre += "  ropsim_c_" + in.name + " = ropsim_moved ? " +
+    centre += "#ifdef ropsim_has_" + in.name + "\n  ropsim_c_" + in.name + " = ropsim_moved ? " +
               (in.perspective ? "ropsim_at_offset(" + in.name + " * ropsim_q) / ropsim_q_at"
                               : "ropsim_at_offset(" + in.name + ")") +
-              " : " + in.name + ";\n";
+              " : " + in.name + ";\n#endif\n";
   }
   // An input at the pixel centre, ropsim_pixel_offset from where the pass
   // shades, from its derivatives: exact for what is affine in window

@@ -127,10 +127,14 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
               to == std::string::npos ? std::string::npos : to - (from == std::string::npos ? 0 : from + 1));
         }
         while (!reason.empty() && (reason.back() == '\n' || reason.back() == ' ')) reason.pop_back();
-        // The first profile's reason (compatibility: every source's first try).
+        // The first profile's reason (compatibility: every source's first
+        // try), and the core profile's where it says something else (a
+        // source that only compiles as core fails there for its own reason).
         if (log.empty())
           log = std::string("the instrumented ") + (s.type == GL_VERTEX_SHADER ? "vertex" : "fragment") +
                 " shader does not compile: " + reason;
+        else if (log.find(reason) == std::string::npos)
+          log += "; as GLSL 4.50 core: " + reason;
         ok = false;
         break;
       }
