@@ -383,6 +383,13 @@ TEST(GlslRewrite, AnInputUnderAPreprocessorBranchIsFilledOnlyWhereTheBranchKeeps
         << n << " in\n"
         << s;
   }
+  // An input that nothing reads gets no copy: the wrapper's read would make
+  // it used, and it may have no vertex output to link with.
+  const Rewritten unused = instrument_fragment_shader(
+      "#version 150\nin vec3 var_ColorAmbient;\nin vec2 uv;\nout vec4 o;\nvoid main() { o = vec4(uv, 0.0, 1.0); }\n",
+      GlslProfile::kCompatibility, 3);
+  EXPECT_EQ(unused.source.find("ropsim_c_var_ColorAmbient"), std::string::npos) << unused.source;
+  EXPECT_NE(unused.source.find("#define uv ropsim_c_uv"), std::string::npos) << unused.source;
   // The centroid declaration is left as it is.
   EXPECT_NE(s.find("centroid varying vec2 varTexCoord;\n#endif"), std::string::npos) << s;
 }

@@ -88,7 +88,8 @@ struct CentreInput {
 /// ropsim_pixel_offset) after #undef-ing it, where #define ropsim_has_NAME
 /// says the preprocessor kept the declaration (a declaration under an #if
 /// branch that is not compiled has no copy). Flat, centroid and sample
-/// inputs, arrays, blocks and GL's built-in inputs are left as they are.
+/// inputs, arrays, blocks, GL's built-in inputs and inputs the shader never
+/// names outside their declaration are left as they are.
 std::vector<CentreInput> centre_inputs(std::string& s) {
   static const std::regex kIn(
       R"((layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
@@ -99,6 +100,13 @@ std::vector<CentreInput> centre_inputs(std::string& s) {
     CentreInput in;
   };
   std::vector<Hit> hits;
+  // The source without its input declarations: an input that it never
+  // names is not read at the centre (the wrapper's read would be a static
+  // use, and a declared input that the vertex shader does not write links
+  // only while nothing uses it, as OpenArena's var_ColorAmbient).
+  std::string rest = s;
+  for (auto it = std::sregex_iterator(g.begin(), g.end(), kIn); it != std::sregex_iterator(); ++it)
+    std::fill(rest.begin() + it->position(0), rest.begin() + it->position(0) + it->length(0), ' ');
   for (auto it = std::sregex_iterator(g.begin(), g.end(), kIn); it != std::sregex_iterator(); ++it) {
     const std::smatch& m = *it;
     // A declaration of its own: what comes before it on its line is
@@ -108,6 +116,7 @@ std::vector<CentreInput> centre_inputs(std::string& s) {
     if (k > 0 && g[k - 1] != '\n' && g[k - 1] != ';' && g[k - 1] != '}') continue;
     const std::string name = m[8].str();
     if (name.compare(0, 3, "gl_") == 0 || name.compare(0, 7, "ropsim_") == 0) continue;
+    if (!uses(rest, name.c_str())) continue;
     hits.push_back({size_t(m.position(0) + m.length(0)), {m[7].str(), name, m[3].str() != "noperspective"}});
   }
   std::vector<CentreInput> inputs;
