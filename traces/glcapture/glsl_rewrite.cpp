@@ -90,7 +90,7 @@ struct CentreInput {
 /// branch that is not compiled has no copy). Flat, centroid and sample
 /// inputs, arrays, blocks, GL's built-in inputs and inputs the shader never
 /// names outside their declaration are left as they are.
-std::vector<CentreInput> centre_inputs(std::string& s) {
+std::vector<CentreInput> centre_inputs(std::string& s, const std::vector<std::string>& as_is) {
   static const std::regex kIn(
       R"((layout\s*\([^)]*\)\s*)?((smooth|noperspective)\s+)?(in|varying)\s+((highp|mediump|lowp)\s+)?)"
       R"((float|vec2|vec3|vec4)\s+([A-Za-z_][A-Za-z0-9_]*)\s*;)");
@@ -117,6 +117,7 @@ std::vector<CentreInput> centre_inputs(std::string& s) {
     const std::string name = m[8].str();
     if (name.compare(0, 3, "gl_") == 0 || name.compare(0, 7, "ropsim_") == 0) continue;
     if (!uses(rest, name.c_str())) continue;
+    if (std::find(as_is.begin(), as_is.end(), name) != as_is.end()) continue;
     hits.push_back({size_t(m.position(0) + m.length(0)), {m[7].str(), name, m[3].str() != "noperspective"}});
   }
   std::vector<CentreInput> inputs;
@@ -264,12 +265,13 @@ Rewritten instrument_vertex_shader(const std::string& src, GlslProfile profile) 
   return {s, ""};
 }
 
-Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding) {
+Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding,
+                                     const std::vector<std::string>& as_is) {
   std::string s = set_version(strip_comments(src), profile);
   const std::string color = fragment_color_expression(s);
   const int mains = rename_main(s);
   if (mains == 0) return {s, ""};
-  const auto inputs = centre_inputs(s);
+  const auto inputs = centre_inputs(s, as_is);
   const auto [builtin_undefs, builtin_fills] = centre_builtin_inputs(s);
   s += builtin_undefs;
   std::string centre = builtin_fills;

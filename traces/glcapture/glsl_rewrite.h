@@ -5,6 +5,7 @@
 // storage buffer. Plain text in, plain text out: no GL calls here.
 #pragma once
 #include <string>
+#include <vector>
 
 namespace ropsim::glcapture {
 
@@ -50,6 +51,9 @@ std::string fragment_color_expression(const std::string& stripped_src);
 /// written, the count goes on past it so that an overflow is seen). An
 /// invocation that discards appends nothing; helper invocations append
 /// nothing.
-Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding);
+/// as_is: inputs not to read at the pixel centre (the library's retry for an
+/// input whose centre read fails to link: see instrumented_program.cpp).
+Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding,
+                                     const std::vector<std::string>& as_is = {});
 
 }  // namespace ropsim::glcapture

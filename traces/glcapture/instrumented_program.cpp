@@ -71,37 +71,20 @@ UniformShape uniform_shape(GLenum type) {
   }
 }
 
-void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
-                        Instrumented& ins) {
+namespace {
+
+/// One attempt at the instrumented program, with the inputs in as_is read as
+/// the shader reads them; unmatched: the input a failed link names, if any.
+void build_once(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
+                const std::vector<std::string>& as_is, Instrumented& ins, std::string& unmatched) {
   const GlFunctions& g = real_gl();
-  bool vertex = false, fragment = false;
-  for (const ShaderSource& s : src) {
-    if (s.type == GL_VERTEX_SHADER)
-      vertex = true;
-    else if (s.type == GL_FRAGMENT_SHADER)
-      fragment = true;
-    else {
-      ins.error = who + ": its " +
-                  std::string(s.type == GL_GEOMETRY_SHADER  ? "geometry"
-                              : s.type == GL_COMPUTE_SHADER ? "compute"
-                                                            : "tessellation") +
-                  " shader cannot be instrumented (vertex and fragment shaders only)";
-      return;
-    }
-  }
-  if (!vertex || !fragment) {
-    ins.error = who + (src.empty() ? ": its shader sources are unknown (no shader attached when it was linked)"
-                                   : ": it has no " + std::string(vertex ? "fragment" : "vertex") +
-                                         " shader (the capture instruments both)");
-    return;
-  }
   std::string log;
   for (GlslProfile profile : {GlslProfile::kCompatibility, GlslProfile::kCore}) {
     std::vector<GLuint> shaders;
     bool ok = true;
     for (const ShaderSource& s : src) {
       const Rewritten r = s.type == GL_VERTEX_SHADER ? instrument_vertex_shader(s.source, profile)
-                                                     : instrument_fragment_shader(s.source, profile, binding);
+                                                     : instrument_fragment_shader(s.source, profile, binding, as_is);
       if (!r.error.empty()) {
         ins.error = who + ": " + r.error;
         for (GLuint sh : shaders) g.DeleteShader(sh);
@@ -162,6 +145,11 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
         char buf[1024] = {};
         g.GetProgramInfoLog(q, sizeof buf, nullptr, buf);
         log = std::string("the instrumented program does not link: ") + buf;
+        // Mesa: "fragment shader input `NAME' has no matching output in the previous stage".
+        const std::string text = buf;
+        const size_t a = text.find("input `"), b = a == std::string::npos ? a : text.find('\'', a + 7);
+        if (b != std::string::npos && text.find("no matching output") != std::string::npos)
+          unmatched = text.substr(a + 7, b - a - 7);
         g.DeleteProgram(q);
       }
     }
@@ -222,6 +210,48 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
     g.GetProgramResourceName(program, GL_SHADER_STORAGE_BLOCK, GLuint(i), sizeof name, nullptr, name);
     const GLuint j = g.GetProgramResourceIndex(q, GL_SHADER_STORAGE_BLOCK, name);
     if (j != GL_INVALID_INDEX) ins.storage_blocks.push_back({GLuint(i), j});
+  }
+}
+
+}  // namespace
+
+void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
+                        Instrumented& ins) {
+  bool vertex = false, fragment = false;
+  for (const ShaderSource& s : src) {
+    if (s.type == GL_VERTEX_SHADER)
+      vertex = true;
+    else if (s.type == GL_FRAGMENT_SHADER)
+      fragment = true;
+    else {
+      ins.error = who + ": its " +
+                  std::string(s.type == GL_GEOMETRY_SHADER  ? "geometry"
+                              : s.type == GL_COMPUTE_SHADER ? "compute"
+                                                            : "tessellation") +
+                  " shader cannot be instrumented (vertex and fragment shaders only)";
+      return;
+    }
+  }
+  if (!vertex || !fragment) {
+    ins.error = who + (src.empty() ? ": its shader sources are unknown (no shader attached when it was linked)"
+                                   : ": it has no " + std::string(vertex ? "fragment" : "vertex") +
+                                         " shader (the capture instruments both)");
+    return;
+  }
+  // An input the fragment shader names only under a preprocessor branch it
+  // does not compile (OpenArena's var_ColorAmbient) and that the vertex
+  // shader does not write: the wrapper's centre read makes it used, and the
+  // link fails naming it; it is then read as the shader reads it, and the
+  // program built again.
+  std::vector<std::string> as_is;
+  for (;;) {
+    std::string unmatched;
+    build_once(program, src, who, binding, as_is, ins, unmatched);
+    if (ins.program || unmatched.empty() || std::find(as_is.begin(), as_is.end(), unmatched) != as_is.end() ||
+        as_is.size() >= 32)
+      break;
+    as_is.push_back(unmatched);
+    ins.error.clear();
   }
 }
 
