@@ -354,6 +354,35 @@ TEST(DrawRoutes, ASrcOverDrawWithItsDepthTestOffIsNeverHidden) {
   }
 }
 
+TEST(DrawRoutes, AnOpaqueDrawAfterASrcOverDrawWithItsDepthTestOffHidesIt) {
+  // A sky: a src-over draw at alpha 1 near the eye with its depth test off,
+  // drawn first; then an opaque draw behind it over the left half. The
+  // opaque draw replaces the sky where it covers (as blend does), and the sky
+  // shows elsewhere: in every method and in the A-buffer reference, which
+  // hides a fragment that tests no depth where an opaque one drawn after it
+  // wrote the sample.
+  const TargetEncoding e = TargetEncoding::kFloat;
+  DrawState sky = src_over(0, e);
+  sky.depth_test = false;
+  const TraceHeader h = header(4, 2, 16, {sky, opaque_draw(1, e)});
+  std::vector<Fragment> f;
+  rect(f, 0, 0, 0, 4, 2, 0.1f, {0.3f, 0.6f, 0.9f, 1.0f}, 16);
+  rect(f, 1, 0, 0, 2, 2, 0.9f, {0.8f, 0.2f, 0.1f, 1.0f}, 16);
+  std::vector<Method> methods = kSinglePass;
+  methods.push_back(Method::kReference);
+  methods.push_back(Method::kBlend);
+  const std::array<float, 3> opaque = {0.8f, 0.2f, 0.1f}, sky_colour = {0.3f, 0.6f, 0.9f};
+  for (Method m : methods) {
+    const Image img = run(h, f, m)->resolve();
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(img.at(1, 1)[c], opaque[size_t(c)], 1e-3)
+          << to_string(m) << " channel " << c << ": the opaque draw after the sky replaces it";
+      EXPECT_NEAR(img.at(3, 1)[c], sky_colour[size_t(c)], 1e-3)
+          << to_string(m) << " channel " << c << ": the sky shows where nothing is drawn after it";
+    }
+  }
+}
+
 TEST(DrawRoutes, OverAPrepassAcAndDepthMarkTheirWrittenSamplesOutsideTheDepthBuffer) {
   // Over a pre-pass the depth buffer holds the opaque draw's depth, which
   // the stochastic pass overwrites: +ac writes its colour as (c, 1) into

@@ -347,6 +347,16 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
         if (mark) target_store(fmt.transmittance, px.trans + size_t(i) * sample_bytes(fmt.transmittance), 0, 0.0f);
     }
   };
+  // A src-over draw with its depth test off writes no depth (as GL: no
+  // depth writes without the test): a colour method's samples keep their
+  // depth, so an opaque draw after it (a sky drawn first) replaces it.
+  [[maybe_unused]] float kept_depth[64];
+  [[maybe_unused]] bool keep_depth = false;
+  if constexpr (kColor && !kMayAccum && !kMayMark && M != Method::kSlab)
+    if (s_.draw_states && !w.draw->depth_test) {
+      keep_depth = true;
+      std::copy(px.depth, px.depth + s_.spp, kept_depth);
+    }
   if constexpr (M == Method::kSlab) {  // insert the layer; no per-sample write
     const int at = slab_insert(*px.slab, s_.cfg.slab_layers, w.slab.z, w.slab.mask, rgb16);
     w.slab.kept = at < s_.cfg.slab_layers;
@@ -405,8 +415,11 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     if constexpr (M == Method::kOpaque) c_.samples_opacity_passed += w.m;
   }
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
+  if constexpr (kColor && !kMayAccum && !kMayMark && M != Method::kSlab)
+    if (keep_depth)
+      for (uint64_t s = wrote; s; s &= s - 1) px.depth[__builtin_ctzll(s)] = kept_depth[__builtin_ctzll(s)];
   c_.samples_written += n;
-  c_.depth_bytes_written += kDepthSampleBytes * n;
+  c_.depth_bytes_written += keep_depth ? 0 : kDepthSampleBytes * n;
   if constexpr (kMayAccum) {
     if (to_accum)
       c_.target_bytes_written += uint64_t(sample_bytes(fmt.accum)) * n;
@@ -418,7 +431,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   if constexpr (kMayMark)
     if (mark) c_.target_bytes_written += uint64_t(sample_bytes(fmt.transmittance)) * n;
   w.written = wrote;
-  w.depth_written = wrote;
+  w.depth_written = keep_depth ? 0 : wrote;
   return examined;
 }
 

@@ -223,9 +223,19 @@ Counters ReferenceModel::counters() const {
   return c;
 }
 
+ReferenceModel::HeadTile& ReferenceModel::head_tile(uint32_t x, uint32_t y) {
+  return heads_.get(x, y, [this](uint32_t, uint32_t) {
+    mem_.add(sizeof(HeadTile), "the A-buffer reference's fragment lists");
+    auto ht = std::make_unique<HeadTile>();
+    ht->head.fill(-1);
+    return ht;
+  });
+}
+
 void ReferenceModel::draw(const Fragment& f) {
   std::array<float, 3> rgb = f.rgb;
   bool depth_test = true;
+  const uint32_t order = ++order_;
   if (setup_.draw_states) {
     const DrawState& d = header_.draws.at(f.draw_id);
     depth_test = d.depth_test;
@@ -235,6 +245,19 @@ void ReferenceModel::draw(const Fragment& f) {
       FragWork w;
       w.f = &f;
       base_->process(w);
+      // An opaque fragment hides a src-over fragment drawn before it with its
+      // depth test off (a sky drawn first, a compositor's shadow under a
+      // window drawn after it): the samples whose colour it wrote, and when.
+      if (k == DrawKind::kOpaque && w.written) {
+        HeadTile& t = head_tile(f.x, f.y);
+        const size_t spp = size_t(header_.spp);
+        if (!t.opaque_order) {
+          t.opaque_order = std::make_unique<uint32_t[]>(64 * spp);
+          mem_.add(64 * spp * sizeof(uint32_t), "the A-buffer reference's opaque write order");
+        }
+        uint32_t* o = t.opaque_order.get() + size_t(pixel_in_tile(f.x, f.y)) * spp;
+        for (uint64_t m = w.written; m; m &= m - 1) o[__builtin_ctzll(m)] = order;
+      }
       return;
     }
     rgb = transparent_rgb(d, f.rgb, f.alpha);
@@ -242,12 +265,7 @@ void ReferenceModel::draw(const Fragment& f) {
   ++counters_.fragments;
   const int covered = __builtin_popcountll(f.coverage);
   counters_.samples_tested += covered;
-  HeadTile& t = heads_.get(f.x, f.y, [this](uint32_t, uint32_t) {
-    mem_.add(sizeof(HeadTile), "the A-buffer reference's fragment lists");
-    auto ht = std::make_unique<HeadTile>();
-    ht->head.fill(-1);
-    return ht;
-  });
+  HeadTile& t = head_tile(f.x, f.y);
   int64_t& head = t.head[pixel_in_tile(f.x, f.y)];
   Entry e;
   e.coverage = f.coverage;
@@ -257,6 +275,7 @@ void ReferenceModel::draw(const Fragment& f) {
   e.seq = head < 0 ? 0 : entries_[size_t(head)].seq + 1;
   e.next = head;
   e.depth_test = depth_test;
+  e.order = order;
   float z[64];
   setup_.sample_depths(f, f.coverage, z);
   grow_for(z_, size_t(covered), mem_);
@@ -302,11 +321,15 @@ Image ReferenceModel::resolve() const {
       for (int s = 0; s < spp; ++s) {
         auto& L = layers[s];
         // Behind the colour buffer's depth: hidden, as the methods' depth test
-        // (LESS_EQUAL) hides it (not a fragment whose draw tests no depth).
+        // (LESS_EQUAL) hides it. A fragment whose draw tests no depth is
+        // hidden where an opaque fragment drawn after it wrote the sample.
         double bg[3] = {clear[0], clear[1], clear[2]};
         if (base_) {
           const float zb = bv.depth ? bv.depth[s] : clear_z;
-          L.erase(std::remove_if(L.begin(), L.end(), [zb](const Layer& l) { return l.e->depth_test && !(l.z <= zb); }),
+          const uint32_t after = t.opaque_order ? t.opaque_order[size_t(p) * size_t(spp) + size_t(s)] : 0;
+          L.erase(std::remove_if(
+                      L.begin(), L.end(),
+                      [zb, after](const Layer& l) { return l.e->depth_test ? !(l.z <= zb) : after > l.e->order; }),
                   L.end());
           if (bv.rgb)
             for (int ch = 0; ch < 3; ++ch) bg[ch] = half_to_float(bv.rgb[3 * s + ch]);

@@ -156,11 +156,18 @@ class ReferenceModel : public FunctionalModel {
     float alpha;
     uint32_t seq;            // API order within the pixel's list
     int64_t next;            // previous entry of the same pixel, -1 at the end
-    bool depth_test = true;  // its draw's depth test is on (off: never hidden by the colour buffer's depth)
+    bool depth_test = true;  // its draw's depth test is on (off: hidden only by opaque fragments drawn after it)
+    uint32_t order = 0;      // its place in the frame's submission order (1, 2, ...)
   };
   struct HeadTile {
     std::array<int64_t, 64> head;
+    /// Per pixel and sample (pixel-major): the submission order of the last
+    /// opaque fragment that wrote the sample's colour, 0 for none; made at
+    /// the tile's first such write.
+    std::unique_ptr<uint32_t[]> opaque_order;
   };
+  uint32_t order_ = 0;  // fragments drawn so far
+  HeadTile& head_tile(uint32_t x, uint32_t y);
   TileMap<HeadTile> heads_;
   std::vector<Entry> entries_;
   std::vector<float> z_;
