@@ -1,11 +1,12 @@
 #!/usr/bin/python3
 """The real-application-frames tables and figure of docs/results.md, from a study folder.
 
-usage: real_frames.py DIR [--spp S] [--markdown OUT] [--plot PNG]
+usage: real_frames.py DIR [DIR...] [--spp S] [--markdown OUT] [--plot PNG]
 
 DIR is the folder of `ropsim study run studies/real-frames.toml` (any study
-whose methods include blend and whose inputs are frames of draw states). It
-writes, in Markdown (to OUT, else standard output):
+whose methods include blend and whose inputs are frames of draw states);
+several folders are read as one (a study run in parts: the same axes, other
+inputs). It writes, in Markdown (to OUT, else standard output):
   1. the frames: draws by kind, covered samples, the transparent share of the
      covered samples and of the screen, the transparent depth complexity;
   2. per frame and design at spp S (default 16): each method's RMSE against
@@ -168,14 +169,19 @@ def main(argv):
             return 2
         else:
             pos.append(a)
-    if len(pos) != 1:
+    if not pos:
         print(__doc__.strip(), file=sys.stderr)
         return 2
-    try:
-        _, _, df, params = sr.load(pos[0])
-    except sr.StudyError as e:
-        print(f"real_frames: error: {pos[0]}: {e}", file=sys.stderr)
-        return 1
+    frames, params = [], []
+    for d in pos:
+        try:
+            _, _, df, ps = sr.load(d)
+        except sr.StudyError as e:
+            print(f"real_frames: error: {d}: {e}", file=sys.stderr)
+            return 1
+        frames.append(df)
+        params += [p for p in ps if p not in params]
+    df = pd.concat(frames, ignore_index=True, sort=False)
     m, _ = sr.against_blend_frame(df, params)
     if m is None or m.empty:
         print(f"real_frames: error: {pos[0]}: no method has a blend point to compare with", file=sys.stderr)
