@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """The real-application-frames tables and figure of docs/results.md, from a study folder.
 
-usage: real_frames.py DIR [DIR...] [--spp S] [--markdown OUT] [--plot PNG]
+usage: real_frames.py DIR [DIR...] [--spp S] [--design NAME] [--methods M,M,...]
+                      [--markdown OUT] [--plot PNG]
 
 DIR is the folder of `ropsim study run studies/real-frames.toml` (any study
 whose methods include blend and whose inputs are frames of draw states);
@@ -15,7 +16,9 @@ inputs). It writes, in Markdown (to OUT, else standard output):
   3. the answer: per frame and design, the marginal cost of lk, enderton and
      hashed-a2c over blend (cycles and DRAM bytes less blend's, at each spp)
      and the spp at which each reaches blend's RMSE;
-and with --plot, one panel per frame: RMSE against DRAM bytes (read +
+--design keeps the points of one design (its file's stem, e.g. current-gpu)
+in the tables, --methods the methods listed (blend is always kept); the
+plot shows every design and method. With --plot, one panel per frame: RMSE against DRAM bytes (read +
 written) of every method and spp, one marker per design, with the Pareto
 front of each design.
 
@@ -158,7 +161,7 @@ def plot(m, path):
 
 def main(argv):
     args = argv[1:]
-    opts = {"--spp": "16", "--markdown": None, "--plot": None}
+    opts = {"--spp": "16", "--markdown": None, "--plot": None, "--design": None, "--methods": None}
     pos = []
     while args:
         a = args.pop(0)
@@ -186,8 +189,18 @@ def main(argv):
     if m is None or m.empty:
         print(f"real_frames: error: {pos[0]}: no method has a blend point to compare with", file=sys.stderr)
         return 1
+    t = m
+    if opts["--design"] and "design" in t.columns:
+        t = t[t["design"].map(design_name) == opts["--design"]]
+    if opts["--methods"]:
+        keep = {"blend"} | set(opts["--methods"].split(","))
+        t = t[t["method"].astype(str).isin(keep)]
+    if t.empty:
+        print(f"real_frames: error: {pos[0]}: no point of design {opts['--design']} and methods {opts['--methods']}",
+              file=sys.stderr)
+        return 1
     text = ("### The frames\n\n" + frames_table(df) + f"\n### Every method against blend at {opts['--spp']} spp\n\n"
-            + methods_table(m, float(opts["--spp"])) + "\n### The marginal cost over blend\n\n" + answer_table(m))
+            + methods_table(t, float(opts["--spp"])) + "\n### The marginal cost over blend\n\n" + answer_table(t))
     if opts["--markdown"]:
         sr.write_atomically(opts["--markdown"], text)
     else:
