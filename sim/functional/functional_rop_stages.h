@@ -350,9 +350,10 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   // A src-over draw with its depth test off writes no depth (as GL: no
   // depth writes without the test): a colour method's samples keep their
   // depth, so an opaque draw after it (a sky drawn first) replaces it.
+  constexpr bool kMayKeepDepth = kColor && !kMayAccum && !kMayMark && M != Method::kSlab;
   [[maybe_unused]] float kept_depth[64];
   [[maybe_unused]] bool keep_depth = false;
-  if constexpr (kColor && !kMayAccum && !kMayMark && M != Method::kSlab)
+  if constexpr (kMayKeepDepth)
     if (s_.draw_states && !w.draw->depth_test) {
       keep_depth = true;
       std::copy(px.depth, px.depth + s_.spp, kept_depth);
@@ -415,7 +416,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     if constexpr (M == Method::kOpaque) c_.samples_opacity_passed += w.m;
   }
   const uint32_t n = uint32_t(__builtin_popcountll(wrote));
-  if constexpr (kColor && !kMayAccum && !kMayMark && M != Method::kSlab)
+  if constexpr (kMayKeepDepth)
     if (keep_depth)
       for (uint64_t s = wrote; s; s &= s - 1) px.depth[__builtin_ctzll(s)] = kept_depth[__builtin_ctzll(s)];
   c_.samples_written += n;

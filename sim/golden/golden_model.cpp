@@ -208,6 +208,8 @@ MethodConfig reference_config() {
 ReferenceModel::ReferenceModel(const TraceHeader& h)
     : FunctionalModel(h), setup_(h, reference_config()), heads_(h.width, h.height) {
   mem_.add(heads_.directory_bytes(), "the A-buffer reference's tile directory");
+  for (const DrawState& d : h.draws.states())
+    untested_src_over_ = untested_src_over_ || (route_of(draw_kind(d)) == DrawRoute::kMethod && !d.depth_test);
   if (setup_.routed) {
     MethodConfig c;
     c.method = Method::kOpaque;
@@ -248,7 +250,7 @@ void ReferenceModel::draw(const Fragment& f) {
       // An opaque fragment hides a src-over fragment drawn before it with its
       // depth test off (a sky drawn first, a compositor's shadow under a
       // window drawn after it): the samples whose colour it wrote, and when.
-      if (k == DrawKind::kOpaque && w.written) {
+      if (untested_src_over_ && k == DrawKind::kOpaque && w.written) {
         HeadTile& t = head_tile(f.x, f.y);
         const size_t spp = size_t(header_.spp);
         if (!t.opaque_order) {

@@ -167,6 +167,9 @@ class ReferenceModel : public FunctionalModel {
     std::unique_ptr<uint32_t[]> opaque_order;
   };
   uint32_t order_ = 0;  // fragments drawn so far
+  /// A src-over draw of the frame tests no depth: opaque writes are then
+  /// ordered (HeadTile::opaque_order); otherwise nothing needs their order.
+  bool untested_src_over_ = false;
   HeadTile& head_tile(uint32_t x, uint32_t y);
   TileMap<HeadTile> heads_;
   std::vector<Entry> entries_;
