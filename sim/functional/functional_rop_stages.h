@@ -354,7 +354,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   [[maybe_unused]] float kept_depth[64];
   [[maybe_unused]] bool keep_depth = false;
   if constexpr (kMayKeepDepth)
-    if (s_.draw_states && !w.draw->depth_test) {
+    if (__builtin_expect(s_.draw_states && !w.draw->depth_test, 0)) {
       keep_depth = true;
       std::copy(px.depth, px.depth + s_.spp, kept_depth);
     }
@@ -420,7 +420,9 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
     if (keep_depth)
       for (uint64_t s = wrote; s; s &= s - 1) px.depth[__builtin_ctzll(s)] = kept_depth[__builtin_ctzll(s)];
   c_.samples_written += n;
-  c_.depth_bytes_written += keep_depth ? 0 : kDepthSampleBytes * n;
+  c_.depth_bytes_written += kDepthSampleBytes * n;
+  if constexpr (kMayKeepDepth)
+    if (keep_depth) c_.depth_bytes_written -= kDepthSampleBytes * n;
   if constexpr (kMayAccum) {
     if (to_accum)
       c_.target_bytes_written += uint64_t(sample_bytes(fmt.accum)) * n;
@@ -432,7 +434,9 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   if constexpr (kMayMark)
     if (mark) c_.target_bytes_written += uint64_t(sample_bytes(fmt.transmittance)) * n;
   w.written = wrote;
-  w.depth_written = keep_depth ? 0 : wrote;
+  w.depth_written = wrote;
+  if constexpr (kMayKeepDepth)
+    if (keep_depth) w.depth_written = 0;
   return examined;
 }
 
