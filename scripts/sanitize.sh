@@ -39,9 +39,13 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # README's command block (the same verbs, each tested on its own here), and
 # the two digests (value checks over every scene, method and design: the
 # plain suite runs them; the code paths they take run here in the other
+# tests), the Enderton examples (value checks of the golden model, whose code
+# every bit-exact test here runs), the run of every help text's examples (the
+# verbs' code runs here in their own tests) and the report rendered in
+# chromium (chromium's code; the report's writer runs in the other StudyReport
 # tests). The
 # RTL testbenches (RTL.*) are Verilator's and Yosys's code, not ropsim's: the
 # sanitizer build does not build them (tests/CMakeLists.txt), and the
 # pattern keeps them out should a build-asan/ from before have them.
 ctest --output-on-failure -j "$(nproc)" \
-  -E 'RTL\.|TimingDigest|GoldenDigest|BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|Decoupling\.EqualsLockstepExactlyWithCompression|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"
+  -E 'RTL\.|TimingDigest|GoldenDigest|EndertonExamples|Cli\.EveryVerbsHelpHasExamplesThatRun|StudyReport\.ASmallStudysReportIsSelfContainedAndRendersInChromium|BitExact\..*_(narrow|wide)|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|Decoupling\.EqualsLockstepExactlyWithCompression|GoldenThreads\..*/(cloth|smoke|opaque|foliage)$' "$@"

@@ -37,6 +37,7 @@
 #include "hw_config.h"
 #include "livepoint_file.h"
 #include "livepoints.h"
+#include "rasterizer.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
 #include "sim_context.h"
@@ -1076,7 +1077,7 @@ TEST(HwConfigFile, CommittedConfigsLoadAndDifferAndDocsListEveryKey) {
 // The design's digest (default output names) is a fixed function of the
 // resolved values: the same on every machine, different for another design.
 // FNV-1a 64 of the built-in defaults (a change of any default or key changes it).
-constexpr uint64_t kDefaultDesignDigest = 0x9a6259626389df79ull;  // [compression], [hiz] added
+constexpr uint64_t kDefaultDesignDigest = 0x91fce98e08b51c7cull;
 
 TEST(HwConfigFile, DigestIsStableAndSeesEveryKey) {
   EXPECT_EQ(hw_digest_hex(HwConfig{}), hw_digest_hex(load_hw_config(kSource + "/configs/default.toml")));
@@ -2844,6 +2845,119 @@ TEST(Compression, AnAlphaOneLayerCompressesLikeOpaqueAndAnLkHalfLayerNeedsTwoCol
             0u);
 }
 
+namespace {
+
+/// A 64 x 64 opaque height field at 4 spp: a 3 x 3 grid of cells, two
+/// triangles each, over the whole screen, vertices jittered and at random
+/// depths (seed fixed). Its memory tiles hold 1 to 6 primitives.
+std::string height_field_trace(const std::string& name) {
+  TraceHeader h = small_header(4);
+  const std::string path = ::testing::TempDir() + "/" + name + ".rtr";
+  std::mt19937 rng(20261204);
+  std::uniform_real_distribution<double> z(0.2, 0.8), jitter(-4.0, 4.0);
+  const int cells = 3;
+  ScreenVertex v[cells + 1][cells + 1];
+  for (int j = 0; j <= cells; ++j)
+    for (int i = 0; i <= cells; ++i) {
+      const bool edge_x = i == 0 || i == cells, edge_y = j == 0 || j == cells;
+      v[j][i].x = 64.0 * i / cells + (edge_x ? 0.0 : jitter(rng));
+      v[j][i].y = 64.0 * j / cells + (edge_y ? 0.0 : jitter(rng));
+      v[j][i].z = z(rng);
+    }
+  TraceWriter w(path, h);
+  Rasterizer r(h);
+  uint32_t prim = 0;
+  for (int j = 0; j < cells; ++j)
+    for (int i = 0; i < cells; ++i)
+      for (int half = 0; half < 2; ++half) {
+        ScreenTriangle t;
+        t.prim_id = prim++;
+        t.v = half ? std::array<ScreenVertex, 3>{v[j][i], v[j + 1][i + 1], v[j][i + 1]}
+                   : std::array<ScreenVertex, 3>{v[j][i], v[j + 1][i], v[j + 1][i + 1]};
+        r.rasterize(t, [&](const Fragment& f) { w.write(f); });  // either winding (no culling)
+      }
+  w.finish();
+  return path;
+}
+
+}  // namespace
+
+TEST(Compression, ThePlaneEncoderStoresATileInThePlanesOfThePrimitivesItHolds) {
+  // The rasterizer-plane encoder's bytes, computed here from the format
+  // alone: replay the trace's depth test, keep each sample's last writer,
+  // count each memory tile's distinct primitives p (a cleared sample adds
+  // the clear plane), and size the tile as 8 + 96 p + n ceil(log2 p) bits in
+  // the smallest block of U, U/2, U/4, U/8 that holds it (uncompressed past
+  // U/2 or P = 4 planes). At 4 spp (U = 256 B, n = 64) one plane takes 13 B
+  // (U/8), two 33 B and three 53 B (U/4), four 65 B (U/2), five or more U.
+  HwConfig hw = current_gpu();
+  apply_hw_override(hw, "compression.size_classes=4");
+  apply_hw_override(hw, "cache.size_bytes=1048576");  // every line written back once, at the end
+  ASSERT_EQ(hw.compression.depth_encoder, DepthEncoder::kPlane) << "the default encoder";
+  const std::string trace = height_field_trace("height-field");
+  InputSpec in;
+  in.trace_path = trace;
+  const FragmentList list = load_fragments(in);
+  const TraceHeader& h = list.header;
+  std::vector<float> depth(64 * 64 * 4, canonical_depth(h.clear_depth));
+  std::vector<int64_t> writer(depth.size(), -1);
+  for (const Fragment& f : list.fragments) {
+    float z[64];
+    fragment_sample_depths(h, f, z);
+    for (uint64_t m = f.coverage; m; m &= m - 1) {
+      const int s = __builtin_ctzll(m);
+      const size_t i = (size_t(f.y) * 64 + f.x) * 4 + size_t(s);
+      if (z[s] <= depth[i]) {  // the opaque method's depth test (LESS_EQUAL)
+        depth[i] = z[s];
+        writer[i] = int64_t(f.prim_id);
+      }
+    }
+  }
+  uint64_t expected = 0;
+  std::array<uint64_t, 4> per_class{};
+  std::map<size_t, int> tiles_by_planes;
+  for (uint32_t ty = 0; ty < 64; ty += 8)
+    for (uint32_t tx = 0; tx < 64; tx += 8)
+      for (uint32_t rows = 0; rows < 8; rows += 2) {  // a memory tile: two rows of the 8 x 8 tile
+        std::set<int64_t> planes;
+        for (uint32_t y = ty + rows; y < ty + rows + 2; ++y)
+          for (uint32_t x = tx; x < tx + 8; ++x)
+            for (size_t s = 0; s < 4; ++s) planes.insert(writer[(size_t(y) * 64 + x) * 4 + s]);
+        const size_t p = planes.size();
+        ++tiles_by_planes[p];
+        const uint64_t bits = 8 + 96 * p + 64 * uint64_t(p > 1 ? (p > 2 ? (p > 4 ? 3 : 2) : 1) : 0);
+        const uint64_t bytes = (bits + 7) / 8;
+        int c = 0;
+        if (p <= 4)
+          for (int j = 1; j < 4; ++j)
+            if (bytes <= (256u >> j)) c = j;
+        ++per_class[size_t(c)];
+        expected += 256u >> c;
+      }
+  ASSERT_GE(tiles_by_planes.size(), 4u) << "the mesh must give tiles of several plane counts";
+  ASSERT_GT(tiles_by_planes.rbegin()->first, 4u) << "and some tile past P planes";
+  const CompressionStats cs = functional_compressibility(trace, Method::kOpaque, hw);
+  const BufferCompression& d = cs.buffers[size_t(Buffer::kDepth)];
+  EXPECT_EQ(d.tiles, 256u);
+  EXPECT_EQ(d.tiles_cleared, 0u) << "the mesh covers the screen";
+  EXPECT_EQ(d.bytes_uncompressed, 256u * 256);
+  EXPECT_EQ(d.bytes_compressed, expected) << "the functional measure";
+  EXPECT_EQ(d.tiles_per_class, per_class);
+  // The cycle model writes each depth line back once, at the end: its lines
+  // move line_bytes >> class of their tile, so its bytes are the same sum.
+  expect_bit_exact(in, method_config(Method::kOpaque), hw, "height field, plane encoder");
+  const CycleRun run = run_cycle(in, method_config(Method::kOpaque), hw);
+  EXPECT_EQ(run.stats.compression.bytes_written[size_t(Buffer::kDepth)], expected) << "the cycle model's writebacks";
+  // The fit encoder finds its planes in the stored depths, with residuals
+  // where a primitive's depths are not linear in their bit patterns: on
+  // this mesh it needs more bytes, and the images are the same.
+  HwConfig fit = hw;
+  apply_hw_override(fit, "compression.depth_encoder=fit");
+  const BufferCompression& f = functional_compressibility(trace, Method::kOpaque, fit).buffers[size_t(Buffer::kDepth)];
+  EXPECT_GT(f.bytes_compressed, d.bytes_compressed) << "the fit on a mesh of random slopes";
+  expect_bit_exact(in, method_config(Method::kOpaque), fit, "height field, fit encoder");
+}
+
 TEST(HiZ, RejectsFragmentsBehindAFinishedOpaqueTileWithoutReadingDepthAndNeverOneThatPasses) {
   // The two opaque planes (depths in [0.5, 0.81)), written back by a small
   // cache, then a full-screen layer behind everything (z = 0.9): Hi-Z
@@ -2908,7 +3022,8 @@ TEST(BitExactCompression, CurrentGpuDesignMatchesTheGoldenModel) {
   // current-gpu design on two scenes at 4 and 16 spp, and on cloth at 4 spp
   // with a small cache (evictions and fills of compressed lines), match the
   // golden model. (A smaller matrix than BitExact's: tile compression costs
-  // host time, and CI's budget.)
+  // host time, and CI's budget.) The rasterizer-plane encoder (the design's)
+  // throughout, and the fit encoder on cloth.
   HwConfig small = current_gpu();
   apply_hw_override(small, "cache.size_bytes=4096");
   struct Case {
@@ -2917,13 +3032,17 @@ TEST(BitExactCompression, CurrentGpuDesignMatchesTheGoldenModel) {
     int spp;
   };
   const HwConfig gpu = current_gpu();
+  // The fit encoder too (compression is lossless either way).
+  HwConfig fit = small;
+  apply_hw_override(fit, "compression.depth_encoder=fit");
   for (const Case& c : {Case{&gpu, "eight-layers", 4}, Case{&gpu, "eight-layers", 16}, Case{&gpu, "opaque", 4},
-                        Case{&gpu, "opaque", 16}, Case{&small, "cloth", 4}})
+                        Case{&gpu, "opaque", 16}, Case{&small, "cloth", 4}, Case{&fit, "cloth", 4}})
     for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk, Method::kHashed, Method::kHashedA2c,
                      Method::kSlab, Method::kWboit, Method::kLkDepthAc, Method::kEndertonAc})
       expect_bit_exact(scene_input(c.scene, c.spp), m, *c.hw,
                        std::string(c.scene) + " " + std::to_string(c.spp) + " spp " + to_string(m) + " on " +
-                           c.hw->name + " cache " + std::to_string(c.hw->cache.size_bytes));
+                           c.hw->name + " cache " + std::to_string(c.hw->cache.size_bytes) + " " +
+                           to_string(c.hw->compression.depth_encoder) + " encoder");
 }
 
 TEST(CompressionFidelities, SampledAndApproximateRefuseCompressionDesigns) {

@@ -1,10 +1,16 @@
 // Lossless compression of the ROP's depth and MSAA colour surfaces, per
 // memory tile (docs/architecture.md "Surface compression" gives the bit
 // layouts this file implements):
-//   - depth: up to P plane equations in the integer domain of the binary32
-//     bit pattern (monotone for depths in [0, 1]), a per-sample plane
-//     selector and a per-sample signed residual of r bits (r = 0 when the
-//     planes are exact), or the tile uncompressed;
+//   - depth, rasterizer-plane encoder (the default): the planes of the
+//     primitives whose depths the tile holds, as the rasterizer set them up
+//     (the clear value is one more, constant plane), and a per-sample plane
+//     selector; the tile compresses when at most P planes cover it, else it
+//     is stored uncompressed;
+//   - depth, fit encoder (a design option): up to P plane equations fitted to
+//     the stored depths in the integer domain of the binary32 bit pattern
+//     (monotone for depths in [0, 1]), a per-sample plane selector and a
+//     per-sample signed residual of r bits (r = 0 when the planes are exact),
+//     or the tile uncompressed;
 //   - colour: per pixel its k <= K distinct binary16 RGB colours and, when
 //     k > 1, a ceil(log2 K)-bit index per sample, or the tile uncompressed;
 //   - a tile's compressed size is rounded up to one of the block sizes
@@ -27,12 +33,20 @@
 
 namespace ropsim {
 
+/// How a depth tile's planes are found (the design's compression.depth_encoder).
+enum class DepthEncoder : uint8_t {
+  kPlane,  ///< the rasterizer's planes of the primitives the tile holds (a GPU's plane encoder)
+  kFit,    ///< planes fitted to the stored depths (fit_depth_tile)
+};
+inline const char* to_string(DepthEncoder e) { return e == DepthEncoder::kFit ? "fit" : "plane"; }
+
 /// The format parameters (the design's [compression] section, hw_config.h).
 struct CompressionFormat {
   uint32_t tile_pixels = 16;  ///< pixels of a memory tile: 8, 16, 32 or 64 (whole rows of an 8 x 8 tile)
   uint32_t size_classes = 3;  ///< block sizes U, U/2, ..., U/2^(classes-1); 1..4
   uint32_t depth_planes = 4;  ///< P, plane equations per depth tile; 1..8
   uint32_t color_k = 4;       ///< K, distinct colours per pixel; 1..8
+  DepthEncoder depth_encoder = DepthEncoder::kPlane;
 };
 
 /// Which surfaces are compressed (the design's compression.depth and
@@ -42,6 +56,9 @@ struct CompressionSetup {
   bool color = false;
   CompressionFormat format;
   bool any() const { return depth || color; }
+  /// The store keeps each sample's plane key (sample_store.h): the
+  /// rasterizer-plane encoder compresses depth.
+  bool plane_keys() const { return depth && format.depth_encoder == DepthEncoder::kPlane; }
 };
 
 /// Metadata state bits per tile: codes 0 (cleared) and 1 .. classes.
@@ -482,6 +499,51 @@ inline void decode_depth_tile(const std::vector<uint8_t>& bytes, uint32_t pixels
   }
 }
 
+// ------------------------------------------------- depth, rasterizer planes
+
+/// A sample's plane key: the primitive whose depth it holds, as the ROP
+/// receives it from the rasterizer (draw and primitive index; a primitive's
+/// depths all lie on the plane the rasterizer set up for it), or the clear
+/// plane. Keys are compared, never decoded. (Draw 2^32 - 1's primitive
+/// 2^32 - 1 shares the clear plane's key.)
+inline constexpr uint64_t kClearPlaneKey = ~uint64_t{0};
+inline uint64_t plane_key(uint32_t draw_id, uint32_t prim_id) { return uint64_t(draw_id) << 32 | prim_id; }
+
+/// The distinct plane keys of a tile's n samples, up to `most`: returns
+/// their count, or most + 1 as soon as there are more.
+inline uint32_t distinct_planes(const uint64_t* key, uint32_t n, uint32_t most) {
+  uint64_t seen[9];
+  uint32_t count = 0, last = 0;
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint64_t k = key[i];
+    if (count && seen[last] == k) continue;  // runs of one primitive are the common case
+    uint32_t j = 0;
+    while (j < count && seen[j] != k) ++j;
+    if (j == count) {
+      if (count == most) return most + 1;
+      seen[count++] = k;
+    }
+    last = j;
+  }
+  return count;
+}
+
+/// The rasterizer-plane encoding's size in bits of a tile of n samples
+/// covered by p planes (p <= depth_planes): the fit encoder's layout with no
+/// residual (docs/architecture.md) -- header, p planes of kDepthPlaneBits
+/// (the rasterizer's plane: its depth at the tile's corner and its two
+/// gradients, 32 bits each) and a ceil(log2 p)-bit selector per sample.
+inline uint64_t plane_encoding_bits(uint32_t p, uint32_t n) {
+  return kDepthHeaderBits + uint64_t(kDepthPlaneBits) * p + uint64_t(n) * uint64_t(log2_ceil(p));
+}
+
+/// A depth tile's plane keys (pixels * spp, the address map's order).
+struct DepthPlanesIn {
+  const uint64_t* key;
+  uint32_t pixels;
+  int spp;
+};
+
 // ---------------------------------------------------------------- colour
 
 /// A colour tile to compress: pixels * spp samples of `bps` bytes each (the
@@ -623,6 +685,9 @@ inline void decode_color_tile(const std::vector<uint8_t>& in, uint32_t pixels, i
 struct TilePatch {
   uint32_t offset, len;
   const uint8_t* old;
+  /// Depth with plane keys: the replaced samples' keys (len / 4 of them,
+  /// kDepthSampleBytes each in `old`), as bytes; else nullptr.
+  const uint8_t* old_planes = nullptr;
 };
 
 /// A tile's compressed form: its block-size class (0 = uncompressed) and the
@@ -640,6 +705,18 @@ inline TileSize depth_tile_size(const DepthTileIn& t, const CompressionFormat& f
   samples.assign(t);
   const DepthFit fit = best_depth_fit(samples, int(f.depth_planes), smallest_bits);
   const int c = fit.ok ? size_class(ceil_div(fit.bits, uint64_t{8}), U, f) : 0;
+  return {c, U >> c};
+}
+
+/// The rasterizer-plane encoder's size: compressed when at most
+/// depth_planes planes cover the tile (its depths are then exactly the
+/// planes' values at the samples: the ROP wrote each from its primitive's
+/// plane), else uncompressed.
+inline TileSize plane_depth_tile_size(const DepthPlanesIn& t, const CompressionFormat& f) {
+  const uint32_t n = t.pixels * uint32_t(t.spp);
+  const uint64_t U = uint64_t(n) * kDepthSampleBytes;
+  const uint32_t p = distinct_planes(t.key, n, f.depth_planes);
+  const int c = p <= f.depth_planes ? size_class(ceil_div(plane_encoding_bits(p, n), uint64_t{8}), U, f) : 0;
   return {c, U >> c};
 }
 

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <functional>
 #include <initializer_list>
+#include <iterator>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -31,7 +32,7 @@ const char* to_string(Interleave k) { return k == Interleave::kDiagonal ? "diago
 
 namespace {
 
-enum class Kind { kU32, kInt, kReal, kBool, kSorter, kInterleave, kTransFormat, kAccumFormat };
+enum class Kind { kU32, kInt, kReal, kBool, kSorter, kInterleave, kTransFormat, kAccumFormat, kDepthEncoder };
 
 /// The formats a blend target of the kind may have.
 std::vector<TargetFormat> formats_of(Kind k) {
@@ -127,8 +128,8 @@ const std::vector<Param>& params() {
           "extra cycles to close and open a row on a row-buffer miss"),
       U32(dram, interleave_bytes, "bytes", 16, 1u << 20, true, "address interleave granule between channels"),
       {"compression.depth", "-", Kind::kBool, 0, 0, false,
-       "lossless depth compression: per memory tile up to depth_planes plane equations, a per-sample selector and "
-       "residual, else uncompressed",
+       "lossless depth compression: per memory tile up to depth_planes planes (found as depth_encoder says) and a "
+       "per-sample selector, else uncompressed",
        FIELD(compression, depth)},
       {"compression.color", "-", Kind::kBool, 0, 0, false,
        "lossless MSAA colour compression of the colour buffer and the blend targets: per pixel its k <= color_k "
@@ -140,6 +141,10 @@ const std::vector<Param>& params() {
       U32(compression, size_classes, "classes", 1, 4, false,
           "block sizes a tile of U bytes is stored in: U, U/2, ..., U/2^(classes-1) (3: full, 1/2, 1/4)"),
       U32(compression, depth_planes, "planes", 1, 8, false, "most plane equations in a compressed depth tile"),
+      {"compression.depth_encoder", "-", Kind::kDepthEncoder, 0, 0, false,
+       "how a depth tile's planes are found: plane = the rasterizer's planes of the primitives whose samples the "
+       "tile holds (a GPU's plane encoder), fit = planes fitted to the stored depths with residuals",
+       FIELD(compression, depth_encoder)},
       U32(compression, color_k, "colours", 1, 8, false,
           "K: most distinct colours per pixel in a compressed colour tile (index ceil(log2 K) bits a sample)"),
       U32(compression, metadata_cache_bytes, "bytes", 64, 1u << 24, true,
@@ -161,6 +166,93 @@ const std::vector<Param>& params() {
           "width of the per-pixel surface id register, wraps (--surface-id-bits overrides it)"),
   };
   return p;
+}
+
+/// Each parameter's basis for its default: a part, a paper, or "assumption"
+/// (with what it was chosen against). One entry per parameter (hw_params
+/// checks it); generated into docs/config.md and the design files' comments.
+struct Basis {
+  const char* key;
+  const char* basis;
+};
+constexpr Basis kBasis[] = {
+    {"clock.frequency_ghz", "assumption: within current GPUs' core clocks (GeForce RTX 3080: 1.71 GHz boost)"},
+    {"source.fragments_per_clock", "assumption: one 2 x 2 quad a clock from the rasterizer"},
+    {"source.fifo_depth", "assumption"},
+    {"distributor.rop_units", "assumption: one ROP partition per memory channel (dram.channels)"},
+    {"distributor.tile_pixels", "assumption: screen tiles of 16 x 16 pixels, two 8 x 8 memory tiles a side"},
+    {"distributor.interleave", "assumption: diagonal, so a row or column of tiles spreads over every ROP"},
+    {"distributor.fragments_per_clock", "assumption: the source's rate (source.fragments_per_clock)"},
+    {"distributor.latency_cycles", "assumption"},
+    {"distributor.fifo_depth", "assumption"},
+    {"ordering.pixels_in_flight", "assumption"},
+    {"ordering.window", "assumption"},
+    {"ordering.latency_cycles", "assumption"},
+    {"ordering.fifo_depth", "assumption"},
+    {"depth_test.samples_per_clock", "assumption: a 16-spp pixel's samples tested in one clock"},
+    {"depth_test.latency_cycles", "assumption"},
+    {"depth_test.max_outstanding",
+     "assumption: enough misses in flight to cover dram.latency_cycles at the unit's rate"},
+    {"depth_test.fifo_depth", "assumption"},
+    {"tracker.latency_cycles", "paper: Laine & Karras 2011 section 2 (a bitmask and surface-id update per fragment)"},
+    {"tracker.fifo_depth", "assumption"},
+    {"sorter.kind", "paper: Laine & Karras 2011 section 4 (sort by stored depth); Batcher's bitonic network"},
+    {"sorter.fifo_depth", "assumption"},
+    {"alpha_ref.lanes", "assumption: one hash per sample of a 16-spp pixel a clock"},
+    {"alpha_ref.pipeline_depth", "paper: Laine & Karras 2011 Figure 4 (CalcAlphaRef's hash, one stage a round)"},
+    {"alpha_ref.fifo_depth", "assumption"},
+    {"writeback.samples_per_clock", "assumption: a 16-spp pixel written in one clock"},
+    {"writeback.latency_cycles", "assumption"},
+    {"blend.samples_per_clock", "assumption: a 16-spp pixel blended in one clock"},
+    {"blend.latency_cycles", "assumption"},
+    {"blend.transmittance_format",
+     "paper: McGuire & Bavoil 2013 (weighted blended OIT keeps revealage in 8 or 16 bits)"},
+    {"blend.accum_format", "paper: McGuire & Bavoil 2013 (RGBA16F accumulation)"},
+    {"cache.size_bytes", "assumption: 64 KiB a ROP partition"},
+    {"cache.line_bytes", "part: two 32-byte GDDR6 bursts (x16 channel, burst length 16; JEDEC JESD250)"},
+    {"cache.ways", "assumption"},
+    {"cache.hit_latency_cycles", "assumption"},
+    {"cache.fast_clear", "part: current GPUs clear through per-tile state (AMD CMASK / HTILE; Mesa ac_surface.c)"},
+    {"dram.channels", "assumption: 4 x 32 B a clock, 192 GB/s at 1.5 GHz, a mid-range GPU's bandwidth"},
+    {"dram.bytes_per_clock", "assumption: with dram.channels, 192 GB/s at 1.5 GHz"},
+    {"dram.latency_cycles", "assumption: 100 ns at 1.5 GHz, the order of a GPU's DRAM load latency"},
+    {"dram.banks", "part: GDDR6, 16 banks a channel (JEDEC JESD250)"},
+    {"dram.row_bytes", "part: GDDR6, 2 KiB pages (JEDEC JESD250)"},
+    {"dram.row_miss_cycles", "assumption: about tRP + tRCD of GDDR6, 27 ns at 1.5 GHz"},
+    {"dram.interleave_bytes", "assumption: 256 B, four lines a channel before the next"},
+    {"compression.depth",
+     "assumption: off in the uncompressed baseline; current GPUs compress depth "
+     "(configs/current-gpu.toml)"},
+    {"compression.color",
+     "assumption: off in the uncompressed baseline; current GPUs compress MSAA colour "
+     "(configs/current-gpu.toml)"},
+    {"compression.tile_pixels", "assumption: 1 KiB of depth at 16 spp, in the range of the references' tiles"},
+    {"compression.size_classes",
+     "part: AMD delta colour compression stores a 256 B block in 64, 128 or 256 B (Mesa ac_surface.c)"},
+    {"compression.depth_planes", "paper: Hasselgren & Akenine-Moeller 2006 (2 to 4 planes a tile)"},
+    {"compression.depth_encoder",
+     "paper: Hasselgren & Akenine-Moeller 2006 (plane encoding: the rasterizer's planes, no fitting)"},
+    {"compression.color_k", "part: AMD FMASK keeps up to 4 fragments a pixel in 4x EQAA and 8x modes (Mesa radeonsi)"},
+    {"compression.metadata_cache_bytes", "assumption (no public figure)"},
+    {"compression.compress_latency_cycles", "assumption (no public figure), small against dram.latency_cycles"},
+    {"compression.decompress_latency_cycles", "assumption (no public figure), small against dram.latency_cycles"},
+    {"hiz.enable",
+     "assumption: off in the uncompressed baseline; current GPUs keep per-tile depth bounds "
+     "(AMD HTILE; configs/current-gpu.toml)"},
+    {"numerics.hash_bits", "paper: Laine & Karras 2011 Figure 4 (32-bit hash)"},
+    {"numerics.alpha_bits", "assumption: a binary32 opacity's precision (docs/numerics.md measures narrower)"},
+    {"numerics.surface_id_bits", "paper: Laine & Karras 2011 section 2 (a per-pixel surface id; 32 bits never wraps)"},
+};
+
+const char* basis_of(const char* key) {
+  const char* found = nullptr;
+  for (const Basis& b : kBasis)
+    if (std::string(b.key) == key) {
+      if (found) throw std::logic_error(std::string("parameter ") + key + " has two bases");
+      found = b.basis;
+    }
+  if (!found) throw std::logic_error(std::string("parameter ") + key + " has no basis");
+  return found;
 }
 
 const Param* find_param(const std::string& key) {
@@ -209,6 +301,9 @@ std::string value_to_string(const Param& p, HwConfig& c) {
     case Kind::kInterleave:
       os << '"' << to_string(*static_cast<Interleave*>(f)) << '"';
       break;
+    case Kind::kDepthEncoder:
+      os << '"' << to_string(*static_cast<DepthEncoder*>(f)) << '"';
+      break;
     case Kind::kTransFormat:
     case Kind::kAccumFormat:
       os << '"' << to_string(*static_cast<TargetFormat*>(f)) << '"';
@@ -242,6 +337,9 @@ std::string range_of(const Param& p) {
       break;
     case Kind::kInterleave:
       os << "diagonal, row";
+      break;
+    case Kind::kDepthEncoder:
+      os << "plane, fit";
       break;
     case Kind::kTransFormat:
     case Kind::kAccumFormat: {
@@ -284,6 +382,12 @@ void set_name(const Param& p, HwConfig& c, const std::string& s, const std::stri
         *static_cast<SorterKind*>(p.field(c)) = k;
         return;
       }
+  } else if (p.kind == Kind::kDepthEncoder) {
+    for (DepthEncoder k : {DepthEncoder::kPlane, DepthEncoder::kFit})
+      if (s == to_string(k)) {
+        *static_cast<DepthEncoder*>(p.field(c)) = k;
+        return;
+      }
   } else {
     for (Interleave k : {Interleave::kDiagonal, Interleave::kRow})
       if (s == to_string(k)) {
@@ -300,7 +404,9 @@ const std::vector<ParamInfo>& hw_params() {
   static const std::vector<ParamInfo> v = [] {
     std::vector<ParamInfo> r;
     HwConfig def;
-    for (const auto& p : params()) r.push_back({p.key, p.unit, p.meaning, range_of(p), value_to_string(p, def)});
+    for (const auto& p : params())
+      r.push_back({p.key, p.unit, p.meaning, range_of(p), value_to_string(p, def), basis_of(p.key)});
+    if (r.size() != std::size(kBasis)) throw std::logic_error("a basis names no parameter");
     return r;
   }();
   return v;
@@ -356,6 +462,7 @@ HwConfig read_hw_text(const std::string& text, const std::string& path) {
         case Kind::kInterleave:
         case Kind::kTransFormat:
         case Kind::kAccumFormat:
+        case Kind::kDepthEncoder:
           if (!v.is_string()) fail(path, key, "must be a string (" + range_of(*p) + ")");
           set_name(*p, c, v.as_string()->get(), at);
           break;
@@ -476,7 +583,7 @@ void validate_hw_config(const HwConfig& c) {
 }
 
 std::string hw_config_to_toml(const HwConfig& cfg) {
-  HwConfig c = cfg;
+  HwConfig c = cfg, def;
   std::ostringstream os;
   std::string sec;
   for (const auto& p : params()) {
@@ -485,7 +592,11 @@ std::string hw_config_to_toml(const HwConfig& cfg) {
       os << (sec.empty() ? "" : "\n") << "[" << s << "]\n";
       sec = s;
     }
-    os << key.substr(s.size() + 1) << " = " << value_to_string(p, c) << "  # " << p.unit << ": " << p.meaning << "\n";
+    const std::string v = value_to_string(p, c);
+    os << key.substr(s.size() + 1) << " = " << v << "  # " << p.unit << ": " << p.meaning;
+    // A default value says what it rests on (a changed one is the file's to explain).
+    if (v == value_to_string(p, def)) os << " [" << basis_of(p.key) << "]";
+    os << "\n";
   }
   return os.str();
 }
@@ -516,6 +627,9 @@ void for_each_hw_value(const HwConfig& cfg, const std::function<void(const Param
       case Kind::kInterleave:
         v = std::string(to_string(*static_cast<Interleave*>(f)));
         break;
+      case Kind::kDepthEncoder:
+        v = std::string(to_string(*static_cast<DepthEncoder*>(f)));
+        break;
       case Kind::kTransFormat:
       case Kind::kAccumFormat:
         v = std::string(to_string(*static_cast<TargetFormat*>(f)));
@@ -545,10 +659,10 @@ std::string hw_digest_hex(const HwConfig& cfg) {
 
 std::string hw_params_markdown() {
   std::ostringstream os;
-  os << "| key | unit | default | range | meaning |\n|---|---|---|---|---|\n";
+  os << "| key | unit | default | range | meaning | basis of the default |\n|---|---|---|---|---|---|\n";
   for (const auto& p : hw_params())
     os << "| `" << p.key << "` | " << p.unit << " | " << p.default_value << " | " << p.range << " | " << p.meaning
-       << " |\n";
+       << " | " << p.basis << " |\n";
   return os.str();
 }
 

@@ -100,13 +100,15 @@ struct HwConfig {
     uint32_t tile_pixels = 16;
     uint32_t size_classes = 3;
     uint32_t depth_planes = 4;
+    DepthEncoder depth_encoder = DepthEncoder::kPlane;
     uint32_t color_k = 4;
     uint32_t metadata_cache_bytes = 4096;
     uint32_t compress_latency_cycles = 8;
     uint32_t decompress_latency_cycles = 8;
     bool any() const { return depth || color; }
     CompressionSetup setup() const {
-      return CompressionSetup{depth, color, CompressionFormat{tile_pixels, size_classes, depth_planes, color_k}};
+      return CompressionSetup{depth, color,
+                              CompressionFormat{tile_pixels, size_classes, depth_planes, color_k, depth_encoder}};
     }
   } compression;
   /// Hierarchical Z: per memory tile (compression.tile_pixels) the farthest
@@ -137,6 +139,7 @@ struct ParamInfo {
   std::string meaning;  ///< one line
   std::string range;    ///< allowed values, human-readable
   std::string default_value;
+  std::string basis;  ///< what the default rests on: "part: ...", "paper: ..." or "assumption..."
 };
 const std::vector<ParamInfo>& hw_params();
 

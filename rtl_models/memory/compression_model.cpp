@@ -91,13 +91,14 @@ TileInfo CompressionModel::view(Buffer b, uint64_t tile, bool size) {
   if (pending_count_[size_t(b)][tile])  // newest first
     for (size_t i = pending_.size(); i-- > 0;) {
       const Pending& p = pending_[i];
-      if (!p.applied && p.b == b && p.tile == tile) patches_.push_back(TilePatch{p.offset, p.len, &bytes_[p.at]});
+      if (!p.applied && p.b == b && p.tile == tile)
+        patches_.push_back(TilePatch{p.offset, p.len, &bytes_[p.at], p.plane_len ? &bytes_[p.at + p.len] : nullptr});
     }
   return src_->tile(b, tile, size, patches_.data(), patches_.size());
 }
 
-uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes,
-                                const uint8_t* old) {
+uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes, const uint8_t* old,
+                                const uint64_t* old_planes) {
   // The pixel's bytes in the line, and their tile (a pixel lies in one memory tile).
   const uint64_t lo = std::max(line, pixel_addr), hi = std::min(line + line_bytes_, pixel_addr + pixel_bytes);
   const uint64_t tile = tile_of(pixel_addr, b);
@@ -110,7 +111,13 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
   }
   const size_t at = bytes_.size();
   bytes_.insert(bytes_.end(), old + (lo - pixel_addr), old + (hi - pixel_addr));
-  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), uint32_t(hi - lo), tile, at});
+  uint32_t plane_len = 0;
+  if (old_planes) {  // the same samples' keys (depth: kDepthSampleBytes a sample)
+    const uint8_t* k = reinterpret_cast<const uint8_t*>(old_planes + (lo - pixel_addr) / kDepthSampleBytes);
+    plane_len = uint32_t((hi - lo) / kDepthSampleBytes * sizeof(uint64_t));
+    bytes_.insert(bytes_.end(), k, k + plane_len);
+  }
+  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), uint32_t(hi - lo), tile, at, plane_len});
   ++pending_count_[size_t(b)][tile];
   // Ids count modulo 2^32 - 1, so that none is kNoPatch.
   return uint32_t((first_id_ + pending_.size() - 1) % kNoPatch);
@@ -123,7 +130,7 @@ void CompressionModel::applied(uint32_t id) {
   p.applied = true;
   --pending_count_[size_t(p.b)][p.tile];
   while (!pending_.empty() && pending_.front().applied) {
-    bytes_head_ = pending_.front().at + pending_.front().len;
+    bytes_head_ = pending_.front().at + pending_.front().len + pending_.front().plane_len;
     pending_.pop_front();
     ++first_id_;
   }

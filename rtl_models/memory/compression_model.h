@@ -97,9 +97,11 @@ class CompressionModel {
   static constexpr uint32_t kNoPatch = ~uint32_t{0};
   /// A write of `line` posted to a cache (not yet applied), whose functional
   /// write replaced the pixel's bytes [pixel_addr, pixel_addr + pixel_bytes)
-  /// (addresses of the address map) that were `old`: records the part in the
-  /// line; returns its id for applied().
-  uint32_t pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes, const uint8_t* old);
+  /// (addresses of the address map) that were `old`, and for depth the
+  /// samples' plane keys `old_planes` (nullptr: not kept): records the part
+  /// in the line; returns its id for applied().
+  uint32_t pend(uint64_t line, Buffer b, uint64_t pixel_addr, uint32_t pixel_bytes, const uint8_t* old,
+                const uint64_t* old_planes = nullptr);
   /// The cache applied the posted write `id` (its bytes are now the cache's).
   void applied(uint32_t id);
   /// The first line and the number of lines of the tile holding line.
@@ -164,7 +166,8 @@ class CompressionModel {
     bool applied;
     uint32_t offset, len;  // in the memory tile
     uint64_t tile;
-    size_t at;  // in bytes_
+    size_t at;           // in bytes_: len replaced bytes, then the plane keys' bytes
+    uint32_t plane_len;  // bytes of replaced plane keys (0: none)
   };
   std::deque<Pending> pending_;
   uint64_t first_id_ = 0;

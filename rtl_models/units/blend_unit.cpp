@@ -17,7 +17,7 @@ uint32_t BlendUnit::process(FragToken* t, uint64_t now) {
     if (pass_blends_transmittance(p))
       trans.take(cm, amap_, rop_.setup().bytes, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);
     if (pass_blends_accum(p)) accum.take(cm, amap_, rop_.setup().bytes, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
-    if (fb) depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
+    if (fb) depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth, t->px.plane);
   }
   const uint32_t n = run_stage(rop_.blend(), *t);
   const Owner o = t->owner();

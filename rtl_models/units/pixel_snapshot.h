@@ -1,7 +1,8 @@
 // What a unit's functional write replaces in a surface the compressor tracks
 // (compression_model.h): the pixel's bytes as memory holds them
 // (surface_bytes.h), taken before the write, and the part of them each
-// posted line write carries as its patch.
+// posted line write carries as its patch; for depth, with the samples' plane
+// keys when the store keeps them (the rasterizer-plane encoder).
 #pragma once
 #include <array>
 #include <cstdint>
@@ -16,11 +17,14 @@ namespace ropsim {
 class PixelSnapshot {
  public:
   /// Takes the pixel's bytes of surface b when cm tracks it (ptr: the
-  /// functional store's bytes of the pixel in b; sb: how memory holds them).
+  /// functional store's bytes of the pixel in b; sb: how memory holds them;
+  /// planes: depth's plane keys, spp of them, or nullptr).
   void take(CompressionModel* cm, const AddressMap& amap, const SurfaceBytes& sb, Buffer b, uint32_t x, uint32_t y,
-            const void* ptr) {
+            const void* ptr, const uint64_t* planes = nullptr) {
     cm_ = cm && cm->tracks(b) ? cm : nullptr;
     if (!cm_) return;
+    has_planes_ = planes != nullptr;
+    if (planes) std::memcpy(planes_.data(), planes, amap.pixel_bytes(b) / kDepthSampleBytes * sizeof(uint64_t));
     b_ = b;
     addr_ = amap.pixel_address(b, x, y);
     bytes_ = amap.pixel_bytes(b);
@@ -31,7 +35,8 @@ class PixelSnapshot {
   }
   /// The patch of a posted write of `line` (CompressionModel::kNoPatch when untracked).
   uint32_t patch(uint64_t line) const {
-    return cm_ ? cm_->pend(line, b_, addr_, bytes_, old_.data()) : CompressionModel::kNoPatch;
+    return cm_ ? cm_->pend(line, b_, addr_, bytes_, old_.data(), has_planes_ ? planes_.data() : nullptr)
+               : CompressionModel::kNoPatch;
   }
 
  private:
@@ -40,6 +45,8 @@ class PixelSnapshot {
   uint64_t addr_ = 0;
   uint32_t bytes_ = 0;
   std::array<uint8_t, 64 * 16> old_;  // 64 samples of at most 16 bytes (RGBA32F)
+  bool has_planes_ = false;
+  std::array<uint64_t, 64> planes_;
 };
 
 }  // namespace ropsim

@@ -20,7 +20,7 @@ uint32_t Writeback::process(FragToken* t, uint64_t now) {
   const bool mark = own && stochastic_marks_transmittance(m, prepass);
   PixelSnapshot depth, rgb, target;
   if (CompressionModel* cm = cache_.compression()) {
-    depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth);
+    depth.take(cm, amap_, rop_.setup().bytes, Buffer::kDepth, t->f->x, t->f->y, t->px.depth, t->px.plane);
     if (color) rgb.take(cm, amap_, rop_.setup().bytes, Buffer::kColor, t->f->x, t->f->y, t->px.rgb);
     if (accum) target.take(cm, amap_, rop_.setup().bytes, Buffer::kAccum, t->f->x, t->f->y, t->px.accum);
     if (mark) target.take(cm, amap_, rop_.setup().bytes, Buffer::kTransmittance, t->f->x, t->f->y, t->px.trans);

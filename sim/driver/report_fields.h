@@ -96,6 +96,8 @@ inline void put_compressibility(Fields f, const CompressionStats& cs, const Comp
   f.put("tile_pixels", fm.tile_pixels, "pixels", "pixels of a memory tile (all their samples)");
   f.put("size_classes", fm.size_classes, "classes", "block sizes U, U/2, ... a tile is stored in");
   f.put("depth_planes", fm.depth_planes, "planes", "most plane equations in a depth tile");
+  f.put("depth_encoder", to_string(fm.depth_encoder), "-",
+        "how a depth tile's planes are found: plane (the rasterizer's) or fit (fitted to the depths)");
   f.put("color_k", fm.color_k, "colours", "K, most distinct colours per pixel");
   f.put("metadata_bits", metadata_bits(fm), "bits", "state bits per memory tile");
   f.empty_array("buffers");

@@ -51,9 +51,10 @@ struct ClearTile {
 };
 
 /// The memory tile of pixels [first, first + tile_pixels) in surface b,
-/// whose bytes as memory holds them are `data`; clear: a cleared tile.
-TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8_t* data, const SampleTile& clear,
-                   Buffer b, uint32_t first, const CompressionFormat& f, bool size = true) {
+/// whose bytes as memory holds them are `data` (depth: its samples' plane
+/// keys `planes`, nullptr unless the store keeps them); clear: a cleared tile.
+TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8_t* data, const uint64_t* planes,
+                   const SampleTile& clear, Buffer b, uint32_t first, const CompressionFormat& f, bool size = true) {
   TileState st;
   const uint32_t spp = uint32_t(store.header().spp), bps = sb.of(b);
   const size_t len = size_t(f.tile_pixels) * spp * bps;
@@ -67,7 +68,10 @@ TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8
     st.cleared = true;
     return st;
   }
-  if (b == Buffer::kDepth) {
+  if (b == Buffer::kDepth && f.depth_encoder == DepthEncoder::kPlane) {
+    if (!planes) throw std::logic_error("the rasterizer-plane depth encoder needs the store's plane keys");
+    st.size = plane_depth_tile_size(DepthPlanesIn{planes, f.tile_pixels, int(spp)}, f);
+  } else if (b == Buffer::kDepth) {
     const TraceHeader& h = store.header();
     uint8_t px[64], py[64];
     for (uint32_t s = 0; s < spp; ++s) {
@@ -83,8 +87,10 @@ TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8
 TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const SampleTile& t, const SampleTile& clear,
                    Buffer b, uint32_t first, const CompressionFormat& f, bool size = true) {
   thread_local std::vector<uint8_t> scratch;
-  const uint8_t* data = memory_bytes(sb, t, b, first, f.tile_pixels, uint32_t(store.header().spp), scratch);
-  return state_of(store, sb, data, clear, b, first, f, size);
+  const uint32_t spp = uint32_t(store.header().spp);
+  const uint8_t* data = memory_bytes(sb, t, b, first, f.tile_pixels, spp, scratch);
+  const uint64_t* planes = t.plane ? t.plane + size_t(first) * spp : nullptr;
+  return state_of(store, sb, data, planes, clear, b, first, f, size);
 }
 
 }  // namespace
@@ -171,11 +177,18 @@ TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size, con
   copy.resize((len + 3) / 4);
   uint8_t* bytes = reinterpret_cast<uint8_t*>(copy.data());
   std::memcpy(bytes, memory_bytes(bytes_, *t, b, first, f_.tile_pixels, spp, scratch), len);
+  // Depth's plane keys likewise, each patch restoring its samples' keys.
+  thread_local std::vector<uint64_t> keys;
+  const bool planes = b == Buffer::kDepth && t->plane;
+  if (planes) keys.assign(t->plane + size_t(first) * spp, t->plane + size_t(first + f_.tile_pixels) * spp);
   for (size_t i = 0; i < n; ++i) {
     if (size_t(patches[i].offset) + patches[i].len > len) throw std::logic_error("a tile patch lies outside its tile");
     std::memcpy(bytes + patches[i].offset, patches[i].old, patches[i].len);
+    if (planes && patches[i].old_planes)
+      std::memcpy(keys.data() + patches[i].offset / kDepthSampleBytes, patches[i].old_planes,
+                  patches[i].len / kDepthSampleBytes * sizeof(uint64_t));
   }
-  return state_of(store_, bytes_, bytes, *clear_->tile, b, first, f_, size);
+  return state_of(store_, bytes_, bytes, planes ? keys.data() : nullptr, *clear_->tile, b, first, f_, size);
 }
 
 }  // namespace ropsim

@@ -67,6 +67,7 @@ StoreTargets store_targets(const TraceHeader& h, const MethodConfig& cfg) {
                  cfg.method == Method::kSlab ? cfg.slab_bits : 0,
                  traits(cfg.method).framebuffer};
   if (traits(cfg.method).framebuffer) t.accum_clear = framebuffer_clear(frame_encoding(h.draws), h.clear_color);
+  t.planes = cfg.compression.plane_keys();
   return t;
 }
 

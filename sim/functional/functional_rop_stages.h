@@ -296,6 +296,16 @@ inline uint32_t ReferenceStage::run(FragWork& w) {
   ROPSIM_DISPATCH(run_as)
 }
 
+/// The depths a stage wrote (w.depth_written) now lie on the fragment's
+/// primitive's plane: their plane keys become its (the rasterizer-plane
+/// depth encoder, compression.h). Every stage that writes depth calls it
+/// last.
+inline void record_plane_keys(const FragWork& w) {
+  if (!w.px.plane) return;
+  const uint64_t k = plane_key(w.f->draw_id, w.f->prim_id);
+  for (uint64_t s = w.depth_written; s; s &= s - 1) w.px.plane[__builtin_ctzll(s)] = k;
+}
+
 template <Method M>
 inline uint32_t WriteStage::run_as(FragWork& w) {
   const Numerics& num = s_.cfg.numerics;
@@ -437,6 +447,7 @@ inline uint32_t WriteStage::run_as(FragWork& w) {
   w.depth_written = wrote;
   if constexpr (kMayKeepDepth)
     if (keep_depth) w.depth_written = 0;
+  record_plane_keys(w);
   return examined;
 }
 
@@ -467,6 +478,7 @@ inline uint32_t WriteStage::run_routed(FragWork& w) {
   const uint32_t n = w.m, nz = zw ? n : 0;
   w.written = w.survivors;
   w.depth_written = zw ? w.survivors : 0;
+  record_plane_keys(w);
   c_.samples_written += n;
   c_.depth_bytes_written += kDepthSampleBytes * nz;
   c_.color_bytes_written += uint64_t(s_.bytes.of(Buffer::kColor)) * n;
@@ -537,6 +549,7 @@ inline uint32_t BlendStage::run(FragWork& w) {
     const uint32_t n = w.m;
     w.written = w.survivors;
     w.depth_written = zw ? w.survivors : 0;
+    record_plane_keys(w);
     c_.samples_blended += n;
     const uint64_t fb = s_.bytes.of(Buffer::kAccum);                     // the framebuffer's sample in memory
     if (draw_reads_colour(d)) c_.target_bytes_read += uint64_t(n) * fb;  // an opaque draw replaces it unread

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "compression.h"
 #include "depth.h"
 #include "framebuffer_blend.h"
 #include "half.h"
@@ -35,6 +36,7 @@ SampleStore::SampleStore(const TraceHeader& h, bool with_tracker, const StoreTar
   if (slab_bits_ > 0) layout_.slab = place(64 * sizeof(SlabPixel));
   if (targets_.transmittance) layout_.trans = place(n * sample_bytes(targets_.formats.transmittance));
   if (targets_.accum) layout_.accum = place(n * sample_bytes(targets_.formats.accum));
+  if (targets_.planes) layout_.plane = place(n * sizeof(uint64_t));
   layout_.bytes = (at + 63) / 64 * 64;
   mem_.add(tiles_.directory_bytes(), "the tile directory of the screen");
 }
@@ -49,6 +51,7 @@ std::unique_ptr<SampleTile> SampleTile::make(const SampleTileLayout& l) {
   t->slab = l.slab ? reinterpret_cast<SlabPixel*>(b + l.slab) : nullptr;
   t->trans = l.trans ? b + l.trans : nullptr;
   t->accum = l.accum ? b + l.accum : nullptr;
+  t->plane = l.plane ? reinterpret_cast<uint64_t*>(b + l.plane) : nullptr;
   return t;
 }
 
@@ -63,6 +66,7 @@ PixelRef SampleStore::pixel(uint32_t x, uint32_t y) {
       for (int c = 0; c < 3; ++c) tile->rgb[3 * i + c] = clear_rgb16_[c];
     if (tile->tracker) std::uninitialized_value_construct_n(tile->tracker, 64);
     if (tile->slab) std::uninitialized_value_construct_n(tile->slab, 64);
+    if (tile->plane) std::fill_n(tile->plane, n, kClearPlaneKey);
     // The clear value encoded once, then copied to every sample.
     auto clear_target = [n](uint8_t* buf, TargetFormat f, const float* v) {
       const uint32_t b = sample_bytes(f);
@@ -89,13 +93,15 @@ PixelRef SampleStore::in_tile(const uint8_t* cb, uint32_t x, uint32_t y) const {
                   l.tracker ? reinterpret_cast<TrackerState*>(b + l.tracker) + p : nullptr,
                   l.slab ? reinterpret_cast<SlabPixel*>(b + l.slab) + p : nullptr,
                   l.trans ? b + l.trans + ps * sample_bytes(targets_.formats.transmittance) : nullptr,
-                  l.accum ? b + l.accum + ps * sample_bytes(targets_.formats.accum) : nullptr};
+                  l.accum ? b + l.accum + ps * sample_bytes(targets_.formats.accum) : nullptr,
+                  l.plane ? reinterpret_cast<uint64_t*>(b + l.plane) + ps : nullptr};
 }
 
 void SampleStore::absorb(SampleStore& o) {
   if (o.header_.width != header_.width || o.header_.height != header_.height || o.header_.spp != header_.spp ||
       o.with_tracker_ != with_tracker_ || o.slab_bits_ != slab_bits_ ||
-      o.targets_.transmittance != targets_.transmittance || o.targets_.accum != targets_.accum)
+      o.targets_.transmittance != targets_.transmittance || o.targets_.accum != targets_.accum ||
+      o.targets_.planes != targets_.planes)
     throw std::logic_error("SampleStore::absorb: the stores hold different buffers");
   if (!tiles_.absorb(o.tiles_)) throw std::logic_error("SampleStore::absorb: a tile held by both stores");
   mem_.take(o.mem_);  // its tiles' bytes (and its directory's, until it is freed)
@@ -104,7 +110,8 @@ void SampleStore::absorb(SampleStore& o) {
 void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y) {
   if (src.header_.width != header_.width || src.header_.height != header_.height || src.header_.spp != header_.spp ||
       src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
-      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum)
+      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum ||
+      src.targets_.planes != targets_.planes)
     throw std::logic_error("SampleStore::copy_tile_from: the stores hold different buffers");
   const SampleTile* from = src.tiles_.find(x, y);
   if (!from) return;
@@ -118,12 +125,14 @@ void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y)
   if (to.slab) std::copy_n(from->slab, 64, to.slab);
   if (to.trans) std::memcpy(to.trans, from->trans, n * sample_bytes(targets_.formats.transmittance));
   if (to.accum) std::memcpy(to.accum, from->accum, n * sample_bytes(targets_.formats.accum));
+  if (to.plane) std::copy_n(from->plane, n, to.plane);
 }
 
 void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y) {
   if (src.header_.width != header_.width || src.header_.height != header_.height || src.header_.spp != header_.spp ||
       src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
-      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum)
+      src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum ||
+      src.targets_.planes != targets_.planes)
     throw std::logic_error("SampleStore::copy_pixel_from: the stores hold different buffers");
   const PixelRef to = pixel(x, y);
   const PixelView from = src.view(x, y);
@@ -135,13 +144,14 @@ void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y
   if (to.slab) *to.slab = *from.slab;
   if (to.trans) std::memcpy(to.trans, from.trans, n * sample_bytes(targets_.formats.transmittance));
   if (to.accum) std::memcpy(to.accum, from.accum, n * sample_bytes(targets_.formats.accum));
+  if (to.plane) std::copy_n(from.plane, n, to.plane);
 }
 
 PixelView SampleStore::view(uint32_t x, uint32_t y) const {
   const SampleTile* t = tiles_.find(x, y);
   if (!t) return {};
   const PixelRef r = in_tile(t->base(), x, y);
-  return PixelView{r.depth, r.rgb, r.tracker, r.slab, r.trans, r.accum};
+  return PixelView{r.depth, r.rgb, r.tracker, r.slab, r.trans, r.accum, r.plane};
 }
 
 Image SampleStore::resolve(bool background_per_sample) const {
@@ -187,7 +197,7 @@ size_t SampleStore::tile_bytes() const {
          (with_tracker_ ? 64 * sizeof(TrackerState) : 0) + (slab_bits_ > 0 ? 64 * sizeof(SlabPixel) : 0) +
          size_t(64) * header_.spp *
              ((targets_.transmittance ? sample_bytes(targets_.formats.transmittance) : 0) +
-              (targets_.accum ? sample_bytes(targets_.formats.accum) : 0));
+              (targets_.accum ? sample_bytes(targets_.formats.accum) : 0) + (targets_.planes ? sizeof(uint64_t) : 0));
 }
 
 size_t SampleStore::state_bytes() const { return tiles_.tiles() * tile_bytes() + tiles_.directory_bytes(); }
@@ -217,6 +227,14 @@ std::string first_state_difference(const SampleStore& a, const SampleStore& b) {
         if (depth_bits(za) != depth_bits(zb)) {
           os << "pixel (" << x << ", " << y << ") sample " << s << ": depth " << za << " vs " << zb;
           return false;
+        }
+        if (ta_.planes && tb_.planes) {
+          const uint64_t ka = va.plane ? va.plane[s] : kClearPlaneKey, kb = vb.plane ? vb.plane[s] : kClearPlaneKey;
+          if (ka != kb) {
+            os << "pixel (" << x << ", " << y << ") sample " << s << ": depth plane key " << std::hex << ka << " vs "
+               << kb << std::dec;
+            return false;
+          }
         }
         for (int c = 0; c < 3; ++c) {
           const uint16_t ca = va.rgb ? va.rgb[3 * s + c] : clear_c[c], cb = vb.rgb ? vb.rgb[3 * s + c] : clear_c[c];

@@ -23,7 +23,7 @@ namespace ropsim {
 /// Where a tile's buffers lie in its block (SampleTileLayout), in bytes from
 /// the block's start; 0: the store has no such buffer.
 struct SampleTileLayout {
-  size_t depth = 0, rgb = 0, tracker = 0, slab = 0, trans = 0, accum = 0;
+  size_t depth = 0, rgb = 0, tracker = 0, slab = 0, trans = 0, accum = 0, plane = 0;
   size_t bytes = 0;  ///< the whole block, the header included
 };
 
@@ -38,6 +38,7 @@ struct alignas(64) SampleTile {
   SlabPixel* slab;        ///< [pixel], nullptr unless slab
   uint8_t* trans;         ///< transmittance target, [(pixel * spp + sample) * bytes]; or nullptr
   uint8_t* accum;         ///< accumulation target, the same; or nullptr
+  uint64_t* plane;        ///< [pixel * spp + sample] each depth's plane key (compression.h), or nullptr
   /// A tile in a block of l.bytes, its pointers set from l (buffers uninitialised).
   static std::unique_ptr<SampleTile> make(const SampleTileLayout& l);
   uint8_t* base() { return reinterpret_cast<uint8_t*>(this); }
@@ -62,6 +63,9 @@ struct StoreTargets {
   std::array<float, 4> accum_clear{0.0f, 0.0f, 0.0f, 0.0f};
   int slab_bits = 0;         ///< slab: b, the bits of each layer's mask (0: no SLAB layers)
   bool framebuffer = false;  ///< blend: the accumulation target is the application's framebuffer
+  /// Each depth's plane key (the rasterizer-plane depth encoder, compression.h):
+  /// the primitive that wrote it, kClearPlaneKey when cleared.
+  bool planes = false;
 };
 
 /// Mutable pointers to one pixel's state.
@@ -72,6 +76,7 @@ struct PixelRef {
   SlabPixel* slab;        ///< nullptr unless slab
   uint8_t* trans;         ///< [spp * bytes] transmittance target, nullptr unless used
   uint8_t* accum;         ///< [spp * bytes] accumulation target, nullptr unless used
+  uint64_t* plane;        ///< [spp] plane keys, nullptr unless kept
   void write_sample(int i, float z, const uint16_t* rgb16) {
     depth[i] = z;
     rgb[3 * i] = rgb16[0];
@@ -88,6 +93,7 @@ struct PixelView {
   const SlabPixel* slab = nullptr;
   const uint8_t* trans = nullptr;
   const uint8_t* accum = nullptr;
+  const uint64_t* plane = nullptr;
 };
 
 inline int pixel_in_tile(uint32_t x, uint32_t y) { return int((y & 7u) << 3 | (x & 7u)); }
