@@ -21,6 +21,7 @@
 
 #include "bottleneck.h"
 #include "compressibility.h"
+#include "compression_model.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -70,8 +71,11 @@ struct ApproxStats {
   /// larger of dram_service_cycles and its bound over the epochs plus
   /// flush_cycles), against total_cycles.
   Bottleneck bottleneck;
-  CacheStats cache;                            ///< tag-only, summed over the ROPs
-  DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM
+  CacheStats cache;  ///< tag-only, summed over the ROPs
+  DramStats dram;    ///< bytes, bursts and row hits of the tag-only DRAM
+  /// Compression and Hi-Z (approx_compression.h), when the design has either.
+  bool compression_on = false;
+  CompressionTraffic compression;
   uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed
   bool lists(int b) const { return (listed >> b) & 1u; }
 };
