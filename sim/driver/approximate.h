@@ -10,7 +10,9 @@
 // needs -- every unit's demand against its throughput, the depth test's
 // memory latency against its requests in flight, the pixel scoreboard, the
 // DRAM channels' service of their bursts -- and adds the epochs' largest
-// bounds, the pipeline's fill and the final cache flush. docs/architecture.md
+// bounds, the pipeline's fill and the final cache flush. With surface
+// compression or Hi-Z on, the caches' DRAM traffic follows the cycle model's
+// rules, tag-only (approx_compression.h), over the functional store's tiles. docs/architecture.md
 // ("The analytical model") derives each term from the design's parameters;
 // nothing is fitted to the cycle model's outputs.
 #pragma once
