@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <future>
 #include <memory>
 
@@ -48,22 +49,33 @@ namespace {
 
 /// The DRAM's address map (dram.h: channel from the interleave granule folded
 /// with higher bits, bank from the row) and its row buffers, tag-only; and
-/// each channel's bursts served in arrival order as fast as the channel can,
-/// as Dram::access does for requests that all arrive at once: a burst starts
-/// when the data bus is free and its bank is free (plus the row-miss
-/// penalty). The clock this keeps per channel is the cycles the channel needs
-/// for its bursts so far, whatever the arrival times: a lower bound.
+/// each channel's bursts served in arrival order, twice:
+///  - as fast as the channel can, as Dram::access does for requests that all
+///    arrive at once: a burst starts when the data bus is free and its bank
+///    is free (plus the row-miss penalty). The clock this keeps per channel
+///    (bus_free) is the cycles the channel needs for its bursts so far,
+///    whatever the arrival times: a lower bound (the DRAM bound).
+///  - timed, exactly as Dram::access serves a burst requested at a cycle
+///    (set_now: the estimated cycle its fragment entered the depth test): it
+///    starts no earlier than its request, its bank (plus the row-miss
+///    penalty) and the channel's data bus, behind every burst requested
+///    before it -- the posted write-backs and the other ROPs' reads. A
+///    read's latency is the cycles from its request to its data: the
+///    queueing behind the channel's backlog included.
 class DramTags : public BurstSink {
  public:
   explicit DramTags(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), ch_(cfg.channels) {
     for (auto& c : ch_) {
       c.open_row.assign(cfg.banks, ~uint64_t{0});
       c.bank_free.assign(cfg.banks, 0);
+      c.timed_bank_free.assign(cfg.banks, 0);
     }
   }
-  /// One burst of `bytes`; returns its unloaded read latency (row miss,
-  /// transfer, the read latency): the cycles from the request to the data
-  /// with the bank and the bus idle.
+  /// The cycle of the next bursts' request (the timed service).
+  void set_now(uint64_t now) { now_ = now; }
+  /// One burst of `bytes`, requested at set_now's cycle; returns a read's
+  /// latency (the timed service: queueing behind the channel's earlier
+  /// bursts, row miss, transfer, the read latency).
   uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) override {
     const DramAddressMap::Place at = map_.place(addr);
     const size_t ch_index = at.channel;
@@ -83,6 +95,10 @@ class DramTags : public BurstSink {
     const uint64_t start = std::max(ready, c.bus_free);
     c.bus_free = c.bank_free[bank] = start + transfer;
     c.busy += transfer;
+    // Timed, as Dram::access: the bank from the request (or its previous
+    // burst), the row switch in the bank, then the shared data bus.
+    const uint64_t timed_start = std::max(std::max(now_, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
+    c.timed_bus_free = c.timed_bank_free[bank] = timed_start + transfer;
     if (write) {
       ++s_.writes;
       s_.bytes_written[size_t(b)] += bytes;
@@ -90,7 +106,7 @@ class DramTags : public BurstSink {
     }
     ++s_.reads;
     s_.bytes_read[size_t(b)] += bytes;
-    return penalty + transfer + cfg_.latency_cycles;
+    return timed_start + transfer + cfg_.latency_cycles - now_;
   }
   /// The busiest channel's service clock (cycles).
   uint64_t max_clock() const {
@@ -124,10 +140,12 @@ class DramTags : public BurstSink {
   DramAddressMap map_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
-    bool read = false;  // a read since the last take_reads
-    std::vector<uint64_t> open_row, bank_free;
+    uint64_t timed_bus_free = 0;  // the timed service's data bus
+    bool read = false;            // a read since the last take_reads
+    std::vector<uint64_t> open_row, bank_free, timed_bank_free;
   };
   std::vector<Channel> ch_;
+  uint64_t now_ = 0;
   DramStats s_;
 };
 
@@ -301,6 +319,16 @@ struct RopEpoch {
   uint64_t hold = 0;                          ///< depth test: cycles each fragment waited for its data, summed
   uint64_t residence = 0;                     ///< cycles each fragment was in flight (issue to retire), summed
   double issued_by = 0;                       ///< pixel ordering: the cycle after its last issue (hazard chain)
+  double accepted_by = 0;                     ///< depth test: the cycle it could accept its next fragment
+};
+
+/// One ROP's depth test in time, as DepthTest serves fragments: it accepts a
+/// fragment once the one before it has taken its initiation interval and
+/// one of its max_outstanding slots is free; a fragment holds its slot until
+/// its data is there (the first whose data arrives leaves first).
+struct DepthSlots {
+  std::vector<double> ready;  ///< min-heap: the cycles the occupied slots' data arrives
+  double next = 0;            ///< the cycle the unit can accept again (the initiation interval)
 };
 
 struct PassResult {
@@ -346,6 +374,8 @@ class Model {
         retire_(size_t(ceil_div(rop.header().width, 8u)) * ceil_div(rop.header().height, 8u) * 64, -1e300),
         window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
         window_at_(hw.distributor.rop_units, 0),
+        slots_(hw.distributor.rop_units),
+        delivery_rate_(std::min(double(hw.source.fragments_per_clock), double(hw.distributor.fragments_per_clock))),
         comp_(comp) {
     if (comp_) comp_->set_dram(&dram_);
     for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
@@ -394,6 +424,19 @@ class Model {
       wait = std::max(wait, lat);
     };
     const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
+    // The cycle the depth test accepts it: not before the source and the
+    // distributor delivered it (the epoch's fragments at their rate from the
+    // epoch's start), once the unit's previous fragment took its interval and
+    // a slot is free. Its reads are requested then, and queue in DRAM behind
+    // every burst requested before them (DramTags' timed service).
+    DepthSlots& ds = slots_[r];
+    double enter = std::max(t_ + double(in_epoch_) / delivery_rate_, ds.next);
+    if (ds.ready.size() == hw.depth_test.max_outstanding) {
+      std::pop_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
+      enter = std::max(enter, ds.ready.back());
+      ds.ready.pop_back();
+    }
+    dram_.set_now(uint64_t(enter + 0.5));
     if (slab_ && w.route == DrawRoute::kMethod) {
       amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kLayers); });
       if (prepass_ && w.depth_test)  // over a pre-pass's background: the covered samples' depth too
@@ -413,8 +456,13 @@ class Model {
         amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.survivors, [&](uint64_t l) { rd(l, Buffer::kColor); });
     }
     e.demand[kOrdering] += 1;
-    e.demand[kDepthTest] += std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
+    const uint32_t test_ii = std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
+    e.demand[kDepthTest] += test_ii;
     e.hold += wait;
+    ds.next = enter + test_ii;
+    e.accepted_by = std::max(e.accepted_by, ds.next);
+    ds.ready.push_back(enter + double(wait));
+    std::push_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
     uint64_t res = hw.ordering.latency_cycles + wait;
     if (!w.killed()) {
       res += hw.depth_test.latency_cycles;
@@ -571,8 +619,11 @@ class Model {
           b[int(ApproxBound::kUnit)] = double(e.demand[size_t(k)]);
           unit_kind = k;
         }
-      b[int(ApproxBound::kLatency)] =
-          std::max(b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding);
+      // The depth test's slots: Little's law on the fragments' waits for
+      // their data (queueing in DRAM included), and the unit's own timeline
+      // from the epoch's start to when it could accept the next fragment.
+      b[int(ApproxBound::kLatency)] = std::max(
+          {b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding, e.accepted_by - t_});
       b[int(ApproxBound::kScoreboard)] =
           std::max(b[int(ApproxBound::kScoreboard)], double(e.residence) / hw_.ordering.pixels_in_flight);
       b[int(ApproxBound::kHazard)] = std::max(b[int(ApproxBound::kHazard)], e.issued_by - t_);
@@ -621,6 +672,8 @@ class Model {
   std::vector<double> retire_;                     // per pixel: its last fragment's estimated retirement
   std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
   std::vector<size_t> window_at_;
+  std::vector<DepthSlots> slots_;  // per ROP: its depth test in time
+  double delivery_rate_ = 1;       // fragments per clock the source and the distributor deliver
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, prepass_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
   Buffer marks_ = Buffer::kDepth;  // the target the stochastic pass writes besides depth and colour (kDepth: none)
