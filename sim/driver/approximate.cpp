@@ -329,6 +329,11 @@ struct RopEpoch {
 struct DepthSlots {
   std::vector<double> ready;  ///< min-heap: the cycles the occupied slots' data arrives
   double next = 0;            ///< the cycle the unit can accept again (the initiation interval)
+  /// The acceptance cycles of the ROP's last `queued` fragments (a ring): a
+  /// fragment enters the ROP's queue ahead of the depth test once the one
+  /// `queued` before it has left it.
+  std::vector<double> accepted;
+  size_t at = 0;
 };
 
 struct PassResult {
@@ -403,6 +408,10 @@ class Model {
     epoch_ = uint64_t(d.rop_units) * (d.fifo_depth + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles +
                                       hw.depth_test.max_outstanding);
     out_.epoch_fragments = epoch_;
+    // A ROP's queue ahead of its depth test: its input FIFO, the ordering
+    // unit's window and FIFO and their pipeline registers (the epoch's terms).
+    const size_t queued = size_t(d.fifo_depth) + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles;
+    for (auto& ds : slots_) ds.accepted.assign(queued, -1e300);
   }
 
   /// One fragment, after the functional stages ran on w: its costs.
@@ -424,13 +433,16 @@ class Model {
       wait = std::max(wait, lat);
     };
     const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
-    // The cycle the depth test accepts it: not before the source and the
-    // distributor delivered it (the epoch's fragments at their rate from the
-    // epoch's start), once the unit's previous fragment took its interval and
-    // a slot is free. Its reads are requested then, and queue in DRAM behind
-    // every burst requested before them (DramTags' timed service).
+    // The cycle the depth test accepts it: not before the distributor
+    // delivered it -- in input order, at the source's and its own rate, not
+    // before the epoch's start, and only into room in its ROP's queue ahead
+    // of the depth test (a full queue blocks every ROP) -- and once the
+    // unit's previous fragment took its interval and a slot is free. Its
+    // reads are requested then, and queue in DRAM behind every burst
+    // requested before them (DramTags' timed service).
     DepthSlots& ds = slots_[r];
-    double enter = std::max(t_ + double(in_epoch_) / delivery_rate_, ds.next);
+    delivered_ = std::max({delivered_ + 1 / delivery_rate_, t_, ds.accepted[ds.at]});
+    double enter = std::max(delivered_, ds.next);
     if (ds.ready.size() == hw.depth_test.max_outstanding) {
       std::pop_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
       enter = std::max(enter, ds.ready.back());
@@ -460,6 +472,8 @@ class Model {
     e.demand[kDepthTest] += test_ii;
     e.hold += wait;
     ds.next = enter + test_ii;
+    ds.accepted[ds.at] = enter;
+    ds.at = ds.at + 1 == ds.accepted.size() ? 0 : ds.at + 1;
     e.accepted_by = std::max(e.accepted_by, ds.next);
     ds.ready.push_back(enter + double(wait));
     std::push_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
@@ -674,6 +688,7 @@ class Model {
   std::vector<size_t> window_at_;
   std::vector<DepthSlots> slots_;  // per ROP: its depth test in time
   double delivery_rate_ = 1;       // fragments per clock the source and the distributor deliver
+  double delivered_ = -1e300;      // the cycle the distributor delivered the last fragment
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, prepass_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
   Buffer marks_ = Buffer::kDepth;  // the target the stochastic pass writes besides depth and colour (kDepth: none)
