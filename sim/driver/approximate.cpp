@@ -55,13 +55,15 @@ namespace {
 ///    is free (plus the row-miss penalty). The clock this keeps per channel
 ///    (bus_free) is the cycles the channel needs for its bursts so far,
 ///    whatever the arrival times: a lower bound (the DRAM bound).
-///  - timed, exactly as Dram::access serves a burst requested at a cycle
+///  - timed, by Dram::access's rule for a burst requested at a cycle
 ///    (set_now: the estimated cycle its fragment entered the depth test): it
 ///    starts no earlier than its request, its bank (plus the row-miss
 ///    penalty) and the channel's data bus, behind every burst requested
 ///    before it -- the posted write-backs and the other ROPs' reads. A
 ///    read's latency is the cycles from its request to its data: the
-///    queueing behind the channel's backlog included.
+///    queueing behind the channel's backlog included. The bursts come in the
+///    order the model visits the fragments (input order), so one requested
+///    earlier than a burst already served waits behind it.
 class DramTags : public BurstSink {
  public:
   explicit DramTags(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), ch_(cfg.channels) {
