@@ -3,7 +3,7 @@
 part 2): cloth, smoke and testcard at 16 spp and a trace (the motor:
 `ropsim capture traces/scenes/mesh/motor.toml -o motor.rtr`) on the three
 designs. Prints a Markdown table -- total cycles of both, the error, DRAM
-bytes read and written (the approximate model's error), the bottleneck of
+bytes read, written and both (the approximate model's error), the bottleneck of
 both, the wall time of the functional, approximate and cycle runs -- and the
 mean absolute error in total cycles.
 
@@ -52,10 +52,10 @@ def kind(b):  # "bandwidth (dram): bound ..." -> "bandwidth (dram)"
 inputs = [(f"{s} {a.spp} spp", ["--scene", s, "--spp", a.spp]) for s in a.scenes.split(",") if s]
 inputs += [(os.path.basename(t), ["--trace", t]) for t in a.trace]
 if not a.no_header:
-    print("| input | design | cycle total | approximate | error | DRAM read | DRAM written | bottleneck (cycle; same?) "
-          "| host s: functional / approximate / cycle |")
-    print("|---|---|---:|---:|---:|---:|---:|---|---|")
-errs = []
+    print("| input | design | cycle total | approximate | error | DRAM read | DRAM written | DRAM bytes "
+          "| bottleneck (cycle; same?) | host s: functional / approximate / cycle |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---|---|")
+errs, byte_errs = [], []
 for label, inp in inputs:
     inp = [*inp, "--method", a.method]
     if a.method != "lk":
@@ -71,10 +71,14 @@ for label, inp in inputs:
         c, x = c["timing"], x["timing"]
         e = pct(x["total_cycles"], c["total_cycles"])
         errs.append(abs(e))
+        total = [d["bytes_read"] + d["bytes_written"] for d in (x["dram"], c["dram"])]
+        byte_errs.append(abs(pct(*total)))
         same = "yes" if kind(c["bottleneck"]) == kind(x["bottleneck"]) else "no: " + kind(x["bottleneck"])
         print(f"| {label} | {d} | {c['total_cycles']:,} | {x['total_cycles']:,} | {e:+.1f} % "
               f"| {pct(x['dram']['bytes_read'], c['dram']['bytes_read']):+.2f} % "
               f"| {pct(x['dram']['bytes_written'], c['dram']['bytes_written']):+.2f} % "
+              f"| {pct(*total):+.2f} % "
               f"| {kind(c['bottleneck'])}; {same} | {tf:.2f} / {ta:.2f} / {tc:.2f} |", flush=True)
 print(f"\nmean absolute error in total cycles: {sum(errs) / len(errs):.1f} % over {len(errs)} pairs "
-      f"(largest {max(errs):.1f} %)")
+      f"(largest {max(errs):.1f} %); in DRAM bytes (read + written): {sum(byte_errs) / len(byte_errs):.2f} % "
+      f"(largest {max(byte_errs):.2f} %)")

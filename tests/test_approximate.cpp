@@ -119,6 +119,70 @@ TEST(Approximate, TotalCyclesAreNearTheCycleModels) {
   EXPECT_LE(sum / n, 0.06) << "mean absolute error " << 100 * sum / n << " %";
 }
 
+// Surface compression and Hi-Z (configs/current-gpu.toml): on an opaque
+// scene the compressed design moves strictly fewer DRAM bytes than the same
+// design with compression off (Hi-Z on in both), its compressed surfaces'
+// writebacks move fewer bytes than uncompressed, and the image is still the
+// golden image.
+TEST(Approximate, CompressionMovesFewerDramBytesOnAnOpaqueScene) {
+  const HwConfig hw = design("current-gpu");
+  ASSERT_TRUE(hw.compression.depth && hw.compression.color && hw.hiz.enable)
+      << "configs/current-gpu.toml no longer turns compression and Hi-Z on";
+  HwConfig off = hw;
+  off.compression.depth = off.compression.color = false;
+  const InputSpec in = scene("opaque", 8);
+  const GoldenConfig m = method(Method::kLk);
+  const ApproxRun a = run_approximate(in, m, hw);
+  const ApproxRun u = run_approximate(in, m, off);
+  ASSERT_TRUE(a.stats.compression_on) << "the compressed run reports no compression";
+  const CompressionTraffic& t = a.stats.compression;
+  uint64_t moved = 0, uncompressed = 0;
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    moved += t.bytes_written[b];
+    uncompressed += t.bytes_written_uncompressed[b];
+  }
+  EXPECT_GT(uncompressed, 0u) << "no compressed-surface line was written back";
+  EXPECT_LT(moved, uncompressed) << "the opaque scene's tiles compress: their writebacks must move fewer bytes";
+  const uint64_t with = a.stats.dram.total_bytes_read() + a.stats.dram.total_bytes_written();
+  const uint64_t without = u.stats.dram.total_bytes_read() + u.stats.dram.total_bytes_written();
+  EXPECT_LT(with, without) << "DRAM bytes with compression " << with << " (metadata included) are not fewer than "
+                           << without << " without";
+  EXPECT_GT(t.metadata_bytes_read[size_t(Buffer::kDepth)] + t.metadata_bytes_written[size_t(Buffer::kDepth)], 0u)
+      << "the state bits cost no DRAM traffic";
+  EXPECT_GT(t.hiz_tests, 0u) << "Hi-Z tested no fragment";
+  EXPECT_TRUE(a.image == run_functional(in, m).image) << "compression changed the image";
+}
+
+// The analytical model against the cycle model with compression and Hi-Z on
+// (configs/current-gpu.toml), lk on the fidelity study's built-in scenes and
+// the opaque one: total cycles and DRAM bytes (read + written) each within
+// 15 % (the bound the fidelity asks of it; measured on all the fidelity
+// study's inputs, the captured meshes too: docs/results.md), and the
+// compressed bytes moved within 15 % too.
+TEST(Approximate, WithCompressionAndHizIsWithinFifteenPercentOfTheCycleModel) {
+  const HwConfig hw = design("current-gpu");
+  for (const char* s : {"cloth", "smoke", "testcard", "opaque"}) {
+    const std::string what = std::string(s) + " 16 spp on current-gpu";
+    const InputSpec in = scene(s, 16);
+    const CycleRun c = run_cycle(in, method(Method::kLk), hw);
+    const ApproxRun a = run_approximate(in, method(Method::kLk), hw);
+    const double e = rel(double(a.stats.total_cycles), double(c.stats.total_cycles));
+    EXPECT_LE(std::abs(e), 0.15) << what << ": " << a.stats.total_cycles << " cycles vs the cycle model's "
+                                 << c.stats.total_cycles << " (" << 100 * e << " %)";
+    const double ab = double(a.stats.dram.total_bytes_read() + a.stats.dram.total_bytes_written());
+    const double cb = double(c.stats.dram.total_bytes_read() + c.stats.dram.total_bytes_written());
+    EXPECT_LE(std::abs(rel(ab, cb)), 0.15)
+        << what << ": DRAM bytes " << ab << " vs the cycle model's " << cb << " (" << 100 * rel(ab, cb) << " %)";
+    uint64_t am = 0, cm = 0;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      am += a.stats.compression.bytes_written[b] + a.stats.compression.bytes_read[b];
+      cm += c.stats.compression.bytes_written[b] + c.stats.compression.bytes_read[b];
+    }
+    EXPECT_LE(std::abs(rel(double(am), double(cm))), 0.15)
+        << what << ": compressed-surface bytes moved " << am << " vs the cycle model's " << cm;
+  }
+}
+
 // Inputs it cannot model are refused as user errors.
 TEST(Approximate, RefusesTheReferenceMethod) {
   EXPECT_THROW(run_approximate(scene("testcard", 1), method(Method::kReference), HwConfig{}), UserError);

@@ -3045,11 +3045,10 @@ TEST(BitExactCompression, CurrentGpuDesignMatchesTheGoldenModel) {
                            to_string(c.hw->compression.depth_encoder) + " encoder");
 }
 
-TEST(CompressionFidelities, SampledAndApproximateRefuseCompressionDesigns) {
-  // They do not model compression or Hi-Z: a design with them is refused
+TEST(CompressionFidelities, SampledRefusesCompressionDesigns) {
+  // It does not model compression or Hi-Z: a design with them is refused
   // (a one-line UserError), never run as if uncompressed.
   const HwConfig hw = current_gpu();
-  EXPECT_THROW(run_approximate(scene_input("eight-layers", 4), method_config(Method::kLk), hw), UserError);
   SamplingParams sp;
   sp.units = 2;
   sp.unit_fragments = 16;
@@ -3059,6 +3058,31 @@ TEST(CompressionFidelities, SampledAndApproximateRefuseCompressionDesigns) {
   HwConfig hiz_only;
   apply_hw_override(hiz_only, "hiz.enable=true");
   EXPECT_THROW(run_sampled(lib, hiz_only, 1), UserError);
+}
+
+// The approximate fidelity models compression and Hi-Z: every method with a
+// pipeline runs on the current-GPU design with the golden image and
+// counters, its Hi-Z rejections never reject a fragment that passes (the
+// model throws InternalError otherwise), and it reports the compressed
+// traffic (slab's layers are not compressed).
+TEST(CompressionFidelities, ApproximateRunsEveryMethodWithCompressionAndHiz) {
+  const HwConfig hw = current_gpu();
+  for (const char* s : {"eight-layers", "opaque"})
+    for (Method m : {Method::kOpaque, Method::kA2c, Method::kEnderton, Method::kLk, Method::kHashed, Method::kHashedA2c,
+                     Method::kSlab, Method::kWboit, Method::kLkDepthAc, Method::kEndertonAc, Method::kBlend}) {
+      const std::string what = std::string(s) + " 4 spp " + to_string(m) + " on current-gpu";
+      const InputSpec in = scene_input(s, 4);
+      const FunctionalRun golden = run_functional(in, method_config(m));
+      ApproxRun a;
+      ASSERT_NO_THROW(a = run_approximate(in, method_config(m), hw)) << what;
+      EXPECT_TRUE(golden.image == a.image) << what << ": the approximate image is not the golden image";
+      EXPECT_EQ(golden.counters.samples_written, a.counters.samples_written) << what;
+      EXPECT_TRUE(a.stats.compression_on) << what << ": no compression figures";
+      uint64_t lines = 0;
+      for (size_t b = 0; b < size_t(kBuffers); ++b) lines += a.stats.compression.lines_written[b];
+      if (m != Method::kSlab)  // slab writes its layers, which are not compressed
+        EXPECT_GT(lines, 0u) << what << ": no compressed line was written back";
+    }
 }
 
 // ------------------------------------------------------------ depth reads, both fidelities

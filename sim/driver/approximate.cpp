@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <future>
 #include <memory>
 
 #include "address_map.h"
+#include "approx_compression.h"
 #include "bits.h"
 #include "cache_tags.h"
+#include "depth.h"
 #include "errors.h"
 #include "functional_rop.h"
 #include "line_set.h"
@@ -16,6 +19,7 @@
 #include "progress.h"
 #include "rop_ownership.h"
 #include "sort_algorithm.h"
+#include "store_tile_source.h"
 
 namespace ropsim {
 
@@ -45,23 +49,36 @@ namespace {
 
 /// The DRAM's address map (dram.h: channel from the interleave granule folded
 /// with higher bits, bank from the row) and its row buffers, tag-only; and
-/// each channel's bursts served in arrival order as fast as the channel can,
-/// as Dram::access does for requests that all arrive at once: a burst starts
-/// when the data bus is free and its bank is free (plus the row-miss
-/// penalty). The clock this keeps per channel is the cycles the channel needs
-/// for its bursts so far, whatever the arrival times: a lower bound.
-class DramTags {
+/// each channel's bursts served in arrival order, twice:
+///  - as fast as the channel can, as Dram::access does for requests that all
+///    arrive at once: a burst starts when the data bus is free and its bank
+///    is free (plus the row-miss penalty). The clock this keeps per channel
+///    (bus_free) is the cycles the channel needs for its bursts so far,
+///    whatever the arrival times: a lower bound (the DRAM bound).
+///  - timed, by Dram::access's rule for a burst requested at a cycle
+///    (set_now: the estimated cycle its fragment entered the depth test): it
+///    starts no earlier than its request, its bank (plus the row-miss
+///    penalty) and the channel's data bus, behind every burst requested
+///    before it -- the posted write-backs and the other ROPs' reads. A
+///    read's latency is the cycles from its request to its data: the
+///    queueing behind the channel's backlog included. The bursts come in the
+///    order the model visits the fragments (input order), so one requested
+///    earlier than a burst already served waits behind it.
+class DramTags : public BurstSink {
  public:
   explicit DramTags(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), ch_(cfg.channels) {
     for (auto& c : ch_) {
       c.open_row.assign(cfg.banks, ~uint64_t{0});
       c.bank_free.assign(cfg.banks, 0);
+      c.timed_bank_free.assign(cfg.banks, 0);
     }
   }
-  /// One burst of `bytes`; returns its unloaded read latency (row miss,
-  /// transfer, the read latency): the cycles from the request to the data
-  /// with the bank and the bus idle.
-  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) {
+  /// The cycle of the next bursts' request (the timed service).
+  void set_now(uint64_t now) { now_ = now; }
+  /// One burst of `bytes`, requested at set_now's cycle; returns a read's
+  /// latency (the timed service: queueing behind the channel's earlier
+  /// bursts, row miss, transfer, the read latency).
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) override {
     const DramAddressMap::Place at = map_.place(addr);
     const size_t ch_index = at.channel;
     Channel& c = ch_[ch_index];
@@ -80,6 +97,10 @@ class DramTags {
     const uint64_t start = std::max(ready, c.bus_free);
     c.bus_free = c.bank_free[bank] = start + transfer;
     c.busy += transfer;
+    // Timed, as Dram::access: the bank from the request (or its previous
+    // burst), the row switch in the bank, then the shared data bus.
+    const uint64_t timed_start = std::max(std::max(now_, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
+    c.timed_bus_free = c.timed_bank_free[bank] = timed_start + transfer;
     if (write) {
       ++s_.writes;
       s_.bytes_written[size_t(b)] += bytes;
@@ -87,7 +108,7 @@ class DramTags {
     }
     ++s_.reads;
     s_.bytes_read[size_t(b)] += bytes;
-    return penalty + transfer + cfg_.latency_cycles;
+    return timed_start + transfer + cfg_.latency_cycles - now_;
   }
   /// The busiest channel's service clock (cycles).
   uint64_t max_clock() const {
@@ -121,10 +142,12 @@ class DramTags {
   DramAddressMap map_;
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
-    bool read = false;  // a read since the last take_reads
-    std::vector<uint64_t> open_row, bank_free;
+    uint64_t timed_bus_free = 0;  // the timed service's data bus
+    bool read = false;            // a read since the last take_reads
+    std::vector<uint64_t> open_row, bank_free, timed_bank_free;
   };
   std::vector<Channel> ch_;
+  uint64_t now_ = 0;
   DramStats s_;
 };
 
@@ -136,13 +159,25 @@ class DramTags {
 /// final flush in way order. Its misses and write-backs go to the DRAM model
 /// (dram.h: the channel, bank and row map, the row buffers, each channel's
 /// bursts served in arrival order) at the cycle the model estimates for the
-/// access.
+/// access. With compression (comp), the compressed surfaces' fills and
+/// write-backs move their tiles' compressed bytes and the state bits
+/// (approx_compression.h), and a dirty line's eviction writes its tile's
+/// other dirty lines with it, as RopCache does.
 class TagOnlyCache {
  public:
   enum class Read { kHit, kClearFill, kMiss };
-  /// window: the depth test's outstanding fragments (depth_test.max_outstanding).
-  TagOnlyCache(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram)
-      : window_(window), cfg_(cfg), dram_(dram), in_dram_(in_dram), tags_(cfg), ways_(tags_.size()) {}
+  /// window: the depth test's outstanding fragments (depth_test.max_outstanding);
+  /// rop: the cache's ROP (its metadata cache).
+  TagOnlyCache(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram, TagOnlyCompression* comp,
+               uint32_t rop)
+      : window_(window),
+        cfg_(cfg),
+        dram_(dram),
+        in_dram_(in_dram),
+        comp_(comp),
+        rop_(rop),
+        tags_(cfg),
+        ways_(tags_.size()) {}
 
   /// A read; latency: the cycles until its data is there, unloaded.
   Read read(uint64_t line, Buffer b, uint64_t& latency) {
@@ -174,7 +209,10 @@ class TagOnlyCache {
       latency = cfg_.hit_latency_cycles;
       return Read::kClearFill;
     }
-    latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
+    if (comp_ && comp_->compresses(b))
+      latency = comp_->fill(line, b, rop_) + cfg_.hit_latency_cycles;
+    else
+      latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
     w.fill_seq = seq_;
     w.fill_latency = uint32_t(latency);
     w.fill_pixel = pixel_;
@@ -192,12 +230,12 @@ class TagOnlyCache {
     }
     if (!w.dirty) ++s_.dirtied;
     w.dirty = true;
+    if (comp_) comp_->touched(line, b);
   }
   void flush() {
     for (size_t i = 0; i < ways_.size(); ++i)
       if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
-        dram_.access(tags_.tag(i), cfg_.line_bytes, true, w.buf);
-        in_dram_.insert(tags_.tag(i));
+        write_back(tags_.tag(i), w.buf);
         w.dirty = false;
       }
   }
@@ -225,13 +263,38 @@ class TagOnlyCache {
       ++s_.evictions;
       if (ways_[victim].dirty) {
         ++s_.dirty_evictions;
-        dram_.access(old, cfg_.line_bytes, true, ways_[victim].buf);
-        in_dram_.insert(old);
+        const Buffer b = ways_[victim].buf;
+        write_back(old, b);
+        // A compressed tile leaves as a block: the tile's other dirty lines
+        // are written back with it (and stay, clean).
+        if (comp_ && comp_->compresses(b)) {
+          uint64_t first = 0, count = 0;
+          comp_->tile_lines(old, b, first, count);
+          for (uint64_t k = 0; k < count; ++k) {
+            const uint64_t other = first + k * cfg_.line_bytes;
+            if (other == old) continue;
+            const size_t ow = tags_.probe(other);
+            if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != b) continue;
+            write_back(other, b);
+            ways_[ow].dirty = false;
+          }
+        }
       }
       ways_[victim].dirty = false;
     }
     tags_.install(victim, line);
     return victim;
+  }
+  /// A dirty line to DRAM: compressed (a cleared tile writes no data and
+  /// stays out of DRAM: a later fill is a clear fill), or whole.
+  void write_back(uint64_t line, Buffer b) {
+    if (comp_ && comp_->compresses(b)) {
+      if (comp_->write_back(line, b, rop_)) in_dram_.insert(line);
+      return;
+    }
+    if (comp_ && b == Buffer::kDepth) comp_->depth_written_back(line);  // Hi-Z alone
+    dram_.access(line, cfg_.line_bytes, true, b);
+    in_dram_.insert(line);
   }
   static_assert(sizeof(Way) == kApproxWayBytes, "memory_estimate.h's kApproxWayBytes is a tag-only way's size");
   uint64_t window_, seq_ = 0;
@@ -239,6 +302,8 @@ class TagOnlyCache {
   HwConfig::Cache cfg_;
   DramTags& dram_;
   LineSet& in_dram_;
+  TagOnlyCompression* comp_;
+  uint32_t rop_;
   CacheTags tags_;
   std::vector<Way> ways_;
   CacheStats s_;
@@ -256,6 +321,21 @@ struct RopEpoch {
   uint64_t hold = 0;                          ///< depth test: cycles each fragment waited for its data, summed
   uint64_t residence = 0;                     ///< cycles each fragment was in flight (issue to retire), summed
   double issued_by = 0;                       ///< pixel ordering: the cycle after its last issue (hazard chain)
+  double accepted_by = 0;                     ///< depth test: the cycle it could accept its next fragment
+};
+
+/// One ROP's depth test in time, as DepthTest serves fragments: it accepts a
+/// fragment once the one before it has taken its initiation interval and
+/// one of its max_outstanding slots is free; a fragment holds its slot until
+/// its data is there (the first whose data arrives leaves first).
+struct DepthSlots {
+  std::vector<double> ready;  ///< min-heap: the cycles the occupied slots' data arrives
+  double next = 0;            ///< the cycle the unit can accept again (the initiation interval)
+  /// The acceptance cycles of the ROP's last `queued` fragments (a ring): a
+  /// fragment enters the ROP's queue ahead of the depth test once the one
+  /// `queued` before it has left it.
+  std::vector<double> accepted;
+  size_t at = 0;
 };
 
 struct PassResult {
@@ -277,14 +357,17 @@ struct FragRec {
   bool reads_colour : 1;  ///< a blend pass (blend) or a routed draw reads the colour it writes
   bool depth_write : 1;   ///< a routed draw: it writes depth
   bool depth_test : 1;    ///< its draw tests depth (slab over a pre-pass: it reads the covered samples' depth)
-  FragRec() : slab_kept(false), reads_colour(false), depth_write(false), depth_test(true) {}
+  bool hiz_test : 1;      ///< Hi-Z may reject it (its test is the methods' own, or LESS / LEQUAL)
+  float zmin = 1.0f;      ///< the nearest depth of its tested samples (Hi-Z)
+  FragRec() : slab_kept(false), reads_colour(false), depth_write(false), depth_test(true), hiz_test(false) {}
   bool killed() const { return m == 0; }
 };
 static_assert(sizeof(FragRec) == kApproxRecordBytes, "memory_estimate.h's kApproxRecordBytes is a FragRec's size");
 
 class Model {
  public:
-  Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out)
+  /// comp: compression and Hi-Z (null: neither), its DRAM this pass's.
+  Model(const HwConfig& hw, FunctionalRop& rop, LineSet& in_dram, ApproxStats& out, TagOnlyCompression* comp)
       : rop_demand(hw.distributor.rop_units),
         hw_(hw),
         out_(out),
@@ -297,9 +380,14 @@ class Model {
         width_(rop.header().width),
         retire_(size_t(ceil_div(rop.header().width, 8u)) * ceil_div(rop.header().height, 8u) * 64, -1e300),
         window_issue_(hw.distributor.rop_units, std::vector<double>(hw.ordering.window, -1e300)),
-        window_at_(hw.distributor.rop_units, 0) {
+        window_at_(hw.distributor.rop_units, 0),
+        slots_(hw.distributor.rop_units),
+        delivery_rate_(std::min(double(hw.source.fragments_per_clock), double(hw.distributor.fragments_per_clock))),
+        comp_(comp) {
+    if (comp_) comp_->set_dram(&dram_);
     for (uint32_t r = 0; r < hw.distributor.rop_units; ++r)
-      caches_.push_back(std::make_unique<TagOnlyCache>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram));
+      caches_.push_back(
+          std::make_unique<TagOnlyCache>(hw.cache, hw.depth_test.max_outstanding, dram_, in_dram, comp_, r));
     const MethodTraits& mt = rop.traits();
     blend_pass_ = is_blend_pass(rop.pass());
     tracker_ = rop.pass_uses_tracker();
@@ -322,6 +410,10 @@ class Model {
     epoch_ = uint64_t(d.rop_units) * (d.fifo_depth + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles +
                                       hw.depth_test.max_outstanding);
     out_.epoch_fragments = epoch_;
+    // A ROP's queue ahead of its depth test: its input FIFO, the ordering
+    // unit's window and FIFO and their pipeline registers (the epoch's terms).
+    const size_t queued = size_t(d.fifo_depth) + d.latency_cycles + o.window + o.fifo_depth + o.latency_cycles;
+    for (auto& ds : slots_) ds.accepted.assign(queued, -1e300);
   }
 
   /// One fragment, after the functional stages ran on w: its costs.
@@ -343,10 +435,29 @@ class Model {
       wait = std::max(wait, lat);
     };
     const uint32_t covered = uint32_t(__builtin_popcountll(w.covered));
+    // The cycle the depth test accepts it: not before the distributor
+    // delivered it -- in input order, at the source's and its own rate, not
+    // before the epoch's start, and only into room in its ROP's queue ahead
+    // of the depth test (a full queue blocks every ROP) -- and once the
+    // unit's previous fragment took its interval and a slot is free. Its
+    // reads are requested then, and queue in DRAM behind every burst
+    // requested before them (DramTags' timed service).
+    DepthSlots& ds = slots_[r];
+    delivered_ = std::max({delivered_ + 1 / delivery_rate_, t_, ds.accepted[ds.at]});
+    double enter = std::max(delivered_, ds.next);
+    if (ds.ready.size() == hw.depth_test.max_outstanding) {
+      std::pop_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
+      enter = std::max(enter, ds.ready.back());
+      ds.ready.pop_back();
+    }
+    dram_.set_now(uint64_t(enter + 0.5));
     if (slab_ && w.route == DrawRoute::kMethod) {
       amap_.for_each_layer_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kLayers); });
       if (prepass_ && w.depth_test)  // over a pre-pass's background: the covered samples' depth too
         amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
+    } else if (hiz_rejects(w)) {
+      // Hierarchical Z: every tested sample lies beyond its tile's farthest
+      // stored depth; the fragment reads nothing and retires at the depth test.
     } else {
       amap_.for_each_sample_line(Buffer::kDepth, f.x, f.y, w.covered, [&](uint64_t l) { rd(l, Buffer::kDepth); });
       if (tracker_) amap_.for_each_tracker_line(f.x, f.y, [&](uint64_t l) { rd(l, Buffer::kTracker); });
@@ -359,8 +470,15 @@ class Model {
         amap_.for_each_sample_line(Buffer::kColor, f.x, f.y, w.survivors, [&](uint64_t l) { rd(l, Buffer::kColor); });
     }
     e.demand[kOrdering] += 1;
-    e.demand[kDepthTest] += std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
+    const uint32_t test_ii = std::max<uint32_t>(1, ceil_div(covered, hw.depth_test.samples_per_clock));
+    e.demand[kDepthTest] += test_ii;
     e.hold += wait;
+    ds.next = enter + test_ii;
+    ds.accepted[ds.at] = enter;
+    ds.at = ds.at + 1 == ds.accepted.size() ? 0 : ds.at + 1;
+    e.accepted_by = std::max(e.accepted_by, ds.next);
+    ds.ready.push_back(enter + double(wait));
+    std::push_heap(ds.ready.begin(), ds.ready.end(), std::greater<double>());
     uint64_t res = hw.ordering.latency_cycles + wait;
     if (!w.killed()) {
       res += hw.depth_test.latency_cycles;
@@ -447,12 +565,18 @@ class Model {
     p.cycles = uint64_t(t_ + 0.5);
     // The final flush starts when the last fragment retires; its writes
     // queue behind the channels' backlog.
+    // With compression, the state bits follow the data, and a compressed
+    // line's write leaves compress_latency_cycles after the flush starts.
     std::vector<uint64_t> before, after;
     dram_.clocks(before);
+    const uint64_t compressed_before = comp_ ? compressed_writes(comp_->stats()) : 0;
     for (auto& c : caches_) c->flush();
+    if (comp_) comp_->flush();
     dram_.clocks(after);
     double tail = 0;
     for (size_t i = 0; i < after.size(); ++i) tail = std::max(tail, backlog_[i] + double(after[i] - before[i]));
+    if (comp_ && compressed_writes(comp_->stats()) != compressed_before)
+      tail += double(hw_.compression.compress_latency_cycles);
     p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
     p.dram_service = dram_.max_clock();
     p.epochs = epochs_;
@@ -475,6 +599,28 @@ class Model {
   std::vector<std::array<double, kUnitKinds>> rop_demand;
 
  private:
+  /// Line writebacks of compressed tiles (a class above 0), every surface.
+  static uint64_t compressed_writes(const CompressionTraffic& t) {
+    uint64_t n = 0;
+    for (const auto& per : t.writes_per_class)
+      for (size_t j = 1; j < per.size(); ++j) n += per[j];
+    return n;
+  }
+  /// Hi-Z, as the cycle model's depth test applies it: a fragment with
+  /// tested samples whose draw Hi-Z may reject, tested against its tile's
+  /// bound; a rejected fragment never had a surviving sample (the bound is
+  /// conservative), else the model is broken.
+  bool hiz_rejects(const FragRec& w) {
+    if (!comp_ || !comp_->hiz() || !w.covered || !w.hiz_test) return false;
+    if (!comp_->hiz_rejects(w.x, w.y, w.zmin)) return false;
+    if (w.survivors)
+      throw InternalError("Hi-Z never rejects a fragment that passes: pixel (" + std::to_string(w.x) + ", " +
+                          std::to_string(w.y) + ") had surviving samples");
+    uint64_t lines = 0;
+    amap_.for_each_sample_line(Buffer::kDepth, w.x, w.y, w.covered, [&](uint64_t) { ++lines; });
+    comp_->count_skipped(lines);
+    return true;
+  }
   void close_epoch() {
     std::array<double, kApproxBounds> b{};
     const double n = double(in_epoch_);
@@ -489,8 +635,11 @@ class Model {
           b[int(ApproxBound::kUnit)] = double(e.demand[size_t(k)]);
           unit_kind = k;
         }
-      b[int(ApproxBound::kLatency)] =
-          std::max(b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding);
+      // The depth test's slots: Little's law on the fragments' waits for
+      // their data (queueing in DRAM included), and the unit's own timeline
+      // from the epoch's start to when it could accept the next fragment.
+      b[int(ApproxBound::kLatency)] = std::max(
+          {b[int(ApproxBound::kLatency)], double(e.hold) / hw_.depth_test.max_outstanding, e.accepted_by - t_});
       b[int(ApproxBound::kScoreboard)] =
           std::max(b[int(ApproxBound::kScoreboard)], double(e.residence) / hw_.ordering.pixels_in_flight);
       b[int(ApproxBound::kHazard)] = std::max(b[int(ApproxBound::kHazard)], e.issued_by - t_);
@@ -539,6 +688,9 @@ class Model {
   std::vector<double> retire_;                     // per pixel: its last fragment's estimated retirement
   std::vector<std::vector<double>> window_issue_;  // per ROP: the issue cycles of its last `window` fragments
   std::vector<size_t> window_at_;
+  std::vector<DepthSlots> slots_;  // per ROP: its depth test in time
+  double delivery_rate_ = 1;       // fragments per clock the source and the distributor deliver
+  double delivered_ = -1e300;      // the cycle the distributor delivered the last fragment
   bool blend_pass_ = false, tracker_ = false, sorter_on_ = false, reference_on_ = false, tracker_unit_ = false;
   bool slab_ = false, prepass_ = false, color_ = true, trans_ = false, accum_ = false, framebuffer_ = false;
   Buffer marks_ = Buffer::kDepth;  // the target the stochastic pass writes besides depth and colour (kDepth: none)
@@ -547,6 +699,7 @@ class Model {
   std::vector<uint64_t> clock_;  // each channel's service clock at the epoch's start
   std::vector<double> backlog_;  // each channel's work not yet served at the epoch's start
   bool first_ = true;
+  TagOnlyCompression* comp_;
 };
 
 }  // namespace
@@ -556,10 +709,6 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     throw UserError("--method reference has no ROP pipeline: use --fidelity functional");
   if (const char* err = validate(method.numerics)) throw UserError(err);
   validate_hw_config(hw);
-  if (hw.compression.any() || hw.hiz.enable)
-    throw UserError(hw.name +
-                    ": --fidelity approximate does not model compression.* or hiz.enable; use --fidelity "
-                    "cycle (or functional for the compressibility)");
   const auto t0 = std::chrono::steady_clock::now();
   ApproxRun run;
   std::unique_ptr<FragmentSource> src = open_fragments(in);
@@ -579,6 +728,25 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   if (run_uses_accum(method.method, rop->setup().prepass)) s.listed |= 1u << int(Buffer::kAccum);
   if (method.method == Method::kSlab) s.listed |= 1u << int(Buffer::kLayers);
   LineSet in_dram(hw.cache.line_bytes);
+  // Surface compression and Hi-Z: the stored state bits, the metadata
+  // caches and the Hi-Z bounds outlive the passes, like the lines DRAM holds.
+  // The tiles are compressed as the functional store holds them when a line
+  // is written back, so the model then runs fragment by fragment with the
+  // functional pass (not a batch behind it on another thread).
+  std::unique_ptr<StoreTileSource> tiles;
+  std::unique_ptr<TagOnlyCompression> comp;
+  if (hw.compression.any() || hw.hiz.enable) {
+    const SurfaceBytes& sb = rop->setup().bytes;
+    std::array<uint32_t, kBuffers> bps{};
+    bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
+    bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
+    if (s.lists(int(Buffer::kTransmittance))) bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
+    if (s.lists(int(Buffer::kAccum))) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
+    tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
+    comp = std::make_unique<TagOnlyCompression>(hw, run.header.width, run.header.height, run.header.spp, bps,
+                                                canonical_depth(run.header.clear_depth), *tiles);
+    s.compression_on = true;
+  }
   std::array<double, kUnitKinds> unit_cycles{};
   // Per ROP and unit kind: its initiation intervals over every pass (the
   // passes run one after another, so they add up).
@@ -588,7 +756,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   for (int pass = 0; pass < rop->passes(); ++pass) {
     rop->begin_pass(pass);
     if (pass > 0) src = open_fragments(in);
-    Model model(hw, *rop, in_dram, s);
+    Model model(hw, *rop, in_dram, s, comp.get());
     const MethodTraits& mt = rop->traits();
     const bool blend_pass = is_blend_pass(rop->pass());
     // The functional pass fills batches of records; the model (the tag-only
@@ -621,6 +789,18 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
       r.survivors = w.survivors;
       r.m = uint16_t(w.m);
       r.depth_test = !w.draw || w.draw->depth_test;
+      if (comp && comp->hiz()) {
+        // Which fragments the depth test may reject by Hi-Z (depth_test.cpp):
+        // the methods' own test, or a draw testing LESS or LEQUAL (blend's
+        // draws and a frame's opaque and blended draws test with their own).
+        const bool own_test = method.method == Method::kBlend || w.route != DrawRoute::kMethod;
+        r.hiz_test = !own_test ? !w.draw || w.draw->depth_test
+                               : w.draw->depth_test && (w.draw->depth_func == DepthFunc::kLess ||
+                                                        w.draw->depth_func == DepthFunc::kLequal);
+        float zmin = 1.0f;
+        for (uint64_t m = w.covered; m; m &= m - 1) zmin = std::min(zmin, w.z[__builtin_ctzll(m)]);
+        r.zmin = zmin;
+      }
       if (!w.killed()) {
         if (blend_pass) {
           r.blended = uint16_t(rop->blend().run(w));
@@ -635,6 +815,11 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
         r.route = w.route;
         if (w.draw) r.reads_colour = (blend_pass || w.route != DrawRoute::kMethod) && draw_reads_colour(*w.draw);
         r.depth_write = w.route != DrawRoute::kMethod && w.depth_written != 0;
+      }
+      if (comp) {  // the model reads the store as it is now
+        model.fragment(r);
+        if (++read % kBatch == 0) progress.update((double(pass) + src->consumed()) / double(rop->passes()), read);
+        continue;
       }
       batch.push_back(r);
       if (batch.size() == kBatch) {
@@ -657,6 +842,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     for (size_t r = 0; r < rop_demand.size(); ++r)
       for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
   }
+  if (comp) s.compression = comp->stats();
   progress.update(1.0, read);
   progress.finish();
   s.busiest_unit = kUnitNames[std::max_element(unit_cycles.begin(), unit_cycles.end()) - unit_cycles.begin()];

@@ -10,7 +10,9 @@
 // needs -- every unit's demand against its throughput, the depth test's
 // memory latency against its requests in flight, the pixel scoreboard, the
 // DRAM channels' service of their bursts -- and adds the epochs' largest
-// bounds, the pipeline's fill and the final cache flush. docs/architecture.md
+// bounds, the pipeline's fill and the final cache flush. With surface
+// compression or Hi-Z on, the caches' DRAM traffic follows the cycle model's
+// rules, tag-only (approx_compression.h), over the functional store's tiles. docs/architecture.md
 // ("The analytical model") derives each term from the design's parameters;
 // nothing is fitted to the cycle model's outputs.
 #pragma once
@@ -21,6 +23,7 @@
 
 #include "bottleneck.h"
 #include "compressibility.h"
+#include "compression_model.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -70,8 +73,11 @@ struct ApproxStats {
   /// larger of dram_service_cycles and its bound over the epochs plus
   /// flush_cycles), against total_cycles.
   Bottleneck bottleneck;
-  CacheStats cache;                            ///< tag-only, summed over the ROPs
-  DramStats dram;                              ///< bytes, bursts and row hits of the tag-only DRAM
+  CacheStats cache;  ///< tag-only, summed over the ROPs
+  DramStats dram;    ///< bytes, bursts and row hits of the tag-only DRAM
+  /// Compression and Hi-Z (approx_compression.h), when the design has either.
+  bool compression_on = false;
+  CompressionTraffic compression;
   uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed
   bool lists(int b) const { return (listed >> b) & 1u; }
 };

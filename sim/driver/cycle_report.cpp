@@ -118,7 +118,8 @@ static void put_dram_traffic(Fields dram, const DramStats& d, uint32_t listed) {
   dram.put("row_misses", d.row_misses, "bursts", "bursts that opened a row");
 }
 
-/// Surface compression's traffic and Hi-Z (compression_model.h): per
+/// Surface compression's traffic and Hi-Z (compression_model.h; the
+/// approximate model's approx_compression.h counts the same): per
 /// compressed surface, its line transfers' bytes before and after
 /// compression, the block sizes of the tiles written, and its state bits'
 /// traffic (included in the DRAM bytes of the surface).
@@ -158,6 +159,18 @@ static void put_compression_traffic(Fields c, const CompressionTraffic& s, const
     e.put("metadata_bytes_read", s.metadata_bytes_read[size_t(b)], "bytes", "state-bit lines read from DRAM");
     e.put("metadata_bytes_written", s.metadata_bytes_written[size_t(b)], "bytes", "state-bit lines written to DRAM");
   }
+}
+
+/// The summary's line on compression and Hi-Z (cycle and approximate).
+static std::string compression_summary(const CompressionTraffic& c) {
+  uint64_t before = 0, after = 0;
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    before += c.bytes_written_uncompressed[b] + c.bytes_read_uncompressed[b];
+    after += c.bytes_written[b] + c.bytes_read[b];
+  }
+  return fmt::format(
+      "  compression: {} B of compressed-surface traffic moved as {} B; Hi-Z rejected {} of {} fragments\n", before,
+      after, c.hiz_rejected, c.hiz_tests);
 }
 
 RtlDesign rtl_design_of(const HwConfig& hw) {
@@ -334,6 +347,7 @@ void put_approx_stats(Fields t, const ApproxStats& s, const Counters& c) {
   put_dram_traffic(dram, s.dram, s.listed);
   dram.put("busiest_channel_utilization", double(s.dram.max_channel_busy) / total, "fraction",
            "data-bus busy cycles of the busiest channel / total_cycles");
+  if (s.compression_on) put_compression_traffic(t.obj("compression"), s.compression, s.hw);
   Fields a = t.obj("approximate");
   a.put("epochs", s.epochs, "epochs",
         "approximate: spans of the input whose bounds are taken together (summed over the passes)");
@@ -512,6 +526,7 @@ std::string approximate_summary(const ReportContext& ctx, const ApproxRun& run, 
                      s.flush_cycles);
   out += fmt::format("  DRAM: {} B read, {} B written (tag-only)\n", s.dram.total_bytes_read(),
                      s.dram.total_bytes_written());
+  if (s.compression_on) out += compression_summary(s.compression);
   std::string bounds;
   for (int b = 0; b < kApproxBounds; ++b)
     bounds += fmt::format("{}{} {:.0f}", b ? ", " : "", to_string(ApproxBound(b)), s.bound_cycles[size_t(b)]);
@@ -600,6 +615,13 @@ std::vector<FieldDoc> report_field_docs() {
   // An approximate run's fields (its method's buffers as above).
   ctx.config = MethodConfig{};
   approximate_report(ctx, run_approximate(in, ctx.config, HwConfig{}), std::nullopt, &sink);
+  {  // with compression and Hi-Z (the same fields as the cycle model's)
+    HwConfig hc;
+    hc.compression.depth = hc.compression.color = hc.hiz.enable = true;
+    ReportContext cc = ctx;
+    cc.config.compression = hc.compression.setup();
+    approximate_report(cc, run_approximate(in, cc.config, hc), std::nullopt, &sink);
+  }
   return sink.docs();
 }
 
@@ -612,17 +634,7 @@ std::string cycle_summary(const ReportContext& ctx, const CycleRun& run, const s
   out += fmt::format("  DRAM: {} B read, {} B written, {:.1f} of {:.1f} GB/s; busiest channel {:.0f}% busy\n",
                      s.dram.total_bytes_read(), s.dram.total_bytes_written(), s.dram_achieved_gbps, s.dram_peak_gbps,
                      100 * s.dram_utilization);
-  if (s.compression_on) {
-    const CompressionTraffic& c = s.compression;
-    uint64_t before = 0, after = 0;
-    for (size_t b = 0; b < size_t(kBuffers); ++b) {
-      before += c.bytes_written_uncompressed[b] + c.bytes_read_uncompressed[b];
-      after += c.bytes_written[b] + c.bytes_read[b];
-    }
-    out += fmt::format(
-        "  compression: {} B of compressed-surface traffic moved as {} B; Hi-Z rejected {} of {} fragments\n", before,
-        after, c.hiz_rejected, c.hiz_tests);
-  }
+  if (s.compression_on) out += compression_summary(s.compression);
   for (const auto& p : s.passes)
     out += fmt::format("  pass {}: {} cycles; DRAM {} B read, {} B written\n", p.name, p.total_cycles,
                        p.dram.total_bytes_read(), p.dram.total_bytes_written());

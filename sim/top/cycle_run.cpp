@@ -16,6 +16,7 @@
 #include "output_file.h"
 #include "rop_pipeline.h"
 #include "sim_context.h"
+#include "store_tile_source.h"
 
 namespace ropsim {
 
@@ -99,28 +100,6 @@ void add_dram(DramStats& a, const DramStats& b) {
   a.max_channel_busy += b.max_channel_busy;  // passes run one after another
   a.max_channel_service += b.max_channel_service;
 }
-
-}  // namespace
-
-namespace {
-
-/// The compressor's view of the functional store (TileSource): a memory
-/// tile's contents compressed now (compressibility.h).
-class StoreTileSource : public TileSource {
- public:
-  StoreTileSource(const SampleStore& store, const CompressionFormat& f)
-      : comp_(store, f), tiles_x_(ceil_div(store.header().width, 8u)), tile_pixels_(f.tile_pixels) {}
-  TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) override {
-    const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
-    const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
-    const TileState st = comp_.state(b, x, y, size, undo, n);
-    return TileInfo{st.cleared, st.size.size_class, st.max_depth};
-  }
-
- private:
-  TileCompressor comp_;
-  uint64_t tiles_x_, tile_pixels_;
-};
 
 }  // namespace
 

@@ -222,6 +222,23 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
         padded_pixels(shape) * sizeof(double));
     add(e, "fragment_records", {}, "the functional pass's fragment records: two batches handed to the model", 0,
         2 * kApproxBatchRecords * kApproxRecordBytes);
+    const bool comp = hw.compression.any();
+    add(e, "metadata_cache", {"compression.metadata_cache_bytes", "cache.line_bytes"},
+        "compression: the tiles' state-bit cache, tag-only: per line its tag, LRU and dirty bit (counted as the "
+        "cycle model's, which also keeps a ready cycle and a draw)",
+        comp ? CompressionModel::metadata_cache_bytes(hw) : 0, 0);
+    uint64_t compressed = 0;  // the surfaces compressed (approx_compression.cpp)
+    if (hw.compression.depth) ++compressed;
+    if (hw.compression.color)
+      compressed += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);
+    const uint64_t tiles = comp || hw.hiz.enable ? CompressionModel::screen_tiles(hw, shape.width, shape.height) : 0;
+    add(e, "compression_tile_state", {"compression.depth", "compression.color", "compression.tile_pixels"},
+        "compression: per memory tile of the screen and compressed surface its compressed size (memoised) and "
+        "stored state bits",
+        0, tiles * compressed * kApproxTileStateBytes);
+    add(e, "hiz", {"hiz.enable", "compression.tile_pixels"},
+        "Hi-Z: per memory tile of the screen its farthest stored depth", 0,
+        hw.hiz.enable ? tiles * CompressionModel::hiz_bytes_per_tile() : 0);
   }
   for (const MemoryTerm& t : e.terms) {
     e.per_rop_bytes += t.per_rop_bytes;
