@@ -719,7 +719,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   check_model_memory(hw, estimate);
   BudgetShare model_memory;
   model_memory.add(estimate.total_bytes, "the approximate model's structures");
-  auto rop = std::make_unique<FunctionalRop>(run.header, method);
+  auto rop = std::make_unique<FunctionalRop>(run.header, on_design(method, hw.compression.setup()));
   ApproxStats& s = run.stats;
   s.hw = hw;
   s.hw.numerics = method.numerics;

@@ -239,6 +239,14 @@ inline BlendFormats target_formats(const MethodConfig& c) {
   return f;
 }
 
+/// c as a timing model runs it on a design compressing as `design` says:
+/// its store keeps what the compressor needs (the depths' plane keys for the
+/// rasterizer-plane encoder), whatever compression c itself names.
+inline MethodConfig on_design(MethodConfig c, const CompressionSetup& design) {
+  c.compression = design;
+  return c;
+}
+
 /// The golden model's name for the same configuration.
 using GoldenConfig = MethodConfig;
 

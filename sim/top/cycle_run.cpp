@@ -126,11 +126,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   check_model_memory(hw, estimate);
   BudgetShare model_memory;
   model_memory.add(estimate.total_bytes, "the cycle model's structures");
-  // The store keeps what the design's compressor needs (the depths' plane
-  // keys for the rasterizer-plane encoder), whatever the caller's method says.
-  MethodConfig with_design = method;
-  with_design.compression = hw.compression.setup();
-  auto rop = std::make_unique<FunctionalRop>(run.header, with_design);
+  auto rop = std::make_unique<FunctionalRop>(run.header, on_design(method, hw.compression.setup()));
   LineSet in_dram(hw.cache.line_bytes);
   // Surface compression and Hi-Z: the stored state bits and Hi-Z bounds
   // outlive the passes, like the lines DRAM holds.
