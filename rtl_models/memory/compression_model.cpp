@@ -21,6 +21,7 @@ CompressionTraffic& CompressionTraffic::operator+=(const CompressionTraffic& o) 
   }
   metadata_hits += o.metadata_hits;
   metadata_misses += o.metadata_misses;
+  metadata_lines_dirtied += o.metadata_lines_dirtied;
   hiz_tests += o.hiz_tests;
   hiz_rejected += o.hiz_rejected;
   hiz_lines_skipped += o.hiz_lines_skipped;
@@ -160,10 +161,45 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
     s_.metadata_bytes_read[size_t(b)] += line_bytes_;
   }
   if (write) {
+    s_.metadata_lines_dirtied += !m.dirty[way];
     m.dirty[way] = 1;
     m.draw[way] = dram_->charged();
   }
   return ready;
+}
+
+TileInfo CompressionModel::warm_tile(Buffer b, uint64_t tile) {
+  const TileInfo t = on_[size_t(b)] ? info(b, tile) : view(b, tile, false);
+  if (b == Buffer::kDepth && hiz_) zmax_[tile] = t.max_depth;
+  if (on_[size_t(b)] && !t.cleared) stored_[size_t(b)][tile] = uint8_t(1 + t.size_class);
+  return t;
+}
+
+void CompressionModel::warm_metadata(uint64_t line, Buffer b, bool write, uint32_t rop) {
+  MetaCache& m = meta_[rop];
+  const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile_of(line, b) * uint64_t(meta_bits_) / 8;
+  const uint64_t mline = addr / line_bytes_ * line_bytes_;
+  bool hit = false;
+  const size_t way = m.tags.find(mline, hit);
+  if (!hit) {
+    m.tags.install(way, mline);
+    m.dirty[way] = 0;
+    m.ready[way] = 0;
+  }
+  if (write) m.dirty[way] = 1;
+}
+
+CompressionModel::WarmState CompressionModel::warm_state() const {
+  WarmState w;
+  w.stored = stored_;
+  w.zmax = zmax_;
+  for (const MetaCache& m : meta_) {
+    std::vector<uint64_t> tags(m.tags.size());
+    for (size_t i = 0; i < tags.size(); ++i) tags[i] = m.tags.tag(i);
+    w.meta_tags.push_back(std::move(tags));
+    w.meta_dirty.push_back(m.dirty);
+  }
+  return w;
 }
 
 bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_t rop, uint64_t& done) {

@@ -102,27 +102,28 @@ void add_dram(DramStats& a, const DramStats& b) {
 
 }  // namespace
 
-namespace {
+StoreTileSource::StoreTileSource(const SampleStore& store, const CompressionFormat& f)
+    : store_(store), comp_(store, f), tiles_x_(ceil_div(store.header().width, 8u)), tile_pixels_(f.tile_pixels) {}
 
-/// The compressor's view of the functional store (TileSource): a memory
-/// tile's contents compressed now (compressibility.h).
-class StoreTileSource : public TileSource {
- public:
-  StoreTileSource(const SampleStore& store, const CompressionFormat& f)
-      : comp_(store, f), tiles_x_(ceil_div(store.header().width, 8u)), tile_pixels_(f.tile_pixels) {}
-  TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) override {
-    const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
-    const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
-    const TileState st = comp_.state(b, x, y, size, undo, n);
-    return TileInfo{st.cleared, st.size.size_class, st.max_depth};
-  }
+TileInfo StoreTileSource::tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) {
+  const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
+  const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
+  if (absent_set_[size_t(b)] && !store_.tile_map().find(x, y)) return absent_[size_t(b)];
+  const TileState st = comp_.state(b, x, y, size, undo, n);
+  return TileInfo{st.cleared, st.size.size_class, st.max_depth};
+}
 
- private:
-  TileCompressor comp_;
-  uint64_t tiles_x_, tile_pixels_;
-};
-
-}  // namespace
+std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop) {
+  const SurfaceBytes& sb = rop.setup().bytes;
+  const Method m = rop.setup().cfg.method;
+  std::array<uint32_t, kBuffers> bps{};
+  bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
+  bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
+  if (run_uses_transmittance(m, rop.setup().prepass))
+    bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
+  if (run_uses_accum(m, rop.setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
+  return bps;
+}
 
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
   return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
@@ -154,14 +155,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   std::unique_ptr<CompressionModel> comp;
   std::unique_ptr<StoreTileSource> tiles;
   if (hw.compression.any() || hw.hiz.enable) {
-    // The surfaces the run uses, in their bytes in memory (surface_bytes.h).
-    const SurfaceBytes& sb = rop->setup().bytes;
-    std::array<uint32_t, kBuffers> bps{};
-    bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
-    bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
-    if (run_uses_transmittance(method.method, rop->setup().prepass))
-      bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
-    if (run_uses_accum(method.method, rop->setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
+    const std::array<uint32_t, kBuffers> bps = compressed_bytes_per_sample(*rop);
     comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
                                               canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);

@@ -11,6 +11,7 @@
 #include "bottleneck.h"
 #include "breakdown.h"
 #include "compressibility.h"
+#include "compression_model.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -25,6 +26,8 @@
 #include "unit.h"
 
 namespace ropsim {
+
+class FunctionalRop;
 
 struct CycleOptions {
   std::string vcd_path;                             ///< non-empty: write a VCD waveform here (waveform.h)
@@ -132,6 +135,32 @@ const std::vector<StatDesc>& tile_map_descs();
 /// Map i of tile_map_descs(): its value per distributor tile, row by row
 /// (CycleRun::tiles_x per row).
 const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
+
+/// The compressor's view of the functional store (TileSource): a memory
+/// tile's contents compressed now (compressibility.h).
+class StoreTileSource : public TileSource {
+ public:
+  StoreTileSource(const SampleStore& store, const CompressionFormat& f);
+  TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) override;
+  /// A tile of surface b in an 8 x 8 tile the store never allocated answers
+  /// t, not cleared (sampled simulation: a tile whose lines only the warming
+  /// brought into a cache, its contents not in the live-point).
+  void set_absent(Buffer b, const TileInfo& t) {
+    absent_[size_t(b)] = t;
+    absent_set_[size_t(b)] = true;
+  }
+
+ private:
+  const SampleStore& store_;
+  TileCompressor comp_;
+  uint64_t tiles_x_, tile_pixels_;
+  std::array<TileInfo, kBuffers> absent_{};
+  std::array<bool, kBuffers> absent_set_{};
+};
+
+/// The bytes per sample in memory of each surface a run of rop's method
+/// uses (surface_bytes.h; 0: unused), as the CompressionModel takes them.
+std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop);
 
 /// Throws std::invalid_argument for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.
