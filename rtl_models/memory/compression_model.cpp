@@ -177,8 +177,7 @@ TileInfo CompressionModel::warm_tile(Buffer b, uint64_t tile) {
 
 void CompressionModel::warm_metadata(uint64_t line, Buffer b, bool write, uint32_t rop) {
   MetaCache& m = meta_[rop];
-  const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile_of(line, b) * uint64_t(meta_bits_) / 8;
-  const uint64_t mline = addr / line_bytes_ * line_bytes_;
+  const uint64_t mline = metadata_line(line, b);
   bool hit = false;
   const size_t way = m.tags.find(mline, hit);
   if (!hit) {

@@ -137,6 +137,11 @@ class CompressionModel {
   /// bound. A tile holding only the clear value stays never written. Returns
   /// its contents' TileInfo.
   TileInfo warm_tile(Buffer b, uint64_t tile);
+  /// The metadata line holding the state bits of line's tile (surface b compressed).
+  uint64_t metadata_line(uint64_t line, Buffer b) const {
+    const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile_of(line, b) * uint64_t(meta_bits_) / 8;
+    return addr / line_bytes_ * line_bytes_;
+  }
   /// A tag-only access to the state bits of line's tile through ROP rop's
   /// metadata cache (a fill reads them, a write-back writes them).
   void warm_metadata(uint64_t line, Buffer b, bool write, uint32_t rop);

@@ -167,26 +167,40 @@ uint64_t reach_lines(const HwConfig& hw, double reach) {
   return uint64_t(std::ceil(std::max(0.0, reach) * lines));
 }
 
-/// Walks lp's touches backwards until they reach reach_lines distinct lines;
-/// returns the index of the first touch to warm with (0: all of them).
+/// Walks lp's touches backwards until they reach reach_lines distinct lines
+/// (with compression, comp, also R times the design's metadata cache lines,
+/// all ROPs, in distinct metadata lines: the state bits of a tile stay in a
+/// metadata cache far longer than its data in a ROP cache); returns the index
+/// of the first touch to warm with (0: all of them).
 size_t warming_start(const LivePoint& lp, const AddressMap& amap, const HwConfig& hw, double reach, bool tracker,
-                     bool slab, bool& met) {
+                     bool slab, const CompressionModel* comp, bool& met) {
   const uint64_t want = reach_lines(hw, reach);
-  LineSet seen(hw.cache.line_bytes);
-  uint64_t distinct = 0;
+  const double meta_lines =
+      double(hw.distributor.rop_units) *
+      double(std::max(hw.compression.metadata_cache_bytes, hw.cache.line_bytes) / hw.cache.line_bytes);
+  const uint64_t want_meta = comp && hw.compression.any() ? uint64_t(std::ceil(std::max(0.0, reach) * meta_lines)) : 0;
+  LineSet seen(hw.cache.line_bytes), seen_meta(hw.cache.line_bytes);
+  uint64_t distinct = 0, distinct_meta = 0;
   for (size_t i = lp.warming.size(); i-- > 0;) {
-    if (distinct >= want) {
+    if (distinct >= want && distinct_meta >= want_meta) {
       met = true;
       return i + 1;
     }
-    touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool, Buffer) {
+    touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool, Buffer b) {
       if (!seen.contains(l)) {
         seen.insert(l);
         ++distinct;
       }
+      if (want_meta && comp->compresses(b)) {
+        const uint64_t m = comp->metadata_line(l, b);
+        if (!seen_meta.contains(m)) {
+          seen_meta.insert(m);
+          ++distinct_meta;
+        }
+      }
     });
   }
-  met = distinct >= want;
+  met = distinct >= want && distinct_meta >= want_meta;
   return 0;
 }
 
@@ -469,9 +483,9 @@ CompressionTraffic difference(const CompressionTraffic& a, const CompressionTraf
 /// warmed as the caches are (livepoints.h): every memory tile of the unit's
 /// 8 x 8 tiles taken as written back with its contents then (its state bits
 /// and Hi-Z bound; one holding only the clear value never written); a tile
-/// outside them, which only the warming's lines reach, answers the class its
-/// surface's tiles take most often here. The caches' tag-only warming then
-/// warms the metadata caches.
+/// outside them, which only the warming's lines reach, takes a class in the
+/// proportions of the unit's tiles' classes. The caches' tag-only warming
+/// then warms the metadata caches.
 void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePoint& lp, const TraceHeader& h,
                       const HwConfig& hw) {
   const uint64_t tiles_x = ceil_div(h.width, 8u), per = 64u / hw.compression.tile_pixels;
@@ -489,10 +503,7 @@ void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePo
         const TileInfo ti = comp.warm_tile(Buffer(b), m);
         if (!ti.cleared) ++classes[size_t(ti.size_class)];
       }
-    TileInfo absent;
-    absent.size_class = int(std::max_element(classes.begin(), classes.end()) - classes.begin());
-    absent.max_depth = canonical_depth(h.clear_depth);
-    src.set_absent(Buffer(b), absent);
+    src.set_absent(Buffer(b), classes, canonical_depth(h.clear_depth));
   }
 }
 
@@ -548,9 +559,19 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     // ROPs that own their pixels (depth test reads, then the writeback's writes).
     const RopOwnership owner(hw.distributor, h.width);
     bool met = false;
-    const size_t from = warming_start(lp, amap, hw, lib.params.warming_reach, tracker, slab, met);
+    const size_t from = warming_start(lp, amap, hw, lib.params.warming_reach, tracker, slab, comp.get(), met);
     r.warming_used = lp.warming.size() - from;
     r.warming_short = !met && lp.first > lp.warming.size();
+    if (comp) {
+      // A line the warming reads outside the unit's tiles is taken to be in
+      // DRAM (its fill reads its tile's state bits): the live-point holds
+      // which lines held written values for the unit's tiles only.
+      for (size_t i = from; i < lp.warming.size(); ++i)
+        touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool write, Buffer) {
+          const Touch& x = lp.warming[i];
+          if (!write && !rop->store().tile_map().find(x.x, x.y)) in_dram.insert(l);
+        });
+    }
     for (size_t i = from; i < lp.warming.size(); ++i) {
       const Touch& x = lp.warming[i];
       RopCache& c = *t->caches()[owner.rop_of(x.x, x.y)];

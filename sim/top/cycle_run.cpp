@@ -108,7 +108,17 @@ StoreTileSource::StoreTileSource(const SampleStore& store, const CompressionForm
 TileInfo StoreTileSource::tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) {
   const uint64_t pix = tile * tile_pixels_, t = pix / 64, p = pix % 64;
   const uint32_t x = uint32_t((t % tiles_x_) * 8 + (p & 7u)), y = uint32_t((t / tiles_x_) * 8 + (p >> 3));
-  if (absent_set_[size_t(b)] && !store_.tile_map().find(x, y)) return absent_[size_t(b)];
+  if (absent_set_[size_t(b)] && !store_.tile_map().find(x, y)) {
+    const std::array<uint64_t, 4>& c = absent_[size_t(b)];
+    const uint64_t sum = c[0] + c[1] + c[2] + c[3];
+    TileInfo t;
+    t.max_depth = absent_depth_;
+    if (sum == 0) return t;
+    uint64_t h = (tile + 1) * 0x9E3779B97F4A7C15ull;  // the tile's pick, fixed
+    h = (h ^ (h >> 29)) % sum;
+    while (h >= c[size_t(t.size_class)]) h -= c[size_t(t.size_class++)];
+    return t;
+  }
   const TileState st = comp_.state(b, x, y, size, undo, n);
   return TileInfo{st.cleared, st.size.size_class, st.max_depth};
 }

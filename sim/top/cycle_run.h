@@ -142,11 +142,14 @@ class StoreTileSource : public TileSource {
  public:
   StoreTileSource(const SampleStore& store, const CompressionFormat& f);
   TileInfo tile(Buffer b, uint64_t tile, bool size, const TilePatch* undo, size_t n) override;
-  /// A tile of surface b in an 8 x 8 tile the store never allocated answers
-  /// t, not cleared (sampled simulation: a tile whose lines only the warming
-  /// brought into a cache, its contents not in the live-point).
-  void set_absent(Buffer b, const TileInfo& t) {
-    absent_[size_t(b)] = t;
+  /// A tile of surface b in an 8 x 8 tile the store never allocated is not
+  /// cleared, of class j for a share classes[j] / sum of such tiles (which
+  /// ones: a hash of the tile's index), its farthest depth max_depth
+  /// (sampled simulation: a tile whose lines only the warming brought into a
+  /// cache, its contents not in the live-point).
+  void set_absent(Buffer b, const std::array<uint64_t, 4>& classes, float max_depth) {
+    absent_[size_t(b)] = classes;
+    absent_depth_ = max_depth;
     absent_set_[size_t(b)] = true;
   }
 
@@ -154,8 +157,9 @@ class StoreTileSource : public TileSource {
   const SampleStore& store_;
   TileCompressor comp_;
   uint64_t tiles_x_, tile_pixels_;
-  std::array<TileInfo, kBuffers> absent_{};
+  std::array<std::array<uint64_t, 4>, kBuffers> absent_{};
   std::array<bool, kBuffers> absent_set_{};
+  float absent_depth_ = 1.0f;
 };
 
 /// The bytes per sample in memory of each surface a run of rop's method
