@@ -2379,7 +2379,7 @@ TEST(LivePointLibrary, RefusesWhatIsNotItsOwn) {
   };
   refused("", "not a live-point library");
   refused("RTRACE01" + bytes.substr(8), "not a live-point library");
-  for (const char version : {char(1), char(3)}) {
+  for (const char version : {char(kLivePointFileVersion - 1), char(kLivePointFileVersion + 1)}) {
     std::string other = bytes;
     other[8] = version;
     refused(other, "version " + std::to_string(int(version)));

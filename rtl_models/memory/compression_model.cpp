@@ -21,7 +21,6 @@ CompressionTraffic& CompressionTraffic::operator+=(const CompressionTraffic& o) 
   }
   metadata_hits += o.metadata_hits;
   metadata_misses += o.metadata_misses;
-  metadata_lines_dirtied += o.metadata_lines_dirtied;
   hiz_tests += o.hiz_tests;
   hiz_rejected += o.hiz_rejected;
   hiz_lines_skipped += o.hiz_lines_skipped;
@@ -161,7 +160,6 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
     s_.metadata_bytes_read[size_t(b)] += line_bytes_;
   }
   if (write) {
-    s_.metadata_lines_dirtied += !m.dirty[way];
     m.dirty[way] = 1;
     m.draw[way] = dram_->charged();
   }

@@ -67,9 +67,6 @@ struct CompressionTraffic {
   std::array<uint64_t, kBuffers> writes_cleared{};
   std::array<uint64_t, kBuffers> metadata_bytes_read{}, metadata_bytes_written{};
   uint64_t metadata_hits = 0, metadata_misses = 0;
-  /// Writes that made a clean metadata line dirty: each is one metadata line
-  /// written to DRAM later (the sampled fidelity's share of metadata writes).
-  uint64_t metadata_lines_dirtied = 0;
   uint64_t hiz_tests = 0, hiz_rejected = 0;
   uint64_t hiz_lines_skipped = 0;  ///< depth lines the rejected fragments did not read
   CompressionTraffic& operator+=(const CompressionTraffic& o);

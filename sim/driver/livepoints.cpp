@@ -467,7 +467,6 @@ void each_count(A& a, B& b, F&& f) {
   }
   f(a.metadata_hits, b.metadata_hits);
   f(a.metadata_misses, b.metadata_misses);
-  f(a.metadata_lines_dirtied, b.metadata_lines_dirtied);
   f(a.hiz_tests, b.hiz_tests);
   f(a.hiz_rejected, b.hiz_rejected);
   f(a.hiz_lines_skipped, b.hiz_lines_skipped);
@@ -980,7 +979,7 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
 /// dirty is written once, in its tile's block size at that write-back: the
 /// window's lines dirtied per surface times the bytes per line the units'
 /// write-backs of that surface moved (compressed / uncompressed, over every
-/// unit), plus its metadata lines dirtied. A whole input: the run's figures.
+/// unit), plus its metadata lines written. A whole input: the run's figures.
 template <class Est>
 void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::vector<UnitFigures>& figs,
                           const std::vector<double>& m, const Est& estimate, SampledRun& out) {
@@ -988,12 +987,10 @@ void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::
   const double lb = double(hw.cache.line_bytes);
   CompressionTraffic run, win, tail = figs.back().tail_compression;
   std::array<double, kBuffers> dirtied{};  // the windows' lines dirtied, summed
-  double meta_dirtied = 0;
   for (const UnitFigures& f : figs) {
     run += f.run_compression;
     win += f.window_compression;
     for (size_t b = 0; b < size_t(kBuffers); ++b) dirtied[b] += double(f.window_lines_dirtied_of[b]);
-    meta_dirtied += double(f.window_compression.metadata_lines_dirtied);
   }
   // Bytes per line written, per surface, over the units' write-backs.
   std::array<double, kBuffers> ratio;
@@ -1001,14 +998,23 @@ void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::
     ratio[b] = run.bytes_written_uncompressed[b]
                    ? double(run.bytes_written[b]) / double(run.bytes_written_uncompressed[b])
                    : 1.0;
+  // Metadata: the windows' metadata lines written (a metadata cache holds a
+  // tile's state bits far longer than a window: its lines made dirty before
+  // it are written in it), plus the last unit's tail (the final flush).
+  auto metadata_written = [](const CompressionTraffic& c) {
+    double v = 0;
+    for (uint64_t x : c.metadata_bytes_written) v += double(x);
+    return v;
+  };
   std::vector<double> wr(k);
   for (size_t i = 0; i < k; ++i) {
     const UnitFigures& f = figs[i];
-    double y = double(f.window_compression.metadata_lines_dirtied) * lb;
+    double y = metadata_written(f.window_compression);
     for (size_t b = 0; b < size_t(kBuffers); ++b) y += double(f.window_lines_dirtied_of[b]) * lb * ratio[b];
     wr[i] = lib.whole ? double(f.window_bytes_written) : y;
   }
-  out.dram_bytes_written = estimate(wr, lib.whole ? double(figs.back().tail_bytes_written) : 0.0);
+  out.dram_bytes_written =
+      estimate(wr, double(lib.whole ? figs.back().tail_bytes_written : metadata_written(figs.back().tail_compression)));
   // The traffic: the windows' counts per fragment times N, plus the last
   // unit's tail (its drain and final flush), as the DRAM bytes read.
   double sm = 0;
@@ -1020,16 +1026,11 @@ void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::
   e += tail;
   out.stats.compression_on = true;
   if (lib.whole) return;
-  // Writes lag the window: by the lines it dirtied instead, in the units'
-  // proportions of block sizes and of metadata by surface.
-  uint64_t meta_run = 0;
-  for (size_t b = 0; b < size_t(kBuffers); ++b) meta_run += run.metadata_bytes_written[b];
-  const double meta_est = meta_dirtied * scale * lb;
+  // Data writes lag the window: by the lines it dirtied instead, in the
+  // units' proportions of block sizes.
   for (size_t b = 0; b < size_t(kBuffers); ++b) {
     // A compressed surface the units dirtied: their final flushes wrote it back.
     const bool on = run.lines_written[b] > 0;
-    e.metadata_bytes_written[b] =
-        meta_run ? uint64_t(std::llround(meta_est * double(run.metadata_bytes_written[b]) / double(meta_run))) : 0;
     if (!on) continue;
     const double lines = dirtied[b] * scale;
     e.lines_written[b] = uint64_t(std::llround(lines));
@@ -1040,7 +1041,6 @@ void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::
       e.writes_per_class[b][j] = n > 0 ? uint64_t(std::llround(lines * double(run.writes_per_class[b][j]) / n)) : 0;
     e.writes_cleared[b] = n > 0 ? uint64_t(std::llround(lines * double(run.writes_cleared[b]) / n)) : 0;
   }
-  e.metadata_lines_dirtied = uint64_t(std::llround(meta_dirtied * scale));
 }
 
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
