@@ -1975,6 +1975,20 @@ std::string runs_differ(const SampledRun& a, const SampledRun& b) {
         a.units_estimated[i].stats.cycles != b.units_estimated[i].stats.cycles)
       return "unit " + a.units_estimated[i].name;
   if (format_bottleneck(a.stats) != format_bottleneck(b.stats)) return "bottleneck";
+  if (a.stats.compression_on != b.stats.compression_on) return "compression on";
+  bool same_traffic = true;
+  auto cmp = [&](const auto& x, const auto& y) { same_traffic = same_traffic && x == y; };
+  const CompressionTraffic &ca = a.stats.compression, &cb = b.stats.compression;
+  cmp(ca.lines_written, cb.lines_written);
+  cmp(ca.lines_read, cb.lines_read);
+  cmp(ca.bytes_written, cb.bytes_written);
+  cmp(ca.bytes_read, cb.bytes_read);
+  cmp(ca.writes_per_class, cb.writes_per_class);
+  cmp(ca.metadata_bytes_read, cb.metadata_bytes_read);
+  cmp(ca.metadata_bytes_written, cb.metadata_bytes_written);
+  cmp(ca.metadata_misses, cb.metadata_misses);
+  cmp(ca.hiz_rejected, cb.hiz_rejected);
+  if (!same_traffic) return "compression traffic";
   return "";
 }
 
@@ -2643,12 +2657,14 @@ TEST(Sampled, WorkersGiveTheSameFigures) {
   p.unit_fragments = 1000;
   p.warmup_fragments = 1000;
   const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
-  const HwConfig hw = load_hw_config(kSource + "/configs/wide.toml");
-  const SampledRun one = run_sampled(lib, hw, 1);
-  for (int jobs : {2, 3, 16}) {
-    const SampledRun many = run_sampled(lib, hw, jobs);
-    EXPECT_EQ(runs_differ(one, many), "") << jobs << " workers";
-    EXPECT_EQ(many.jobs, std::min(jobs, 7)) << "no more workers than units";
+  for (const char* design : {"wide.toml", "current-gpu.toml"}) {  // current-gpu: compression and Hi-Z
+    const HwConfig hw = load_hw_config(kSource + "/configs/" + design);
+    const SampledRun one = run_sampled(lib, hw, 1);
+    for (int jobs : {2, 3, 16}) {
+      const SampledRun many = run_sampled(lib, hw, jobs);
+      EXPECT_EQ(runs_differ(one, many), "") << design << ": " << jobs << " workers";
+      EXPECT_EQ(many.jobs, std::min(jobs, 7)) << "no more workers than units";
+    }
   }
 }
 
