@@ -214,6 +214,9 @@ std::string library_out_of_range(const ropsim::LivePoints& lib) {
       if (!(z >= 0.0f && z <= 1.0f)) return "a pre-state depth";
     for (const SlabPixel& sp : p.pre.slabs)
       if (sp.count > m.slab_layers) return "a slab pixel's layers";
+    if (p.tiles.size() > p.resident.size()) return "a live-point's tile pixels";
+    for (float z : p.tiles.depth)
+      if (!(z >= 0.0f && z <= 1.0f)) return "a tile pixel's depth";
   }
   if (end != n) return "the last live-point does not end the input";
   if (uint64_t(h.width) * h.height <= kMaxRowsPixels) {

@@ -173,6 +173,39 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
   return ready;
 }
 
+TileInfo CompressionModel::warm_tile(Buffer b, uint64_t tile) {
+  const TileInfo t = on_[size_t(b)] ? info(b, tile) : view(b, tile, false);
+  if (b == Buffer::kDepth && hiz_) zmax_[tile] = t.max_depth;
+  if (on_[size_t(b)] && !t.cleared) stored_[size_t(b)][tile] = uint8_t(1 + t.size_class);
+  return t;
+}
+
+void CompressionModel::warm_metadata(uint64_t line, Buffer b, bool write, uint32_t rop) {
+  MetaCache& m = meta_[rop];
+  const uint64_t mline = metadata_line(line, b);
+  bool hit = false;
+  const size_t way = m.tags.find(mline, hit);
+  if (!hit) {
+    m.tags.install(way, mline);
+    m.dirty[way] = 0;
+    m.ready[way] = 0;
+  }
+  if (write) m.dirty[way] = 1;
+}
+
+CompressionModel::WarmState CompressionModel::warm_state() const {
+  WarmState w;
+  w.stored = stored_;
+  w.zmax = zmax_;
+  for (const MetaCache& m : meta_) {
+    std::vector<uint64_t> tags(m.tags.size());
+    for (size_t i = 0; i < tags.size(); ++i) tags[i] = m.tags.tag(i);
+    w.meta_tags.push_back(std::move(tags));
+    w.meta_dirty.push_back(m.dirty);
+  }
+  return w;
+}
+
 bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_t rop, uint64_t& done) {
   const uint64_t tile = tile_of(line, b);
   const TileInfo t = info(b, tile);

@@ -126,6 +126,38 @@ class CompressionModel {
   bool hiz() const { return hiz_; }
   const CompressionTraffic& stats() const { return s_; }
 
+  // Sampled warming (livepoints.h): the state a full run would hold at a
+  // live-point, set before its unit runs, without time, DRAM traffic or
+  // statistics.
+  /// Memory tiles of surface b (0 when b is neither compressed nor Hi-Z bound).
+  uint64_t tile_count(Buffer b) const { return stored_[size_t(b)].size(); }
+  /// Tile `tile` of surface b taken as written back with its current
+  /// contents: its state bits (cleared or its class) and, for depth, Hi-Z's
+  /// bound. A tile holding only the clear value stays never written. Returns
+  /// its contents' TileInfo.
+  TileInfo warm_tile(Buffer b, uint64_t tile);
+  /// The metadata line holding the state bits of line's tile (surface b compressed).
+  uint64_t metadata_line(uint64_t line, Buffer b) const {
+    const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile_of(line, b) * uint64_t(meta_bits_) / 8;
+    return addr / line_bytes_ * line_bytes_;
+  }
+  /// A tag-only access to the state bits of line's tile through ROP rop's
+  /// metadata cache (a fill reads them, a write-back writes them).
+  void warm_metadata(uint64_t line, Buffer b, bool write, uint32_t rop);
+  /// The state a live-point's warming sets, for comparing two warmings
+  /// (the library's round trip): per surface and tile the stored state bits,
+  /// Hi-Z's bounds, and per ROP the metadata cache's tags and dirty bits.
+  struct WarmState {
+    std::array<std::vector<uint8_t>, kBuffers> stored;
+    std::vector<float> zmax;
+    std::vector<std::vector<uint64_t>> meta_tags;
+    std::vector<std::vector<uint8_t>> meta_dirty;
+    bool operator==(const WarmState& o) const {
+      return stored == o.stored && zmax == o.zmax && meta_tags == o.meta_tags && meta_dirty == o.meta_dirty;
+    }
+  };
+  WarmState warm_state() const;
+
   /// Host bytes (memory_estimate.h): one ROP's metadata cache of hw (tags,
   /// LRU, dirty bit, ready cycle and draw per line); the memory tiles of a
   /// width x height screen; per tile, a compressed (or Hi-Z bound) surface's

@@ -41,6 +41,18 @@ void RopCache::evict(size_t way, uint64_t now) {
   Way& w = ways_[way];
   if (warming_) {
     if (w.dirty) in_dram_.insert(line);
+    if (w.dirty && comp_ && comp_->compresses(w.buf)) {  // the tile leaves as a block, its state bits written
+      comp_->warm_metadata(line, w.buf, true, rop_);
+      uint64_t first = 0, count = 0;
+      comp_->tile_lines(line, w.buf, first, count);
+      for (uint64_t k = 0; k < count; ++k) {
+        const uint64_t other = first + k * cfg_.line_bytes;
+        const size_t ow = other == line ? CacheTags::kNone : tags_.probe(other);
+        if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != w.buf) continue;
+        in_dram_.insert(other);
+        ways_[ow].dirty = false;
+      }
+    }
   } else {
     ++s_.evictions;
     if (w.dirty) {
@@ -124,7 +136,7 @@ void RopCache::write(uint64_t line, Buffer b, uint64_t now, Owner o) {
     w.buf = b;
     w.ready = now;
   }
-  if (!w.dirty) ++s_.dirtied;
+  if (!w.dirty) ++s_.dirtied, ++s_.dirtied_of[size_t(b)];
   w.dirty = true;
   w.draw = o.draw;
   if (comp_ && comp_->compresses(b)) comp_->touched(line, b);
@@ -139,6 +151,9 @@ void RopCache::warm(uint64_t line, bool write, Buffer b) {
     w.buf = b;
     w.ready = 0;
     w.dirty = false;
+    // A read miss fills the line: a compressed surface's fill reads its tile's state bits.
+    if (!write && comp_ && comp_->compresses(b) && (!cfg_.fast_clear || in_dram_.contains(line)))
+      comp_->warm_metadata(line, b, false, rop_);
   }
   if (write) w.dirty = true;
 }

@@ -30,6 +30,7 @@ struct CacheStats {
   /// Writes that made a clean line dirty: each is one line written to DRAM
   /// later, at its eviction or the final flush.
   uint64_t dirtied = 0;
+  std::array<uint64_t, kBuffers> dirtied_of{};  ///< dirtied, per surface
 
   /// Sums another cache's counts into this one (the ROP caches' total).
   CacheStats& operator+=(const CacheStats& o) {
@@ -44,6 +45,7 @@ struct CacheStats {
     dirty_evictions += o.dirty_evictions;
     clear_fills += o.clear_fills;
     dirtied += o.dirtied;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) dirtied_of[b] += o.dirtied_of[b];
     return *this;
   }
   /// Read and write hits (misses) over every buffer.
@@ -137,6 +139,8 @@ class RopCache {
   /// Tag-only warming before a run (sampled simulation): the access's effect
   /// on the tags, the LRU order and the dirty bits, without time, DRAM
   /// traffic or statistics; a dirty line it evicts is recorded as in DRAM.
+  /// With compression, a fill and a write-back also warm the metadata cache
+  /// (tag-only), and a dirty line evicted takes its tile's other dirty lines.
   void warm(uint64_t line_addr, bool write, Buffer b);
   /// Writes every dirty line back at cycle now; returns the last completion.
   uint64_t flush(uint64_t now);

@@ -431,6 +431,9 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   d.put("bytes_written", s.dram_bytes_written.value, "bytes",
         "sampled: estimate of the DRAM bytes written, every buffer (the units' lines made dirty, each written once)");
   d.put("bytes_written_ci95", ci(s.dram_bytes_written), "bytes", "sampled: its 95 % confidence interval [low, high]");
+  // Compression and Hi-Z: the units' counts per fragment times N (writes: by
+  // the lines the windows made dirty), as the cycle model reports them.
+  if (s.stats.compression_on) put_compression_traffic(t.obj("compression"), s.stats.compression, hw);
   put_bottleneck(t, s.stats.bottleneck);
   t.put("memory_bound", s.stats.memory_bound, "bool", "the bottleneck is the DRAM's bandwidth (bottleneck_kind)");
   t.empty_array("units");
@@ -490,6 +493,18 @@ std::string sampled_summary(const ReportContext& ctx, const LivePoints& lib, con
   out += line("total cycles", s.total_cycles, "cycles");
   out += line("DRAM read", s.dram_bytes_read, "bytes");
   out += line("DRAM written", s.dram_bytes_written, "bytes");
+  if (s.stats.compression_on) {
+    const CompressionTraffic& c = s.stats.compression;
+    uint64_t before = 0, after = 0;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) {
+      before += c.bytes_written_uncompressed[b] + c.bytes_read_uncompressed[b];
+      after += c.bytes_written[b] + c.bytes_read[b];
+    }
+    out += fmt::format(
+        "  compression (estimated): {} B of compressed-surface traffic moved as {} B; Hi-Z rejected {} of {} "
+        "fragments\n",
+        before, after, c.hiz_rejected, c.hiz_tests);
+  }
   out += fmt::format("  {} units of {} fragments; {} of {} fragments simulated in detail ({:.1f} %)\n", s.units,
                      lib.params.unit_fragments, s.fragments_detailed, lib.fragments,
                      lib.fragments ? 100.0 * double(s.fragments_detailed) / double(lib.fragments) : 0.0);

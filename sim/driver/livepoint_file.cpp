@@ -93,7 +93,7 @@ class Put {
 class Get {
  public:
   Get(const std::vector<uint8_t>& b, const std::string& path) : b_(b), path_(path) {}
-  void at(const char* what) { what_ = what; }
+  void at(std::string what) { what_ = std::move(what); }
   uint8_t u8() { return uint8_t(raw(1)); }
   uint16_t u16() { return uint16_t(raw(2)); }
   uint32_t u32() { return uint32_t(raw(4)); }
@@ -331,6 +331,48 @@ void check_depth(Get& g, float z, const char* what) {
   if (!(z >= 0.0f && z <= 1.0f)) g.fail(std::string(what) + " is not in [0, 1]");
 }
 
+/// Live-point kk's tile pixels (TilePixels): each a resident pixel with
+/// written samples that the pre-state does not hold, in (y, x) order, its
+/// depths in [0, 1]. Refused naming the record.
+void get_tile_pixels(Get& g, LivePoint& lp, const TraceHeader& h, size_t kk, BudgetShare& mem,
+                     const std::string& what) {
+  g.at("live-point " + std::to_string(kk) + "'s tile pixels");
+  const size_t spp = size_t(h.spp);
+  const uint64_t n = g.count(4 + 10 * spp);
+  if (n > lp.resident.size()) g.fail("more tile pixels than the live-point's resident pixels");
+  mem.add(n * (4 + 10 * spp), what);
+  TilePixels& tp = lp.tiles;
+  tp.x.resize(size_t(n));
+  tp.y.resize(size_t(n));
+  tp.depth.resize(size_t(n) * spp);
+  tp.rgb.resize(3 * size_t(n) * spp);
+  // The resident pixels with written samples, by (y, x), to find each in.
+  std::vector<uint64_t> written;
+  for (const Resident& r : lp.resident)
+    if (r.written) written.push_back(uint64_t(r.y) << 16 | r.x);
+  std::sort(written.begin(), written.end());
+  size_t pre_at = 0;
+  uint64_t prev = 0;
+  for (size_t i = 0; i < size_t(n); ++i) {
+    tp.x[i] = g.u16();
+    tp.y[i] = g.u16();
+    const uint64_t key = uint64_t(tp.y[i]) << 16 | tp.x[i];
+    if (tp.x[i] >= h.width || tp.y[i] >= h.height || (i > 0 && key <= prev))
+      g.fail("tile pixel (" + std::to_string(tp.x[i]) + ", " + std::to_string(tp.y[i]) +
+             ") off the screen or out of (y, x) order");
+    prev = key;
+    if (!std::binary_search(written.begin(), written.end(), key))
+      g.fail("tile pixel (" + std::to_string(tp.x[i]) + ", " + std::to_string(tp.y[i]) +
+             ") is not a resident pixel with written samples");
+    while (pre_at < lp.pre.size() && (uint64_t(lp.pre.y[pre_at]) << 16 | lp.pre.x[pre_at]) < key) ++pre_at;
+    if (pre_at < lp.pre.size() && (uint64_t(lp.pre.y[pre_at]) << 16 | lp.pre.x[pre_at]) == key)
+      g.fail("tile pixel (" + std::to_string(tp.x[i]) + ", " + std::to_string(tp.y[i]) + ") is a pre-state pixel too");
+    g.array(&tp.depth[i * spp], spp);
+    for (size_t j = 0; j < spp; ++j) check_depth(g, tp.depth[i * spp + j], "a tile pixel's depth");
+    g.array(&tp.rgb[3 * i * spp], 3 * spp);
+  }
+}
+
 void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m, uint64_t fragments, BudgetShare& mem,
              const std::string& what) {
   const size_t spp = size_t(h.spp);
@@ -566,6 +608,14 @@ void encode(const LivePoints& lib, Put& p) {
       p.u16(r.y);
       p.u8(uint8_t(r.tracker) | uint8_t(r.layers) << 1);
     }
+    p.u64(lp.tiles.size());
+    for (size_t i = 0; i < lp.tiles.size(); ++i) {
+      p.u16(lp.tiles.x[i]);
+      p.u16(lp.tiles.y[i]);
+      p.array(&lp.tiles.depth[i * size_t(h.spp)], size_t(h.spp));
+      p.array(&lp.tiles.rgb[3 * i * size_t(h.spp)], 3 * size_t(h.spp));
+      p.piece();
+    }
     p.u64(lp.warming.size());
     for (const Touch& t : lp.warming) {
       put_touch(p, t);
@@ -675,6 +725,8 @@ LivePoints decode(const std::vector<uint8_t>& bytes, const std::string& path) {
       r.tracker = fl & 1;
       r.layers = fl & 2;
     }
+    get_tile_pixels(g, lp, h, kk, lib.mem, what);
+    g.at("the live-points");
     const uint64_t t = g.count(21);
     if (t > lib.params.warming_fragments || t > lp.first)
       g.fail(std::to_string(t) + " warming touches, more than T or the fragments before the live-point");

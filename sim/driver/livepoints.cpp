@@ -14,6 +14,8 @@
 #include <utility>
 
 #include "address_map.h"
+#include "bits.h"
+#include "depth.h"
 #include "distributor.h"
 #include "errors.h"
 #include "functional_rop.h"
@@ -110,6 +112,31 @@ void read_pre_state(const StochasticModel& model, const TraceHeader& h, const Pi
   for (size_t t = 0; t < tiles.size(); ++t)
     lp.resident.insert(lp.resident.end(), resident.begin() + std::ptrdiff_t(t * 64),
                        resident.begin() + std::ptrdiff_t(t * 64 + resident_n[t]));
+  // The samples of the resident pixels with written values that no fragment
+  // touches (TilePixels), in (y, x) order.
+  std::vector<uint64_t> others;
+  for (const Resident& r : lp.resident) {
+    const uint64_t key = uint64_t(r.y) << 16 | r.x;
+    if (r.written && !std::binary_search(pixels.begin(), pixels.end(), key)) others.push_back(key);
+  }
+  std::sort(others.begin(), others.end());
+  const size_t spp = size_t(h.spp);
+  TilePixels& tp = lp.tiles;
+  tp.x.resize(others.size());
+  tp.y.resize(others.size());
+  tp.depth.resize(others.size() * spp);
+  tp.rgb.resize(3 * others.size() * spp);
+  if (others.empty()) return;
+  model.parallel_for(others.size(), [&](size_t lo, size_t hi) {
+    for (size_t j = lo; j < hi; ++j) {
+      const uint32_t x = uint32_t(others[j] & 0xffff), y = uint32_t(others[j] >> 16);
+      const PixelView v = model.store_of(x, y).view(x, y);
+      tp.x[j] = uint16_t(x);
+      tp.y[j] = uint16_t(y);
+      std::memcpy(&tp.depth[j * spp], v.depth, spp * sizeof(float));
+      std::memcpy(&tp.rgb[3 * j * spp], v.rgb, 3 * spp * sizeof(uint16_t));
+    }
+  });
 }
 
 /// Calls f(line) for every line a touch reads or writes, in the order the
@@ -140,26 +167,40 @@ uint64_t reach_lines(const HwConfig& hw, double reach) {
   return uint64_t(std::ceil(std::max(0.0, reach) * lines));
 }
 
-/// Walks lp's touches backwards until they reach reach_lines distinct lines;
-/// returns the index of the first touch to warm with (0: all of them).
+/// Walks lp's touches backwards until they reach reach_lines distinct lines
+/// (with compression, comp, also R times the design's metadata cache lines,
+/// all ROPs, in distinct metadata lines: the state bits of a tile stay in a
+/// metadata cache far longer than its data in a ROP cache); returns the index
+/// of the first touch to warm with (0: all of them).
 size_t warming_start(const LivePoint& lp, const AddressMap& amap, const HwConfig& hw, double reach, bool tracker,
-                     bool slab, bool& met) {
+                     bool slab, const CompressionModel* comp, bool& met) {
   const uint64_t want = reach_lines(hw, reach);
-  LineSet seen(hw.cache.line_bytes);
-  uint64_t distinct = 0;
+  const double meta_lines =
+      double(hw.distributor.rop_units) *
+      double(std::max(hw.compression.metadata_cache_bytes, hw.cache.line_bytes) / hw.cache.line_bytes);
+  const uint64_t want_meta = comp && hw.compression.any() ? uint64_t(std::ceil(std::max(0.0, reach) * meta_lines)) : 0;
+  LineSet seen(hw.cache.line_bytes), seen_meta(hw.cache.line_bytes);
+  uint64_t distinct = 0, distinct_meta = 0;
   for (size_t i = lp.warming.size(); i-- > 0;) {
-    if (distinct >= want) {
+    if (distinct >= want && distinct_meta >= want_meta) {
       met = true;
       return i + 1;
     }
-    touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool, Buffer) {
+    touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool, Buffer b) {
       if (!seen.contains(l)) {
         seen.insert(l);
         ++distinct;
       }
+      if (want_meta && comp->compresses(b)) {
+        const uint64_t m = comp->metadata_line(l, b);
+        if (!seen_meta.contains(m)) {
+          seen_meta.insert(m);
+          ++distinct_meta;
+        }
+      }
     });
   }
-  met = distinct >= want;
+  met = distinct >= want && distinct_meta >= want_meta;
   return 0;
 }
 
@@ -199,6 +240,19 @@ void PrePixels::apply(SampleStore& st) const {
   }
 }
 
+void TilePixels::apply(SampleStore& st) const {
+  const size_t spp = size_t(st.header().spp);
+  for (size_t i = 0; i < size(); ++i) {
+    const PixelRef r = st.pixel(x[i], y[i]);
+    std::memcpy(r.depth, &depth[i * spp], spp * sizeof(float));
+    std::memcpy(r.rgb, &rgb[3 * i * spp], 3 * spp * sizeof(uint16_t));
+  }
+}
+
+size_t TilePixels::bytes() const {
+  return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2;
+}
+
 size_t PrePixels::bytes() const {
   return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2 +
          trackers.capacity() * sizeof(TrackerState) + slabs.capacity() * sizeof(SlabPixel);
@@ -206,7 +260,7 @@ size_t PrePixels::bytes() const {
 
 void LivePoints::charge(const LivePoint& p) {
   mem.add(p.fragments.capacity() * sizeof(Fragment) + p.warming.capacity() * sizeof(Touch) +
-              p.resident.capacity() * sizeof(Resident) + p.pre.bytes(),
+              p.resident.capacity() * sizeof(Resident) + p.pre.bytes() + p.tiles.bytes(),
           "the live-points' fragments, pre-states and touches");
 }
 
@@ -394,6 +448,66 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   return lib;
 }
 
+namespace {
+
+/// Calls f(a, b) for every count of two CompressionTraffic (same field).
+template <class A, class B, class F>
+void each_count(A& a, B& b, F&& f) {
+  for (size_t i = 0; i < size_t(kBuffers); ++i) {
+    f(a.lines_written[i], b.lines_written[i]);
+    f(a.lines_read[i], b.lines_read[i]);
+    f(a.bytes_written_uncompressed[i], b.bytes_written_uncompressed[i]);
+    f(a.bytes_written[i], b.bytes_written[i]);
+    f(a.bytes_read_uncompressed[i], b.bytes_read_uncompressed[i]);
+    f(a.bytes_read[i], b.bytes_read[i]);
+    for (size_t j = 0; j < 4; ++j) f(a.writes_per_class[i][j], b.writes_per_class[i][j]);
+    f(a.writes_cleared[i], b.writes_cleared[i]);
+    f(a.metadata_bytes_read[i], b.metadata_bytes_read[i]);
+    f(a.metadata_bytes_written[i], b.metadata_bytes_written[i]);
+  }
+  f(a.metadata_hits, b.metadata_hits);
+  f(a.metadata_misses, b.metadata_misses);
+  f(a.hiz_tests, b.hiz_tests);
+  f(a.hiz_rejected, b.hiz_rejected);
+  f(a.hiz_lines_skipped, b.hiz_lines_skipped);
+}
+
+CompressionTraffic difference(const CompressionTraffic& a, const CompressionTraffic& b) {
+  CompressionTraffic d = a;
+  each_count(d, b, [](uint64_t& x, const uint64_t& y) { x -= y; });
+  return d;
+}
+
+/// The compression state a full run would hold at lp's first fragment,
+/// warmed as the caches are (livepoints.h): every memory tile of the unit's
+/// 8 x 8 tiles taken as written back with its contents then (its state bits
+/// and Hi-Z bound; one holding only the clear value never written); a tile
+/// outside them, which only the warming's lines reach, takes a class in the
+/// proportions of the unit's tiles' classes. The caches' tag-only warming
+/// then warms the metadata caches.
+void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePoint& lp, const TraceHeader& h,
+                      const HwConfig& hw) {
+  const uint64_t tiles_x = ceil_div(h.width, 8u), per = 64u / hw.compression.tile_pixels;
+  std::vector<uint64_t> tiles;
+  tiles.reserve(lp.pre.size() + lp.tiles.size());
+  for (size_t i = 0; i < lp.pre.size(); ++i) tiles.push_back((lp.pre.y[i] >> 3) * tiles_x + (lp.pre.x[i] >> 3));
+  for (size_t i = 0; i < lp.tiles.size(); ++i) tiles.push_back((lp.tiles.y[i] >> 3) * tiles_x + (lp.tiles.x[i] >> 3));
+  std::sort(tiles.begin(), tiles.end());
+  tiles.erase(std::unique(tiles.begin(), tiles.end()), tiles.end());
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    if (!comp.tile_count(Buffer(b))) continue;
+    std::array<uint64_t, 4> classes{};
+    for (uint64_t t : tiles)
+      for (uint64_t m = t * per; m < (t + 1) * per; ++m) {
+        const TileInfo ti = comp.warm_tile(Buffer(b), m);
+        if (!ti.cleared) ++classes[size_t(ti.size_class)];
+      }
+    src.set_absent(Buffer(b), classes, canonical_depth(h.clear_depth));
+  }
+}
+
+}  // namespace
+
 UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw) {
   invariant(unit < lib.points.size(), "simulate_livepoint is given one of the library's units");
   const LivePoint& lp = lib.points[unit];
@@ -405,6 +519,10 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
   const bool tracker = rop->store().has_tracker(), slab = rop->store().has_slab();
   auto insert = [&in_dram](uint64_t line) { in_dram.insert(line); };
   lp.pre.apply(rop->store());
+  // Compression and Hi-Z see whole memory tiles: the unit's tiles' other
+  // written pixels too.
+  const bool compression = hw.compression.any() || hw.hiz.enable;
+  if (compression) lp.tiles.apply(rop->store());
   // A line that holds a written value is taken to be in DRAM (see livepoints.h).
   for (const Resident& p : lp.resident) {
     if (p.written) {
@@ -424,14 +542,35 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
     auto top = std::make_unique<RopPipeline>("unit", fragments_from(h, lp.fragments), *rop, in_dram, hw);
     top->set_decoupled(true);
     RopPipeline* t = top.get();
+    // Compression and Hi-Z (compression_model.h), warmed as the caches are.
+    std::unique_ptr<CompressionModel> comp;
+    std::unique_ptr<StoreTileSource> tiles;
+    if (compression) {
+      comp = std::make_unique<CompressionModel>(hw, h.width, h.height, h.spp, compressed_bytes_per_sample(*rop),
+                                                canonical_depth(h.clear_depth), hw.distributor.rop_units);
+      tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
+      comp->set_source(tiles.get());
+      warm_compression(*comp, *tiles, lp, h, hw);
+      top->compress_with(comp.get());
+    }
     // Tag-only warming: the touches before the warm-up that reach R times the
     // design's cache lines (at most T), in order, through the caches of the
     // ROPs that own their pixels (depth test reads, then the writeback's writes).
     const RopOwnership owner(hw.distributor, h.width);
     bool met = false;
-    const size_t from = warming_start(lp, amap, hw, lib.params.warming_reach, tracker, slab, met);
+    const size_t from = warming_start(lp, amap, hw, lib.params.warming_reach, tracker, slab, comp.get(), met);
     r.warming_used = lp.warming.size() - from;
     r.warming_short = !met && lp.first > lp.warming.size();
+    if (comp) {
+      // A line the warming reads outside the unit's tiles is taken to be in
+      // DRAM (its fill reads its tile's state bits): the live-point holds
+      // which lines held written values for the unit's tiles only.
+      for (size_t i = from; i < lp.warming.size(); ++i)
+        touch_lines(lp.warming[i], amap, tracker, slab, [&](uint64_t l, bool write, Buffer) {
+          const Touch& x = lp.warming[i];
+          if (!write && !rop->store().tile_map().find(x.x, x.y)) in_dram.insert(l);
+        });
+    }
     for (size_t i = from; i < lp.warming.size(); ++i) {
       const Touch& x = lp.warming[i];
       RopCache& c = *t->caches()[owner.rop_of(x.x, x.y)];
@@ -442,21 +581,41 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
       for (const auto& c : t->caches()) n += c->stats().dirtied;
       return n;
     };
+    auto dirtied_of = [t] {
+      std::array<uint64_t, kBuffers> n{};
+      for (const auto& c : t->caches())
+        for (size_t b = 0; b < size_t(kBuffers); ++b) n[b] += c->stats().dirtied_of[b];
+      return n;
+    };
+    if (comp) r.warmed = comp->warm_state();
     w0 = dirtied();  // (warming counts nothing; a unit without warm-up measures from here)
+    std::array<uint64_t, kBuffers> wb0 = dirtied_of(), wb1{};
+    CompressionTraffic cs0, cs1;
     t->retirement().hook = [&, t](const FragToken&, uint64_t cycle) {
       ++retired;
       if (retired == warm) {
         c0 = cycle;
         d0 = t->dram().stats();
         w0 = dirtied();
+        wb0 = dirtied_of();
+        if (comp) cs0 = comp->stats();
       }
       if (retired == end) {
         c1 = cycle;
         d1 = t->dram().stats();
         w1 = dirtied();
+        wb1 = dirtied_of();
+        if (comp) cs1 = comp->stats();
       }
     };
     top->run();
+    if (comp) {
+      r.compression = true;
+      r.run_compression = comp->stats();
+      r.window_compression = difference(cs1, cs0);
+      r.tail_compression = difference(r.run_compression, cs1);
+      for (size_t b = 0; b < size_t(kBuffers); ++b) r.window_lines_dirtied_of[b] = wb1[b] - wb0[b];
+    }
     const DramStats fin = top->dram().stats();
     invariant(retired == all, "a unit's run retires every fragment of its live-point");
     r.total_cycles = top->total_cycles();
@@ -537,6 +696,10 @@ struct UnitFigures {
   uint64_t fragments = 0;  ///< of its live-point
   uint64_t warming_used = 0, warming_short = 0;
   std::vector<UnitReport> units;
+  uint64_t window_bytes_written = 0, tail_bytes_written = 0;
+  uint64_t compression = 0;  ///< 1: the design has compression or Hi-Z
+  CompressionTraffic window_compression, tail_compression, run_compression;
+  std::array<uint64_t, kBuffers> window_lines_dirtied_of{};
 };
 
 UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
@@ -554,6 +717,13 @@ UnitFigures figures_of(const UnitRun& r, uint64_t fragments) {
   f.warming_used = r.warming_used;
   f.warming_short = r.warming_short;
   f.units = r.units;
+  f.window_bytes_written = r.window_bytes_written;
+  f.tail_bytes_written = r.tail_bytes_written;
+  f.compression = r.compression;
+  f.window_compression = r.window_compression;
+  f.tail_compression = r.tail_compression;
+  f.run_compression = r.run_compression;
+  f.window_lines_dirtied_of = r.window_lines_dirtied_of;
   return f;
 }
 
@@ -583,6 +753,10 @@ std::string encode_figures(uint64_t unit, const UnitFigures& f) {
     put64(m, u.stats.samples);
     put64(m, u.stats.activations);
   }
+  for (uint64_t v : {f.window_bytes_written, f.tail_bytes_written, f.compression}) put64(m, v);
+  for (const CompressionTraffic* c : {&f.window_compression, &f.tail_compression, &f.run_compression})
+    each_count(*c, *c, [&m](const uint64_t& v, const uint64_t&) { put64(m, v); });
+  for (uint64_t v : f.window_lines_dirtied_of) put64(m, v);
   return m;
 }
 
@@ -623,6 +797,10 @@ UnitFigures decode_figures(const std::string& m, uint64_t& unit) {
     u.stats.samples = r.u64();
     u.stats.activations = r.u64();
   }
+  for (uint64_t* v : {&f.window_bytes_written, &f.tail_bytes_written, &f.compression}) *v = r.u64();
+  for (CompressionTraffic* c : {&f.window_compression, &f.tail_compression, &f.run_compression})
+    each_count(*c, *c, [&r](uint64_t& v, uint64_t&) { v = r.u64(); });
+  for (uint64_t& v : f.window_lines_dirtied_of) v = r.u64();
   invariant(r.at == m.size(), "a worker's message ends with its unit's figures");
   return f;
 }
@@ -796,11 +974,83 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
 
 }  // namespace
 
+/// A design with compression or Hi-Z: DRAM bytes written and the compression
+/// traffic (out.stats.compression) estimated from the units. A line made
+/// dirty is written once, in its tile's block size at that write-back: the
+/// window's lines dirtied per surface times the bytes per line the units'
+/// write-backs of that surface moved (compressed / uncompressed, over every
+/// unit), plus its metadata lines written. A whole input: the run's figures.
+template <class Est>
+void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::vector<UnitFigures>& figs,
+                          const std::vector<double>& m, const Est& estimate, SampledRun& out) {
+  const size_t k = figs.size();
+  const double lb = double(hw.cache.line_bytes);
+  CompressionTraffic run, win, tail = figs.back().tail_compression;
+  std::array<double, kBuffers> dirtied{};  // the windows' lines dirtied, summed
+  for (const UnitFigures& f : figs) {
+    run += f.run_compression;
+    win += f.window_compression;
+    for (size_t b = 0; b < size_t(kBuffers); ++b) dirtied[b] += double(f.window_lines_dirtied_of[b]);
+  }
+  // Bytes per line written, per surface, over the units' write-backs.
+  std::array<double, kBuffers> ratio;
+  for (size_t b = 0; b < size_t(kBuffers); ++b)
+    ratio[b] = run.bytes_written_uncompressed[b]
+                   ? double(run.bytes_written[b]) / double(run.bytes_written_uncompressed[b])
+                   : 1.0;
+  // Metadata: the windows' metadata lines written (a metadata cache holds a
+  // tile's state bits far longer than a window: its lines made dirty before
+  // it are written in it), plus the last unit's tail (the final flush).
+  auto metadata_written = [](const CompressionTraffic& c) {
+    double v = 0;
+    for (uint64_t x : c.metadata_bytes_written) v += double(x);
+    return v;
+  };
+  std::vector<double> wr(k);
+  for (size_t i = 0; i < k; ++i) {
+    const UnitFigures& f = figs[i];
+    double y = metadata_written(f.window_compression);
+    for (size_t b = 0; b < size_t(kBuffers); ++b) y += double(f.window_lines_dirtied_of[b]) * lb * ratio[b];
+    wr[i] = lib.whole ? double(f.window_bytes_written) : y;
+  }
+  out.dram_bytes_written =
+      estimate(wr, double(lib.whole ? figs.back().tail_bytes_written : metadata_written(figs.back().tail_compression)));
+  // The traffic: the windows' counts per fragment times N, plus the last
+  // unit's tail (its drain and final flush), as the DRAM bytes read.
+  double sm = 0;
+  for (double v : m) sm += v;
+  const double scale = sm > 0 ? double(lib.fragments) / sm : 0.0;
+  CompressionTraffic& e = out.stats.compression;
+  e = CompressionTraffic{};
+  each_count(e, win, [scale](uint64_t& x, const uint64_t& w) { x = uint64_t(std::llround(double(w) * scale)); });
+  e += tail;
+  out.stats.compression_on = true;
+  if (lib.whole) return;
+  // Data writes lag the window: by the lines it dirtied instead, in the
+  // units' proportions of block sizes.
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
+    // A compressed surface the units dirtied: their final flushes wrote it back.
+    const bool on = run.lines_written[b] > 0;
+    if (!on) continue;
+    const double lines = dirtied[b] * scale;
+    e.lines_written[b] = uint64_t(std::llround(lines));
+    e.bytes_written_uncompressed[b] = uint64_t(std::llround(lines * lb));
+    e.bytes_written[b] = uint64_t(std::llround(lines * lb * ratio[b]));
+    const double n = double(run.lines_written[b]);
+    for (size_t j = 0; j < 4; ++j)
+      e.writes_per_class[b][j] = n > 0 ? uint64_t(std::llround(lines * double(run.writes_per_class[b][j]) / n)) : 0;
+    e.writes_cleared[b] = n > 0 ? uint64_t(std::llround(lines * double(run.writes_cleared[b]) / n)) : 0;
+  }
+}
+
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
-  if (hw.compression.any() || hw.hiz.enable)
+  // A tile's size under the rasterizer-plane depth encoder depends on which
+  // primitive wrote each depth, which a live-point does not hold.
+  if (hw.compression.setup().plane_keys())
     throw UserError(hw.name +
-                    ": --fidelity sampled does not model compression.* or hiz.enable; use --fidelity "
-                    "cycle (or functional for the compressibility)");
+                    ": compression.depth_encoder: the sampled fidelity models the fit depth encoder, not \"plane\" (a "
+                    "live-point does not hold the primitive of each depth); use --hw-set compression.depth_encoder=fit "
+                    "or --fidelity cycle");
   SampledRun out;
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = process_cpu_seconds();
@@ -869,6 +1119,7 @@ SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
   // its tail's lines count.
   out.dram_bytes_written =
       estimate(wr, lib.whole ? double(last.tail_lines_dirtied) * double(hw.cache.line_bytes) : 0.0);
+  if (last.compression) estimate_compression(lib, hw, figs, m, estimate, out);
 
   // Activities: each unit instance's share of the units' cycles, over their
   // whole runs, scaled to the estimated total.

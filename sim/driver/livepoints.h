@@ -36,6 +36,7 @@
 
 #include "address_map.h"
 #include "buffers.h"
+#include "compression_model.h"
 #include "cycle_run.h"
 #include "frag_work.h"
 #include "fragment_source.h"
@@ -124,6 +125,24 @@ struct PrePixels {
   size_t bytes() const;
 };
 
+/// The samples (depth and colour) of the pixels of a live-point's tiles that
+/// hold written values but that none of its fragments touch, flat, in (y, x)
+/// order. A design with compression or Hi-Z applies them with the pre-state,
+/// so that the unit's store holds its 8 x 8 tiles whole, as the compressor
+/// and Hi-Z see a memory tile: its class and farthest depth depend on every
+/// pixel of it. Per-sample state a surface's encoding comes to depend on
+/// (a depth encoder keyed by per-sample primitive ids) belongs here and in
+/// PrePixels, beside depth and colour.
+struct TilePixels {
+  std::vector<uint16_t> x, y;
+  std::vector<float> depth;   ///< spp per pixel
+  std::vector<uint16_t> rgb;  ///< 3 spp per pixel, binary16
+  size_t size() const { return x.size(); }
+  /// Writes every pixel's depth and colour into st.
+  void apply(SampleStore& st) const;
+  size_t bytes() const;
+};
+
 struct LivePoint {
   uint64_t first = 0;               ///< the input's index of its first fragment (the warm-up's)
   uint64_t warmup = 0;              ///< fragments before the window (W, fewer at the input's start)
@@ -131,6 +150,7 @@ struct LivePoint {
   std::vector<Fragment> fragments;  ///< the warm-up's, the window's, the cool-down's
   PrePixels pre;                    ///< the pixels they touch, as before `first`
   std::vector<Resident> resident;   ///< the pixels of those tiles holding written values before `first`
+  TilePixels tiles;                 ///< the resident pixels' samples that `pre` does not hold
   std::vector<Touch> warming;       ///< the T fragments before `first` (fewer at the input's start)
 };
 
@@ -209,7 +229,14 @@ struct UnitRun {
   uint64_t dram_max_channel_busy = 0;     ///< the busiest DRAM channel's busy cycles, whole unit run
   uint64_t dram_max_channel_service = 0;  ///< the busiest DRAM channel's service cycles (dram.h), whole unit run
   std::vector<UnitReport> units;          ///< every unit instance's activity over the whole unit run (no extras)
-  std::unique_ptr<SampleStore> state;     ///< the state after it (the pre-state's tiles, updated)
+  /// Compression and Hi-Z (a design with them): the traffic over the window,
+  /// after it, and over the whole unit run; the lines the window made dirty,
+  /// per surface; the state the warming set before the run.
+  bool compression = false;
+  CompressionTraffic window_compression, tail_compression, run_compression;
+  std::array<uint64_t, kBuffers> window_lines_dirtied_of{};
+  CompressionModel::WarmState warmed;
+  std::unique_ptr<SampleStore> state;  ///< the state after it (the pre-state's tiles, updated)
 };
 UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& hw);
 

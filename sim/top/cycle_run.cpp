@@ -103,6 +103,18 @@ void add_dram(DramStats& a, const DramStats& b) {
 
 }  // namespace
 
+std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop) {
+  const SurfaceBytes& sb = rop.setup().bytes;
+  const Method m = rop.setup().cfg.method;
+  std::array<uint32_t, kBuffers> bps{};
+  bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
+  bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
+  if (run_uses_transmittance(m, rop.setup().prepass))
+    bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
+  if (run_uses_accum(m, rop.setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
+  return bps;
+}
+
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
   return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
 }
@@ -133,14 +145,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   std::unique_ptr<CompressionModel> comp;
   std::unique_ptr<StoreTileSource> tiles;
   if (hw.compression.any() || hw.hiz.enable) {
-    // The surfaces the run uses, in their bytes in memory (surface_bytes.h).
-    const SurfaceBytes& sb = rop->setup().bytes;
-    std::array<uint32_t, kBuffers> bps{};
-    bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
-    bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
-    if (run_uses_transmittance(method.method, rop->setup().prepass))
-      bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
-    if (run_uses_accum(method.method, rop->setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
+    const std::array<uint32_t, kBuffers> bps = compressed_bytes_per_sample(*rop);
     comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
                                               canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);

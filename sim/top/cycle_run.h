@@ -11,6 +11,7 @@
 #include "bottleneck.h"
 #include "breakdown.h"
 #include "compressibility.h"
+#include "compression_model.h"
 #include "counters.h"
 #include "dram.h"
 #include "fragment_source.h"
@@ -20,11 +21,14 @@
 #include "method.h"
 #include "rop_cache.h"
 #include "sample_store.h"
+#include "store_tile_source.h"
 #include "timed_fifo.h"
 #include "token.h"
 #include "unit.h"
 
 namespace ropsim {
+
+class FunctionalRop;
 
 struct CycleOptions {
   std::string vcd_path;                             ///< non-empty: write a VCD waveform here (waveform.h)
@@ -132,6 +136,14 @@ const std::vector<StatDesc>& tile_map_descs();
 /// Map i of tile_map_descs(): its value per distributor tile, row by row
 /// (CycleRun::tiles_x per row).
 const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
+
+std::array<bool, kBuffers> absent_set_{};
+float absent_depth_ = 1.0f;
+};
+
+/// The bytes per sample in memory of each surface a run of rop's method
+/// uses (surface_bytes.h; 0: unused), as the CompressionModel takes them.
+std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop);
 
 /// Throws std::invalid_argument for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.
