@@ -137,10 +137,6 @@ const std::vector<StatDesc>& tile_map_descs();
 /// (CycleRun::tiles_x per row).
 const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
 
-std::array<bool, kBuffers> absent_set_{};
-float absent_depth_ = 1.0f;
-};
-
 /// The bytes per sample in memory of each surface a run of rop's method
 /// uses (surface_bytes.h; 0: unused), as the CompressionModel takes them.
 std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop);

@@ -54,12 +54,5 @@ class StoreTileSource : public TileSource {
   std::array<bool, kBuffers> absent_set_{};
   float absent_depth_ = 1.0f;
 };
-}
-
-private:
-TileCompressor comp_;
-uint64_t tiles_x_, tile_pixels_;
-}
-;
 
 }  // namespace ropsim
