@@ -3330,8 +3330,9 @@ TEST(CompressionFidelities, ApproximateRunsEveryMethodWithCompressionAndHiz) {
       EXPECT_TRUE(a.stats.compression_on) << what << ": no compression figures";
       uint64_t lines = 0;
       for (size_t b = 0; b < size_t(kBuffers); ++b) lines += a.stats.compression.lines_written[b];
-      if (m != Method::kSlab)  // slab writes its layers, which are not compressed
+      if (m != Method::kSlab) {  // slab writes its layers, which are not compressed
         EXPECT_GT(lines, 0u) << what << ": no compressed line was written back";
+      }
     }
 }
 
