@@ -10,6 +10,7 @@
 #include "approx_compression.h"
 #include "bits.h"
 #include "cache_tags.h"
+#include "cycle_run.h"
 #include "depth.h"
 #include "errors.h"
 #include "functional_rop.h"
@@ -736,14 +737,9 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   std::unique_ptr<StoreTileSource> tiles;
   std::unique_ptr<TagOnlyCompression> comp;
   if (hw.compression.any() || hw.hiz.enable) {
-    const SurfaceBytes& sb = rop->setup().bytes;
-    std::array<uint32_t, kBuffers> bps{};
-    bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
-    bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
-    if (s.lists(int(Buffer::kTransmittance))) bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
-    if (s.lists(int(Buffer::kAccum))) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
     tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
-    comp = std::make_unique<TagOnlyCompression>(hw, run.header.width, run.header.height, run.header.spp, bps,
+    comp = std::make_unique<TagOnlyCompression>(hw, run.header.width, run.header.height, run.header.spp,
+                                                compressed_bytes_per_sample(*rop),
                                                 canonical_depth(run.header.clear_depth), *tiles);
     s.compression_on = true;
   }
