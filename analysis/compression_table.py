@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The compression study's table (studies/compression.toml): for each input,
 method and spp, DRAM bytes (read + written, every buffer, state bits included)
-and cycles with the built-in design and with configs/current-gpu.toml, Hi-Z
+and cycles with configs/uncompressed.toml and with the default design, Hi-Z
 rejections and the block-size shares of the depth and colour line writebacks.
 
   ropsim study run studies/compression.toml -j 2 --out comp
@@ -21,7 +21,7 @@ def main(out):
         par = json.load(open(os.path.join(d, "params.json")))
         rep = json.load(open(os.path.join(d, "report.json")))
         t = rep["timing"]
-        on = "current-gpu" in par["design"]
+        on = "uncompressed" not in par["design"]
         key = (par["input"], par["method"], int(par["spp"]))
         r = rows.setdefault(key, {})
         r["on" if on else "off"] = t

@@ -16,7 +16,7 @@ inputs). It writes, in Markdown (to OUT, else standard output):
   3. the answer: per frame and design, the marginal cost of lk, enderton and
      hashed-a2c over blend (cycles and DRAM bytes less blend's, at each spp)
      and the spp at which each reaches blend's RMSE;
---design keeps the points of one design (its file's stem, e.g. current-gpu)
+--design keeps the points of one design (its file's stem, e.g. default)
 in the tables, --methods the methods listed (blend is always kept); the
 plot shows every design and method. With --plot, one panel per frame: RMSE against DRAM bytes (read +
 written) of every method and spp, one marker per design, with the Pareto

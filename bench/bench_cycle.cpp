@@ -198,16 +198,16 @@ void BM_FunctionalThreads(benchmark::State& state) {
 BENCHMARK(BM_FunctionalThreads)->Iterations(9)->Unit(benchmark::kSecond);
 BENCHMARK(BM_WaveformCost)->Iterations(5)->Unit(benchmark::kSecond);
 
-// The host cost of compression modelling (issue: at most 15 %): the cycle
-// model on cloth at 16 spp (lk) with the default design and with
-// configs/current-gpu.toml (depth and colour compression, Hi-Z), alternated
-// in one run; compression_cost = on / off - 1 of the sc_start time.
+// The host cost of compression modelling: the cycle model on cloth at 16 spp
+// (lk) with configs/uncompressed.toml and with the default design (depth and
+// colour compression, Hi-Z), alternated in one run; compression_cost =
+// on / off - 1 of the sc_start time.
 void BM_CompressionCost(benchmark::State& state) {
   InputSpec in;
   in.trace_path = trace_path();
   GoldenConfig g;
-  const HwConfig off;
-  HwConfig on = load_hw_config(std::string(ROPSIM_SOURCE_DIR) + "/configs/current-gpu.toml");
+  const HwConfig off = load_hw_config(std::string(ROPSIM_SOURCE_DIR) + "/configs/uncompressed.toml");
+  const HwConfig on;
   g.compression = on.compression.setup();
   double on_s = 0, off_s = 0;
   for (auto _ : state) {

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The two depth encoders side by side (docs/results.md "Rasterizer planes
 # against fitted planes"): the final depth buffer's compressed bytes
-# (`ropsim run --fidelity functional` with configs/current-gpu.toml, its
-# `compressibility` report) with compression.depth_encoder = plane and fit,
+# (`ropsim run --fidelity functional --compressibility` on the default
+# design, its `compressibility` report) with compression.depth_encoder = plane and fit,
 # for opaque and lk on cloth at 4, 16 and 64 spp and on the captured motor
 # (1920 x 1080, 16 spp). Prints a Markdown table; about 20 s.
 # usage: scripts/depth_encoders.sh
@@ -14,7 +14,7 @@ trap 'rm -rf "$work"' EXIT
 "$ropsim" capture "$root/traces/scenes/mesh/motor.toml" -o "$work/motor.rtr" >/dev/null
 depth_bytes() {  # INPUT-ARGS METHOD ENCODER -> "uncompressed compressed"
   # shellcheck disable=SC2086
-  "$ropsim" run --fidelity functional $1 --method "$2" --hw "$root/configs/current-gpu.toml" \
+  "$ropsim" run --fidelity functional $1 --method "$2" --compressibility \
     --hw-set "compression.depth_encoder=$3" --report "$work/r.json" --quiet >/dev/null
   /usr/bin/python3 -c '
 import json, sys

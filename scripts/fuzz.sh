@@ -3,8 +3,8 @@
 #
 #   scripts/fuzz.sh TARGET SECONDS [RUNS]   # TARGET: trace, scene, design, study, livepoints, or all
 #
-# Builds the libFuzzer executables with clang, ASan and UBSan in build-fuzz/
-# (installing clang and its fuzzer runtime if missing), generates a seed corpus
+# Builds the libFuzzer executables with clang, ASan and UBSan in build-asan/
+# (scripts/asan_build.sh, shared with the sanitizer suite), generates a seed corpus
 # from the project's own files (built-in scenes as traces in both payload
 # encodings, with the fragment count recorded and not; the mesh scene files;
 # the designs in configs/; the studies in studies/; small libraries, their
@@ -27,23 +27,8 @@ if [ "$target" = all ]; then
 fi
 case "$target" in trace | scene | design | study | livepoints) ;; *) echo "$0: unknown target '$target'" >&2; exit 2 ;; esac
 
-bash "$root/scripts/deps.sh"
-need=()
-for p in clang libclang-rt-14-dev zstd; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
-done
-if [ ${#need[@]} -gt 0 ]; then
-  echo "fuzz: installing ${need[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -q && apt-get install -y -q --no-install-recommends "${need[@]}"
-fi
-
-b="$root/build-fuzz"
-if [ ! -f "$b/CMakeCache.txt" ]; then
-  CXX=clang++ cmake -S "$root" -B "$b" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DROPSIM_FUZZ=ON \
-    -DROPSIM_BUILD_TESTS=OFF -DROPSIM_BUILD_BENCHMARKS=OFF >/dev/null
-fi
-cmake --build "$b" -j "$(nproc)" --target "fuzz_$target" ropsim >/dev/null
+bash "$root/scripts/asan_build.sh" "fuzz_$target" ropsim >/dev/null
+b="$root/build-asan"
 
 # Seeds, made once per build folder.
 seeds="$b/seeds/$target"

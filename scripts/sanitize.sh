@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The sanitizer build (docs/testing.md "Sanitizers"): every target built by
-# clang with AddressSanitizer and UndefinedBehaviorSanitizer in build-asan/,
-# any report fatal, then the test suite run under them. The bit-exact matrix
+# clang with AddressSanitizer and UndefinedBehaviorSanitizer in build-asan/
+# (scripts/asan_build.sh, shared with the fuzz targets), any report fatal,
+# then the test suite run under them. The bit-exact matrix
 # runs on the default design only (the other designs are the same code on
 # other timing parameters; the full matrix runs in the normal build), and the
 # SLURM test is left to the normal build (its daemons are not ropsim's code).
@@ -9,22 +10,8 @@
 #   scripts/sanitize.sh [CTEST ARGS...]
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-bash "$root/scripts/deps.sh"
-need=()
-for p in clang libclang-rt-14-dev; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
-done
-if [ ${#need[@]} -gt 0 ]; then
-  echo "sanitize: installing ${need[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -q && apt-get install -y -q --no-install-recommends "${need[@]}"
-fi
+bash "$root/scripts/asan_build.sh"
 b="$root/build-asan"
-if [ ! -f "$b/CMakeCache.txt" ]; then
-  CXX=clang++ cmake -S "$root" -B "$b" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DROPSIM_SANITIZE=ON \
-    -DROPSIM_BUILD_BENCHMARKS=OFF >/dev/null
-fi
-cmake --build "$b" -j "$(nproc)"
 cd "$b"
 # SystemC switches coroutine stacks, which ASan cannot follow for
 # use-after-return, and LeakSanitizer's exit-time scan of a process that ran

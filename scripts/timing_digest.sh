@@ -40,7 +40,7 @@ PY
     done
   done
 done
-# The methods added since (issue #11): the default design, two traces.
+# The other methods: the default design, two traces.
 for m in hashed hashed-a2c slab wboit lk+ac lk+depth lk+depth+ac enderton+ac enderton+depth enderton+depth+ac; do
   for tr in cloth4 layers16; do
     "$b" run --fidelity cycle --hw "$root/configs/default.toml" --trace "$tmp/$tr.rtr" --method "$m" --quiet \

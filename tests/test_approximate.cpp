@@ -119,15 +119,15 @@ TEST(Approximate, TotalCyclesAreNearTheCycleModels) {
   EXPECT_LE(sum / n, 0.06) << "mean absolute error " << 100 * sum / n << " %";
 }
 
-// Surface compression and Hi-Z (configs/current-gpu.toml): on an opaque
+// Surface compression and Hi-Z (the default design): on an opaque
 // scene the compressed design moves strictly fewer DRAM bytes than the same
 // design with compression off (Hi-Z on in both), its compressed surfaces'
 // writebacks move fewer bytes than uncompressed, and the image is still the
 // golden image.
 TEST(Approximate, CompressionMovesFewerDramBytesOnAnOpaqueScene) {
-  const HwConfig hw = design("current-gpu");
+  const HwConfig hw = design("default");
   ASSERT_TRUE(hw.compression.depth && hw.compression.color && hw.hiz.enable)
-      << "configs/current-gpu.toml no longer turns compression and Hi-Z on";
+      << "configs/default.toml no longer turns compression and Hi-Z on";
   HwConfig off = hw;
   off.compression.depth = off.compression.color = false;
   const InputSpec in = scene("opaque", 8);
@@ -154,15 +154,15 @@ TEST(Approximate, CompressionMovesFewerDramBytesOnAnOpaqueScene) {
 }
 
 // The analytical model against the cycle model with compression and Hi-Z on
-// (configs/current-gpu.toml), lk on the fidelity study's built-in scenes and
+// (the default design), lk on the fidelity study's built-in scenes and
 // the opaque one: total cycles and DRAM bytes (read + written) each within
 // 15 % (the bound the fidelity asks of it; measured on all the fidelity
 // study's inputs, the captured meshes too: docs/results.md), and the
 // compressed bytes moved within 15 % too.
 TEST(Approximate, WithCompressionAndHizIsWithinFifteenPercentOfTheCycleModel) {
-  const HwConfig hw = design("current-gpu");
+  const HwConfig hw = design("default");
   for (const char* s : {"cloth", "smoke", "testcard", "opaque"}) {
-    const std::string what = std::string(s) + " 16 spp on current-gpu";
+    const std::string what = std::string(s) + " 16 spp on the default design";
     const InputSpec in = scene(s, 16);
     const CycleRun c = run_cycle(in, method(Method::kLk), hw);
     const ApproxRun a = run_approximate(in, method(Method::kLk), hw);

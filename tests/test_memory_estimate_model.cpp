@@ -42,7 +42,7 @@ struct Design {
 
 std::vector<Design> designs() {
   std::vector<Design> d;
-  for (const char* f : {"default", "narrow", "wide", "current-gpu"})
+  for (const char* f : {"default", "narrow", "wide", "uncompressed"})
     d.push_back({f, load_hw_config(std::string(ROPSIM_SOURCE_DIR) + "/configs/" + f + ".toml")});
   d.push_back({"64 ROPs", resolve_hw_config("", {"distributor.rop_units=64"})});
   d.push_back(

@@ -460,43 +460,6 @@ TEST(FidelityStudy, IntervalsCoverAndTheMotorIsWithinTwoPercent) {
   EXPECT_TRUE(motor) << "the study must hold the motor on the default design";
 }
 
-// The sampled fidelity with compression and Hi-Z
-// (studies/fidelity-compression.toml: the fidelity study's inputs on
-// configs/current-gpu.toml with the fit depth encoder, sampled and cycle): the 95 % intervals cover the
-// cycle model's total cycles, DRAM bytes read and written for at least 90 %
-// of the (input, design) pairs; on the motor, DRAM bytes (read + written) are
-// within 2 % of the cycle model's and total cycles within 3 % (measured
-// +2.86 %: docs/livepoints.md "Compression and Hi-Z" says what is left).
-// Deterministic: the bounds hold or fail every run.
-TEST(FidelityStudy, CompressionAndHiZIntervalsCoverAndTheMotorIsClose) {
-  const fs::path meshes = fs::path(ROPSIM_SOURCE_DIR) / ".." / "shared" / "data" / "meshes";
-  if (!std::getenv("ROPSIM_MESH_DIR") && !fs::exists(meshes))
-    GTEST_SKIP() << "the shared meshes (" << meshes << ") are absent: the study needs the motor";
-  Scratch s;
-  const std::string study = std::string(ROPSIM_SOURCE_DIR) + "/studies/fidelity-compression.toml";
-  const Ran r = ropsim(s.dir, "study run '" + study + "' --out st -j 2 --quiet", 1800);
-  ASSERT_EQ(r.status, 0) << r.err << r.out;
-  const Ran a = shell(s.dir, "/usr/bin/python3 '" + std::string(ROPSIM_SOURCE_DIR) +
-                                 "/analysis/fidelity.py' st --json f.json --markdown f.md");
-  ASSERT_EQ(a.status, 0) << a.err << a.out;
-  const auto j = nlohmann::json::parse(slurp(s.dir / "f.json"));
-  std::cout << slurp(s.dir / "f.md");
-  std::map<std::string, nlohmann::json> by;
-  for (const auto& e : j["summary"]) by[e["fidelity"].get<std::string>()] = e;
-  ASSERT_TRUE(by.count("sampled")) << j["summary"].dump(1);
-  EXPECT_EQ(by["sampled"]["pairs"], 5) << "five inputs on current-gpu";
-  EXPECT_GE(by["sampled"]["coverage_all"].get<double>(), 0.9)
-      << "the intervals of cycles, bytes read and bytes written all cover the truth on too few pairs";
-  bool motor = false;
-  for (const auto& p : j["pairs"])
-    if (p["input"] == "motor" && p["fidelity"] == "sampled") {
-      motor = true;
-      EXPECT_LE(std::abs(p["cycles_err_pct"].get<double>()), 3.0) << p.dump();
-      EXPECT_LE(std::abs(p["bytes_err_pct"].get<double>()), 2.0) << p.dump();
-    }
-  EXPECT_TRUE(motor) << "the study must hold the motor";
-}
-
 // The blend methods are values of the method axis, enderton's selection an
 // axis of its own; a study's points equal the same `ropsim run`s.
 TEST(Study, BlendMethodsAndEndertonSelectionAreAxes) {

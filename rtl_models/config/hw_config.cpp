@@ -221,11 +221,11 @@ constexpr Basis kBasis[] = {
     {"dram.row_miss_cycles", "assumption: about tRP + tRCD of GDDR6, 27 ns at 1.5 GHz"},
     {"dram.interleave_bytes", "assumption: 256 B, four lines a channel before the next"},
     {"compression.depth",
-     "assumption: off in the uncompressed baseline; current GPUs compress depth "
-     "(configs/current-gpu.toml)"},
+     "part: current GPUs compress depth in per-tile plane equations (AMD HTILE, Mesa ac_surface.c; "
+     "Hasselgren & Akenine-Moeller 2006); configs/uncompressed.toml turns it off"},
     {"compression.color",
-     "assumption: off in the uncompressed baseline; current GPUs compress MSAA colour "
-     "(configs/current-gpu.toml)"},
+     "part: current GPUs compress MSAA colour per pixel's distinct fragments (AMD FMASK and CMASK, Mesa "
+     "radeonsi); configs/uncompressed.toml turns it off"},
     {"compression.tile_pixels", "assumption: 1 KiB of depth at 16 spp, in the range of the references' tiles"},
     {"compression.size_classes",
      "part: AMD delta colour compression stores a 256 B block in 64, 128 or 256 B (Mesa ac_surface.c)"},
@@ -233,12 +233,14 @@ constexpr Basis kBasis[] = {
     {"compression.depth_encoder",
      "paper: Hasselgren & Akenine-Moeller 2006 (plane encoding: the rasterizer's planes, no fitting)"},
     {"compression.color_k", "part: AMD FMASK keeps up to 4 fragments a pixel in 4x EQAA and 8x modes (Mesa radeonsi)"},
-    {"compression.metadata_cache_bytes", "assumption (no public figure)"},
+    {"compression.metadata_cache_bytes",
+     "assumption (no public figure): 16 KiB a ROP holds the 2-bit states of the depth and colour tiles of a quarter "
+     "of a 1920 x 1080 frame"},
     {"compression.compress_latency_cycles", "assumption (no public figure), small against dram.latency_cycles"},
     {"compression.decompress_latency_cycles", "assumption (no public figure), small against dram.latency_cycles"},
     {"hiz.enable",
-     "assumption: off in the uncompressed baseline; current GPUs keep per-tile depth bounds "
-     "(AMD HTILE; configs/current-gpu.toml)"},
+     "part: current GPUs keep per-tile depth bounds on chip (AMD HTILE holds a tile's min and max depth, Mesa "
+     "ac_surface.c); configs/uncompressed.toml turns it off"},
     {"numerics.hash_bits", "paper: Laine & Karras 2011 Figure 4 (32-bit hash)"},
     {"numerics.alpha_bits", "assumption: a binary32 opacity's precision (docs/numerics.md measures narrower)"},
     {"numerics.surface_id_bits", "paper: Laine & Karras 2011 section 2 (a per-pixel surface id; 32 bits never wraps)"},

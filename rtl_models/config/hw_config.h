@@ -95,14 +95,14 @@ struct HwConfig {
   /// colour (and blend-target) fragment compression, per memory tile, with
   /// per-tile state bits held in a metadata cache of each ROP.
   struct Compression {
-    bool depth = false;
-    bool color = false;
+    bool depth = true;
+    bool color = true;
     uint32_t tile_pixels = 16;
     uint32_t size_classes = 3;
     uint32_t depth_planes = 4;
     DepthEncoder depth_encoder = DepthEncoder::kPlane;
     uint32_t color_k = 4;
-    uint32_t metadata_cache_bytes = 4096;
+    uint32_t metadata_cache_bytes = 16384;
     uint32_t compress_latency_cycles = 8;
     uint32_t decompress_latency_cycles = 8;
     bool any() const { return depth || color; }
@@ -115,7 +115,7 @@ struct HwConfig {
   /// stored depth, on chip; a fragment whose samples all lie behind it is
   /// rejected before its per-sample depths are read.
   struct HiZ {
-    bool enable = false;
+    bool enable = true;
   } hiz;
   /// The datapath widths ([numerics]); the same for every fidelity. A run's
   /// --hash-bits, --alpha-bits and --surface-id-bits override them.

@@ -40,6 +40,7 @@ struct RunOpts {
   std::string enderton_selection = "depth-first";
   Numerics num;
   bool vs_reference = false, quiet = false, lockstep = false, progress = false;
+  bool compressibility = false;  ///< functional: measure the final surfaces' compressed sizes
   uint64_t stats_interval = 0;
   std::string stats_csv;
   SamplingParams sampling;
@@ -215,7 +216,10 @@ GoldenConfig resolve_method(const RunOpts& o, const HwConfig& hw) {
   parse_method(o.method, cfg.method);
   cfg.numerics = hw.numerics;
   cfg.formats = hw.blend.formats;
-  cfg.compression = hw.compression.setup();
+  // The timing fidelities take the design's compression themselves
+  // (on_design); a functional run measures it only when asked, as its store
+  // then keeps each depth's plane key.
+  if (o.compressibility) cfg.compression = hw.compression.setup();
   cfg.seed = o.seed;
   cfg.slab_layers = o.slab_layers;
   cfg.slab_bits = o.slab_bits;
@@ -452,6 +456,10 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
                           "--repeat", "--per-draw", "--draw-csv", "--maps"})
       if (sub.count(f)) throw UserError(std::string(f) + " does not apply to --fidelity sampled");
   }
+  if ((cycle || sampled || approximate) && o.compressibility)
+    throw UserError(
+        "--compressibility applies to --fidelity functional (a timing fidelity reports the compressed "
+        "traffic of the design it runs)");
   if (!cycle && !sampled && !approximate) {
     for (const char* f : {"--vcd", "--vcd-window", "--lockstep", "--stats-interval", "--stats-csv"})
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity cycle");
@@ -471,6 +479,8 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   // The design (a functional run uses only its numerics); the run's numerics
   // flags, when given, override the design's.
   HwConfig hw = resolve_design(o, sub);
+  if (o.compressibility && !hw.compression.any())
+    throw UserError("--compressibility: design " + hw.name + " compresses no surface ([compression] depth and color)");
   uint64_t vcd_first = 0, vcd_last = ~uint64_t{0};
   if (cycle) {
     if (!o.vcd_window.empty()) {
@@ -692,6 +702,9 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
   run->add_option("--stats-csv", ro->stats_csv, "cycle: the CSV file of --stats-interval")->type_name("FILE");
   run->add_option("--repeat", ro->repeat, "Draw the input this many times into one frame (default 1)")
       ->check(in_range(1u, kMaxRepeat));
+  run->add_flag("--compressibility", ro->compressibility,
+                "functional: report the final surfaces' compressed sizes under the design's [compression] (the "
+                "store keeps each depth's plane key, 8 bytes a sample)");
   run->add_flag("--vs-reference", ro->vs_reference,
                 "Also run the A-buffer reference on the same stream and report the RMSE");
   run->add_flag("--per-draw", ro->per_draw,

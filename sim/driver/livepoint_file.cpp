@@ -301,6 +301,10 @@ MethodConfig get_method(Get& g) {
   return m;
 }
 
+/// A stored sample's bytes in a pre-state or tile pixel: depth (binary32),
+/// colour (3 x binary16) and plane key (64 bits).
+constexpr size_t kSampleBytes = 4 + 6 + 8;
+
 void put_pre(Put& p, const PrePixels& pre, int spp) {
   p.u8(pre.tracker);
   p.u32(uint32_t(pre.slab_bits));
@@ -310,6 +314,7 @@ void put_pre(Put& p, const PrePixels& pre, int spp) {
     p.u16(pre.y[i]);
     p.array(&pre.depth[i * size_t(spp)], size_t(spp));
     p.array(&pre.rgb[3 * i * size_t(spp)], 3 * size_t(spp));
+    p.array(&pre.planes[i * size_t(spp)], size_t(spp));
     if (pre.tracker) {
       p.u64(pre.trackers[i].covered);
       p.u32(pre.trackers[i].surface_id);
@@ -338,14 +343,15 @@ void get_tile_pixels(Get& g, LivePoint& lp, const TraceHeader& h, size_t kk, Bud
                      const std::string& what) {
   g.at("live-point " + std::to_string(kk) + "'s tile pixels");
   const size_t spp = size_t(h.spp);
-  const uint64_t n = g.count(4 + 10 * spp);
+  const uint64_t n = g.count(4 + kSampleBytes * spp);
   if (n > lp.resident.size()) g.fail("more tile pixels than the live-point's resident pixels");
-  mem.add(n * (4 + 10 * spp), what);
+  mem.add(n * (4 + kSampleBytes * spp), what);
   TilePixels& tp = lp.tiles;
   tp.x.resize(size_t(n));
   tp.y.resize(size_t(n));
   tp.depth.resize(size_t(n) * spp);
   tp.rgb.resize(3 * size_t(n) * spp);
+  tp.planes.resize(size_t(n) * spp);
   // The resident pixels with written samples, by (y, x), to find each in.
   std::vector<uint64_t> written;
   for (const Resident& r : lp.resident)
@@ -370,6 +376,7 @@ void get_tile_pixels(Get& g, LivePoint& lp, const TraceHeader& h, size_t kk, Bud
     g.array(&tp.depth[i * spp], spp);
     for (size_t j = 0; j < spp; ++j) check_depth(g, tp.depth[i * spp + j], "a tile pixel's depth");
     g.array(&tp.rgb[3 * i * spp], 3 * spp);
+    g.array(&tp.planes[i * spp], spp);  // any value: keys are only compared
   }
 }
 
@@ -382,14 +389,16 @@ void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m
     g.fail(std::string("the tracker flag is not method ") + to_string(m.method) + "'s");
   if (pre.slab_bits != (m.method == Method::kSlab ? m.slab_bits : 0))
     g.fail("SLAB bits " + std::to_string(pre.slab_bits) + " are not the method's");
-  const uint64_t n = g.count(4 + 10 * spp);
+  const uint64_t n = g.count(4 + kSampleBytes * spp);
   if (n > fragments) g.fail("more pre-state pixels than the live-point's fragments touch");
-  mem.add(n * (4 + 10 * spp + (pre.tracker ? sizeof(TrackerState) : 0) + (pre.slab_bits ? sizeof(SlabPixel) : 0)),
-          what);
+  mem.add(
+      n * (4 + kSampleBytes * spp + (pre.tracker ? sizeof(TrackerState) : 0) + (pre.slab_bits ? sizeof(SlabPixel) : 0)),
+      what);
   pre.x.resize(size_t(n));
   pre.y.resize(size_t(n));
   pre.depth.resize(size_t(n) * spp);
   pre.rgb.resize(3 * size_t(n) * spp);
+  pre.planes.resize(size_t(n) * spp);
   if (pre.tracker) pre.trackers.resize(size_t(n));
   if (pre.slab_bits > 0) pre.slabs.resize(size_t(n));
   uint64_t prev = 0;
@@ -403,6 +412,7 @@ void get_pre(Get& g, PrePixels& pre, const TraceHeader& h, const MethodConfig& m
     g.array(&pre.depth[i * spp], spp);
     for (size_t j = 0; j < spp; ++j) check_depth(g, pre.depth[i * spp + j], "a pre-state sample's depth");
     g.array(&pre.rgb[3 * i * spp], 3 * spp);
+    g.array(&pre.planes[i * spp], spp);  // any value: keys are only compared
     if (pre.tracker) {
       pre.trackers[i].covered = g.u64();
       pre.trackers[i].surface_id = g.u32();
@@ -614,6 +624,7 @@ void encode(const LivePoints& lib, Put& p) {
       p.u16(lp.tiles.y[i]);
       p.array(&lp.tiles.depth[i * size_t(h.spp)], size_t(h.spp));
       p.array(&lp.tiles.rgb[3 * i * size_t(h.spp)], 3 * size_t(h.spp));
+      p.array(&lp.tiles.planes[i * size_t(h.spp)], size_t(h.spp));
       p.piece();
     }
     p.u64(lp.warming.size());

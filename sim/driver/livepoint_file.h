@@ -18,7 +18,7 @@
 namespace ropsim {
 
 /// The library format's version (docs/livepoints.md).
-inline constexpr uint32_t kLivePointFileVersion = 3;
+inline constexpr uint32_t kLivePointFileVersion = 4;
 
 /// Zeroes what a fragment's trace record does not carry (the per-sample
 /// depths of a plane-mode trace, those of uncovered samples and past spp), so

@@ -62,6 +62,15 @@ size_t tile_resident(const SampleStore& st, const PixelRef& clear, uint32_t x0, 
   return n;
 }
 
+/// A pixel's plane keys into out (spp of them): the store's, or the clear
+/// key's where the store keeps none.
+void copy_planes(const PixelView& v, size_t spp, uint64_t* out) {
+  if (v.plane)
+    std::memcpy(out, v.plane, spp * sizeof(uint64_t));
+  else
+    std::fill_n(out, spp, kClearPlaneKey);
+}
+
 /// Canonicalises lp's fragments and reads, from the model's lanes between
 /// batches, the pre-state of the pixels they touch and the resident pixels of
 /// those pixels' tiles (on the model's threads). resident and resident_n:
@@ -126,6 +135,7 @@ void read_pre_state(const StochasticModel& model, const TraceHeader& h, const Pi
   tp.y.resize(others.size());
   tp.depth.resize(others.size() * spp);
   tp.rgb.resize(3 * others.size() * spp);
+  tp.planes.resize(others.size() * spp);
   if (others.empty()) return;
   model.parallel_for(others.size(), [&](size_t lo, size_t hi) {
     for (size_t j = lo; j < hi; ++j) {
@@ -135,6 +145,7 @@ void read_pre_state(const StochasticModel& model, const TraceHeader& h, const Pi
       tp.y[j] = uint16_t(y);
       std::memcpy(&tp.depth[j * spp], v.depth, spp * sizeof(float));
       std::memcpy(&tp.rgb[3 * j * spp], v.rgb, 3 * spp * sizeof(uint16_t));
+      copy_planes(v, spp, &tp.planes[j * spp]);
     }
   });
 }
@@ -211,6 +222,7 @@ void PrePixels::resize(size_t n, int spp) {
   y.resize(n);
   depth.resize(n * size_t(spp));
   rgb.resize(3 * n * size_t(spp));
+  planes.resize(n * size_t(spp));
   if (tracker) trackers.resize(n);
   if (slab_bits > 0) slabs.resize(n);
 }
@@ -223,6 +235,7 @@ void PrePixels::set(size_t i, const SampleStore& st, const PixelView& clear, uin
   if (!v.depth) v = clear;  // never touched: the clear values
   std::memcpy(&depth[i * spp], v.depth, spp * sizeof(float));
   std::memcpy(&rgb[3 * i * spp], v.rgb, 3 * spp * sizeof(uint16_t));
+  copy_planes(v, spp, &planes[i * spp]);
   if (tracker) trackers[i] = *v.tracker;
   if (slab_bits > 0) slabs[i] = *v.slab;
 }
@@ -235,6 +248,7 @@ void PrePixels::apply(SampleStore& st) const {
     const PixelRef r = st.pixel(x[i], y[i]);
     std::memcpy(r.depth, &depth[i * spp], spp * sizeof(float));
     std::memcpy(r.rgb, &rgb[3 * i * spp], 3 * spp * sizeof(uint16_t));
+    if (r.plane) std::memcpy(r.plane, &planes[i * spp], spp * sizeof(uint64_t));
     if (tracker) *r.tracker = trackers[i];
     if (slab_bits > 0) *r.slab = slabs[i];
   }
@@ -246,16 +260,19 @@ void TilePixels::apply(SampleStore& st) const {
     const PixelRef r = st.pixel(x[i], y[i]);
     std::memcpy(r.depth, &depth[i * spp], spp * sizeof(float));
     std::memcpy(r.rgb, &rgb[3 * i * spp], 3 * spp * sizeof(uint16_t));
+    if (r.plane) std::memcpy(r.plane, &planes[i * spp], spp * sizeof(uint64_t));
   }
 }
 
 size_t TilePixels::bytes() const {
-  return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2;
+  return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2 +
+         planes.capacity() * sizeof(uint64_t);
 }
 
 size_t PrePixels::bytes() const {
   return x.capacity() * 2 + y.capacity() * 2 + depth.capacity() * sizeof(float) + rgb.capacity() * 2 +
-         trackers.capacity() * sizeof(TrackerState) + slabs.capacity() * sizeof(SlabPixel);
+         planes.capacity() * sizeof(uint64_t) + trackers.capacity() * sizeof(TrackerState) +
+         slabs.capacity() * sizeof(SlabPixel);
 }
 
 void LivePoints::charge(const LivePoint& p) {
@@ -324,7 +341,12 @@ LivePoints record_livepoints(const InputSpec& in, const MethodConfig& method, co
   // The golden model on `threads` threads (golden_model.h: the same state
   // for every thread count), drawn in batches that end where a live-point
   // begins, so its pre-state is read between batches, from the lanes.
-  StochasticModel model(lib.header, method, threads > 0 ? threads : host_threads());
+  // Its stores keep each depth's plane key, which a design with the
+  // rasterizer-plane depth encoder reads from the pre-state (compression.h).
+  CompressionSetup keys;
+  keys.depth = true;
+  keys.format.depth_encoder = DepthEncoder::kPlane;
+  StochasticModel model(lib.header, on_design(method, keys), threads > 0 ? threads : host_threads());
   const SampleStore& st0 = model.store_of(0, 0);
   // The clear values, from a tile allocated cleared.
   SampleStore cleared(lib.header, st0.has_tracker(), st0.targets());
@@ -512,7 +534,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
   invariant(unit < lib.points.size(), "simulate_livepoint is given one of the library's units");
   const LivePoint& lp = lib.points[unit];
   const TraceHeader& h = lib.header;
-  auto rop = std::make_unique<FunctionalRop>(h, lib.method);
+  auto rop = std::make_unique<FunctionalRop>(h, on_design(lib.method, hw.compression.setup()));
   LineSet in_dram(hw.cache.line_bytes);
   const AddressMap amap(h.width, h.spp, rop->setup().tracker_bytes, hw.cache.line_bytes, rop->setup().bytes.stored,
                         rop->setup().slab_bytes);
@@ -1044,13 +1066,6 @@ void estimate_compression(const LivePoints& lib, const HwConfig& hw, const std::
 }
 
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs) {
-  // A tile's size under the rasterizer-plane depth encoder depends on which
-  // primitive wrote each depth, which a live-point does not hold.
-  if (hw.compression.setup().plane_keys())
-    throw UserError(hw.name +
-                    ": compression.depth_encoder: the sampled fidelity models the fit depth encoder, not \"plane\" (a "
-                    "live-point does not hold the primitive of each depth); use --hw-set compression.depth_encoder=fit "
-                    "or --fidelity cycle");
   SampledRun out;
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = process_cpu_seconds();

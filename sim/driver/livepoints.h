@@ -105,13 +105,16 @@ struct Resident {
 
 /// The state of the pixels a unit's fragments touch, as before the unit,
 /// flat: pixel i is (x[i], y[i]), in (y, x) order; its samples are
-/// depth[i spp ...] and rgb[3 i spp ...].
+/// depth[i spp ...], rgb[3 i spp ...] and planes[i spp ...].
 struct PrePixels {
   bool tracker = false;  ///< lk: trackers held
   int slab_bits = 0;     ///< slab: layers held (0: none)
   std::vector<uint16_t> x, y;
-  std::vector<float> depth;            ///< spp per pixel
-  std::vector<uint16_t> rgb;           ///< 3 spp per pixel, binary16
+  std::vector<float> depth;   ///< spp per pixel
+  std::vector<uint16_t> rgb;  ///< 3 spp per pixel, binary16
+  /// spp per pixel: each depth's plane key (compression.h, plane_key), what
+  /// the rasterizer-plane depth encoder counts; kClearPlaneKey when cleared.
+  std::vector<uint64_t> planes;
   std::vector<TrackerState> trackers;  ///< one per pixel when tracking
   std::vector<SlabPixel> slabs;        ///< one per pixel with SLAB layers
   size_t size() const { return x.size(); }
@@ -120,25 +123,26 @@ struct PrePixels {
   /// Pixel i: (x, y) of st, clear's values if st never touched it. Distinct
   /// i may be set concurrently.
   void set(size_t i, const SampleStore& st, const PixelView& clear, uint32_t x, uint32_t y);
-  /// Writes every pixel into st (a store of the same screen and buffers).
+  /// Writes every pixel into st (a store of the same screen and buffers; the
+  /// plane keys when st keeps them).
   void apply(SampleStore& st) const;
   size_t bytes() const;
 };
 
-/// The samples (depth and colour) of the pixels of a live-point's tiles that
-/// hold written values but that none of its fragments touch, flat, in (y, x)
-/// order. A design with compression or Hi-Z applies them with the pre-state,
-/// so that the unit's store holds its 8 x 8 tiles whole, as the compressor
-/// and Hi-Z see a memory tile: its class and farthest depth depend on every
-/// pixel of it. Per-sample state a surface's encoding comes to depend on
-/// (a depth encoder keyed by per-sample primitive ids) belongs here and in
-/// PrePixels, beside depth and colour.
+/// The samples (depth, colour and plane key) of the pixels of a live-point's
+/// tiles that hold written values but that none of its fragments touch, flat,
+/// in (y, x) order. A design with compression or Hi-Z applies them with the
+/// pre-state, so that the unit's store holds its 8 x 8 tiles whole, as the
+/// compressor and Hi-Z see a memory tile: its class and farthest depth depend
+/// on every pixel of it. Per-sample state a surface's encoding depends on
+/// belongs here and in PrePixels, beside depth and colour.
 struct TilePixels {
   std::vector<uint16_t> x, y;
-  std::vector<float> depth;   ///< spp per pixel
-  std::vector<uint16_t> rgb;  ///< 3 spp per pixel, binary16
+  std::vector<float> depth;      ///< spp per pixel
+  std::vector<uint16_t> rgb;     ///< 3 spp per pixel, binary16
+  std::vector<uint64_t> planes;  ///< spp per pixel: plane keys, as PrePixels::planes
   size_t size() const { return x.size(); }
-  /// Writes every pixel's depth and colour into st.
+  /// Writes every pixel's depth, colour and (a store that keeps them) plane keys into st.
   void apply(SampleStore& st) const;
   size_t bytes() const;
 };

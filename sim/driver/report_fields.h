@@ -87,11 +87,11 @@ inline void put_counters(Fields f, const Counters& c, bool with_blend = true, bo
 }
 
 /// The compressibility of the final buffers (compressibility.h) under the
-/// design's [compression] format: the format, then one entry per compressed
-/// surface.
+/// design's [compression] format (a functional run with --compressibility):
+/// the format, then one entry per compressed surface.
 inline void put_compressibility(Fields f, const CompressionStats& cs, const CompressionSetup& setup) {
   const CompressionFormat& fm = setup.format;
-  f.put("depth", setup.depth, "-", "compression.depth: depth plane compression on");
+  f.put("depth", setup.depth, "-", "--compressibility: compression.depth, depth plane compression on");
   f.put("color", setup.color, "-", "compression.color: MSAA colour compression on (colour and blend targets)");
   f.put("tile_pixels", fm.tile_pixels, "pixels", "pixels of a memory tile (all their samples)");
   f.put("size_classes", fm.size_classes, "classes", "block sizes U, U/2, ... a tile is stored in");
