@@ -1431,12 +1431,15 @@ TEST(AddressMapLines, LineWalkMatchesAPerSampleWalk) {
 
 namespace {
 
-/// Every leaf field of a report as a path: objects by ".", array elements as "[]".
+/// Every leaf field of a report as a path: objects by ".", array elements as
+/// "[]". An empty array has no field (e.g. slab's compressed surfaces: none).
 void leaf_paths(const nlohmann::ordered_json& j, const std::string& at, std::set<std::string>& out) {
   if (j.is_object()) {
     for (auto it = j.begin(); it != j.end(); ++it)
       leaf_paths(it.value(), at.empty() ? it.key() : at + "." + it.key(), out);
-  } else if (j.is_array() && !j.empty() && j[0].is_object()) {
+  } else if (j.is_array() && j.empty()) {
+    return;
+  } else if (j.is_array() && j[0].is_object()) {
     for (const auto& e : j) leaf_paths(e, at + "[]", out);
   } else {
     out.insert(at);
