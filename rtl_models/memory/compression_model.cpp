@@ -70,12 +70,12 @@ CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t 
   const size_t screen_tiles = size_t(tiles_x_) * ceil_div(height, 8u) * (64u / fmt_.tile_pixels);
   for (size_t b = 0; b < size_t(kBuffers); ++b) {
     if (!on_[b] && !(hiz_ && Buffer(b) == Buffer::kDepth)) continue;
-    memo_[b].resize(screen_tiles);
-    memo_valid_[b].assign(screen_tiles, 0);
-    stored_[b].assign(screen_tiles, kNever);
-    pending_count_[b].assign(screen_tiles, 0);
+    memo_[b].assign(screen_tiles, TileInfo{}, kTileState);
+    memo_valid_[b].assign(screen_tiles, 0, kTileState);
+    stored_[b].assign(screen_tiles, kNever, kTileState);
+    pending_count_[b].assign(screen_tiles, 0, kTileState);
   }
-  if (hiz_) zmax_.assign(screen_tiles, clear_depth);
+  if (hiz_) zmax_.assign(screen_tiles, clear_depth, "Hi-Z's per-tile bounds");
 }
 
 TileInfo CompressionModel::info(Buffer b, uint64_t tile) {
@@ -195,8 +195,8 @@ void CompressionModel::warm_metadata(uint64_t line, Buffer b, bool write, uint32
 
 CompressionModel::WarmState CompressionModel::warm_state() const {
   WarmState w;
-  w.stored = stored_;
-  w.zmax = zmax_;
+  for (size_t b = 0; b < size_t(kBuffers); ++b) w.stored[b] = stored_[b].to_vector();
+  w.zmax = zmax_.to_vector();
   for (const MetaCache& m : meta_) {
     std::vector<uint64_t> tags(m.tags.size());
     for (size_t i = 0; i < tags.size(); ++i) tags[i] = m.tags.tag(i);
@@ -228,7 +228,7 @@ bool CompressionModel::write_back(uint64_t line, Buffer b, uint64_t now, uint32_
 }
 
 bool CompressionModel::stored_cleared(uint64_t line, Buffer b) const {
-  return stored_[size_t(b)][tile_of(line, b)] == 0;
+  return stored_[size_t(b)].get(tile_of(line, b)) == 0;
 }
 
 uint64_t CompressionModel::fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop) {

@@ -36,6 +36,7 @@
 #include "cache_tags.h"
 #include "dram.h"
 #include "hw_config.h"
+#include "paged_array.h"
 
 namespace ropsim {
 
@@ -160,15 +161,10 @@ class CompressionModel {
 
   /// Host bytes (memory_estimate.h): one ROP's metadata cache of hw (tags,
   /// LRU, dirty bit, ready cycle and draw per line); the memory tiles of a
-  /// width x height screen; per tile, a compressed (or Hi-Z bound) surface's
-  /// state (memo, its validity, the stored state bits, its pending writes)
-  /// and Hi-Z's farthest depth.
+  /// width x height screen (each surface's per-tile state is paged, charged
+  /// as the frame touches it).
   static uint64_t metadata_cache_bytes(const HwConfig& hw);
   static uint64_t screen_tiles(const HwConfig& hw, uint32_t width, uint32_t height);
-  static uint64_t tile_state_bytes() {
-    return sizeof(TileInfo) + 2 * sizeof(uint8_t) + sizeof(decltype(pending_count_)::value_type::value_type);
-  }
-  static uint64_t hiz_bytes_per_tile() { return sizeof(decltype(zmax_)::value_type); }
 
  private:
   uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
@@ -186,11 +182,12 @@ class CompressionModel {
   int meta_bits_;
   TileSource* src_ = nullptr;
   Dram* dram_ = nullptr;
-  // Per surface and memory tile (dense: the screen's tiles):
-  std::array<std::vector<TileInfo>, kBuffers> memo_;       // its contents compressed since its last write,
-  std::array<std::vector<uint8_t>, kBuffers> memo_valid_;  // when 1
-  std::array<std::vector<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
-  static constexpr uint8_t kNever = 0xFF;                  // never written back (stored uncompressed)
+  // Per surface and memory tile (paged: the pages of the tiles a frame touches):
+  static constexpr const char* kTileState = "the compression model's per-tile state";
+  std::array<PagedArray<TileInfo>, kBuffers> memo_;       // its contents compressed since its last write,
+  std::array<PagedArray<uint8_t>, kBuffers> memo_valid_;  // when 1
+  std::array<PagedArray<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
+  static constexpr uint8_t kNever = 0xFF;                 // never written back (stored uncompressed)
   // Pending writes, in post order: record id - first_id_ indexes pending_;
   // their replaced bytes in bytes_ from bytes_head_ on.
   struct Pending {
@@ -205,8 +202,8 @@ class CompressionModel {
   uint64_t first_id_ = 0;
   std::vector<uint8_t> bytes_;
   size_t bytes_head_ = 0;
-  std::array<std::vector<uint32_t>, kBuffers> pending_count_;  // per tile, not yet applied
-  std::vector<TilePatch> patches_;                             // view's scratch
+  std::array<PagedArray<uint32_t>, kBuffers> pending_count_;  // per tile, not yet applied
+  std::vector<TilePatch> patches_;                            // view's scratch
   struct MetaCache {
     CacheTags tags;
     std::vector<uint8_t> dirty;
@@ -216,7 +213,7 @@ class CompressionModel {
   std::vector<MetaCache> meta_;  // per ROP
   bool hiz_;
   uint32_t tiles_x_;
-  std::vector<float> zmax_;  // per depth memory tile
+  PagedArray<float> zmax_;  // per depth memory tile
   CompressionTraffic s_;
 };
 

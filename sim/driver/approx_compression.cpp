@@ -7,9 +7,6 @@
 
 namespace ropsim {
 
-static_assert(sizeof(TileInfo) + 2 * sizeof(uint8_t) == kApproxTileStateBytes,
-              "memory_estimate.h's kApproxTileStateBytes is a compressed tile's state here");
-
 namespace {
 /// The metadata cache's shape: compression.metadata_cache_bytes (at least
 /// a line) of cache.line_bytes lines, up to 8 ways (as compression_model.cpp).
@@ -38,9 +35,9 @@ TagOnlyCompression::TagOnlyCompression(const HwConfig& hw, uint32_t width, uint3
   const size_t screen_tiles = size_t(tiles_x_) * ceil_div(height, 8u) * (64u / tile_pixels_);
   for (size_t b = 0; b < size_t(kBuffers); ++b) {
     if (!on_[b]) continue;
-    memo_[b].resize(screen_tiles);
-    memo_valid_[b].assign(screen_tiles, 0);
-    stored_[b].assign(screen_tiles, kNever);
+    memo_[b].assign(screen_tiles, TileInfo{}, kTileState);
+    memo_valid_[b].assign(screen_tiles, 0, kTileState);
+    stored_[b].assign(screen_tiles, kNever, kTileState);
   }
   if (cfg_.depth || cfg_.color) {
     const HwConfig::Cache shape = metadata_cache_shape(hw);
@@ -50,7 +47,7 @@ TagOnlyCompression::TagOnlyCompression(const HwConfig& hw, uint32_t width, uint3
       meta_.push_back(std::move(m));
     }
   }
-  if (hiz_) zmax_.assign(screen_tiles, clear_depth);
+  if (hiz_) zmax_.assign(screen_tiles, clear_depth, "Hi-Z's per-tile bounds");
 }
 
 TileInfo TagOnlyCompression::info(Buffer b, uint64_t tile) {

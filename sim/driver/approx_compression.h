@@ -27,6 +27,7 @@
 #include "cache_tags.h"
 #include "compression_model.h"
 #include "hw_config.h"
+#include "paged_array.h"
 
 namespace ropsim {
 
@@ -75,7 +76,7 @@ class TagOnlyCompression {
   bool hiz_rejects(uint32_t x, uint32_t y, float zmin);
   void count_skipped(uint64_t lines) { s_.hiz_lines_skipped += lines; }
   /// The farthest depth Hi-Z holds for the tile of pixel (x, y).
-  float hiz_bound(uint32_t x, uint32_t y) const { return zmax_[pixel_tile(x, y)]; }
+  float hiz_bound(uint32_t x, uint32_t y) const { return zmax_.get(pixel_tile(x, y)); }
   const CompressionTraffic& stats() const { return s_; }
 
  private:
@@ -96,18 +97,19 @@ class TagOnlyCompression {
   std::array<uint64_t, kBuffers> tile_bytes_{};
   TileSource& tiles_;
   BurstSink* dram_ = nullptr;
-  // Per surface and memory tile of the screen:
-  std::array<std::vector<TileInfo>, kBuffers> memo_;
-  std::array<std::vector<uint8_t>, kBuffers> memo_valid_;
-  std::array<std::vector<uint8_t>, kBuffers> stored_;  // state bits in memory: 0 cleared, 1 + class, kNever
-  static constexpr uint8_t kNever = 0xFF;              // never written back (stored uncompressed)
+  // Per surface and memory tile (paged: the pages of the tiles a frame touches).
+  static constexpr const char* kTileState = "the approximate model's per-tile compression state";
+  std::array<PagedArray<TileInfo>, kBuffers> memo_;
+  std::array<PagedArray<uint8_t>, kBuffers> memo_valid_;
+  std::array<PagedArray<uint8_t>, kBuffers> stored_;  // state bits in memory: 0 cleared, 1 + class, kNever
+  static constexpr uint8_t kNever = 0xFF;             // never written back (stored uncompressed)
   struct MetaCache {
     CacheTags tags;
     std::vector<uint8_t> dirty;
   };
   std::vector<MetaCache> meta_;  // per ROP
   bool hiz_;
-  std::vector<float> zmax_;  // per depth memory tile
+  PagedArray<float> zmax_;  // per depth memory tile
   CompressionTraffic s_;
 };
 

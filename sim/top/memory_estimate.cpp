@@ -14,6 +14,7 @@
 #include "dram.h"
 #include "errors.h"
 #include "memory_budget.h"
+#include "paged_array.h"
 #include "pixel_ordering.h"
 #include "rop_cache.h"
 #include "rop_pipeline.h"
@@ -30,6 +31,13 @@ namespace {
 /// What one allocation of n bytes takes from glibc's heap: its size and an
 /// 8-byte header, rounded up to 16 bytes, at least 32.
 uint64_t heap_chunk(uint64_t n) { return std::max<uint64_t>(32, (n + 8 + 15) / 16 * 16); }
+
+/// Host bytes of a PagedArray's page table over n entries (paged_array.h):
+/// a pointer per page, one heap chunk.
+uint64_t page_tables(uint64_t n) {
+  constexpr uint64_t kPage = PagedArray<uint8_t>::kPage;
+  return heap_chunk((n + kPage - 1) / kPage * PagedArray<uint8_t>::table_bytes_per_page());
+}
 
 /// What SystemC allocates for one sc_module beyond the object itself (its
 /// name and its entries in the object manager and its parent's child list).
@@ -176,14 +184,14 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
     if (hw.compression.depth || hw.hiz.enable) ++tracked;
     if (hw.compression.color)
       tracked += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);
-    const uint64_t tiles = comp ? CompressionModel::screen_tiles(hw, shape.width, shape.height) : 0;
+    const uint64_t tables = comp ? page_tables(CompressionModel::screen_tiles(hw, shape.width, shape.height)) : 0;
     add(e, "compression_tile_state", {"compression.depth", "compression.color", "compression.tile_pixels"},
-        "compression: per memory tile of the screen and tracked surface its compressed size, state bits and "
-        "pending writes",
-        0, tiles * tracked * CompressionModel::tile_state_bytes());
+        "compression: per tracked surface the page tables of its four per-tile arrays (compressed size, its "
+        "validity, state bits, pending writes); the pages of the tiles a frame touches are charged as allocated",
+        0, tables * tracked * 4);
     add(e, "hiz", {"hiz.enable", "compression.tile_pixels"},
-        "Hi-Z: per memory tile of the screen its farthest stored depth", 0,
-        hw.hiz.enable ? tiles * CompressionModel::hiz_bytes_per_tile() : 0);
+        "Hi-Z: the page table of the tiles' farthest stored depths (pages charged as allocated)", 0,
+        hw.hiz.enable ? tables : 0);
     // The largest pass's pipeline (one is built at a time).
     PassCost worst;
     const PassList passes = passes_of(shape.method);
@@ -231,14 +239,15 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
     if (hw.compression.depth) ++compressed;
     if (hw.compression.color)
       compressed += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);
-    const uint64_t tiles = comp || hw.hiz.enable ? CompressionModel::screen_tiles(hw, shape.width, shape.height) : 0;
+    const uint64_t tables =
+        comp || hw.hiz.enable ? page_tables(CompressionModel::screen_tiles(hw, shape.width, shape.height)) : 0;
     add(e, "compression_tile_state", {"compression.depth", "compression.color", "compression.tile_pixels"},
-        "compression: per memory tile of the screen and compressed surface its compressed size (memoised) and "
-        "stored state bits",
-        0, tiles * compressed * kApproxTileStateBytes);
+        "compression: per compressed surface the page tables of its three per-tile arrays (compressed size, its "
+        "validity, state bits); the pages of the tiles a frame touches are charged as allocated",
+        0, tables * compressed * 3);
     add(e, "hiz", {"hiz.enable", "compression.tile_pixels"},
-        "Hi-Z: per memory tile of the screen its farthest stored depth", 0,
-        hw.hiz.enable ? tiles * CompressionModel::hiz_bytes_per_tile() : 0);
+        "Hi-Z: the page table of the tiles' farthest stored depths (pages charged as allocated)", 0,
+        hw.hiz.enable ? tables : 0);
   }
   for (const MemoryTerm& t : e.terms) {
     e.per_rop_bytes += t.per_rop_bytes;

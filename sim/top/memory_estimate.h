@@ -86,10 +86,6 @@ void check_model_memory(const HwConfig& hw, const MemoryEstimate& e);
 /// static_assert): it sits above this layer.
 constexpr uint64_t kApproxWayBytes = 24;
 constexpr uint64_t kApproxRecordBytes = 48;
-/// The approximate model's compression state (sim/driver/approx_compression.h,
-/// which checks them with static_assert): per memory tile of a compressed
-/// surface its memoised contents, their validity and its stored state bits.
-constexpr uint64_t kApproxTileStateBytes = 14;
 /// The approximate model's fragment records: two batches of this many
 /// (approximate.cpp's kBatch, checked there).
 constexpr uint64_t kApproxBatchRecords = uint64_t{1} << 15;
