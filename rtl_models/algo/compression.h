@@ -595,6 +595,23 @@ inline bool pixel_palette(const ColorTileIn& t, uint32_t p, uint32_t K, uint32_t
   }
   return true;
 }
+/// The number k of a pixel's distinct sample values, key(s) the value of
+/// sample s as one integer; false when there are more than kmax.
+template <class Key>
+inline bool count_distinct(uint32_t spp, uint32_t kmax, uint32_t& k, Key key) {
+  uint64_t keys[8];
+  k = 0;
+  for (uint32_t s = 0; s < spp; ++s) {
+    const uint64_t v = key(s);
+    uint32_t j = 0;
+    while (j < k && keys[j] != v) ++j;
+    if (j == k) {
+      if (k == kmax) return false;
+      keys[k++] = v;
+    }
+  }
+  return true;
+}
 }  // namespace compression_detail
 
 /// The encoded size of a colour tile with at most K distinct values per
@@ -602,30 +619,26 @@ inline bool pixel_palette(const ColorTileIn& t, uint32_t p, uint32_t K, uint32_t
 /// ceil(log2 K) bits k - 1, k values of 8 bps bits, and when k > 1 an index
 /// of ceil(log2 K) bits per sample (values in order of first appearance).
 inline uint64_t color_tile_bits(const ColorTileIn& t, uint32_t K, uint32_t* max_k = nullptr) {
+  using compression_detail::sample_key;
   const int ib = log2_ceil(K);
   uint64_t bits = 0;
   uint32_t mk = 0, first[8];
   const uint32_t spp = uint32_t(t.spp), bps = t.bps;
+  const uint32_t kmax = std::min(K, 8u);
   for (uint32_t p = 0; p < t.pixels; ++p) {
-    uint32_t k = 0;
+    const uint8_t* c = t.bytes + size_t(p) * spp * bps;
+    uint32_t k = 1;
     bool fits = true;
-    if (bps <= 8) {
+    if (std::memcmp(c, c + bps, size_t(spp - 1) * bps) == 0) {
+      // Every sample of the pixel holds the first one's bytes (the common case).
+    } else if (bps == kColorSampleBytes) {
+      fits = compression_detail::count_distinct(
+          spp, kmax, k, [c](uint32_t s) { return sample_key(c + size_t(s) * kColorSampleBytes, kColorSampleBytes); });
+    } else if (bps <= 8) {
       // The same count as pixel_palette, with each sample's bytes as one
       // integer key (the colour buffer's 6 bytes, most blend targets').
-      const uint8_t* c = t.bytes + size_t(p) * spp * bps;
-      uint64_t keys[8];
-      const uint32_t kmax = std::min(K, 8u);
-      for (uint32_t s = 0; s < spp && fits; ++s) {
-        const uint64_t v = compression_detail::sample_key(c + size_t(s) * bps, bps);
-        uint32_t j = 0;
-        while (j < k && keys[j] != v) ++j;
-        if (j == k) {
-          if (k == kmax)
-            fits = false;
-          else
-            keys[k++] = v;
-        }
-      }
+      fits = compression_detail::count_distinct(spp, kmax, k,
+                                                [c, bps](uint32_t s) { return sample_key(c + size_t(s) * bps, bps); });
     } else {
       fits = compression_detail::pixel_palette(t, p, K, k, first, nullptr);
     }

@@ -1,6 +1,7 @@
 #include "compression_model.h"
 
 #include <algorithm>
+#include <cstring>
 
 #include "bits.h"
 
@@ -101,40 +102,41 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
                                 const uint64_t* old_planes) {
   // The pixel's bytes in the line, and their tile (a pixel lies in one memory tile).
   const uint64_t lo = std::max(line, pixel_addr), hi = std::min(line + line_bytes_, pixel_addr + pixel_bytes);
+  if (hi <= lo) return kNoPatch;
   const uint64_t tile = tile_of(pixel_addr, b);
   const uint64_t tile_start = (uint64_t(b) << 48) + tile * tile_bytes_[size_t(b)];
-  if (hi <= lo) return kNoPatch;
-  if (bytes_head_ > (size_t{1} << 20) && bytes_head_ * 2 > bytes_.size()) {  // drop the applied front
-    bytes_.erase(bytes_.begin(), bytes_.begin() + std::ptrdiff_t(bytes_head_));
+  if (bytes_head_ > (size_t{1} << 20) && bytes_head_ * 2 > bytes_end_) {  // drop the applied front
+    std::memmove(bytes_.data(), bytes_.data() + bytes_head_, bytes_end_ - bytes_head_);
     for (Pending& p : pending_) p.at -= bytes_head_;
+    bytes_end_ -= bytes_head_;
     bytes_head_ = 0;
   }
-  const size_t at = bytes_.size();
-  bytes_.insert(bytes_.end(), old + (lo - pixel_addr), old + (hi - pixel_addr));
-  uint32_t plane_len = 0;
-  if (old_planes) {  // the same samples' keys (depth: kDepthSampleBytes a sample)
-    const uint8_t* k = reinterpret_cast<const uint8_t*>(old_planes + (lo - pixel_addr) / kDepthSampleBytes);
-    plane_len = uint32_t((hi - lo) / kDepthSampleBytes * sizeof(uint64_t));
-    bytes_.insert(bytes_.end(), k, k + plane_len);
-  }
-  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), uint32_t(hi - lo), tile, at, plane_len});
+  // The replaced bytes, then (depth: kDepthSampleBytes a sample) the same samples' keys.
+  const uint32_t len = uint32_t(hi - lo);
+  const uint32_t plane_len = old_planes ? uint32_t(len / kDepthSampleBytes * sizeof(uint64_t)) : 0;
+  const size_t at = bytes_end_;
+  bytes_end_ += len + plane_len;
+  if (bytes_end_ > bytes_.size()) bytes_.resize(std::max(bytes_end_, 2 * bytes_.size()));
+  std::memcpy(&bytes_[at], old + (lo - pixel_addr), len);
+  if (old_planes) std::memcpy(&bytes_[at + len], old_planes + (lo - pixel_addr) / kDepthSampleBytes, plane_len);
+  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), len, tile, at, plane_len});
   ++pending_count_[size_t(b)][tile];
-  // Ids count modulo 2^32 - 1, so that none is kNoPatch.
-  return uint32_t((first_id_ + pending_.size() - 1) % kNoPatch);
+  // Ids count modulo 2^32 - 1, so that none is kNoPatch (pending_ holds fewer).
+  const uint64_t id = uint64_t(first_id_) + pending_.size() - 1;
+  return uint32_t(id >= kNoPatch ? id - kNoPatch : id);
 }
 
 void CompressionModel::applied(uint32_t id) {
   if (id == kNoPatch) return;
-  const uint64_t first = first_id_ % kNoPatch;  // ids count modulo 2^32 - 1 (pend)
-  Pending& p = pending_[size_t(id >= first ? id - first : uint64_t(id) + kNoPatch - first)];
+  Pending& p = pending_[size_t(id >= first_id_ ? id - first_id_ : uint64_t(id) + kNoPatch - first_id_)];
   p.applied = true;
   --pending_count_[size_t(p.b)][p.tile];
   while (!pending_.empty() && pending_.front().applied) {
     bytes_head_ = pending_.front().at + pending_.front().len + pending_.front().plane_len;
     pending_.pop_front();
-    ++first_id_;
+    first_id_ = first_id_ + 1 == kNoPatch ? 0 : first_id_ + 1;  // modulo 2^32 - 1 (pend)
   }
-  if (pending_.empty()) bytes_.clear(), bytes_head_ = 0;
+  if (pending_.empty()) bytes_head_ = bytes_end_ = 0;
 }
 
 uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop) {

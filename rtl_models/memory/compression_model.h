@@ -188,8 +188,9 @@ class CompressionModel {
   std::array<PagedArray<uint8_t>, kBuffers> memo_valid_;  // when 1
   std::array<PagedArray<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
   static constexpr uint8_t kNever = 0xFF;                 // never written back (stored uncompressed)
-  // Pending writes, in post order: record id - first_id_ indexes pending_;
-  // their replaced bytes in bytes_ from bytes_head_ on.
+  // Pending writes, in post order: record id - first_id_ (modulo kNoPatch)
+  // indexes pending_; their replaced bytes in bytes_ from bytes_head_ to
+  // bytes_end_ (bytes_ grows, never shrinks).
   struct Pending {
     Buffer b;
     bool applied;
@@ -199,9 +200,9 @@ class CompressionModel {
     uint32_t plane_len;  // bytes of replaced plane keys (0: none)
   };
   std::deque<Pending> pending_;
-  uint64_t first_id_ = 0;
+  uint32_t first_id_ = 0;
   std::vector<uint8_t> bytes_;
-  size_t bytes_head_ = 0;
+  size_t bytes_head_ = 0, bytes_end_ = 0;
   std::array<PagedArray<uint32_t>, kBuffers> pending_count_;  // per tile, not yet applied
   std::vector<TilePatch> patches_;                            // view's scratch
   struct MetaCache {

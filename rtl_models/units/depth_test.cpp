@@ -1,5 +1,7 @@
 #include "depth_test.h"
 
+#include <algorithm>
+#include <cstring>
 #include <string>
 
 #include "blend_unit.h"
@@ -12,6 +14,34 @@ DepthTest::DepthTest(const sc_core::sc_module_name& name, const Clock& clk, Func
                      const AddressMap& amap, const HwConfig::DepthTest& cfg, RopCache& cache, TokenFifo& in,
                      TokenFifo& out)
     : Unit(name, clk), rop_(rop), retirement_(retirement), amap_(amap), cfg_(cfg), cache_(cache), in_(in), out_(out) {}
+
+namespace {
+
+/// The nearest of the tested samples' depths (mask covered) and 1, as
+/// std::min folds them: for a fully covered pixel whose depths are none
+/// negative or NaN (bit patterns at most +inf's), through the bit patterns,
+/// which order as the depths do (one vectorised pass).
+float nearest_tested(const float* z, uint64_t covered, uint32_t spp) {
+  if (covered == (spp == 64 ? ~uint64_t{0} : (uint64_t{1} << spp) - 1)) {
+    uint32_t lo = ~0u, hi = 0;
+    for (uint32_t i = 0; i < spp; ++i) {
+      uint32_t bits;
+      std::memcpy(&bits, &z[i], 4);
+      lo = std::min(lo, bits);
+      hi = std::max(hi, bits);
+    }
+    if (hi <= 0x7F800000u) {
+      float m;
+      std::memcpy(&m, &lo, 4);
+      return std::min(1.0f, m);
+    }
+  }
+  float zmin = 1.0f;
+  for (uint64_t m = covered; m; m &= m - 1) zmin = std::min(zmin, z[__builtin_ctzll(m)]);
+  return zmin;
+}
+
+}  // namespace
 
 uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
   stats_.samples += run_stage(rop_.depth(), *t);
@@ -40,9 +70,7 @@ uint64_t DepthTest::evaluate(FragToken* t, uint64_t now) {
                                      : t->draw->depth_test && (t->draw->depth_func == DepthFunc::kLess ||
                                                                t->draw->depth_func == DepthFunc::kLequal);
   if (CompressionModel* cm = cache_.compression(); cm && cm->hiz() && t->covered && hiz_applies) {
-    float zmin = 1.0f;
-    for (uint64_t m = t->covered; m; m &= m - 1) zmin = std::min(zmin, t->z[__builtin_ctzll(m)]);
-    if (cm->hiz_rejects(t->f->x, t->f->y, zmin)) {
+    if (cm->hiz_rejects(t->f->x, t->f->y, nearest_tested(t->z, t->covered, uint32_t(rop_.setup().spp)))) {
       if (t->survivors)
         throw InternalError("Hi-Z never rejects a fragment that passes: pixel (" + std::to_string(t->f->x) + ", " +
                             std::to_string(t->f->y) + ") had surviving samples");

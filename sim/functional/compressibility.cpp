@@ -40,6 +40,22 @@ const uint8_t* memory_bytes(const SurfaceBytes& sb, const SampleTile& t, Buffer 
   return scratch.data();
 }
 
+/// The farthest of n depths, as std::max_element finds it: when none is
+/// negative or NaN (bit patterns at most +inf's), the depths order as their
+/// bit patterns do, and one pass over the patterns (vectorised) finds it.
+float farthest(const float* z, size_t n) {
+  uint32_t top = 0;
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, &z[i], 4);
+    top = std::max(top, bits);
+  }
+  if (top > 0x7F800000u) return *std::max_element(z, z + n);
+  float m;
+  std::memcpy(&m, &top, 4);
+  return m;
+}
+
 /// A cleared tile of the store's buffers (to tell cleared memory tiles).
 struct ClearTile {
   SampleStore store;
@@ -60,7 +76,7 @@ TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8
   const size_t len = size_t(f.tile_pixels) * spp * bps;
   if (b == Buffer::kDepth) {
     const float* z = reinterpret_cast<const float*>(data);
-    st.max_depth = *std::max_element(z, z + size_t(f.tile_pixels) * spp);
+    st.max_depth = farthest(z, size_t(f.tile_pixels) * spp);
   }
   if (!size) return st;
   thread_local std::vector<uint8_t> clear_scratch;
