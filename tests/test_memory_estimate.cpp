@@ -112,12 +112,13 @@ Child run_child(const fs::path& dir, const std::string& args) {
 const char* kScene = "--scene smoke --spp 4 --width 64 --height 64";
 const char* kShape = "--width 64 --height 64 --spp 4";
 
-/// The tiny design the model is measured against.
+/// The tiny design the model is measured against (no compression, no Hi-Z).
 const char* kTiny =
     "--hw-set distributor.rop_units=1 --hw-set cache.size_bytes=256 --hw-set cache.ways=1 --hw-set source.fifo_depth=1 "
     "--hw-set distributor.fifo_depth=1 --hw-set ordering.window=1 --hw-set ordering.fifo_depth=1 "
     "--hw-set depth_test.max_outstanding=1 --hw-set depth_test.fifo_depth=1 --hw-set tracker.fifo_depth=1 "
-    "--hw-set sorter.fifo_depth=1 --hw-set alpha_ref.fifo_depth=1 --hw-set ordering.pixels_in_flight=1";
+    "--hw-set sorter.fifo_depth=1 --hw-set alpha_ref.fifo_depth=1 --hw-set ordering.pixels_in_flight=1 "
+    "--hw-set compression.depth=false --hw-set compression.color=false --hw-set hiz.enable=false";
 
 struct Design {
   std::string name;
