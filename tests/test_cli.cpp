@@ -1291,6 +1291,30 @@ TEST(CliNumerics, DefaultNamesNeverShareADesign) {
   }
 }
 
+// A functional run reports the final surfaces' compressibility only with
+// --compressibility (its store then keeps each depth's plane key), under
+// the design's [compression]; the flag is refused, in one line, for a timing
+// fidelity and for a design that compresses nothing.
+TEST(CliNumerics, CompressibilityIsMeasuredWhenAsked) {
+  CliSandbox box;
+  const std::string run = "run --scene smoke --spp 4 --width 64 --height 64 --quiet --out o.png ";
+  expect_ok(box.run(run + "--report plain.json"), "functional run");
+  EXPECT_FALSE(nlohmann::json::parse(slurp(box.path("plain.json"))).contains("compressibility"))
+      << "measured without --compressibility";
+  expect_ok(box.run(run + "--compressibility --report c.json"), "--compressibility");
+  const auto c = nlohmann::json::parse(slurp(box.path("c.json")));
+  ASSERT_TRUE(c.contains("compressibility")) << c.dump();
+  EXPECT_EQ(c["compressibility"]["depth_encoder"], "plane");
+  EXPECT_EQ(c["compressibility"]["buffers"].size(), 2u) << "depth and colour";
+  expect_ok(box.run(run + "--compressibility --hw-set compression.depth_encoder=fit --report f.json"), "fit");
+  EXPECT_EQ(nlohmann::json::parse(slurp(box.path("f.json")))["compressibility"]["depth_encoder"], "fit");
+  expect_cli_error(box, run + "--compressibility --fidelity cycle --report x.json",
+                   {"--compressibility", "--fidelity functional"});
+  expect_cli_error(box,
+                   run + "--compressibility --hw '" ROPSIM_SOURCE_DIR "/configs/uncompressed.toml' --report x.json",
+                   {"--compressibility", "uncompressed.toml"});
+}
+
 // `config --json` is the design a run resolves (hardware.resolved), and
 // `trace info --json` carries what `trace info` prints.
 TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
@@ -1306,6 +1330,12 @@ TEST(CliNumerics, ConfigAndTraceInfoAsJson) {
   EXPECT_EQ(cfg["sorter"]["kind"], "bitonic");
   EXPECT_EQ(cfg["cache"]["fast_clear"], true);
   EXPECT_EQ(cfg["clock"]["frequency_ghz"], 1.5);
+  // The default design is a current GPU's: compression (depth with the
+  // rasterizer's planes) and Hi-Z on.
+  EXPECT_EQ(cfg["compression"]["depth"], true);
+  EXPECT_EQ(cfg["compression"]["color"], true);
+  EXPECT_EQ(cfg["compression"]["depth_encoder"], "plane");
+  EXPECT_EQ(cfg["hiz"]["enable"], true);
   r = box.run("config --json '" ROPSIM_SOURCE_DIR "/configs/narrow.toml'");
   expect_ok(r, "config --json narrow.toml");
   EXPECT_EQ(nlohmann::json::parse(r.out)["distributor"]["rop_units"], 1);
