@@ -27,30 +27,33 @@ class CacheTags {
   /// The way holding line (hit = true, its LRU refreshed), or the way a miss
   /// takes (hit = false): the set's first invalid way, else its least
   /// recently used. On a miss the way still holds its old line (tag()), for
-  /// the caller to evict before install().
+  /// the caller to evict before install(). One pass: an empty way's last use
+  /// is 0 and a held line's at least 1, so the first way of least last use
+  /// is the first invalid one when there is one.
   size_t find(uint64_t line, bool& hit) {
-    const uint64_t l = line >> set_shift_;
-    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
-    const size_t base = size_t(set) * ways_;
+    const size_t base = set_base(line);
     const uint64_t* tag = &tags_[base];
-    for (uint32_t i = 0; i < ways_; ++i)
+    const uint64_t* lru = &lru_[base];
+    size_t victim = 0;
+    uint64_t oldest = lru[0];
+    for (uint32_t i = 0; i < ways_; ++i) {
       if (tag[i] == line) {
         hit = true;
         lru_[base + i] = ++tick_;
         return base + i;
       }
-    size_t victim = base;
-    for (uint32_t i = 0; i < ways_ && tags_[victim] != kInvalid; ++i)
-      if (tag[i] == kInvalid || lru_[base + i] < lru_[victim]) victim = base + i;
+      if (lru[i] < oldest) {
+        oldest = lru[i];
+        victim = i;
+      }
+    }
     hit = false;
-    return victim;
+    return base + victim;
   }
   /// The way holding line, or kNone; no LRU change (a probe).
   static constexpr size_t kNone = ~size_t{0};
   size_t probe(uint64_t line) const {
-    const uint64_t l = line >> set_shift_;
-    const uint64_t set = (l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1);
-    const size_t base = size_t(set) * ways_;
+    const size_t base = set_base(line);
     for (uint32_t i = 0; i < ways_; ++i)
       if (tags_[base + i] == line) return base + i;
     return kNone;
@@ -61,7 +64,10 @@ class CacheTags {
     lru_[way] = ++tick_;
   }
   /// Empties way (its line evicted).
-  void invalidate(size_t way) { tags_[way] = kInvalid; }
+  void invalidate(size_t way) {
+    tags_[way] = kInvalid;
+    lru_[way] = 0;
+  }
   uint64_t tag(size_t way) const { return tags_[way]; }
   size_t size() const { return tags_.size(); }  ///< ways over every set
   /// The ways of a cache of cfg (over every set), and the host bytes each
@@ -70,11 +76,16 @@ class CacheTags {
   static uint64_t bytes_per_way() { return sizeof(decltype(tags_)::value_type) + sizeof(decltype(lru_)::value_type); }
 
  private:
+  /// The first way of line's set.
+  size_t set_base(uint64_t line) const {
+    const uint64_t l = line >> set_shift_;
+    return size_t((l ^ (l >> 11) ^ (line >> 48) * 0x9e37u) & (sets_ - 1)) * ways_;
+  }
   uint32_t ways_;
   uint64_t sets_;
   uint32_t set_shift_;
   std::vector<uint64_t> tags_;  // per way, kInvalid when empty
-  std::vector<uint64_t> lru_;   // per way: last use (tick), next to the tags for the victim search
+  std::vector<uint64_t> lru_;   // per way: last use (tick; 0 when empty), next to the tags for the victim search
   uint64_t tick_ = 0;
 };
 

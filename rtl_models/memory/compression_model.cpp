@@ -107,7 +107,7 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
   const uint64_t tile_start = (uint64_t(b) << 48) + tile * tile_bytes_[size_t(b)];
   if (bytes_head_ > (size_t{1} << 20) && bytes_head_ * 2 > bytes_end_) {  // drop the applied front
     std::memmove(bytes_.data(), bytes_.data() + bytes_head_, bytes_end_ - bytes_head_);
-    for (Pending& p : pending_) p.at -= bytes_head_;
+    pending_.for_each([&](Pending& p) { p.at -= bytes_head_; });
     bytes_end_ -= bytes_head_;
     bytes_head_ = 0;
   }

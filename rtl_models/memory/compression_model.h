@@ -28,7 +28,6 @@
 #pragma once
 #include <array>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <vector>
 
@@ -37,6 +36,7 @@
 #include "dram.h"
 #include "hw_config.h"
 #include "paged_array.h"
+#include "ring_queue.h"
 
 namespace ropsim {
 
@@ -199,7 +199,7 @@ class CompressionModel {
     size_t at;           // in bytes_: len replaced bytes, then the plane keys' bytes
     uint32_t plane_len;  // bytes of replaced plane keys (0: none)
   };
-  std::deque<Pending> pending_;
+  RingQueue<Pending> pending_;
   uint32_t first_id_ = 0;
   std::vector<uint8_t> bytes_;
   size_t bytes_head_ = 0, bytes_end_ = 0;

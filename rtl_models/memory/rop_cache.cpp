@@ -7,19 +7,36 @@
 namespace ropsim {
 
 void PostedWrites::apply(uint64_t before) {
-  // Merge the ROPs' queues in (cycle, ROP) order.
+  // Merge the ROPs' queues in (cycle, ROP) order: the queue whose front comes
+  // first gives writes until its front comes after the runner-up's.
+  constexpr size_t kNoQueue = ~size_t{0};
   for (;;) {
-    PerRop* next = nullptr;
-    for (auto& r : q_)
-      if (!r.writes.empty() && (!next || r.writes.front().cycle < next->writes.front().cycle)) next = &r;
-    if (!next || next->writes.front().cycle >= before) {
-      earliest_ = next ? next->writes.front().cycle : ~uint64_t{0};
+    size_t n = kNoQueue, o = kNoQueue;  // the first front, and the runner-up
+    for (size_t r = 0; r < q_.size(); ++r) {
+      if (q_[r].writes.empty()) continue;
+      const uint64_t c = q_[r].writes.front().cycle;
+      if (n == kNoQueue || c < q_[n].writes.front().cycle) {
+        o = n;
+        n = r;
+      } else if (o == kNoQueue || c < q_[o].writes.front().cycle) {
+        o = r;
+      }
+    }
+    if (n == kNoQueue || q_[n].writes.front().cycle >= before) {
+      earliest_ = n == kNoQueue ? ~uint64_t{0} : q_[n].writes.front().cycle;
       return;
     }
-    const Write w = next->writes.front();
-    next->writes.pop_front();
-    next->cache->write(w.line, w.buf, w.cycle, w.owner);
-    next->cache->applied(w.patch);
+    // Queue n comes first while its front is before `before` and before the
+    // runner-up's front (at the same cycle, a lower ROP first).
+    const uint64_t oc = o == kNoQueue ? ~uint64_t{0} : q_[o].writes.front().cycle;
+    PerRop& p = q_[n];
+    do {
+      const Write w = p.writes.front();
+      p.writes.pop_front();
+      p.cache->write(w.line, w.buf, w.cycle, w.owner);
+      p.cache->applied(w.patch);
+    } while (!p.writes.empty() && p.writes.front().cycle < before &&
+             (p.writes.front().cycle < oc || (p.writes.front().cycle == oc && n < o)));
   }
 }
 

@@ -1,0 +1,45 @@
+// A FIFO queue in a ring buffer that grows by doubling: pushes at the back,
+// pops from the front, and indexing from the front. Steady state allocates
+// nothing, and an index is a mask, not std::deque's division by its block.
+#pragma once
+#include <cstddef>
+#include <vector>
+
+namespace ropsim {
+
+template <class T>
+class RingQueue {
+ public:
+  bool empty() const { return n_ == 0; }
+  size_t size() const { return n_; }
+  T& front() { return v_[head_]; }
+  /// Entry i from the front (0: the front).
+  T& operator[](size_t i) { return v_[(head_ + i) & (v_.size() - 1)]; }
+  const T& operator[](size_t i) const { return v_[(head_ + i) & (v_.size() - 1)]; }
+  void push_back(const T& x) {
+    if (n_ == v_.size()) grow();
+    v_[(head_ + n_) & (v_.size() - 1)] = x;
+    ++n_;
+  }
+  void pop_front() {
+    head_ = (head_ + 1) & (v_.size() - 1);
+    --n_;
+  }
+  /// Calls f on every entry, front to back.
+  template <class F>
+  void for_each(F&& f) {
+    for (size_t i = 0; i < n_; ++i) f((*this)[i]);
+  }
+
+ private:
+  void grow() {
+    std::vector<T> w(v_.size() * 2);
+    for (size_t i = 0; i < n_; ++i) w[i] = v_[(head_ + i) & (v_.size() - 1)];
+    v_.swap(w);
+    head_ = 0;
+  }
+  std::vector<T> v_ = std::vector<T>(64);
+  size_t head_ = 0, n_ = 0;
+};
+
+}  // namespace ropsim
