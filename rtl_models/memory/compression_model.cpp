@@ -52,14 +52,18 @@ CompressionModel::CompressionModel(const HwConfig& hw, uint32_t width, uint32_t 
     : cfg_(hw.compression),
       fmt_(hw.compression.setup().format),
       line_bytes_(hw.cache.line_bytes),
+      line_mask_(~(uint64_t{hw.cache.line_bytes} - 1)),
+      line_shift_(log2_floor(uint64_t{hw.cache.line_bytes})),
       meta_bits_(metadata_bits(fmt_)),
       hiz_(hw.hiz.enable),
       tiles_x_(ceil_div(width, 8u)) {
   on_[size_t(Buffer::kDepth)] = cfg_.depth;
   for (Buffer b : {Buffer::kColor, Buffer::kTransmittance, Buffer::kAccum})
     on_[size_t(b)] = cfg_.color && bps[size_t(b)];
-  for (size_t b = 0; b < size_t(kBuffers); ++b)
+  for (size_t b = 0; b < size_t(kBuffers); ++b) {
     tile_bytes_[b] = std::max<uint64_t>(1, uint64_t(fmt_.tile_pixels) * uint64_t(spp) * bps[b]);
+    tile_div_[b] = Divisor(tile_bytes_[b]);
+  }
   const HwConfig::Cache shape = meta_cache_shape(hw);
   for (uint32_t r = 0; r < rops; ++r) {
     MetaCache m{CacheTags(shape), {}, {}, {}};
@@ -144,7 +148,7 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
   // The state bits of the surface's tiles, packed, in the upper half of its
   // address space.
   const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile * uint64_t(meta_bits_) / 8;
-  const uint64_t line = addr / line_bytes_ * line_bytes_;
+  const uint64_t line = addr & line_mask_;
   bool hit = false;
   const size_t way = m.tags.find(line, hit);
   uint64_t ready = now;

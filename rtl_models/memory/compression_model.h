@@ -109,8 +109,8 @@ class CompressionModel {
   void tile_lines(uint64_t line, Buffer b, uint64_t& first, uint64_t& count) const {
     const uint64_t base = uint64_t(b) << 48, tb = tile_bytes_[size_t(b)];
     const uint64_t start = base + tile_of(line, b) * tb;
-    first = start / line_bytes_ * line_bytes_;
-    count = (start + tb - 1) / line_bytes_ - first / line_bytes_ + 1;
+    first = start & line_mask_;
+    count = ((start + tb - 1) >> line_shift_) - (first >> line_shift_) + 1;
   }
   /// A fill of a line in DRAM: returns the cycle its (decompressed) data is there.
   uint64_t fill(uint64_t line, Buffer b, uint64_t now, uint32_t rop);
@@ -140,7 +140,7 @@ class CompressionModel {
   /// The metadata line holding the state bits of line's tile (surface b compressed).
   uint64_t metadata_line(uint64_t line, Buffer b) const {
     const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile_of(line, b) * uint64_t(meta_bits_) / 8;
-    return addr / line_bytes_ * line_bytes_;
+    return addr & line_mask_;
   }
   /// A tag-only access to the state bits of line's tile through ROP rop's
   /// metadata cache (a fill reads them, a write-back writes them).
@@ -167,7 +167,7 @@ class CompressionModel {
   static uint64_t screen_tiles(const HwConfig& hw, uint32_t width, uint32_t height);
 
  private:
-  uint64_t tile_of(uint64_t line, Buffer b) const { return ((line - (uint64_t(b) << 48)) / tile_bytes_[size_t(b)]); }
+  uint64_t tile_of(uint64_t line, Buffer b) const { return tile_div_[size_t(b)].div(line - (uint64_t(b) << 48)); }
   TileInfo info(Buffer b, uint64_t tile);
   /// The tile as the caches see it (the store less the pending writes).
   TileInfo view(Buffer b, uint64_t tile, bool size);
@@ -176,9 +176,12 @@ class CompressionModel {
 
   HwConfig::Compression cfg_;
   CompressionFormat fmt_;
-  uint32_t line_bytes_;
+  uint32_t line_bytes_;  // a power of two (hw_config.cpp):
+  uint64_t line_mask_;   // an address's line: addr & line_mask_
+  int line_shift_;
   std::array<bool, kBuffers> on_{};
   std::array<uint64_t, kBuffers> tile_bytes_{};
+  std::array<Divisor, kBuffers> tile_div_;  // by tile_bytes_
   int meta_bits_;
   TileSource* src_ = nullptr;
   Dram* dram_ = nullptr;

@@ -50,6 +50,7 @@ struct DramStats {
 /// common configs), by the divider otherwise: one access did four divisions.
 class Divisor {
  public:
+  Divisor() : Divisor(1) {}
   explicit Divisor(uint64_t d) : d_(d), pow2_(is_pow2(d)), shift_(log2_floor(d)) {}
   uint64_t div(uint64_t x) const { return pow2_ ? x >> shift_ : x / d_; }
   uint64_t mod(uint64_t x) const { return pow2_ ? x & (d_ - 1) : x % d_; }

@@ -15,6 +15,7 @@
 #include "output_file.h"
 #include "report_fields.h"
 #include "slab.h"
+#include "trace.h"
 #include "version.h"
 
 namespace ropsim {
@@ -63,7 +64,9 @@ void put_frame_stats(Fields f, const FrameStats& s) {
 }
 
 std::optional<FrameStats> frame_of(const InputSpec& in) {
-  if (!in.from_trace()) return std::nullopt;
+  // Only a frame of draw states reports them (functional_report): another trace is
+  // not read a second time.
+  if (!in.from_trace() || TraceReader(in.trace_path).header().draws.empty()) return std::nullopt;
   return frame_stats_of(in.trace_path);
 }
 
