@@ -96,7 +96,7 @@ TileInfo CompressionModel::view(Buffer b, uint64_t tile, bool size) {
   if (pending_count_[size_t(b)][tile])  // newest first
     for (size_t i = pending_.size(); i-- > 0;) {
       const Pending& p = pending_[i];
-      if (!p.applied && p.b == b && p.tile == tile)
+      if (!p.applied && Buffer(p.buf) == b && p.tile == tile)
         patches_.push_back(TilePatch{p.offset, p.len, &bytes_[p.at], p.plane_len ? &bytes_[p.at + p.len] : nullptr});
     }
   return src_->tile(b, tile, size, patches_.data(), patches_.size());
@@ -123,7 +123,7 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
   if (bytes_end_ > bytes_.size()) bytes_.resize(std::max(bytes_end_, 2 * bytes_.size()));
   std::memcpy(&bytes_[at], old + (lo - pixel_addr), len);
   if (old_planes) std::memcpy(&bytes_[at + len], old_planes + (lo - pixel_addr) / kDepthSampleBytes, plane_len);
-  pending_.push_back(Pending{b, false, uint32_t(lo - tile_start), len, tile, at, plane_len});
+  pending_.push_back(Pending{tile, at, uint32_t(lo - tile_start), len, plane_len, uint8_t(b), false});
   ++pending_count_[size_t(b)][tile];
   // Ids count modulo 2^32 - 1, so that none is kNoPatch (pending_ holds fewer).
   const uint64_t id = uint64_t(first_id_) + pending_.size() - 1;
@@ -134,7 +134,7 @@ void CompressionModel::applied(uint32_t id) {
   if (id == kNoPatch) return;
   Pending& p = pending_[size_t(id >= first_id_ ? id - first_id_ : uint64_t(id) + kNoPatch - first_id_)];
   p.applied = true;
-  --pending_count_[size_t(p.b)][p.tile];
+  --pending_count_[p.buf][p.tile];
   while (!pending_.empty() && pending_.front().applied) {
     bytes_head_ = pending_.front().at + pending_.front().len + pending_.front().plane_len;
     pending_.pop_front();
@@ -149,8 +149,10 @@ uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_
   // address space.
   const uint64_t addr = (uint64_t(b) << 48 | uint64_t{1} << 47) + tile * uint64_t(meta_bits_) / 8;
   const uint64_t line = addr & line_mask_;
-  bool hit = false;
-  const size_t way = m.tags.find(line, hit);
+  bool hit = line == m.last_line;
+  const size_t way = hit ? m.last_way : m.tags.find(line, hit);
+  m.last_line = line;
+  m.last_way = way;
   uint64_t ready = now;
   if (hit) {
     ++s_.metadata_hits;
@@ -191,6 +193,8 @@ void CompressionModel::warm_metadata(uint64_t line, Buffer b, bool write, uint32
   const uint64_t mline = metadata_line(line, b);
   bool hit = false;
   const size_t way = m.tags.find(mline, hit);
+  m.last_line = mline;
+  m.last_way = way;
   if (!hit) {
     m.tags.install(way, mline);
     m.dirty[way] = 0;

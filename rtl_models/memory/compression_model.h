@@ -194,14 +194,15 @@ class CompressionModel {
   // Pending writes, in post order: record id - first_id_ (modulo kNoPatch)
   // indexes pending_; their replaced bytes in bytes_ from bytes_head_ to
   // bytes_end_ (bytes_ grows, never shrinks).
-  struct Pending {
-    Buffer b;
-    bool applied;
-    uint32_t offset, len;  // in the memory tile
+  struct Pending {  // 32 bytes
     uint64_t tile;
-    size_t at;           // in bytes_: len replaced bytes, then the plane keys' bytes
-    uint32_t plane_len;  // bytes of replaced plane keys (0: none)
+    size_t at;             // in bytes_: len replaced bytes, then the plane keys' bytes
+    uint32_t offset, len;  // in the memory tile
+    uint32_t plane_len;    // bytes of replaced plane keys (0: none)
+    uint8_t buf;           // its Buffer
+    bool applied;
   };
+  static_assert(sizeof(Pending) == 32, "a pending write indexes by a shift");
   RingQueue<Pending> pending_;
   uint32_t first_id_ = 0;
   std::vector<uint8_t> bytes_;
@@ -213,6 +214,11 @@ class CompressionModel {
     std::vector<uint8_t> dirty;
     std::vector<uint64_t> ready;
     std::vector<uint32_t> draw;  // the draw that wrote the line last (attribution.h)
+    // The line of the last access and its way: a tile's lines leave as a
+    // block, each touching the same state bits. Found again, it is already
+    // its set's most recent, so its use needs no new tick.
+    uint64_t last_line = CacheTags::kInvalid;
+    size_t last_way = 0;
   };
   std::vector<MetaCache> meta_;  // per ROP
   bool hiz_;

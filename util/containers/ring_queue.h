@@ -14,15 +14,15 @@ class RingQueue {
   size_t size() const { return n_; }
   T& front() { return v_[head_]; }
   /// Entry i from the front (0: the front).
-  T& operator[](size_t i) { return v_[(head_ + i) & (v_.size() - 1)]; }
-  const T& operator[](size_t i) const { return v_[(head_ + i) & (v_.size() - 1)]; }
+  T& operator[](size_t i) { return v_[(head_ + i) & mask_]; }
+  const T& operator[](size_t i) const { return v_[(head_ + i) & mask_]; }
   void push_back(const T& x) {
-    if (n_ == v_.size()) grow();
-    v_[(head_ + n_) & (v_.size() - 1)] = x;
+    if (n_ > mask_) grow();
+    v_[(head_ + n_) & mask_] = x;
     ++n_;
   }
   void pop_front() {
-    head_ = (head_ + 1) & (v_.size() - 1);
+    head_ = (head_ + 1) & mask_;
     --n_;
   }
   /// Calls f on every entry, front to back.
@@ -34,11 +34,13 @@ class RingQueue {
  private:
   void grow() {
     std::vector<T> w(v_.size() * 2);
-    for (size_t i = 0; i < n_; ++i) w[i] = v_[(head_ + i) & (v_.size() - 1)];
+    for (size_t i = 0; i < n_; ++i) w[i] = v_[(head_ + i) & mask_];
     v_.swap(w);
     head_ = 0;
+    mask_ = v_.size() - 1;
   }
   std::vector<T> v_ = std::vector<T>(64);
+  size_t mask_ = v_.size() - 1;  // the size is a power of two
   size_t head_ = 0, n_ = 0;
 };
 
