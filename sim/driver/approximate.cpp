@@ -78,8 +78,10 @@ class DramTags : public BurstSink {
   void set_now(uint64_t now) { now_ = now; }
   /// One burst of `bytes`, requested at set_now's cycle; returns a read's
   /// latency (the timed service: queueing behind the channel's earlier
-  /// bursts, row miss, transfer, the read latency).
-  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) override {
+  /// bursts, row miss, transfer, the read latency). A burst requested
+  /// `after` cycles later (a compressed fill's data after its state bits)
+  /// starts no earlier than that; its latency counts from set_now's cycle.
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t after) override {
     const DramAddressMap::Place at = map_.place(addr);
     const size_t ch_index = at.channel;
     Channel& c = ch_[ch_index];
@@ -100,7 +102,7 @@ class DramTags : public BurstSink {
     c.busy += transfer;
     // Timed, as Dram::access: the bank from the request (or its previous
     // burst), the row switch in the bank, then the shared data bus.
-    const uint64_t timed_start = std::max(std::max(now_, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
+    const uint64_t timed_start = std::max(std::max(now_ + after, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
     c.timed_bus_free = c.timed_bank_free[bank] = timed_start + transfer;
     if (write) {
       ++s_.writes;
@@ -213,7 +215,7 @@ class TagOnlyCache {
     if (comp_ && comp_->compresses(b))
       latency = comp_->fill(line, b, rop_) + cfg_.hit_latency_cycles;
     else
-      latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
+      latency = dram_.access(line, cfg_.line_bytes, false, b, 0) + cfg_.hit_latency_cycles;
     w.fill_seq = seq_;
     w.fill_latency = uint32_t(latency);
     w.fill_pixel = pixel_;
@@ -294,7 +296,7 @@ class TagOnlyCache {
       return;
     }
     if (comp_ && b == Buffer::kDepth) comp_->depth_written_back(line);  // Hi-Z alone
-    dram_.access(line, cfg_.line_bytes, true, b);
+    dram_.access(line, cfg_.line_bytes, true, b, 0);
     in_dram_.insert(line);
   }
   static_assert(sizeof(Way) == kApproxWayBytes, "memory_estimate.h's kApproxWayBytes is a tag-only way's size");
