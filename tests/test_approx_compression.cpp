@@ -38,11 +38,12 @@ class RecordingDram : public BurstSink {
     uint32_t bytes;
     bool write;
     Buffer b;
+    uint64_t after;  // requested this many cycles after the current request cycle
   };
   std::vector<Burst> bursts;
-  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) override {
-    bursts.push_back(Burst{addr, bytes, write, b});
-    return write ? 0 : kReadLatency;
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t after) override {
+    bursts.push_back(Burst{addr, bytes, write, b, after});
+    return write ? 0 : after + kReadLatency;
   }
   /// Bytes of the bursts to addresses below the metadata half (the data).
   uint64_t data_bytes(bool write) const {
@@ -143,6 +144,26 @@ TEST(ApproxCompression, ATileNeverWrittenBackIsReadWhole) {
   EXPECT_EQ(dram.data_bytes(false), kLine);
   EXPECT_EQ(c.stats().lines_read[size_t(Buffer::kDepth)], 1u);
   EXPECT_EQ(tiles.asked, 0) << "a fill does not compress the tile";
+}
+
+// The data's size is in the tile's state bits: after a metadata miss, a
+// fill requests its data burst when the state bits arrive (as the cycle
+// model's CompressionModel::fill does), not beside the metadata read, so the
+// channel serves the bursts requested after it behind it; with the state
+// bits cached, at once.
+TEST(ApproxCompression, AFillRequestsItsDataWhenTheStateBitsArrive) {
+  FakeTiles tiles;
+  RecordingDram dram;
+  TagOnlyCompression c(design(), kSize, kSize, kSpp, surfaces(), 1.0f, tiles);
+  c.set_dram(&dram);
+  EXPECT_EQ(c.fill(depth_line(7), Buffer::kDepth, 0), 2 * kReadLatency);
+  ASSERT_EQ(dram.bursts.size(), 2u) << "the state bits' line, then the data";
+  EXPECT_TRUE((dram.bursts[0].addr >> 47) & 1u) << "the metadata read first";
+  EXPECT_EQ(dram.bursts[0].after, 0u) << "the metadata read is requested with the fill";
+  EXPECT_EQ(dram.bursts[1].after, kReadLatency) << "the data burst waits for the state bits";
+  EXPECT_EQ(c.fill(depth_line(8), Buffer::kDepth, 0), kReadLatency) << "the same metadata line, cached";
+  ASSERT_EQ(dram.bursts.size(), 3u);
+  EXPECT_EQ(dram.bursts[2].after, 0u) << "state bits cached: the data burst at once";
 }
 
 // The metadata cache: a miss reads a line; evicting a dirty line writes it

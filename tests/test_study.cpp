@@ -427,12 +427,13 @@ design = [")") + ROPSIM_SOURCE_DIR +
 // 90 % of the (input, design) pairs; on the motor with the default design,
 // sampled DRAM bytes (read + written) are within 2 % of the cycle model's and
 // total cycles within 2.5 % (measured +2.26 %, the target 2 %: docs/results.md
-// "The speed/accuracy trade"); the analytical model's mean absolute error in
-// total cycles is at most 15 %; the sampled fidelity names the cycle model's
-// bottleneck on at least 80 % of the pairs, the analytical one on at least
-// 70 % (measured 73 %: on the wide design it says bandwidth where the cycle
-// model says latency). The results are deterministic, so these bounds hold
-// or fail every run.
+// "The speed/accuracy trade"); the analytical model's total cycles are within
+// 15 % on every pair (measured: 12.4 % at most, cloth on the wide design);
+// the sampled fidelity names the cycle model's bottleneck on at least 80 % of
+// the pairs, the analytical one on at least 70 % (measured 73 %: where the
+// cycle model's DRAM bound is 81-83 % of its frame, the analytical one's is
+// just below 80 % of its own and it says latency). The results are
+// deterministic, so these bounds hold or fail every run.
 TEST(FidelityStudy, IntervalsCoverAndTheMotorIsClose) {
   const fs::path meshes = fs::path(ROPSIM_SOURCE_DIR) / ".." / "shared" / "data" / "meshes";
   if (!std::getenv("ROPSIM_MESH_DIR") && !fs::exists(meshes))
@@ -452,7 +453,8 @@ TEST(FidelityStudy, IntervalsCoverAndTheMotorIsClose) {
   EXPECT_EQ(by["sampled"]["pairs"], 15) << "five inputs x three designs";
   EXPECT_GE(by["sampled"]["coverage_all"].get<double>(), 0.9)
       << "the intervals of cycles, bytes read and bytes written all cover the truth on too few pairs";
-  EXPECT_LE(by["approximate"]["cycles_mae_pct"].get<double>(), 15.0);
+  EXPECT_LE(by["approximate"]["cycles_max_pct"].get<double>(), 15.0)
+      << "the analytical model's total cycles are more than 15 % off on some (input, design) pair";
   EXPECT_GE(by["sampled"]["bottleneck_agreement"].get<double>(), 0.8);
   EXPECT_GE(by["approximate"]["bottleneck_agreement"].get<double>(), 0.7);
   bool motor = false;

@@ -81,12 +81,12 @@ uint64_t TagOnlyCompression::metadata(Buffer b, uint64_t tile, bool write, uint3
     const uint64_t old = m.tags.tag(way);
     if (old != CacheTags::kInvalid && m.dirty[way]) {
       const Buffer ob = Buffer((old >> 48) & 7u);
-      dram_->access(old, line_bytes_, true, ob);
+      dram_->access(old, line_bytes_, true, ob, 0);
       s_.metadata_bytes_written[size_t(ob)] += line_bytes_;
     }
     m.tags.install(way, line);
     m.dirty[way] = 0;
-    latency = dram_->access(line, line_bytes_, false, b);
+    latency = dram_->access(line, line_bytes_, false, b, 0);
     s_.metadata_bytes_read[size_t(b)] += line_bytes_;
   }
   if (write) m.dirty[way] = 1;
@@ -109,7 +109,7 @@ bool TagOnlyCompression::write_back(uint64_t line, Buffer b, uint32_t rop) {
   ++s_.writes_per_class[size_t(b)][size_t(t.size_class)];
   const uint32_t bytes = std::max<uint32_t>(1, line_bytes_ >> t.size_class);
   s_.bytes_written[size_t(b)] += bytes;
-  dram_->access(line, bytes, true, b);
+  dram_->access(line, bytes, true, b, 0);
   return true;
 }
 
@@ -129,7 +129,11 @@ uint64_t TagOnlyCompression::fill(uint64_t line, Buffer b, uint32_t rop) {
   ++s_.lines_read[size_t(b)];
   s_.bytes_read_uncompressed[size_t(b)] += line_bytes_;
   s_.bytes_read[size_t(b)] += bytes;
-  return meta + dram_->access(line, bytes, false, b) + (c ? cfg_.decompress_latency_cycles : 0);
+  // How many bytes to read is in the state bits: the data burst is requested
+  // when they are there (meta cycles later after a miss, as
+  // CompressionModel::fill requests it), and the channel serves the bursts
+  // requested after it behind it.
+  return dram_->access(line, bytes, false, b, meta) + (c ? cfg_.decompress_latency_cycles : 0);
 }
 
 void TagOnlyCompression::flush() {
@@ -137,7 +141,7 @@ void TagOnlyCompression::flush() {
     for (size_t w = 0; w < m.dirty.size(); ++w)
       if (m.dirty[w] && m.tags.tag(w) != CacheTags::kInvalid) {
         const Buffer b = Buffer((m.tags.tag(w) >> 48) & 7u);
-        dram_->access(m.tags.tag(w), line_bytes_, true, b);
+        dram_->access(m.tags.tag(w), line_bytes_, true, b, 0);
         s_.metadata_bytes_written[size_t(b)] += line_bytes_;
         m.dirty[w] = 0;
       }

@@ -35,9 +35,11 @@ namespace ropsim {
 class BurstSink {
  public:
   virtual ~BurstSink() = default;
-  /// One burst of `bytes` at addr of surface b; returns a read's unloaded
-  /// latency in cycles (0 for a write).
-  virtual uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) = 0;
+  /// One burst of `bytes` at addr of surface b, requested `after` cycles
+  /// after the current request cycle (a burst that must wait for an earlier
+  /// one's data); returns a read's latency in cycles from the current
+  /// request cycle, `after` included (0 for a write).
+  virtual uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t after) = 0;
 };
 
 class TagOnlyCompression {
@@ -60,8 +62,9 @@ class TagOnlyCompression {
   /// takes its tile's farthest depth.
   void depth_written_back(uint64_t line);
   /// A fill of a line of a compressed surface DRAM holds, by ROP rop:
-  /// returns the cycles until its data is there (unloaded, before the
-  /// cache's hit latency).
+  /// returns the cycles until its data is there (before the cache's hit
+  /// latency). The data's size is in the tile's state bits, so after a
+  /// metadata miss its burst is requested when they arrive.
   uint64_t fill(uint64_t line, Buffer b, uint32_t rop);
   /// A write to the line (its tile's contents changed).
   void touched(uint64_t line, Buffer b) {

@@ -78,8 +78,10 @@ class DramTags : public BurstSink {
   void set_now(uint64_t now) { now_ = now; }
   /// One burst of `bytes`, requested at set_now's cycle; returns a read's
   /// latency (the timed service: queueing behind the channel's earlier
-  /// bursts, row miss, transfer, the read latency).
-  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b) override {
+  /// bursts, row miss, transfer, the read latency). A burst requested
+  /// `after` cycles later (a compressed fill's data after its state bits)
+  /// starts no earlier than that; its latency counts from set_now's cycle.
+  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t after) override {
     const DramAddressMap::Place at = map_.place(addr);
     const size_t ch_index = at.channel;
     Channel& c = ch_[ch_index];
@@ -100,7 +102,10 @@ class DramTags : public BurstSink {
     c.busy += transfer;
     // Timed, as Dram::access: the bank from the request (or its previous
     // burst), the row switch in the bank, then the shared data bus.
-    const uint64_t timed_start = std::max(std::max(now_, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
+    const uint64_t timed_start = std::max(std::max(now_ + after, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
+    // Dram::access's service: from the request (or the previous burst's end)
+    // to the end of the transfer.
+    c.timed_service += timed_start + transfer - std::max(now_ + after, c.timed_bus_free);
     c.timed_bus_free = c.timed_bank_free[bank] = timed_start + transfer;
     if (write) {
       ++s_.writes;
@@ -124,6 +129,12 @@ class DramTags : public BurstSink {
     out.resize(ch_.size());
     for (size_t i = 0; i < ch_.size(); ++i) out[i] = ch_[i].bus_free;
   }
+  /// The busiest channel's service cycles in the timed service.
+  uint64_t max_timed_service() const {
+    uint64_t m = 0;
+    for (const auto& c : ch_) m = std::max(m, c.timed_service);
+    return m;
+  }
   uint64_t max_busy() const {
     uint64_t m = 0;
     for (const auto& c : ch_) m = std::max(m, c.busy);
@@ -144,6 +155,7 @@ class DramTags : public BurstSink {
   struct Channel {
     uint64_t bus_free = 0, busy = 0;
     uint64_t timed_bus_free = 0;  // the timed service's data bus
+    uint64_t timed_service = 0;   // the timed service's cycles, as Dram::access counts them
     bool read = false;            // a read since the last take_reads
     std::vector<uint64_t> open_row, bank_free, timed_bank_free;
   };
@@ -213,7 +225,7 @@ class TagOnlyCache {
     if (comp_ && comp_->compresses(b))
       latency = comp_->fill(line, b, rop_) + cfg_.hit_latency_cycles;
     else
-      latency = dram_.access(line, cfg_.line_bytes, false, b) + cfg_.hit_latency_cycles;
+      latency = dram_.access(line, cfg_.line_bytes, false, b, 0) + cfg_.hit_latency_cycles;
     w.fill_seq = seq_;
     w.fill_latency = uint32_t(latency);
     w.fill_pixel = pixel_;
@@ -294,7 +306,7 @@ class TagOnlyCache {
       return;
     }
     if (comp_ && b == Buffer::kDepth) comp_->depth_written_back(line);  // Hi-Z alone
-    dram_.access(line, cfg_.line_bytes, true, b);
+    dram_.access(line, cfg_.line_bytes, true, b, 0);
     in_dram_.insert(line);
   }
   static_assert(sizeof(Way) == kApproxWayBytes, "memory_estimate.h's kApproxWayBytes is a tag-only way's size");
@@ -341,7 +353,8 @@ struct DepthSlots {
 
 struct PassResult {
   uint64_t cycles = 0, fill = 0, flush = 0, epochs = 0;
-  uint64_t dram_service = 0;  ///< the busiest channel's service of all its bursts, the final flush's too
+  uint64_t dram_service = 0;        ///< the busiest channel's service of all its bursts, the final flush's too
+  uint64_t dram_timed_service = 0;  ///< the same, of the timed service (as the cycle model counts it)
 };
 
 /// What the model needs of one fragment, from the functional pass: its
@@ -580,6 +593,7 @@ class Model {
       tail += double(hw_.compression.compress_latency_cycles);
     p.flush = uint64_t(std::max(0.0, tail - double(fill_)) + 0.5);
     p.dram_service = dram_.max_clock();
+    p.dram_timed_service = dram_.max_timed_service();
     p.epochs = epochs_;
     for (auto& c : caches_) out_.cache += c->stats();
     const DramStats& d = dram_.stats();
@@ -834,6 +848,7 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
     s.total_cycles += p.cycles + p.fill + p.flush;
     s.epochs += p.epochs;
     s.dram_service_cycles += p.dram_service;
+    s.dram_timed_service_cycles += p.dram_timed_service;
     for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
     for (size_t r = 0; r < rop_demand.size(); ++r)
       for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
@@ -846,10 +861,12 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
       ApproxBound(std::max_element(s.limiting_cycles.begin(), s.limiting_cycles.end()) - s.limiting_cycles.begin());
   // The bottleneck from the model's own bounds, in the cycle model's terms
   // (cycle_bounds): the source's and the distributor's rate bounds, per unit
-  // kind the busiest ROP's initiation intervals, and for the DRAM the larger
-  // of two lower bounds: the busiest channel's service of all its bursts
-  // back to back (reads, write-backs, the flush), and the DRAM bound of the
-  // epochs (each at most its epoch's cycles) plus the final flush.
+  // kind the busiest ROP's initiation intervals, and for the DRAM the largest
+  // of three lower bounds: the busiest channel's service of all its bursts
+  // back to back (reads, write-backs, the flush), its service in the timed
+  // service counted as the cycle model counts it (the bank's row switches
+  // that the bus cannot hide behind other bursts included), and the DRAM
+  // bound of the epochs (each at most its epoch's cycles) plus the final flush.
   std::vector<ResourceBound> bounds = {
       {"trace_source", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kSource)]},
       {"distributor", ResourceBound::Kind::kThroughput, s.bound_cycles[int(ApproxBound::kDistributor)]}};
@@ -860,7 +877,8 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   }
   bounds.push_back(
       {"dram", ResourceBound::Kind::kBandwidth,
-       std::max(double(s.dram_service_cycles), s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles))});
+       std::max({double(s.dram_service_cycles), s.bound_cycles[int(ApproxBound::kDram)] + double(s.flush_cycles),
+                 double(s.dram_timed_service_cycles)})});
   s.bottleneck = classify_bottleneck(std::move(bounds), double(s.total_cycles));
   run.counters = rop->counters();
   run.kind_fragments = rop->depth().kind_fragments();

@@ -61,6 +61,12 @@ struct ApproxStats {
   /// passes): the DRAM's bound on the frame, as the cycle model's
   /// DramStats::max_channel_service.
   uint64_t dram_service_cycles = 0;
+  /// The busiest DRAM channel's service cycles in the timed service (each
+  /// burst at its request cycle), counted as the cycle model's
+  /// DramStats::max_channel_service: per burst, from its request or the
+  /// channel's previous burst's end, whichever is later, to the end of its
+  /// transfer (summed over the passes).
+  uint64_t dram_timed_service_cycles = 0;
   uint64_t epoch_fragments = 0;  ///< fragments per epoch (the buffering that lets the ROPs drift apart)
   /// Per bound: its sum over the epochs (cycles), and the cycles of the
   /// epochs in which it was the largest.
@@ -70,8 +76,8 @@ struct ApproxStats {
   ApproxBound limiting = ApproxBound::kUnit;  ///< the bound largest over the most cycles
   /// What bounds the frame (bottleneck.h): the source, the distributor, each
   /// unit kind (the busiest ROP's initiation intervals) and the DRAM (the
-  /// larger of dram_service_cycles and its bound over the epochs plus
-  /// flush_cycles), against total_cycles.
+  /// largest of dram_service_cycles, dram_timed_service_cycles and its bound
+  /// over the epochs plus flush_cycles), against total_cycles.
   Bottleneck bottleneck;
   CacheStats cache;  ///< tag-only, summed over the ROPs
   DramStats dram;    ///< bytes, bursts and row hits of the tag-only DRAM

@@ -212,8 +212,8 @@ void put_bottleneck(Fields t, const Bottleneck& b) {
         "cycles", r.cycles, "cycles",
         "the resource's own lower bound on the frame: a unit kind's busy cycles in its busiest instance (approximate: "
         "the initiation intervals of its busiest ROP), the DRAM's busiest channel's service cycles (approximate: the "
-        "larger of its bursts served back to back and bound_cycles.dram + flush_cycles; docs/reports.md \"The "
-        "bottleneck\")");
+        "largest of its bursts served back to back, its service in the timed DRAM and bound_cycles.dram + "
+        "flush_cycles; docs/reports.md \"The bottleneck\")");
     j.put("frame_share", b.frame_cycles > 0 ? r.cycles / b.frame_cycles : 0.0, "fraction",
           "cycles / total_cycles: at least 0.8 bounds the frame");
   }
