@@ -38,6 +38,7 @@
 #include "livepoint_file.h"
 #include "livepoints.h"
 #include "rasterizer.h"
+#include "rop_ownership.h"
 #include "sample_patterns.h"
 #include "sample_sorter.h"
 #include "sim_context.h"
@@ -3211,6 +3212,50 @@ TEST(CompressionFidelities, TheLibraryHoldsThePlaneKeysTheEncoderSizesTilesBy) {
   for (size_t k = 0; k < lib.points.size(); ++k)
     differs |= warm_states_differ(simulate_livepoint(lib, k, hw).warmed, simulate_livepoint(one, k, hw).warmed) != "";
   EXPECT_TRUE(differs) << "the warmed compression state does not depend on the plane keys";
+}
+
+// The warming takes every written memory tile of a unit's tiles as written
+// back, so the metadata cache of the ROP that owns it has held its state bits,
+// as a full run's has: after the warming each such tile's state bits are in
+// that cache, dirty, however few fragments' touches warmed it (here 64, which
+// reach few of the units' tiles). Without them a unit's window misses in the
+// metadata caches where the full run's same window hits.
+TEST(CompressionFidelities, TheWarmedMetadataCachesHoldTheUnitsWrittenTiles) {
+  const HwConfig hw = default_design();
+  SamplingParams p;
+  p.units = 3;
+  p.unit_fragments = 1500;
+  p.warmup_fragments = 2000;
+  p.warming_fragments = 64;
+  const LivePoints lib = record_livepoints(scene_input("cloth", 16), method_config(Method::kLk), p, 1);
+  ASSERT_FALSE(lib.whole);
+  const uint32_t tp = hw.compression.tile_pixels, per = 64 / tp;
+  const uint64_t tiles_x = ceil_div(lib.header.width, 8u), line_mask = ~(uint64_t{hw.cache.line_bytes} - 1);
+  const int bits = metadata_bits(hw.compression.setup().format);
+  const RopOwnership owner(hw.distributor, lib.header.width);
+  size_t checked = 0;
+  for (size_t k = 0; k < lib.points.size(); ++k) {
+    const UnitRun u = simulate_livepoint(lib, k, hw);
+    for (Buffer b : {Buffer::kDepth, Buffer::kColor}) {
+      const std::vector<uint8_t>& stored = u.warmed.stored[size_t(b)];
+      for (uint64_t m = 0; m < stored.size(); ++m) {
+        if (stored[m] == 0xFF) continue;  // not written back
+        const uint64_t t = m / per;
+        const uint32_t first = uint32_t(m % per) * tp;
+        const uint32_t x = uint32_t(t % tiles_x) * 8 + first % 8, y = uint32_t(t / tiles_x) * 8 + first / 8;
+        const uint32_t rop = owner.rop_of(x, y);
+        const uint64_t line = ((uint64_t(b) << 48 | uint64_t{1} << 47) + m * uint64_t(bits) / 8) & line_mask;
+        const std::vector<uint64_t>& tags = u.warmed.meta_tags[rop];
+        const auto it = std::find(tags.begin(), tags.end(), line);
+        ASSERT_NE(it, tags.end()) << "unit " << k << ": surface " << int(b) << " tile " << m
+                                  << "'s state bits are not in ROP " << rop << "'s metadata cache";
+        EXPECT_TRUE(u.warmed.meta_dirty[rop][size_t(it - tags.begin())])
+            << "unit " << k << ": surface " << int(b) << " tile " << m << "'s state bits are not dirty";
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 0u) << "the units have written tiles";
 }
 
 // With compression and Hi-Z too, an input simulated whole as one unit is

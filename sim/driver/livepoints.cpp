@@ -505,10 +505,15 @@ CompressionTraffic difference(const CompressionTraffic& a, const CompressionTraf
 /// 8 x 8 tiles taken as written back with its contents then (its state bits
 /// and Hi-Z bound; one holding only the clear value never written); a tile
 /// outside them, which only the warming's lines reach, takes a class in the
-/// proportions of the unit's tiles' classes. The caches' tag-only warming
-/// then warms the metadata caches.
+/// proportions of the unit's tiles' classes. Each written-back tile's state
+/// bits are written through the metadata cache of the ROP that owns it, as
+/// the least recent accesses; the caches' tag-only warming then warms the
+/// metadata caches with its fills and write-backs.
 void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePoint& lp, const TraceHeader& h,
-                      const HwConfig& hw) {
+                      const HwConfig& hw, const AddressMap& amap) {
+  const RopOwnership owner(hw.distributor, h.width);
+  const uint32_t tp = hw.compression.tile_pixels;
+  const uint64_t line_mask = ~(uint64_t{hw.cache.line_bytes} - 1);
   const uint64_t tiles_x = ceil_div(h.width, 8u), per = 64u / hw.compression.tile_pixels;
   std::vector<uint64_t> tiles;
   tiles.reserve(lp.pre.size() + lp.tiles.size());
@@ -522,7 +527,14 @@ void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePo
     for (uint64_t t : tiles)
       for (uint64_t m = t * per; m < (t + 1) * per; ++m) {
         const TileInfo ti = comp.warm_tile(Buffer(b), m);
-        if (!ti.cleared) ++classes[size_t(ti.size_class)];
+        if (ti.cleared) continue;
+        ++classes[size_t(ti.size_class)];
+        // Its write-back wrote its state bits through the metadata cache of
+        // the ROP that owns it, before the warming's touches.
+        if (!comp.compresses(Buffer(b)) || (Buffer(b) != Buffer::kDepth && Buffer(b) != Buffer::kColor)) continue;
+        const uint32_t first = uint32_t(m - t * per) * tp;  // the memory tile's first pixel in its 8 x 8 tile
+        const uint32_t x = uint32_t(t % tiles_x) * 8 + first % 8, y = uint32_t(t / tiles_x) * 8 + first / 8;
+        comp.warm_metadata(amap.pixel_address(Buffer(b), x, y) & line_mask, Buffer(b), true, owner.rop_of(x, y));
       }
     src.set_absent(Buffer(b), classes, canonical_depth(h.clear_depth));
   }
@@ -572,7 +584,7 @@ UnitRun simulate_livepoint(const LivePoints& lib, size_t unit, const HwConfig& h
                                                 canonical_depth(h.clear_depth), hw.distributor.rop_units);
       tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
       comp->set_source(tiles.get());
-      warm_compression(*comp, *tiles, lp, h, hw);
+      warm_compression(*comp, *tiles, lp, h, hw, amap);
       top->compress_with(comp.get());
     }
     // Tag-only warming: the touches before the warm-up that reach R times the
