@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""The analytical model against the cycle model (docs/results.md, issue #12
-part 2): cloth, smoke and testcard at 16 spp and a trace (the motor:
+"""The analytical model against the cycle model (docs/results.md "The
+analytical model with compression and Hi-Z"): cloth, smoke and testcard at 16 spp and traces (the motor:
 `ropsim capture traces/scenes/mesh/motor.toml -o motor.rtr`) on the three
 designs. Prints a Markdown table -- total cycles of both, the error, DRAM
 bytes read, written and both (the approximate model's error), the bottleneck of
