@@ -513,7 +513,6 @@ void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePo
                       const HwConfig& hw, const AddressMap& amap) {
   const RopOwnership owner(hw.distributor, h.width);
   const uint32_t tp = hw.compression.tile_pixels;
-  const uint64_t line_mask = ~(uint64_t{hw.cache.line_bytes} - 1);
   const uint64_t tiles_x = ceil_div(h.width, 8u), per = 64u / hw.compression.tile_pixels;
   std::vector<uint64_t> tiles;
   tiles.reserve(lp.pre.size() + lp.tiles.size());
@@ -534,7 +533,7 @@ void warm_compression(CompressionModel& comp, StoreTileSource& src, const LivePo
         if (!comp.compresses(Buffer(b)) || (Buffer(b) != Buffer::kDepth && Buffer(b) != Buffer::kColor)) continue;
         const uint32_t first = uint32_t(m - t * per) * tp;  // the memory tile's first pixel in its 8 x 8 tile
         const uint32_t x = uint32_t(t % tiles_x) * 8 + first % 8, y = uint32_t(t / tiles_x) * 8 + first / 8;
-        comp.warm_metadata(amap.pixel_address(Buffer(b), x, y) & line_mask, Buffer(b), true, owner.rop_of(x, y));
+        comp.warm_metadata(amap.pixel_address(Buffer(b), x, y), Buffer(b), true, owner.rop_of(x, y));
       }
     src.set_absent(Buffer(b), classes, canonical_depth(h.clear_depth));
   }
