@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "cycle_run.h"
-#include "driver.h"
-#include "host_threads.h"
-#include "hw_config.h"
-#include "livepoints.h"
+#include "rtl_models/config/hw_config.h"
+#include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/functional/driver.h"
+#include "sim/fidelity/sampled/livepoints.h"
+#include "util/host_threads.h"
 
 using namespace ropsim;
 

@@ -4,9 +4,9 @@
 
 #include <map>
 
-#include "driver.h"
-#include "golden_model.h"
-#include "sample_patterns.h"
+#include "rtl_models/golden/golden_model.h"
+#include "sim/fidelity/functional/driver.h"
+#include "traces/raster/sample_patterns.h"
 
 using namespace ropsim;
 

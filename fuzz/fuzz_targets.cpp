@@ -1,4 +1,4 @@
-#include "fuzz_targets.h"
+#include "fuzz/fuzz_targets.h"
 
 #include <unistd.h>
 #include <xxhash.h>
@@ -12,14 +12,14 @@
 #include <stdexcept>
 #include <vector>
 
-#include "errors.h"
-#include "golden_model.h"
-#include "hw_config.h"
-#include "livepoint_file.h"
-#include "numerics.h"
-#include "scene_file.h"
-#include "study.h"
-#include "trace.h"
+#include "util/errors.h"
+#include "rtl_models/golden/golden_model.h"
+#include "rtl_models/config/hw_config.h"
+#include "sim/fidelity/sampled/livepoint_file.h"
+#include "rtl_models/algo/numerics.h"
+#include "traces/capture/scene_file.h"
+#include "sim/study/study.h"
+#include "traces/format/trace.h"
 
 namespace ropsim_fuzz {
 

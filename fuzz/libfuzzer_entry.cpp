@@ -1,6 +1,6 @@
 // The libFuzzer entry point of one target, chosen at compile time
 // (-DROPSIM_FUZZ_ENTRY=fuzz_trace, ...; fuzz/CMakeLists.txt).
-#include "fuzz_targets.h"
+#include "fuzz/fuzz_targets.h"
 
 #ifndef ROPSIM_FUZZ_ENTRY
 #error "ROPSIM_FUZZ_ENTRY must name the target function"

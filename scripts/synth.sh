@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Synthesis cost of the reference RTL (docs/rtl.md "Synthesis"): each module
-# of rtl_models/verilog for a set of parameters, through Yosys's generic flow
+# of rtl_models/rtl for a set of parameters, through Yosys's generic flow
 # (synth -flatten; every flip-flop legalised to a plain D flip-flop, resets
 # become logic; abc -g cmos2 maps the logic to NAND2, NOR2 and inverters),
 # then per run:
@@ -97,12 +97,12 @@ synth_one() {
     chparam+=" -chparam ${p%%=*} ${p#*=}"
     params+="${params:+ }$p"
   done
-  local src="$root/rtl_models/verilog/$top.sv"
+  local src="$root/rtl_models/rtl/$top.sv"
   [ -f "$src" ] || src="$root/tests/rtl/$top.sv"
   start=$(date +%s.%N)
   local rc=0
   "$yosys" -l "$tmp/$i.log" -q -p "
-      read_verilog -sv $root/rtl_models/verilog/rop_delay.sv $src
+      read_verilog -sv $root/rtl_models/rtl/rop_delay.sv $src
       hierarchy -top $top $chparam
       synth -flatten -top $top
       dfflegalize -cell \$_DFF_P_ x

@@ -12,18 +12,18 @@
 #include <sstream>
 #include <vector>
 
-#include "alpha_ref.h"
-#include "bits.h"
-#include "blend.h"
-#include "depth.h"
-#include "half.h"
-#include "hilbert.h"
-#include "method_kernels.h"
-#include "opacity.h"
-#include "random_hash.h"
-#include "slab.h"
-#include "sort_order.h"
-#include "tracker.h"
+#include "rtl_models/algo/alpha_ref.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/depth.h"
+#include "rtl_models/algo/half.h"
+#include "rtl_models/algo/hilbert.h"
+#include "rtl_models/algo/method_kernels.h"
+#include "rtl_models/algo/opacity.h"
+#include "rtl_models/algo/random_hash.h"
+#include "rtl_models/algo/slab.h"
+#include "rtl_models/algo/sort_order.h"
+#include "rtl_models/algo/tracker.h"
 
 using namespace ropsim;
 
@@ -564,7 +564,7 @@ TEST(SortOrder, GroupedSortEqualsKeySort) {
   }
 }
 
-#include "vectors.h"
+#include "sim/driver/vectors.h"
 
 // Every unit's vectors: a header row, then `count` rows with as many columns.
 TEST(Vectors, EveryUnitWritesWellFormedCsv) {

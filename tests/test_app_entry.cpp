@@ -7,8 +7,8 @@
 #include <set>
 #include <string>
 
-#include "app_entry.h"
-#include "scene_file.h"
+#include "traces/capture/app_entry.h"
+#include "traces/capture/scene_file.h"
 
 namespace fs = std::filesystem;
 using ropsim::AppEntry;

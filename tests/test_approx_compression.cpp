@@ -1,5 +1,5 @@
 // The analytical model's tag-only compression and Hi-Z bookkeeping
-// (sim/driver/approx_compression.h) against the rules of the cycle model's
+// (sim/fidelity/approximate/approx_compression.h) against the rules of the cycle model's
 // CompressionModel: what a line's writeback and fill move for each state of
 // its tile, the metadata cache's traffic, and Hi-Z's bound.
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "approx_compression.h"
+#include "sim/fidelity/approximate/approx_compression.h"
 
 using namespace ropsim;
 

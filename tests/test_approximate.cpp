@@ -1,4 +1,4 @@
-// The analytical timing model (--fidelity approximate, sim/driver/approximate.h)
+// The analytical timing model (--fidelity approximate, sim/fidelity/approximate/approximate.h)
 // against the golden model (its image, bit for bit) and the cycle model (its
 // DRAM bytes and total cycles, within the bounds stated here).
 #include <gtest/gtest.h>
@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "approximate.h"
-#include "cycle_run.h"
-#include "driver.h"
-#include "errors.h"
+#include "sim/fidelity/approximate/approximate.h"
+#include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/functional/driver.h"
+#include "util/errors.h"
 
 using namespace ropsim;
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "golden_model.h"
-#include "image_codec.h"
-#include "image_io.h"
-#include "sample_patterns.h"
+#include "rtl_models/golden/golden_model.h"
+#include "sim/image/image_io.h"
+#include "traces/raster/sample_patterns.h"
+#include "util/codec/image_codec.h"
 
 using namespace ropsim;
 

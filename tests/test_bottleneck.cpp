@@ -1,4 +1,4 @@
-// The bottleneck: one rule (sim/top/bottleneck.h) classifies the frame from
+// The bottleneck: one rule (sim/fidelity/bottleneck.h) classifies the frame from
 // the timing model's own bounds in every fidelity. The rule on hand-made
 // bounds at its threshold, then designs built to be throughput-, bandwidth-
 // and latency-bound, each in the cycle and the approximate fidelity.
@@ -7,11 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "approximate.h"
-#include "bottleneck.h"
-#include "cycle_report.h"
-#include "cycle_run.h"
-#include "driver.h"
+#include "sim/fidelity/approximate/approximate.h"
+#include "sim/fidelity/bottleneck.h"
+#include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/functional/driver.h"
+#include "sim/report/cycle_report.h"
 
 using namespace ropsim;
 

@@ -17,14 +17,14 @@
 #include <string>
 #include <vector>
 
-#include "capture.h"
-#include "mesh_loader.h"
-#include "random_hash.h"
-#include "sample_patterns.h"
-#include "scene_file.h"
-#include "trace.h"
+#include "rtl_models/algo/random_hash.h"
+#include "traces/capture/capture.h"
+#include "traces/capture/mesh_loader.h"
+#include "traces/capture/scene_file.h"
+#include "traces/format/trace.h"
+#include "traces/raster/sample_patterns.h"
 #ifdef ROPSIM_HAVE_OSMESA
-#include "mesa_capture.h"
+#include "traces/capture/mesa_capture.h"
 #endif
 
 #ifndef ROPSIM_BINARY

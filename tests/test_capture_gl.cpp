@@ -34,12 +34,12 @@
 #include <tuple>
 #include <vector>
 
-#include "capture.h"
-#include "child_process.h"
-#include "image_io.h"
-#include "scene_file.h"
-#include "study_test_util.h"
-#include "trace.h"
+#include "sim/image/image_io.h"
+#include "tests/study_test_util.h"
+#include "traces/capture/capture.h"
+#include "traces/capture/scene_file.h"
+#include "traces/format/trace.h"
+#include "util/child_process.h"
 
 #ifndef ROPSIM_BINARY
 #error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"

@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
-#include "heat_map.h"
-#include "image_codec.h"
-#include "progress.h"
-#include "trace.h"
-#include "vcd_reader.h"
+#include "sim/image/heat_map.h"
+#include "tests/vcd_reader.h"
+#include "traces/format/trace.h"
+#include "util/codec/image_codec.h"
+#include "util/progress.h"
 
 #ifndef ROPSIM_BINARY
 #error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"
@@ -710,7 +710,7 @@ TEST(Cli, SameInputsAndSeedGiveIdenticalOutputs) {
                               << " bytes)";
   const auto ra = nlohmann::json::parse(slurp(a.path("r.json")));
   const auto rb = nlohmann::json::parse(slurp(b.path("r.json")));
-  // Counter names of sim/driver/report.cpp.
+  // Counter names of sim/report/report.cpp.
   for (const char* k :
        {"fragments", "samples_tested", "samples_depth_passed", "samples_opacity_passed", "samples_written",
         "surface_id_changes", "sorts", "depth_bytes_read", "depth_bytes_written", "color_bytes_written",

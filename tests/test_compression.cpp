@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "compression.h"
+#include "rtl_models/algo/compression.h"
 
 using namespace ropsim;
 

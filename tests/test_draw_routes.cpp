@@ -12,12 +12,12 @@
 #include <string>
 #include <vector>
 
-#include "composite.h"
-#include "compressibility.h"
-#include "framebuffer_blend.h"
-#include "golden_model.h"
-#include "image_io.h"
-#include "sample_patterns.h"
+#include "rtl_models/functional/composite.h"
+#include "rtl_models/functional/compressibility.h"
+#include "rtl_models/functional/framebuffer_blend.h"
+#include "rtl_models/golden/golden_model.h"
+#include "sim/image/image_io.h"
+#include "traces/raster/sample_patterns.h"
 
 using namespace ropsim;
 

@@ -20,8 +20,8 @@
 #include <random>
 #include <thread>
 
-#include "image_io.h"
-#include "study_test_util.h"
+#include "sim/image/image_io.h"
+#include "tests/study_test_util.h"
 
 #ifndef ROPSIM_SOURCE_DIR
 #error "ROPSIM_SOURCE_DIR must name the source tree (tests/CMakeLists.txt)"

@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "ff_program.h"
+#include "traces/glcapture/ff_program.h"
 
 namespace {
 

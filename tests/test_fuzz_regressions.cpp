@@ -13,9 +13,9 @@
 #include <iterator>
 #include <vector>
 
-#include "fuzz_targets.h"
-#include "sample_patterns.h"
-#include "trace.h"
+#include "fuzz/fuzz_targets.h"
+#include "traces/format/trace.h"
+#include "traces/raster/sample_patterns.h"
 
 #ifndef ROPSIM_SOURCE_DIR
 #error "ROPSIM_SOURCE_DIR must name the source tree (tests/CMakeLists.txt)"

@@ -10,9 +10,9 @@
 #include <random>
 #include <tuple>
 
-#include "fragment_order.h"
-#include "glsl_rewrite.h"
-#include "sample_patterns.h"
+#include "traces/glcapture/fragment_order.h"
+#include "traces/glcapture/glsl_rewrite.h"
+#include "traces/raster/sample_patterns.h"
 
 namespace ropsim::glcapture {
 namespace {

@@ -7,13 +7,13 @@
 #include <cstdio>
 #include <vector>
 
-#include "driver.h"
-#include "golden_model.h"
-#include "half.h"
-#include "image_io.h"
-#include "pixel_kinds.h"
-#include "random_hash.h"
-#include "sample_patterns.h"
+#include "rtl_models/algo/half.h"
+#include "rtl_models/algo/random_hash.h"
+#include "rtl_models/golden/golden_model.h"
+#include "sim/driver/pixel_kinds.h"
+#include "sim/fidelity/functional/driver.h"
+#include "sim/image/image_io.h"
+#include "traces/raster/sample_patterns.h"
 
 using namespace ropsim;
 
@@ -959,12 +959,12 @@ TEST(Counters, ADiscardedFragmentReadsNoDepth) {
 #include <functional>
 #include <sstream>
 
-#include "alpha_ref.h"
-#include "hilbert.h"
-#include "opacity.h"
-#include "sort_order.h"
-#include "tracker.h"
-#include "vectors.h"
+#include "rtl_models/algo/alpha_ref.h"
+#include "rtl_models/algo/hilbert.h"
+#include "rtl_models/algo/opacity.h"
+#include "rtl_models/algo/sort_order.h"
+#include "rtl_models/algo/tracker.h"
+#include "sim/driver/vectors.h"
 
 namespace {
 

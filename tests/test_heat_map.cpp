@@ -10,9 +10,9 @@
 #include <filesystem>
 #include <string>
 
-#include "heat_map.h"
-#include "image_codec.h"
-#include "study_test_util.h"
+#include "sim/image/heat_map.h"
+#include "tests/study_test_util.h"
+#include "util/codec/image_codec.h"
 
 namespace fs = std::filesystem;
 

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "image_codec.h"
-#include "image_io.h"
-#include "study_test_util.h"
+#include "sim/image/image_io.h"
+#include "tests/study_test_util.h"
+#include "util/codec/image_codec.h"
 
 namespace {
 

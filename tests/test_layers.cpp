@@ -1,10 +1,11 @@
-// Layers only point down (docs/architecture.md "Layers"): bit-level
-// algorithms and generic containers at the bottom; the input formats and
-// scenes; the functional ROP and the golden model; the SystemC models; the
-// drivers and the CLI on top. This test reads every source file's
-// `#include "..."` lines and fails when a file includes a header of a higher
-// layer. Within the SystemC models, memory and the sorters sit below core,
-// core below the units, the units below the pipeline top.
+// Layers only point down (docs/architecture.md "Layers"): the base (generic
+// utilities, containers and the bit-level rules), the input (trace format,
+// rasterizer, scenes, capture), the functional ROP and the golden model, the
+// SystemC models, the fidelities, and the drivers and the CLI on top. Every
+// include names its header from the source root, so a header's layer is read
+// from its path. This test reads every source file's `#include "..."` lines
+// and fails when one runs up a layer, when two folders of one layer include
+// each other, or when a project header is named without its folder.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -29,29 +30,36 @@ struct Layer {
 // The layer table. A new source folder must be added here (the test fails
 // otherwise), and docs/architecture.md shows the same table.
 constexpr Layer kLayers[] = {
-    {"util", 0, "base: output files and errors"},
+    {"util", 0, "base: output files, errors, progress, child processes"},
     {"util/containers", 0, "base: generic containers"},
     {"util/codec", 0, "base: image decoding and encoding (OpenImageIO, loaded on first use)"},
-    {"rtl_models/algo", 0, "base: bit-level algorithms"},
+    {"rtl_models/algo", 0, "base: the bit-level rules every fidelity calls"},
     {"rtl_models/cost", 0, "base: silicon cost of the reference RTL (synthesis sweep, models)"},
-    {"traces/format", 10, "input: trace format v1"},
+    {"traces/format", 10, "input: the trace format"},
     {"traces/raster", 11, "input: rasterizer, sample patterns"},
     {"traces/scenes", 12, "input: built-in scenes"},
     {"traces/capture", 13, "input: capture from meshes"},
     {"traces/glcapture", 14,
-     "input: capture from OpenGL applications (the preloaded library, the fixed-function emulation)"},
-    {"sim/functional", 20, "functional ROP: methods, store, stages, counters, fragment sources"},
-    {"sim/golden", 21, "functional: the golden model"},
-    {"rtl_models/config", 30, "models: the hardware config"},
-    {"rtl_models/memory", 31, "models: ROP cache, DRAM, address map"},
-    {"rtl_models/sorter", 31, "models: sorter variants"},
-    {"rtl_models/core", 32, "models: units, FIFOs, scheduler, tokens"},
-    {"rtl_models/units", 33, "models: the ROP units"},
-    {"sim/top", 34, "models: the pipeline top and the cycle run"},
+     "input: capture from OpenGL applications (the preloaded library, the fixed-function emulation, the launcher)"},
+    {"rtl_models/functional", 20, "functional ROP: methods, store, stages, counters, fragment sources"},
+    {"rtl_models/golden", 21, "functional: the golden model"},
+    {"rtl_models/config", 30, "models: the design's parameters"},
+    {"rtl_models/observe", 31, "models: observation (waveform, interval log, attribution)"},
+    {"rtl_models/memory", 32, "models: ROP caches, DRAM, address map, compression"},
+    {"rtl_models/sorter", 32, "models: sorter variants"},
+    {"rtl_models/core", 33, "models: units, FIFOs, scheduler, tokens"},
+    {"rtl_models/units", 34, "models: the ROP units"},
+    {"rtl_models/top", 35, "models: the pipeline top and its memory estimate"},
     {"sim/image", 40, "drivers: image files"},
-    {"sim/driver", 41, "drivers: runs, reports, vectors"},
-    {"sim/study", 42, "drivers: studies (sweeps, the local executor, the results database)"},
-    {"sim/cli", 43, "drivers: the ropsim command"},
+    {"sim/fidelity", 41, "fidelities: what they share (the bottleneck rule)"},
+    {"sim/fidelity/functional", 42, "fidelities: the functional run"},
+    {"sim/fidelity/cycle", 43, "fidelities: the cycle run"},
+    {"sim/fidelity/approximate", 43, "fidelities: the analytical model"},
+    {"sim/fidelity/sampled", 44, "fidelities: sampled simulation from live-points"},
+    {"sim/report", 45, "drivers: JSON reports and summaries"},
+    {"sim/driver", 46, "drivers: RTL vectors, pixels by kind"},
+    {"sim/study", 47, "drivers: studies (sweeps, the local executor, the results database)"},
+    {"sim/cli", 48, "drivers: the ropsim command"},
 };
 // Folders with sources that sit above every layer (nothing includes them);
 // tests/rtl: the Verilator testbenches, tests/gl: the GL test programs.
@@ -63,8 +71,9 @@ bool is_source(const fs::path& p) {
 }
 
 struct Scan {
-  std::vector<std::string> problems;  ///< upward includes, unlayered folders, ambiguous names
+  std::vector<std::string> problems;  ///< upward includes, unlayered folders, includes without their folder
   size_t checked = 0;                 ///< includes resolved to a layered header
+  std::set<std::pair<std::string, std::string>> edges;  ///< folder -> a folder it includes
 };
 
 /// Scans every source under root.
@@ -73,58 +82,70 @@ Scan scan(const fs::path& root) {
   std::map<std::string, const Layer*> by_folder;
   for (const auto& l : kLayers) by_folder[l.folder] = &l;
 
-  // Every source file, by folder; every header, by bare name (includes name
-  // headers without a folder, so a name must be unique).
+  // Every source file, by folder; every header's path, by bare name (to name
+  // the path an include without its folder should have used).
   std::map<std::string, std::vector<fs::path>> files;  // folder -> sources
-  std::map<std::string, std::string> header_folder;    // name -> folder
+  std::map<std::string, std::string> header_path;      // name -> path from root
   for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator(); ++it) {
     const fs::path rel = fs::relative(it->path(), root);
     const std::string first = rel.begin()->string();
-    if (it->is_directory() && (first.rfind("build", 0) == 0 || first[0] == '.' || first == "docs")) {
+    if (it->is_directory() && (first.rfind("build", 0) == 0 || first[0] == '.' || first == "docs" || first == "out")) {
       it.disable_recursion_pending();
       continue;
     }
     if (!it->is_regular_file() || !is_source(rel)) continue;
     const std::string folder = rel.parent_path().generic_string();
-    if (kTop.count(folder)) continue;
-    if (!by_folder.count(folder)) {
+    if (rel.extension() == ".h" || rel.extension() == ".hpp")
+      header_path.emplace(rel.filename().string(), rel.generic_string());
+    if (!kTop.count(folder) && !by_folder.count(folder)) {
       r.problems.push_back(folder +
                            " holds sources but has no layer: add it to kLayers in tests/test_layers.cpp "
                            "and to docs/architecture.md");
       continue;
     }
     files[folder].push_back(it->path());
-    const std::string name = rel.filename().string();
-    if (rel.extension() == ".h" || rel.extension() == ".hpp") {
-      auto [pos, fresh] = header_folder.emplace(name, folder);
-      if (!fresh)
-        r.problems.push_back("header " + name + " exists in " + pos->second + " and " + folder +
-                             ": includes name headers without their folder, so names must be unique");
-    }
   }
 
   const std::regex include_re(R"re(^\s*#\s*include\s*"([^"]+)")re");
   for (const auto& [folder, paths] : files) {
-    const Layer& from = *by_folder.at(folder);
+    const bool top = kTop.count(folder) > 0;
     for (const auto& p : paths) {
+      const std::string where = fs::relative(p, root).generic_string();
       std::ifstream in(p);
       std::string line;
       for (int n = 1; std::getline(in, line); ++n) {
         std::smatch m;
         if (!std::regex_search(line, m, include_re)) continue;
-        const std::string name = fs::path(m[1].str()).filename().string();
-        auto h = header_folder.find(name);
-        if (h == header_folder.end()) continue;  // a generated or third-party header
+        const fs::path inc = m[1].str();
+        if (!fs::exists(root / inc)) {
+          auto h = header_path.find(inc.filename().string());
+          if (h != header_path.end())
+            r.problems.push_back(where + ":" + std::to_string(n) + " includes \"" + inc.generic_string() +
+                                 "\": name it from the source root, \"" + h->second + "\"");
+          continue;  // a generated or third-party header
+        }
+        if (top) continue;  // tests, benchmarks and fuzz targets sit above every layer
+        const std::string to_folder = inc.parent_path().generic_string();
+        auto to = by_folder.find(to_folder);
+        if (to == by_folder.end()) {
+          r.problems.push_back(where + ":" + std::to_string(n) + " includes " + inc.generic_string() +
+                               ", which is in no layer");
+          continue;
+        }
         ++r.checked;
-        const Layer& to = *by_folder.at(h->second);
-        if (to.level > from.level)
-          r.problems.push_back(fs::relative(p, root).generic_string() + ":" + std::to_string(n) + " includes " + name +
-                               " of " + to.folder + " (layer " + std::to_string(to.level) + ", " + to.what +
-                               ") from layer " + std::to_string(from.level) + " (" + from.what +
-                               "): layers only point down");
+        const Layer& from = *by_folder.at(folder);
+        if (to_folder != folder) r.edges.emplace(folder, to_folder);
+        if (to->second->level > from.level)
+          r.problems.push_back(where + ":" + std::to_string(n) + " includes " + inc.generic_string() + " (layer " +
+                               std::to_string(to->second->level) + ", " + to->second->what + ") from layer " +
+                               std::to_string(from.level) + " (" + from.what + "): layers only point down");
       }
     }
   }
+  // The folder-level picture: two folders of one layer may not include each other.
+  for (const auto& [a, b] : r.edges)
+    if (a < b && r.edges.count({b, a}))
+      r.problems.push_back(a + " and " + b + " include each other: split them into two layers");
   return r;
 }
 
@@ -143,11 +164,14 @@ TEST(Layers, TheScanCatchesWhatItMustOnASyntheticTree) {
     fs::create_directories((root / rel).parent_path());
     std::ofstream(root / rel) << text;
   };
-  put("sim/functional/stage.h", "#include \"unit.h\"\n#include \"bits.h\"\n");  // up, then down
-  put("rtl_models/units/unit.h", "#include \"stage.h\"\n");                     // down
+  put("rtl_models/functional/stage.h",
+      "#include \"rtl_models/units/unit.h\"\n#include \"rtl_models/algo/bits.h\"\n");  // up, then down
+  put("rtl_models/units/unit.h", "#include \"rtl_models/functional/stage.h\"\n");      // down
   put("rtl_models/algo/bits.h", "#pragma once\n");
-  put("sim/newfolder/x.cpp", "int x;\n");  // no layer
-  put("traces/format/stage.h", "\n");      // name clash
+  put("rtl_models/memory/a.h", "#include \"rtl_models/sorter/b.h\"\n");  // one layer, both ways
+  put("rtl_models/sorter/b.h", "#include \"rtl_models/memory/a.h\"\n");
+  put("sim/newfolder/x.cpp", "int x;\n");         // no layer
+  put("sim/cli/y.cpp", "#include \"bits.h\"\n");  // without its folder
   const Scan r = scan(root);
   fs::remove_all(root);
   auto has = [&](const std::string& needle) {
@@ -155,11 +179,15 @@ TEST(Layers, TheScanCatchesWhatItMustOnASyntheticTree) {
       if (p.find(needle) != std::string::npos) return true;
     return false;
   };
-  EXPECT_TRUE(has("sim/functional/stage.h:1 includes unit.h")) << "the upward include was not caught";
+  EXPECT_TRUE(has("rtl_models/functional/stage.h:1 includes rtl_models/units/unit.h"))
+      << "the upward include was not caught";
   EXPECT_FALSE(has("stage.h:2")) << "a downward include was rejected";
   EXPECT_FALSE(has("rtl_models/units/unit.h:1")) << "a downward include was rejected";
+  EXPECT_TRUE(has("rtl_models/memory and rtl_models/sorter include each other"))
+      << "two folders of one layer including each other were not caught";
   EXPECT_TRUE(has("sim/newfolder holds sources but has no layer")) << "an unlayered folder was not caught";
-  EXPECT_TRUE(has("header stage.h exists in")) << "an ambiguous header name was not caught";
+  EXPECT_TRUE(has("sim/cli/y.cpp:1 includes \"bits.h\": name it from the source root, \"rtl_models/algo/bits.h\""))
+      << "an include without its folder was not caught";
 }
 
 }  // namespace

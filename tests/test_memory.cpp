@@ -9,11 +9,11 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "errors.h"
-#include "golden_model.h"
-#include "memory_budget.h"
-#include "sanitizer.h"
-#include "study_test_util.h"
+#include "rtl_models/golden/golden_model.h"
+#include "tests/sanitizer.h"
+#include "tests/study_test_util.h"
+#include "util/errors.h"
+#include "util/memory_budget.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// A design's memory estimate (sim/top/memory_estimate.h, `ropsim config
+// A design's memory estimate (rtl_models/top/memory_estimate.h, `ropsim config
 // --json`'s memory_estimate) against the peak resident memory of real cycle
 // runs, and the refusal of a design that does not fit in --memory-limit
 // (docs/config.md "Memory estimate").
@@ -26,8 +26,8 @@
 #include <string>
 #include <vector>
 
-#include "sanitizer.h"
-#include "study_test_util.h"
+#include "tests/sanitizer.h"
+#include "tests/study_test_util.h"
 
 namespace {
 

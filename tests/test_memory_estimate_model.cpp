@@ -1,5 +1,5 @@
 // The memory estimate's terms against the heap the cycle model allocates
-// (sim/top/memory_estimate.h; docs/config.md "Memory estimate"): each
+// (rtl_models/top/memory_estimate.h; docs/config.md "Memory estimate"): each
 // committed design's pipeline (and its compression model) is built, and the
 // heap's growth (glibc mallinfo2: bytes in use, mmapped blocks included) is
 // compared with the estimate (every term is one of those structures). The heap is
@@ -14,17 +14,17 @@
 #include <string>
 #include <vector>
 
-#include "compression_model.h"
-#include "depth.h"
-#include "fragment_source.h"
-#include "functional_rop.h"
-#include "golden_model.h"
-#include "hw_config.h"
-#include "line_set.h"
-#include "memory_estimate.h"
-#include "rop_pipeline.h"
-#include "sanitizer.h"
-#include "sim_context.h"
+#include "rtl_models/algo/depth.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/functional/fragment_source.h"
+#include "rtl_models/functional/functional_rop.h"
+#include "rtl_models/golden/golden_model.h"
+#include "rtl_models/memory/compression_model.h"
+#include "rtl_models/memory/line_set.h"
+#include "rtl_models/top/memory_estimate.h"
+#include "rtl_models/top/rop_pipeline.h"
+#include "rtl_models/top/sim_context.h"
+#include "tests/sanitizer.h"
 
 namespace {
 

@@ -23,10 +23,10 @@
 #include <thread>
 #include <vector>
 
-#include "errors.h"
-#include "image_io.h"
-#include "output_file.h"
-#include "trace.h"
+#include "sim/image/image_io.h"
+#include "traces/format/trace.h"
+#include "util/errors.h"
+#include "util/output_file.h"
 
 #ifndef ROPSIM_BINARY
 #error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"

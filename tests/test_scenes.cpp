@@ -8,11 +8,11 @@
 #include <map>
 #include <vector>
 
-#include "driver.h"
-#include "random_hash.h"
-#include "rasterizer.h"
-#include "sample_patterns.h"
-#include "scenes.h"
+#include "rtl_models/algo/random_hash.h"
+#include "sim/fidelity/functional/driver.h"
+#include "traces/raster/rasterizer.h"
+#include "traces/raster/sample_patterns.h"
+#include "traces/scenes/scenes.h"
 
 using namespace ropsim;
 

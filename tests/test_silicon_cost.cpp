@@ -8,8 +8,8 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "rtl_cost.h"
-#include "study_test_util.h"
+#include "rtl_models/cost/rtl_cost.h"
+#include "tests/study_test_util.h"
 
 using namespace ropsim;
 using namespace ropsim_test;

@@ -23,7 +23,7 @@
 #include <thread>
 #include <vector>
 
-#include "study_test_util.h"
+#include "tests/study_test_util.h"
 
 namespace fs = std::filesystem;
 using namespace ropsim_test;

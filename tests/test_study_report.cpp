@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-#include "study_test_util.h"
+#include "tests/study_test_util.h"
 
 namespace fs = std::filesystem;
 

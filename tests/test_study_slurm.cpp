@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "study_test_util.h"
+#include "tests/study_test_util.h"
 
 #ifndef ROPSIM_SOURCE_DIR
 #error "ROPSIM_SOURCE_DIR must name the source tree (tests/CMakeLists.txt)"

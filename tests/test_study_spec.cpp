@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "study.h"
-#include "study_test_util.h"
+#include "sim/study/study.h"
+#include "tests/study_test_util.h"
 
 namespace fs = std::filesystem;
 using namespace ropsim_test;

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "driver.h"
-#include "golden_model.h"
-#include "host_threads.h"
+#include "rtl_models/golden/golden_model.h"
+#include "sim/fidelity/functional/driver.h"
+#include "util/host_threads.h"
 
 using namespace ropsim;
 

@@ -11,8 +11,8 @@
 #include <random>
 #include <string>
 
-#include "study_test_util.h"
-#include "toml_guard.h"
+#include "tests/study_test_util.h"
+#include "util/toml_guard.h"
 
 namespace {
 

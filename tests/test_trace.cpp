@@ -26,10 +26,10 @@
 #include <unordered_set>
 #include <vector>
 
-#include "depth.h"
-#include "sample_patterns.h"
-#include "trace.h"
-#include "utf8.h"
+#include "rtl_models/algo/depth.h"
+#include "traces/format/trace.h"
+#include "traces/format/utf8.h"
+#include "traces/raster/sample_patterns.h"
 
 namespace fs = std::filesystem;
 using namespace ropsim;

@@ -22,12 +22,12 @@
 #include <string>
 #include <vector>
 
-#include "fragment_source.h"
-#include "livepoint_file.h"
-#include "livepoints.h"
-#include "memory_budget.h"
-#include "sample_patterns.h"
-#include "trace.h"
+#include "rtl_models/functional/fragment_source.h"
+#include "sim/fidelity/sampled/livepoint_file.h"
+#include "sim/fidelity/sampled/livepoints.h"
+#include "traces/format/trace.h"
+#include "traces/raster/sample_patterns.h"
+#include "util/memory_budget.h"
 
 #ifndef ROPSIM_BINARY
 #error "ROPSIM_BINARY must name the built ropsim executable (tests/CMakeLists.txt)"

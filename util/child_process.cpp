@@ -1,4 +1,4 @@
-#include "child_process.h"
+#include "util/child_process.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -14,7 +14,7 @@
 #include <fstream>
 #include <thread>
 
-#include "errors.h"
+#include "util/errors.h"
 
 extern char** environ;
 

@@ -1,4 +1,4 @@
-#include "host_threads.h"
+#include "util/host_threads.h"
 
 #include <sched.h>
 

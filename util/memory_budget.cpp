@@ -1,4 +1,4 @@
-#include "memory_budget.h"
+#include "util/memory_budget.h"
 
 #include <unistd.h>
 
@@ -6,7 +6,7 @@
 #include <charconv>
 #include <cstdio>
 
-#include "errors.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "output_file.h"
+#include "util/output_file.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -19,7 +19,7 @@
 #include <thread>
 #include <vector>
 
-#include "errors.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

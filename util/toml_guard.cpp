@@ -1,4 +1,4 @@
-#include "toml_guard.h"
+#include "util/toml_guard.h"
 
 #include <cstdint>
 #include <cstdio>

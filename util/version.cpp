@@ -1,4 +1,4 @@
-#include "version.h"
+#include "util/version.h"
 
 #include "ropsim_version.h"  // generated into the build tree by cmake/version.cmake
 

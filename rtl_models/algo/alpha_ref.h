@@ -8,8 +8,8 @@
 #include <tmmintrin.h>
 #endif
 
-#include "bits.h"
-#include "numerics.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "half.h"
+#include "rtl_models/algo/half.h"
 
 namespace ropsim {
 

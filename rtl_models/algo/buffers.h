@@ -5,8 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "blend.h"
-#include "numerics.h"
+#include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

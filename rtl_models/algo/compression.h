@@ -28,8 +28,8 @@
 #include <cstring>
 #include <vector>
 
-#include "bits.h"
-#include "numerics.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

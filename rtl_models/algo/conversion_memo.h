@@ -6,8 +6,8 @@
 #include <array>
 #include <cstdint>
 
-#include "half.h"
-#include "opacity.h"
+#include "rtl_models/algo/half.h"
+#include "rtl_models/algo/opacity.h"
 
 namespace ropsim {
 

@@ -7,9 +7,9 @@
 #include <array>
 #include <cstdint>
 
-#include "numerics.h"
-#include "opacity.h"
-#include "random_hash.h"
+#include "rtl_models/algo/numerics.h"
+#include "rtl_models/algo/opacity.h"
+#include "rtl_models/algo/random_hash.h"
 
 namespace ropsim {
 

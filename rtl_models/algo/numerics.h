@@ -4,7 +4,7 @@
 #pragma once
 #include <cstdint>
 
-#include "bits.h"
+#include "rtl_models/algo/bits.h"
 
 namespace ropsim {
 

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "method_kernels.h"
+#include "rtl_models/algo/method_kernels.h"
 
 namespace ropsim {
 

@@ -12,8 +12,8 @@
 #include <emmintrin.h>
 #endif
 
-#include "bits.h"
-#include "depth.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/depth.h"
 
 namespace ropsim {
 

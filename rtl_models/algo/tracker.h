@@ -2,7 +2,7 @@
 #pragma once
 #include <cstdint>
 
-#include "numerics.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

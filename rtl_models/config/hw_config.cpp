@@ -1,4 +1,4 @@
-#include "hw_config.h"
+#include "rtl_models/config/hw_config.h"
 
 #include <toml++/toml.h>
 
@@ -12,8 +12,8 @@
 #include <system_error>
 #include <utility>
 
-#include "bits.h"
-#include "toml_guard.h"
+#include "rtl_models/algo/bits.h"
+#include "util/toml_guard.h"
 
 namespace ropsim {
 

@@ -11,9 +11,9 @@
 #include <variant>
 #include <vector>
 
-#include "blend.h"
-#include "compression.h"
-#include "numerics.h"
+#include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/compression.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

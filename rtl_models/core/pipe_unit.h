@@ -6,11 +6,11 @@
 // and the tracker, whose functions use no timed shared state, so they may run
 // decoupled (unit.h).
 #pragma once
-#include "bits.h"
-#include "functional_rop.h"
-#include "timed_fifo.h"
-#include "token.h"
-#include "unit.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/core/timed_fifo.h"
+#include "rtl_models/core/token.h"
+#include "rtl_models/core/unit.h"
+#include "rtl_models/functional/functional_rop.h"
 
 namespace ropsim {
 

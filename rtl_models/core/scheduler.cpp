@@ -1,9 +1,9 @@
-#include "scheduler.h"
+#include "rtl_models/core/scheduler.h"
 
 #include <algorithm>
 
-#include "bits.h"
-#include "unit.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/core/unit.h"
 
 namespace ropsim {
 

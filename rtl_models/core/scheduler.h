@@ -18,7 +18,7 @@
 #include <utility>
 #include <vector>
 
-#include "clock.h"
+#include "rtl_models/core/clock.h"
 
 namespace ropsim {
 

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "bits.h"
-#include "unit.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/core/unit.h"
 
 namespace ropsim {
 

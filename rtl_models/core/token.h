@@ -10,10 +10,10 @@
 #include <stdexcept>
 #include <vector>
 
-#include "attribution.h"
-#include "counters.h"
-#include "errors.h"
-#include "frag_work.h"
+#include "rtl_models/functional/counters.h"
+#include "rtl_models/functional/frag_work.h"
+#include "rtl_models/observe/attribution.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "unit.h"
+#include "rtl_models/core/unit.h"
 
 #include <stdexcept>
 

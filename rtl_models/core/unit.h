@@ -22,11 +22,11 @@
 #include <systemc>
 #include <vector>
 
-#include "attribution.h"
-#include "clock.h"
-#include "interval_log.h"
-#include "scheduler.h"
-#include "waveform.h"
+#include "rtl_models/core/clock.h"
+#include "rtl_models/core/scheduler.h"
+#include "rtl_models/observe/attribution.h"
+#include "rtl_models/observe/interval_log.h"
+#include "rtl_models/observe/waveform.h"
 
 namespace ropsim {
 

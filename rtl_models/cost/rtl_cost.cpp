@@ -1,4 +1,4 @@
-#include "rtl_cost.h"
+#include "rtl_models/cost/rtl_cost.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "bits.h"
-#include "hilbert.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/hilbert.h"
 #include "rtl_synth_sweep_csv.h"  // docs/data/rtl_synth_sweep.csv, embedded by cmake/embed_csv.cmake
 
 namespace ropsim {
@@ -430,7 +430,7 @@ std::vector<HeldOutError> rtl_model_check(const std::vector<RtlSynthRow>& table)
 DesignCost design_cost(const RtlDesign& d) {
   DesignCost out;
   if (!d.lk_selection) {
-    out.reason = "method " + d.method + ": only lk's units have reference RTL (rtl_models/verilog)";
+    out.reason = "method " + d.method + ": only lk's units have reference RTL (rtl_models/rtl)";
     return out;
   }
   const int order = std::max(1, bit_length(int64_t(hilbert_side(uint32_t(d.width), uint32_t(d.height)))) - 1);

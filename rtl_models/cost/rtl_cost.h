@@ -1,5 +1,5 @@
 // Silicon cost of LK's units from the synthesis of the reference RTL
-// (rtl_models/verilog, scripts/synth.sh): the committed sweep
+// (rtl_models/rtl, scripts/synth.sh): the committed sweep
 // docs/data/rtl_synth_sweep.csv is compiled into the binary, and a design's
 // units are looked up in it, or, for parameters it does not hold, estimated
 // by a per-module structural model fitted to it (docs/rtl.md "Cost of a
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "numerics.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

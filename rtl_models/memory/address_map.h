@@ -10,10 +10,10 @@
 #pragma once
 #include <cstdint>
 
-#include "bits.h"
-#include "blend.h"
-#include "buffers.h"
-#include "numerics.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/buffers.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "bits.h"
-#include "hw_config.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/config/hw_config.h"
 
 namespace ropsim {
 

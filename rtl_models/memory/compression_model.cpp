@@ -1,9 +1,9 @@
-#include "compression_model.h"
+#include "rtl_models/memory/compression_model.h"
 
 #include <algorithm>
 #include <cstring>
 
-#include "bits.h"
+#include "rtl_models/algo/bits.h"
 
 namespace ropsim {
 

@@ -31,12 +31,12 @@
 #include <memory>
 #include <vector>
 
-#include "buffers.h"
-#include "cache_tags.h"
-#include "dram.h"
-#include "hw_config.h"
-#include "paged_array.h"
-#include "ring_queue.h"
+#include "rtl_models/algo/buffers.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/memory/cache_tags.h"
+#include "rtl_models/memory/dram.h"
+#include "util/containers/paged_array.h"
+#include "util/containers/ring_queue.h"
 
 namespace ropsim {
 

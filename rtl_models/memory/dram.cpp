@@ -1,4 +1,4 @@
-#include "dram.h"
+#include "rtl_models/memory/dram.h"
 
 #include <algorithm>
 

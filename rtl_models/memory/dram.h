@@ -12,12 +12,12 @@
 #include <cstdint>
 #include <vector>
 
-#include "address_map.h"
-#include "attribution.h"
-#include "bits.h"
-#include "hw_config.h"
-#include "interval_log.h"
-#include "waveform.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/memory/address_map.h"
+#include "rtl_models/observe/attribution.h"
+#include "rtl_models/observe/interval_log.h"
+#include "rtl_models/observe/waveform.h"
 
 namespace ropsim {
 

@@ -9,7 +9,7 @@
 #include <memory>
 #include <unordered_map>
 
-#include "bits.h"
+#include "rtl_models/algo/bits.h"
 
 namespace ropsim {
 

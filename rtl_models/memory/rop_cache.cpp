@@ -1,8 +1,8 @@
-#include "rop_cache.h"
+#include "rtl_models/memory/rop_cache.h"
 
 #include <algorithm>
 
-#include "bits.h"
+#include "rtl_models/algo/bits.h"
 
 namespace ropsim {
 

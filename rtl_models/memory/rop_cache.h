@@ -12,13 +12,13 @@
 #include <cstdint>
 #include <vector>
 
-#include "address_map.h"
-#include "cache_tags.h"
-#include "compression_model.h"
-#include "dram.h"
-#include "hw_config.h"
-#include "line_set.h"
-#include "sorted_ring.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/memory/address_map.h"
+#include "rtl_models/memory/cache_tags.h"
+#include "rtl_models/memory/compression_model.h"
+#include "rtl_models/memory/dram.h"
+#include "rtl_models/memory/line_set.h"
+#include "util/containers/sorted_ring.h"
 
 namespace ropsim {
 

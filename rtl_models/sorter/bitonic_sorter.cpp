@@ -3,8 +3,8 @@
 // pipelined. Unused inputs hold the largest key and sink to the end.
 #include <algorithm>
 
-#include "bits.h"
-#include "sort_algorithm.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/sorter/sort_algorithm.h"
 
 namespace ropsim {
 namespace {

@@ -1,7 +1,7 @@
 // Rank sorter: every key is compared with every other (N (N - 1) / 2
 // comparators); a key's rank is the number of smaller keys and selects its
 // output position. One clock, one fragment per clock.
-#include "sort_algorithm.h"
+#include "rtl_models/sorter/sort_algorithm.h"
 
 namespace ropsim {
 namespace {

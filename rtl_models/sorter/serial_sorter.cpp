@@ -3,7 +3,7 @@
 // m clocks (at least one), and the unit is busy for all of them.
 #include <algorithm>
 
-#include "sort_algorithm.h"
+#include "rtl_models/sorter/sort_algorithm.h"
 
 namespace ropsim {
 namespace {

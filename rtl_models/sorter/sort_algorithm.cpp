@@ -1,4 +1,4 @@
-#include "sort_algorithm.h"
+#include "rtl_models/sorter/sort_algorithm.h"
 
 namespace ropsim {
 

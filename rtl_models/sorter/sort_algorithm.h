@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <memory>
 
-#include "hw_config.h"
+#include "rtl_models/config/hw_config.h"
 
 namespace ropsim {
 

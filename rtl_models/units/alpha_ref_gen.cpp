@@ -1,6 +1,6 @@
-#include "alpha_ref_gen.h"
+#include "rtl_models/units/alpha_ref_gen.h"
 
-#include "unit_timing.h"
+#include "rtl_models/units/unit_timing.h"
 
 namespace ropsim {
 

@@ -4,8 +4,8 @@
 // the sample count and the picks, for naive one random reference per survivor
 // (the same hash, other inputs). lanes hashes per clock, pipeline_depth cycles.
 #pragma once
-#include "hw_config.h"
-#include "pipe_unit.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
 
 namespace ropsim {
 

@@ -1,6 +1,6 @@
-#include "blend_unit.h"
+#include "rtl_models/units/blend_unit.h"
 
-#include "pixel_snapshot.h"
+#include "rtl_models/units/pixel_snapshot.h"
 
 namespace ropsim {
 

@@ -1,6 +1,6 @@
-#include "coverage_tracker.h"
+#include "rtl_models/units/coverage_tracker.h"
 
-#include "unit_timing.h"
+#include "rtl_models/units/unit_timing.h"
 
 namespace ropsim {
 

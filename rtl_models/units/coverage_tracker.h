@@ -6,8 +6,8 @@
 // the tracker touches no timed state and may run decoupled. One fragment per
 // clock.
 #pragma once
-#include "hw_config.h"
-#include "pipe_unit.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
 
 namespace ropsim {
 

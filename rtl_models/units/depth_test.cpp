@@ -1,12 +1,12 @@
-#include "depth_test.h"
+#include "rtl_models/units/depth_test.h"
 
 #include <algorithm>
 #include <cstring>
 #include <string>
 
-#include "blend_unit.h"
-#include "errors.h"
-#include "framebuffer_blend.h"
+#include "rtl_models/functional/framebuffer_blend.h"
+#include "rtl_models/units/blend_unit.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

@@ -8,11 +8,11 @@
 #pragma once
 #include <vector>
 
-#include "address_map.h"
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "rop_cache.h"
-#include "sorted_ring.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "rtl_models/memory/address_map.h"
+#include "rtl_models/memory/rop_cache.h"
+#include "util/containers/sorted_ring.h"
 
 namespace ropsim {
 

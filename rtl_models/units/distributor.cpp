@@ -1,4 +1,4 @@
-#include "distributor.h"
+#include "rtl_models/units/distributor.h"
 
 namespace ropsim {
 

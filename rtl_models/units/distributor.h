@@ -5,10 +5,10 @@
 #pragma once
 #include <vector>
 
-#include "bits.h"
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "rop_ownership.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "rtl_models/units/rop_ownership.h"
 
 namespace ropsim {
 

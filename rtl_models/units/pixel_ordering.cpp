@@ -1,4 +1,4 @@
-#include "pixel_ordering.h"
+#include "rtl_models/units/pixel_ordering.h"
 
 namespace ropsim {
 

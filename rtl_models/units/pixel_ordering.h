@@ -8,10 +8,10 @@
 #include <utility>
 #include <vector>
 
-#include "flat_set.h"
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "sorted_ring.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "util/containers/flat_set.h"
+#include "util/containers/sorted_ring.h"
 
 namespace ropsim {
 

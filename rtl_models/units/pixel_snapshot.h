@@ -8,9 +8,9 @@
 #include <cstdint>
 #include <cstring>
 
-#include "address_map.h"
-#include "compression_model.h"
-#include "surface_bytes.h"
+#include "rtl_models/functional/surface_bytes.h"
+#include "rtl_models/memory/address_map.h"
+#include "rtl_models/memory/compression_model.h"
 
 namespace ropsim {
 

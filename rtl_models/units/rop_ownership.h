@@ -1,11 +1,11 @@
 // Which ROP unit owns a pixel: the distributor's rule (distributor.h), also
 // used without the SystemC units by the sampled simulation's tag-only warming
-// and the analytical model (sim/driver/approximate.h). No SystemC here.
+// and the analytical model (sim/fidelity/approximate/approximate.h). No SystemC here.
 #pragma once
 #include <cstdint>
 
-#include "bits.h"
-#include "hw_config.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/config/hw_config.h"
 
 namespace ropsim {
 

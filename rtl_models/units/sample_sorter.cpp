@@ -1,4 +1,4 @@
-#include "sample_sorter.h"
+#include "rtl_models/units/sample_sorter.h"
 
 namespace ropsim {
 

@@ -8,9 +8,9 @@
 #pragma once
 #include <memory>
 
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "sort_algorithm.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "rtl_models/sorter/sort_algorithm.h"
 
 namespace ropsim {
 

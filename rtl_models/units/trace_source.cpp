@@ -1,4 +1,4 @@
-#include "trace_source.h"
+#include "rtl_models/units/trace_source.h"
 
 namespace ropsim {
 

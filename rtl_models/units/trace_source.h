@@ -7,10 +7,10 @@
 #include <exception>
 #include <functional>
 
-#include "fragment_source.h"
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "rop_ownership.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "rtl_models/functional/fragment_source.h"
+#include "rtl_models/units/rop_ownership.h"
 
 namespace ropsim {
 

@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "bits.h"
-#include "hw_config.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/config/hw_config.h"
 
 namespace ropsim {
 

@@ -1,6 +1,6 @@
-#include "writeback.h"
+#include "rtl_models/units/writeback.h"
 
-#include "pixel_snapshot.h"
+#include "rtl_models/units/pixel_snapshot.h"
 
 namespace ropsim {
 

@@ -5,10 +5,10 @@
 // are posted (PostedWrites, rop_cache.h), so it touches no timed state at its
 // own cycle and may run decoupled (unit.h).
 #pragma once
-#include "address_map.h"
-#include "hw_config.h"
-#include "pipe_unit.h"
-#include "rop_cache.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/core/pipe_unit.h"
+#include "rtl_models/memory/address_map.h"
+#include "rtl_models/memory/rop_cache.h"
 
 namespace ropsim {
 

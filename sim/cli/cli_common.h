@@ -19,10 +19,10 @@
 #include <type_traits>
 #include <vector>
 
-#include "errors.h"
-#include "output_file.h"
-#include "progress.h"
-#include "scenes.h"
+#include "traces/scenes/scenes.h"
+#include "util/errors.h"
+#include "util/output_file.h"
+#include "util/progress.h"
 
 namespace ropsim {
 

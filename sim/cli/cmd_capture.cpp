@@ -1,4 +1,4 @@
-#include "cmd_capture.h"
+#include "sim/cli/cmd_capture.h"
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <memory>
 
-#include "capture.h"
-#include "cli_common.h"
-#include "output_file.h"
-#include "scene_file.h"
+#include "sim/cli/cli_common.h"
+#include "traces/capture/capture.h"
+#include "traces/capture/scene_file.h"
+#include "util/output_file.h"
 #ifdef ROPSIM_HAVE_OSMESA
-#include "mesa_capture.h"
+#include "traces/capture/mesa_capture.h"
 #endif
 
 namespace ropsim {

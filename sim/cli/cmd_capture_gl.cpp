@@ -10,12 +10,12 @@
 #include <optional>
 #include <set>
 
-#include "app_entry.h"
-#include "child_process.h"
-#include "cli_common.h"
-#include "cmd_capture.h"
-#include "errors.h"
-#include "gl_capture.h"
+#include "sim/cli/cli_common.h"
+#include "sim/cli/cmd_capture.h"
+#include "traces/capture/app_entry.h"
+#include "traces/glcapture/gl_capture.h"
+#include "util/child_process.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

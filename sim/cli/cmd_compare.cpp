@@ -5,8 +5,8 @@
 #include <cmath>
 #include <memory>
 
-#include "cli_common.h"
-#include "image_io.h"
+#include "sim/cli/cli_common.h"
+#include "sim/image/image_io.h"
 
 namespace ropsim {
 

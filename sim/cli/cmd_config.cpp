@@ -10,13 +10,13 @@
 #include <map>
 #include <memory>
 
-#include "cli_common.h"
-#include "cycle_report.h"
-#include "errors.h"
-#include "hw_config.h"
-#include "memory_budget.h"
-#include "memory_estimate.h"
-#include "rtl_cost.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/cost/rtl_cost.h"
+#include "rtl_models/top/memory_estimate.h"
+#include "sim/cli/cli_common.h"
+#include "sim/report/cycle_report.h"
+#include "util/errors.h"
+#include "util/memory_budget.h"
 
 namespace ropsim {
 

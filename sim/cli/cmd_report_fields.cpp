@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <memory>
 
-#include "cli_common.h"
-#include "cycle_report.h"
+#include "sim/cli/cli_common.h"
+#include "sim/report/cycle_report.h"
 
 namespace ropsim {
 

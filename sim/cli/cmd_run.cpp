@@ -9,19 +9,19 @@
 #include <memory>
 #include <optional>
 
-#include "cli_common.h"
-#include "cycle_report.h"
-#include "cycle_run.h"
-#include "driver.h"
-#include "heat_map.h"
-#include "host_threads.h"
-#include "hw_config.h"
-#include "image_io.h"
-#include "livepoint_file.h"
-#include "memory_estimate.h"
-#include "report.h"
-#include "slab.h"
-#include "trace.h"
+#include "rtl_models/algo/slab.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/top/memory_estimate.h"
+#include "sim/cli/cli_common.h"
+#include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/functional/driver.h"
+#include "sim/fidelity/sampled/livepoint_file.h"
+#include "sim/image/heat_map.h"
+#include "sim/image/image_io.h"
+#include "sim/report/cycle_report.h"
+#include "sim/report/report.h"
+#include "traces/format/trace.h"
+#include "util/host_threads.h"
 
 namespace ropsim {
 

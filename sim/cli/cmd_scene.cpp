@@ -3,8 +3,8 @@
 
 #include <memory>
 
-#include "cli_common.h"
-#include "trace.h"
+#include "sim/cli/cli_common.h"
+#include "traces/format/trace.h"
 
 namespace ropsim {
 

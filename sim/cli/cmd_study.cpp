@@ -15,10 +15,10 @@
 #include <thread>
 #include <vector>
 
-#include "cli_common.h"
-#include "slurm_executor.h"
-#include "study.h"
-#include "study_runner.h"
+#include "sim/cli/cli_common.h"
+#include "sim/study/slurm_executor.h"
+#include "sim/study/study.h"
+#include "sim/study/study_runner.h"
 
 namespace ropsim {
 

@@ -9,12 +9,12 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
-#include "cli_common.h"
-#include "driver.h"
-#include "frame_stats.h"
-#include "pixel_kinds.h"
-#include "tile_map.h"
-#include "trace.h"
+#include "sim/cli/cli_common.h"
+#include "sim/driver/pixel_kinds.h"
+#include "sim/fidelity/functional/driver.h"
+#include "traces/format/frame_stats.h"
+#include "traces/format/trace.h"
+#include "util/containers/tile_map.h"
 
 namespace ropsim {
 

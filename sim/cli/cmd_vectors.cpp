@@ -5,9 +5,9 @@
 
 #include <memory>
 
-#include "cli_common.h"
-#include "output_file.h"
-#include "vectors.h"
+#include "sim/cli/cli_common.h"
+#include "sim/driver/vectors.h"
+#include "util/output_file.h"
 
 namespace ropsim {
 

@@ -17,13 +17,13 @@
 #include <system_error>
 #include <vector>
 
-#include "cli_common.h"
-#include "cmd_capture.h"
-#include "errors.h"
-#include "host_threads.h"
-#include "memory_budget.h"
-#include "output_file.h"
-#include "version.h"
+#include "sim/cli/cli_common.h"
+#include "sim/cli/cmd_capture.h"
+#include "util/errors.h"
+#include "util/host_threads.h"
+#include "util/memory_budget.h"
+#include "util/output_file.h"
+#include "util/version.h"
 
 using namespace ropsim;
 

@@ -1,9 +1,9 @@
-#include "pixel_kinds.h"
+#include "sim/driver/pixel_kinds.h"
 
 #include <cmath>
 #include <stdexcept>
 
-#include "memory_budget.h"
+#include "util/memory_budget.h"
 
 namespace ropsim {
 

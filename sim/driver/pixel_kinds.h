@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "fragment_source.h"
-#include "image.h"
+#include "rtl_models/functional/fragment_source.h"
+#include "rtl_models/functional/image.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "vectors.h"
+#include "sim/driver/vectors.h"
 
 #include <fmt/format.h>
 
@@ -8,16 +8,16 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "alpha_ref.h"
-#include "depth.h"
-#include "golden_model.h"
-#include "half.h"
-#include "hilbert.h"
-#include "opacity.h"
-#include "random_hash.h"
-#include "sample_patterns.h"
-#include "sort_order.h"
-#include "tracker.h"
+#include "rtl_models/algo/alpha_ref.h"
+#include "rtl_models/algo/depth.h"
+#include "rtl_models/algo/half.h"
+#include "rtl_models/algo/hilbert.h"
+#include "rtl_models/algo/opacity.h"
+#include "rtl_models/algo/random_hash.h"
+#include "rtl_models/algo/sort_order.h"
+#include "rtl_models/algo/tracker.h"
+#include "rtl_models/golden/golden_model.h"
+#include "traces/raster/sample_patterns.h"
 
 namespace ropsim {
 

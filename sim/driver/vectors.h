@@ -8,9 +8,9 @@
 #include <string_view>
 #include <vector>
 
-#include "fragment_source.h"
-#include "method.h"
-#include "numerics.h"
+#include "rtl_models/algo/numerics.h"
+#include "rtl_models/functional/fragment_source.h"
+#include "rtl_models/functional/method.h"
 
 namespace ropsim {
 

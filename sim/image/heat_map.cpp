@@ -1,4 +1,4 @@
-#include "heat_map.h"
+#include "sim/image/heat_map.h"
 
 #include <algorithm>
 #include <cctype>
@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <cstring>
 
-#include "image_codec.h"
-#include "image_io.h"
+#include "sim/image/image_io.h"
+#include "util/codec/image_codec.h"
 
 namespace ropsim {
 

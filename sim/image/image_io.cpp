@@ -1,4 +1,4 @@
-#include "image_io.h"
+#include "sim/image/image_io.h"
 
 #include <algorithm>
 #include <cctype>
@@ -7,8 +7,8 @@
 #include <limits>
 #include <vector>
 
-#include "image_codec.h"
-#include "output_file.h"
+#include "util/codec/image_codec.h"
+#include "util/output_file.h"
 
 namespace ropsim {
 

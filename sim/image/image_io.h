@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "image.h"
+#include "rtl_models/functional/image.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "slurm_executor.h"
+#include "sim/study/slurm_executor.h"
 
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -20,7 +20,7 @@
 #include <sstream>
 #include <thread>
 
-#include "errors.h"
+#include "util/errors.h"
 
 namespace ropsim {
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "study.h"
-#include "study_runner.h"
+#include "sim/study/study.h"
+#include "sim/study/study_runner.h"
 
 namespace ropsim {
 

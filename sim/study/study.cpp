@@ -1,4 +1,4 @@
-#include "study.h"
+#include "sim/study/study.h"
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -12,13 +12,13 @@
 #include <set>
 #include <sstream>
 
-#include "child_process.h"
-#include "errors.h"
-#include "livepoint_file.h"
-#include "random_hash.h"
-#include "slab.h"
-#include "toml_guard.h"
-#include "version.h"
+#include "rtl_models/algo/random_hash.h"
+#include "rtl_models/algo/slab.h"
+#include "sim/fidelity/sampled/livepoint_file.h"
+#include "util/child_process.h"
+#include "util/errors.h"
+#include "util/toml_guard.h"
+#include "util/version.h"
 
 namespace ropsim {
 

@@ -11,11 +11,11 @@
 #include <variant>
 #include <vector>
 
-#include "app_entry.h"
-#include "driver.h"
-#include "hw_config.h"
-#include "livepoints.h"
-#include "scene_file.h"
+#include "rtl_models/config/hw_config.h"
+#include "sim/fidelity/functional/driver.h"
+#include "sim/fidelity/sampled/livepoints.h"
+#include "traces/capture/app_entry.h"
+#include "traces/capture/scene_file.h"
 
 namespace ropsim {
 

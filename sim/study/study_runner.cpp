@@ -1,4 +1,4 @@
-#include "study_runner.h"
+#include "sim/study/study_runner.h"
 
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -22,19 +22,19 @@
 #include <sstream>
 #include <system_error>
 
-#include "approximate.h"
-#include "capture.h"
-#include "cycle_report.h"
-#include "cycle_run.h"
-#include "errors.h"
-#include "gl_capture.h"
-#include "host_threads.h"
-#include "image_io.h"
-#include "livepoint_file.h"
-#include "output_file.h"
-#include "progress.h"
-#include "report.h"
-#include "version.h"
+#include "sim/fidelity/approximate/approximate.h"
+#include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/sampled/livepoint_file.h"
+#include "sim/image/image_io.h"
+#include "sim/report/cycle_report.h"
+#include "sim/report/report.h"
+#include "traces/capture/capture.h"
+#include "traces/glcapture/gl_capture.h"
+#include "util/errors.h"
+#include "util/host_threads.h"
+#include "util/output_file.h"
+#include "util/progress.h"
+#include "util/version.h"
 
 namespace fs = std::filesystem;
 

@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "study.h"
+#include "sim/study/study.h"
 
 namespace ropsim {
 

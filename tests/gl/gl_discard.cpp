@@ -6,7 +6,7 @@
 // an input that the vertex shader does not write and that it reads only
 // under a branch the preprocessor drops (as OpenArena's shaders do): the
 // program links, and so must the capture's instrumented twin.
-#include "gl_app.h"
+#include "tests/gl/gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_discard");

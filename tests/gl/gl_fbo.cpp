@@ -5,7 +5,7 @@
 // writing 1 - its colour (opaque), and a blit of the FBO into the window's
 // bottom-left corner (a copy, not a draw). --target fbo:1 captures the
 // triangle; --target presented the quad.
-#include "gl_app.h"
+#include "tests/gl/gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_fbo");

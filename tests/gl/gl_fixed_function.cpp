@@ -10,7 +10,7 @@
 // through fixed-function arrays in a buffer (glVertexPointer, glColorPointer,
 // glTexCoordPointer) and one glDrawArrays(GL_TRIANGLE_FAN); --submit
 // immediate through glBegin(GL_QUADS) ... glEnd.
-#include "gl_app.h"
+#include "tests/gl/gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_fixed_function");

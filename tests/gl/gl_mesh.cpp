@@ -7,7 +7,7 @@
 // can be compared sample by sample with `ropsim capture` of the same scene.
 #include <vector>
 
-#include "gl_app.h"
+#include "tests/gl/gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_mesh");

@@ -3,7 +3,7 @@
 // instances (yellow, cyan, magenta: instance 0, 1, 2), each shifted a little;
 // every primitive and instance covers the window's centre. Alpha 0.5,
 // src-over, no depth test: the frame depends on the order of all six.
-#include "gl_app.h"
+#include "tests/gl/gl_app.h"
 
 int main(int argc, char** argv) {
   gltest::App a = gltest::open(argc, argv, "gl_order");

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "random_hash.h"
+#include "rtl_models/algo/random_hash.h"
 
 namespace rtl_tb {
 

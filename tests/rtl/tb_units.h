@@ -7,16 +7,16 @@
 #include <algorithm>
 #include <cstring>
 
-#include "alpha_ref.h"
-#include "depth.h"
-#include "hilbert.h"
-#include "hw_config.h"
-#include "opacity.h"
-#include "sort_algorithm.h"
-#include "sort_order.h"
-#include "tb_common.h"
-#include "tracker.h"
-#include "unit_timing.h"
+#include "rtl_models/algo/alpha_ref.h"
+#include "rtl_models/algo/depth.h"
+#include "rtl_models/algo/hilbert.h"
+#include "rtl_models/algo/opacity.h"
+#include "rtl_models/algo/sort_order.h"
+#include "rtl_models/algo/tracker.h"
+#include "rtl_models/config/hw_config.h"
+#include "rtl_models/sorter/sort_algorithm.h"
+#include "rtl_models/units/unit_timing.h"
+#include "tests/rtl/tb_common.h"
 
 namespace rtl_tb {
 

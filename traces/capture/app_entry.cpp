@@ -1,13 +1,13 @@
-#include "app_entry.h"
+#include "traces/capture/app_entry.h"
 
 #include <toml++/toml.h>
 
 #include <filesystem>
 
-#include "scene_file.h"
-#include "toml_guard.h"
-#include "toml_keys.h"
-#include "utf8.h"
+#include "traces/capture/scene_file.h"
+#include "traces/capture/toml_keys.h"
+#include "traces/format/utf8.h"
+#include "util/toml_guard.h"
 
 namespace ropsim {
 

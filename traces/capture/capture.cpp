@@ -1,12 +1,12 @@
-#include "capture.h"
+#include "traces/capture/capture.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 
-#include "mesh_loader.h"
-#include "random_hash.h"
-#include "sample_patterns.h"
+#include "rtl_models/algo/random_hash.h"
+#include "traces/capture/mesh_loader.h"
+#include "traces/raster/sample_patterns.h"
 
 namespace ropsim {
 

@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "rasterizer.h"
-#include "scene_file.h"
-#include "texture.h"
-#include "trace.h"
+#include "traces/capture/scene_file.h"
+#include "traces/capture/texture.h"
+#include "traces/format/trace.h"
+#include "traces/raster/rasterizer.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "mesa_capture.h"
+#include "traces/capture/mesa_capture.h"
 
 // osmesa.h (GL/gl.h) defines the types glext.h uses: keep this order.
 // clang-format off

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "capture.h"
+#include "traces/capture/capture.h"
 
 namespace ropsim {
 

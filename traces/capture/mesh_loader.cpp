@@ -1,4 +1,4 @@
-#include "mesh_loader.h"
+#include "traces/capture/mesh_loader.h"
 
 #include <assimp/GltfMaterial.h>
 #include <assimp/postprocess.h>
@@ -11,7 +11,7 @@
 #include <functional>
 #include <map>
 
-#include "scene_file.h"
+#include "traces/capture/scene_file.h"
 
 namespace ropsim {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "texture.h"
+#include "traces/capture/texture.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "scene_file.h"
+#include "traces/capture/scene_file.h"
 
 #include <toml++/toml.h>
 
@@ -9,9 +9,9 @@
 #include <set>
 #include <sstream>
 
-#include "toml_guard.h"
-#include "toml_keys.h"
-#include "utf8.h"
+#include "traces/capture/toml_keys.h"
+#include "traces/format/utf8.h"
+#include "util/toml_guard.h"
 
 namespace ropsim {
 

@@ -1,9 +1,9 @@
-#include "texture.h"
+#include "traces/capture/texture.h"
 
 #include <cmath>
 
-#include "image_codec.h"
-#include "scene_file.h"
+#include "traces/capture/scene_file.h"
+#include "util/codec/image_codec.h"
 
 namespace ropsim {
 

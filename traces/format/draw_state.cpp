@@ -1,11 +1,11 @@
-#include "draw_state.h"
+#include "traces/format/draw_state.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "utf8.h"
+#include "traces/format/utf8.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "frame_stats.h"
+#include "traces/format/frame_stats.h"
 
 #include <algorithm>
 

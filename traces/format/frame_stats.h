@@ -11,9 +11,9 @@
 #include <memory>
 #include <vector>
 
-#include "draw_state.h"
-#include "tile_map.h"
-#include "trace.h"
+#include "traces/format/draw_state.h"
+#include "traces/format/trace.h"
+#include "util/containers/tile_map.h"
 
 namespace ropsim {
 

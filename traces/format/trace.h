@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "draw_state.h"
-#include "memory_budget.h"
+#include "traces/format/draw_state.h"
+#include "util/memory_budget.h"
 
 namespace ropsim {
 

@@ -9,13 +9,13 @@
 #include <cstring>
 #include <vector>
 
-#include "bits.h"
-#include "depth.h"
-#include "errors.h"
-#include "numerics.h"
-#include "output_file.h"
-#include "trace.h"
-#include "utf8.h"
+#include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/depth.h"
+#include "rtl_models/algo/numerics.h"
+#include "traces/format/trace.h"
+#include "traces/format/utf8.h"
+#include "util/errors.h"
+#include "util/output_file.h"
 
 namespace ropsim {
 

@@ -1,7 +1,7 @@
 // JSON views of trace headers and fragments (`ropsim trace info|dump`).
 #include <nlohmann/json.hpp>
 
-#include "trace.h"
+#include "traces/format/trace.h"
 
 namespace ropsim {
 

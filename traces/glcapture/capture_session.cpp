@@ -1,4 +1,4 @@
-#include "capture_session.h"
+#include "traces/glcapture/capture_session.h"
 
 #include <unistd.h>
 
@@ -15,16 +15,16 @@
 #include <set>
 #include <string>
 
-#include "draw_state.h"
-#include "fragment_order.h"
-#include "gl_functions.h"
-#include "glsl_rewrite.h"
-#include "instrumented_program.h"
-#include "sample_patterns.h"
-#include "trace.h"
+#include "traces/format/draw_state.h"
+#include "traces/format/trace.h"
+#include "traces/glcapture/fragment_order.h"
+#include "traces/glcapture/gl_functions.h"
+#include "traces/glcapture/glsl_rewrite.h"
+#include "traces/glcapture/instrumented_program.h"
+#include "traces/raster/sample_patterns.h"
 
 #if ROPSIM_GLCAPTURE_FIXED_FUNCTION
-#include "ff_program.h"
+#include "traces/glcapture/ff_program.h"
 #endif
 
 namespace ropsim::glcapture {

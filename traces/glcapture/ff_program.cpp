@@ -1,4 +1,4 @@
-#include "ff_program.h"
+#include "traces/glcapture/ff_program.h"
 
 // clang-format off
 #include <GL/gl.h>

@@ -1,4 +1,4 @@
-#include "fragment_order.h"
+#include "traces/glcapture/fragment_order.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <thread>
 #include <tuple>
 
-#include "glsl_rewrite.h"
+#include "traces/glcapture/glsl_rewrite.h"
 
 namespace ropsim::glcapture {
 

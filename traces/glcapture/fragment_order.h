@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "trace.h"
+#include "traces/format/trace.h"
 
 namespace ropsim::glcapture {
 

@@ -9,8 +9,8 @@
 #include <cstring>
 #include <string>
 
-#include "capture_session.h"
-#include "gl_functions.h"
+#include "traces/glcapture/capture_session.h"
+#include "traces/glcapture/gl_functions.h"
 
 #define ROPSIM_EXPORT extern "C" __attribute__((visibility("default")))
 

@@ -1,4 +1,4 @@
-#include "glsl_rewrite.h"
+#include "traces/glcapture/glsl_rewrite.h"
 
 #include <algorithm>
 #include <cctype>

@@ -1,10 +1,10 @@
-#include "instrumented_program.h"
+#include "traces/glcapture/instrumented_program.h"
 
 #include <algorithm>
 #include <cstring>
 
-#include "gl_functions.h"
-#include "glsl_rewrite.h"
+#include "traces/glcapture/gl_functions.h"
+#include "traces/glcapture/glsl_rewrite.h"
 
 namespace ropsim::glcapture {
 

@@ -1,4 +1,4 @@
-#include "rasterizer.h"
+#include "traces/raster/rasterizer.h"
 
 #include <algorithm>
 #include <cmath>

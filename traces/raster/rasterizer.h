@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <functional>
 
-#include "trace.h"
+#include "traces/format/trace.h"
 
 namespace ropsim {
 

@@ -1,8 +1,8 @@
-#include "sample_patterns.h"
+#include "traces/raster/sample_patterns.h"
 
 #include <stdexcept>
 
-#include "numerics.h"
+#include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
 

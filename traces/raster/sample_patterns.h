@@ -3,7 +3,7 @@
 #pragma once
 #include <array>
 
-#include "trace.h"
+#include "traces/format/trace.h"
 
 namespace ropsim {
 

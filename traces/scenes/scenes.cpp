@@ -1,11 +1,11 @@
-#include "scenes.h"
+#include "traces/scenes/scenes.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "numerics.h"
-#include "random_hash.h"
-#include "sample_patterns.h"
+#include "rtl_models/algo/numerics.h"
+#include "rtl_models/algo/random_hash.h"
+#include "traces/raster/sample_patterns.h"
 
 namespace ropsim {
 

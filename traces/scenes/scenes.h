@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "rasterizer.h"
-#include "trace.h"
+#include "traces/format/trace.h"
+#include "traces/raster/rasterizer.h"
 
 namespace ropsim {
 

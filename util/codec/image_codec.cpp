@@ -1,4 +1,4 @@
-#include "image_codec.h"
+#include "util/codec/image_codec.h"
 
 #include <dlfcn.h>
 #include <unistd.h>
@@ -9,7 +9,7 @@
 #include <memory>
 #include <mutex>
 
-#include "image_codec_abi.h"
+#include "util/codec/image_codec_abi.h"
 
 #ifndef ROPSIM_OIIO_MODULE_BUILD_PATH
 #error "ROPSIM_OIIO_MODULE_BUILD_PATH must name the module in the build tree (CMakeLists.txt)"

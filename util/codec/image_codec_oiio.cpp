@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "image_codec.h"
-#include "image_codec_abi.h"
+#include "util/codec/image_codec.h"
+#include "util/codec/image_codec_abi.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "bits.h"
+#include "rtl_models/algo/bits.h"
 
 namespace ropsim {
 

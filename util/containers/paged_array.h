@@ -10,7 +10,7 @@
 #include <memory>
 #include <vector>
 
-#include "memory_budget.h"
+#include "util/memory_budget.h"
 
 namespace ropsim {
 
