@@ -123,7 +123,7 @@ TEST(Bits, LowMaskAndBitReversal) {
 }
 
 TEST(AlphaRef, ReproducesThePublishedValues) {
-  // (sampleId 0, spp 1): (pixel, surface) -> CalcAlphaRef bits (issue #2).
+  // (sampleId 0, spp 1): (pixel, surface) -> CalcAlphaRef bits.
   struct Case {
     uint64_t pixel;
     uint32_t surface;

@@ -1,5 +1,5 @@
 // The analytical model's tag-only compression and Hi-Z bookkeeping
-// (sim/fidelity/approximate/approx_compression.h) against the rules of the cycle model's
+// (rtl_models/memory/tag_compression.h) against the rules of the cycle model's
 // CompressionModel: what a line's writeback and fill move for each state of
 // its tile, the metadata cache's traffic, and Hi-Z's bound.
 #include <gtest/gtest.h>
@@ -9,7 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "sim/fidelity/approximate/approx_compression.h"
+#include "rtl_models/algo/compression.h"
+#include "rtl_models/memory/tag_compression.h"
 
 using namespace ropsim;
 

@@ -1,4 +1,4 @@
-// The bottleneck: one rule (sim/fidelity/bottleneck.h) classifies the frame from
+// The bottleneck: one rule (sim/fidelity/common/bottleneck.h) classifies the frame from
 // the timing model's own bounds in every fidelity. The rule on hand-made
 // bounds at its threshold, then designs built to be throughput-, bandwidth-
 // and latency-bound, each in the cycle and the approximate fidelity.
@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "sim/fidelity/approximate/approximate.h"
-#include "sim/fidelity/bottleneck.h"
+#include "sim/fidelity/common/bottleneck.h"
 #include "sim/fidelity/cycle/cycle_run.h"
 #include "sim/fidelity/functional/driver.h"
 #include "sim/report/cycle_report.h"

@@ -51,15 +51,16 @@ constexpr Layer kLayers[] = {
     {"rtl_models/units", 34, "models: the ROP units"},
     {"rtl_models/top", 35, "models: the pipeline top and its memory estimate"},
     {"sim/image", 40, "drivers: image files"},
-    {"sim/fidelity", 41, "fidelities: what they share (the bottleneck rule)"},
+    {"sim/fidelity/common", 41, "fidelities: what they share (the bottleneck rule)"},
     {"sim/fidelity/functional", 42, "fidelities: the functional run"},
     {"sim/fidelity/cycle", 43, "fidelities: the cycle run"},
     {"sim/fidelity/approximate", 43, "fidelities: the analytical model"},
     {"sim/fidelity/sampled", 44, "fidelities: sampled simulation from live-points"},
-    {"sim/report", 45, "drivers: JSON reports and summaries"},
-    {"sim/driver", 46, "drivers: RTL vectors, pixels by kind"},
-    {"sim/study", 47, "drivers: studies (sweeps, the local executor, the results database)"},
-    {"sim/cli", 48, "drivers: the ropsim command"},
+    {"sim/fidelity", 45, "fidelities: the fidelity, its run request and result, one entry that runs any"},
+    {"sim/report", 46, "drivers: JSON reports and summaries"},
+    {"sim/driver", 47, "drivers: RTL vectors, pixels by kind"},
+    {"sim/study", 48, "drivers: studies (sweeps, the local executor, the results database)"},
+    {"sim/cli", 49, "drivers: the ropsim command"},
 };
 // Folders with sources that sit above every layer (nothing includes them);
 // tests/rtl: the Verilator testbenches, tests/gl: the GL test programs.

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "rtl_models/algo/blend.h"
-#include "rtl_models/algo/compression.h"
+#include "rtl_models/algo/compression_format.h"
 #include "rtl_models/algo/numerics.h"
 
 namespace ropsim {

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/surface_bytes.h"
 

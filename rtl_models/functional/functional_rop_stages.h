@@ -4,6 +4,7 @@
 #pragma once
 #include "rtl_models/algo/alpha_ref.h"
 #include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/algo/hilbert.h"
 #include "rtl_models/algo/method_kernels.h"

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "rtl_models/algo/blend.h"
-#include "rtl_models/algo/compression.h"
+#include "rtl_models/algo/compression_format.h"
 #include "rtl_models/algo/numerics.h"
 
 namespace ropsim {
@@ -23,7 +23,7 @@ enum class Method {
   kHashed,
   kHashedA2c,
   kSlab,
-  // Blending methods (issue #11): weighted blended OIT, and lk / enderton with
+  // Blending methods: weighted blended OIT, and lk / enderton with
   // Enderton et al.'s alpha correction (+ac) and depth-based accumulation (+depth).
   kWboit,
   kLkAc,

@@ -11,6 +11,7 @@
 #include <type_traits>
 
 #include "rtl_models/algo/blend.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/algo/slab.h"
 #include "rtl_models/algo/tracker.h"
 #include "rtl_models/functional/image.h"

@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/compression.h"
 
 namespace ropsim {
 

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "rtl_models/algo/buffers.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/config/hw_config.h"
 #include "rtl_models/memory/cache_tags.h"
 #include "rtl_models/memory/dram.h"

@@ -9,6 +9,7 @@
 #include "rtl_models/memory/compression_model.h"
 #include "rtl_models/memory/dram.h"
 #include "rtl_models/memory/rop_cache.h"
+#include "rtl_models/memory/tag_cache.h"
 #include "rtl_models/sorter/sort_algorithm.h"
 #include "rtl_models/top/rop_pipeline.h"
 #include "rtl_models/units/alpha_ref_gen.h"
@@ -25,6 +26,8 @@
 #include "util/memory_budget.h"
 
 namespace ropsim {
+
+static_assert(TagOnlyCache::kWayBytes == kApproxWayBytes, "kApproxWayBytes is a tag-only cache way's size");
 
 namespace {
 
@@ -235,7 +238,7 @@ MemoryEstimate estimate_memory(const HwConfig& hw, const MemoryShape& shape, Mem
         "compression: the tiles' state-bit cache, tag-only: per line its tag, LRU and dirty bit (counted as the "
         "cycle model's, which also keeps a ready cycle and a draw)",
         comp ? CompressionModel::metadata_cache_bytes(hw) : 0, 0);
-    uint64_t compressed = 0;  // the surfaces compressed (approx_compression.cpp)
+    uint64_t compressed = 0;  // the surfaces compressed (tag_compression.cpp)
     if (hw.compression.depth) ++compressed;
     if (hw.compression.color)
       compressed += 1 + (uses_transmittance(shape.method) ? 1 : 0) + (uses_accum(shape.method) ? 1 : 0);

@@ -81,9 +81,10 @@ const char* to_string(MemoryModel m);
 /// keys that cost the most. Charges nothing.
 void check_model_memory(const HwConfig& hw, const MemoryEstimate& e);
 
-/// The bytes of a TagOnlyCache way and of a FragRec record of the
-/// approximate model (sim/fidelity/approximate/approximate.cpp, which checks them with
-/// static_assert): it sits above this layer.
+/// The bytes of a TagOnlyCache way (tag_cache.h; memory_estimate.cpp checks
+/// it) and of a FragRec record of the approximate model
+/// (sim/fidelity/approximate/approximate.cpp, which checks it with
+/// static_assert: it sits above this layer).
 constexpr uint64_t kApproxWayBytes = 24;
 constexpr uint64_t kApproxRecordBytes = 48;
 /// The approximate model's fragment records: two batches of this many

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/functional/compressibility.h"
 #include "rtl_models/memory/compression_model.h"
 

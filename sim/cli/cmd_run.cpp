@@ -14,12 +14,15 @@
 #include "rtl_models/top/memory_estimate.h"
 #include "sim/cli/cli_common.h"
 #include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/fidelity.h"
 #include "sim/fidelity/functional/driver.h"
+#include "sim/fidelity/run.h"
 #include "sim/fidelity/sampled/livepoint_file.h"
 #include "sim/image/heat_map.h"
 #include "sim/image/image_io.h"
 #include "sim/report/cycle_report.h"
 #include "sim/report/report.h"
+#include "sim/report/run_report.h"
 #include "traces/format/trace.h"
 #include "util/host_threads.h"
 
@@ -52,6 +55,13 @@ struct RunOpts {
   std::string maps;         ///< the per-pixel maps' folder
   BreakdownRequest breakdown() const { return {per_draw || !draw_csv.empty(), !maps.empty()}; }
 };
+
+/// The run's fidelity (--fidelity, checked against fidelity_names()).
+Fidelity fidelity_of(const RunOpts& o) {
+  const auto f = parse_fidelity(o.fidelity);
+  invariant(f.has_value(), "--fidelity is checked against fidelity_names()");
+  return *f;
+}
 
 /// The sampling flags (a library fixes them when it is built).
 constexpr const char* kSamplingFlags[] = {"--sample-units",    "--sample-size",    "--sample-warmup",
@@ -277,8 +287,8 @@ std::string default_output_base(const RunOpts& o, const InputSpec& in, int spp, 
   // resolved design (numerics included), a functional run its numerics when
   // they are not the defaults.
   const Numerics& n = cfg.numerics;
-  if (o.fidelity != "functional")
-    base += "-" + o.fidelity + "-hw" + hw_digest_hex(hw);
+  if (const Fidelity f = fidelity_of(o); is_timed(f))
+    base += fmt::format("-{}-hw{}", to_string(f), hw_digest_hex(hw));
   else if (n.hash_bits != Numerics{}.hash_bits || n.alpha_bits != Numerics{}.alpha_bits ||
            n.surface_id_bits != Numerics{}.surface_id_bits)
     base += fmt::format("-h{}a{}s{}", n.hash_bits, n.alpha_bits, n.surface_id_bits);
@@ -352,7 +362,9 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
     rc.method = Method::kReference;
     reference = run_functional(in, rc).image;
   }
-  CycleRun run = run_cycle(in, cfg, hw, opt);
+  RunResult result(run_cycle(in, cfg, hw, opt));
+  result.set_reference(std::move(reference));
+  const CycleRun& run = *result.cycle();
   progress->update(1.0, run.counters.fragments);
   progress->finish();
   ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
@@ -362,11 +374,11 @@ int cmd_run_cycle(const RunOpts& o, const InputSpec& in, const GoldenConfig& cfg
   }
   std::vector<TextOutput> texts;
   if (run.intervals) texts.push_back(TextOutput{o.stats_csv, interval_csv(run)});
-  add_breakdown_outputs(o, run.breakdown.get(), true, run.image, reference, texts, run.stats.listed);
+  add_breakdown_outputs(o, run.breakdown.get(), true, run.image, result.reference(), texts, run.stats.listed);
   add_tile_maps(o, run, texts);
   write_outputs(
-      ctx, run.image, outs, report, [&] { return cycle_report(ctx, run, reference).dump(2); }, texts);
-  if (!o.quiet && report != "-") std::fputs(cycle_summary(ctx, run, reference).c_str(), stdout);
+      ctx, run.image, outs, report, [&] { return run_report(ctx, result).dump(2); }, texts);
+  if (!o.quiet && report != "-") std::fputs(run_summary(ctx, result).c_str(), stdout);
   return 0;
 }
 
@@ -419,28 +431,35 @@ int cmd_run_sampled(const RunOpts& o, const InputSpec& in, const GoldenConfig& r
   }
   const LivePoints& lib = library ? *library : recorded;
   from.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const SampledRun s = run_sampled(lib, hw, o.jobs > 0 ? o.jobs : available_cores());
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  RunRequest req;
+  req.fidelity = Fidelity::kSampled;
+  req.hw = hw;
+  req.library = &lib;
+  req.from = from;
+  req.jobs = o.jobs > 0 ? o.jobs : available_cores();
+  req.started = t0;
+  const RunResult result = run_fidelity(req);
   // (a library's frame statistics are not kept: its trace may be elsewhere)
   ReportContext ctx{cmdline, library ? lib.input.spec : in, run_cfg, {}, {}, library ? std::nullopt : frame_of(in)};
-  write_outputs(ctx, lib.image, outs, report, [&] { return sampled_report(ctx, lib, s, hw, wall, from).dump(2); });
-  if (!o.quiet && report != "-") std::fputs(sampled_summary(ctx, lib, s, hw, wall, from).c_str(), stdout);
+  write_outputs(ctx, lib.image, outs, report, [&] { return run_report(ctx, result).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(run_summary(ctx, result).c_str(), stdout);
   return 0;
 }
 
 int cmd_run_approximate(const InputSpec& in, const GoldenConfig& cfg, const HwConfig& hw, const RunOpts& o,
                         const std::vector<std::string>& outs, const std::string& report, const std::string& cmdline) {
-  const ApproxRun run = run_approximate(in, cfg, hw);
+  const RunResult result(run_approximate(in, cfg, hw));
   ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
-  write_outputs(ctx, run.image, outs, report, [&] { return approximate_report(ctx, run).dump(2); });
-  if (!o.quiet && report != "-") std::fputs(approximate_summary(ctx, run).c_str(), stdout);
+  write_outputs(ctx, result.image(), outs, report, [&] { return run_report(ctx, result).dump(2); });
+  if (!o.quiet && report != "-") std::fputs(run_summary(ctx, result).c_str(), stdout);
   return 0;
 }
 
 int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   set_progress_flags(o.quiet, o.progress);
-  const bool cycle = o.fidelity == "cycle", sampled = o.fidelity == "sampled";
-  const bool approximate = o.fidelity == "approximate";
+  const Fidelity fidelity = fidelity_of(o);
+  const bool cycle = fidelity == Fidelity::kCycle, sampled = fidelity == Fidelity::kSampled;
+  const bool approximate = fidelity == Fidelity::kApproximate;
   if (!sampled) {
     for (const char* f : kSamplingFlags)
       if (sub.count(f)) throw UserError(std::string(f) + " applies to --fidelity sampled");
@@ -528,14 +547,15 @@ int cmd_run(const RunOpts& o, CLI::App& sub, const std::string& cmdline) {
   }
   if (sampled) return cmd_run_sampled(o, in, run_cfg, hw, library ? &*library : nullptr, t0, outs, report, cmdline);
   if (approximate) return cmd_run_approximate(in, cfg, hw, o, outs, report, cmdline);
-  FunctionalRun run = run_functional(in, cfg, o.vs_reference, 0, o.breakdown());
+  const RunResult result(run_functional(in, cfg, o.vs_reference, 0, o.breakdown()));
+  const FunctionalRun& run = *result.functional();
   ReportContext ctx{cmdline, in, cfg, {}, {}, frame_of(in)};
   ctx.design = rtl_design_of(hw);  // the silicon cost: the --hw design (or the built-in one)
   std::vector<TextOutput> texts;
   add_breakdown_outputs(o, run.breakdown.get(), false, run.image, run.reference, texts);
   write_outputs(
-      ctx, run.image, outs, report, [&] { return functional_report(ctx, run).dump(2); }, texts);
-  if (!o.quiet && report != "-") std::fputs(functional_summary(ctx, run).c_str(), stdout);
+      ctx, run.image, outs, report, [&] { return run_report(ctx, result).dump(2); }, texts);
+  if (!o.quiet && report != "-") std::fputs(run_summary(ctx, result).c_str(), stdout);
   return 0;
 }
 
@@ -676,7 +696,7 @@ VerbRunner add_run_command(CLI::App& app, const std::string& command_line) {
          "functional (the golden model, default), cycle (the cycle-approximate SystemC pipeline), sampled "
          "(the pipeline on sampling units of the input, with 95 % intervals) or approximate (the analytical timing "
          "model: bounds from a tag-only cache and DRAM simulation)")
-      ->check(CLI::IsMember({"functional", "cycle", "sampled", "approximate"}));
+      ->check(CLI::IsMember(fidelity_names()));
   add_sampling_options(run, ro.get());
   run->add_option("--livepoints", ro->livepoints,
                   "sampled: read the live-points from this library (ropsim livepoints) instead of recording them: no "

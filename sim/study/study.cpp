@@ -14,6 +14,7 @@
 
 #include "rtl_models/algo/random_hash.h"
 #include "rtl_models/algo/slab.h"
+#include "sim/fidelity/fidelity.h"
 #include "sim/fidelity/sampled/livepoint_file.h"
 #include "util/child_process.h"
 #include "util/errors.h"
@@ -70,11 +71,11 @@ constexpr RunParam kRunParams[] = {
 
 bool is_sampling_key(const std::string& k) { return k.rfind("sample_", 0) == 0; }
 
-bool is_fidelity(const std::string& f) {
-  return f == "functional" || f == "cycle" || f == "sampled" || f == "approximate";
+/// Does the fidelity a study value names give time (and so take a design)?
+bool is_timed(const std::string& f) {
+  const auto fid = parse_fidelity(f);
+  return fid && is_timed(*fid);
 }
-/// Does the fidelity give time (and so take a design)?
-bool is_timed(const std::string& f) { return f != "functional"; }
 
 bool is_run_param(const std::string& k) {
   for (const auto& p : kRunParams)
@@ -135,7 +136,7 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
       fail(s, at, to_string(v) + " is not depth-first or original");
   } else if (key == "fidelity") {
     const std::string* f = std::get_if<std::string>(&v);
-    if (!f || !is_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle, sampled or approximate");
+    if (!f || !parse_fidelity(*f)) fail(s, at, to_string(v) + " is not functional, cycle, sampled or approximate");
   } else if (key == "sample_units" || key == "sample_size") {
     int_of(s, at, v, 1, int64_t{1} << 40);
   } else if (key == "sample_warmup" || key == "sample_cooldown" || key == "sample_warming") {
@@ -654,7 +655,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
         for (auto it = p.params.begin(); it != p.params.end();)
           it = is_hardware(it->first) ? p.params.erase(it) : std::next(it);
       // Likewise the sampling of a point that is not sampled.
-      if (f == p.params.end() || std::get<std::string>(f->second) != "sampled")
+      if (f == p.params.end() || parse_fidelity(std::get<std::string>(f->second)) != Fidelity::kSampled)
         for (auto it = p.params.begin(); it != p.params.end();)
           it = is_sampling_key(it->first) ? p.params.erase(it) : std::next(it);
       // The identity: what the input is, every parameter, what the metrics
@@ -787,7 +788,11 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
   r.method.slab_layers = int(get_int("slab_layers", MethodConfig{}.slab_layers));
   r.method.slab_bits = int(get_int("slab_bits", MethodConfig{}.slab_bits));
   const StudyValue* f = get("fidelity");
-  if (f) r.fidelity = std::get<std::string>(*f);
+  if (f) {
+    const auto fid = parse_fidelity(std::get<std::string>(*f));
+    if (!fid) fail(s, "fidelity", std::get<std::string>(*f) + " is not functional, cycle, sampled or approximate");
+    r.fidelity = *fid;
+  }
   std::vector<std::string> overrides;
   for (const auto& [k, v] : p.params)
     if (is_hw_key(k)) overrides.push_back(k + "=" + to_string(v));
@@ -797,7 +802,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     r.hw.name = "study " + s.name + (design ? ", design " + std::get<std::string>(*design) : "");
     r.method.formats = r.hw.blend.formats;  // the blend targets' formats are functional too
   }
-  if (r.fidelity == "sampled") {
+  if (r.fidelity == Fidelity::kSampled) {
     SamplingParams& sp0 = r.sampling;
     sp0.units = uint64_t(get_int("sample_units", int64_t(sp0.units)));
     sp0.unit_fragments = uint64_t(get_int("sample_size", int64_t(sp0.unit_fragments)));

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "rtl_models/config/hw_config.h"
+#include "sim/fidelity/fidelity.h"
 #include "sim/fidelity/functional/driver.h"
 #include "sim/fidelity/sampled/livepoints.h"
 #include "traces/capture/app_entry.h"
@@ -133,8 +134,8 @@ struct ResolvedPoint {
   AppOverrides capture_app_overrides;  ///< app inputs: spp and resolution
   InputSpec input;
   MethodConfig method;
-  std::string fidelity = "functional";  ///< functional, cycle, sampled or approximate
-  bool timed() const { return fidelity != "functional"; }
+  Fidelity fidelity = Fidelity::kFunctional;
+  bool timed() const { return is_timed(fidelity); }
   HwConfig hw;                 ///< timed fidelities: the design
   SamplingParams sampling;     ///< sampled: the defaults
   std::string livepoints_key;  ///< sampled: its live-point library, DIR/livepoints/<key>.rlp

@@ -24,10 +24,13 @@
 
 #include "sim/fidelity/approximate/approximate.h"
 #include "sim/fidelity/cycle/cycle_run.h"
+#include "sim/fidelity/fidelity.h"
+#include "sim/fidelity/run.h"
 #include "sim/fidelity/sampled/livepoint_file.h"
 #include "sim/image/image_io.h"
 #include "sim/report/cycle_report.h"
 #include "sim/report/report.h"
+#include "sim/report/run_report.h"
 #include "traces/capture/capture.h"
 #include "traces/glcapture/gl_capture.h"
 #include "util/errors.h"
@@ -303,46 +306,29 @@ void run_point(const Study& s, const StudyPoint& p, const std::string& dir) {
   }
   ReportContext ctx{
       "ropsim study run " + s.path + " (point " + p.hash + ")", r.input, r.method, {}, {}, frame_of(r.input)};
-  nlohmann::ordered_json report;
-  std::string summary, note;
-  Image image;
-  if (r.fidelity == "sampled") {
-    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
-    const auto t0 = std::chrono::steady_clock::now();
-    LibrarySource from;
+  RunRequest req;
+  req.fidelity = r.fidelity;
+  req.input = r.input;
+  req.method = r.method;
+  req.hw = r.hw;
+  std::string note;
+  if (r.timed()) write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
+  if (r.fidelity == Fidelity::kSampled) {
     std::string rebuilt;
-    const LivePoints& lib = point_library(r, dir, from.seconds, rebuilt);
-    from.path = (fs::path(dir) / "livepoints" / (r.livepoints_key + ".rlp")).string();
+    req.library = &point_library(r, dir, req.from.seconds, rebuilt);
+    req.from.path = (fs::path(dir) / "livepoints" / (r.livepoints_key + ".rlp")).string();
     if (!rebuilt.empty()) {
       // The point's log and the run's standard error say so.
-      note = "live-point library " + from.path + ": " + rebuilt + "\n";
+      note = "live-point library " + req.from.path + ": " + rebuilt + "\n";
       std::fprintf(stderr, "ropsim: study %s: %s", s.name.c_str(), note.c_str());
     }
-    const SampledRun run = run_sampled(lib, r.hw, 1);
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    report = sampled_report(ctx, lib, run, r.hw, wall, from, reference);
-    summary = sampled_summary(ctx, lib, run, r.hw, wall, from, reference);
-    image = lib.image;
-  } else if (r.fidelity == "approximate") {
-    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
-    ApproxRun run = run_approximate(r.input, r.method, r.hw);
-    report = approximate_report(ctx, run, reference);
-    summary = approximate_summary(ctx, run, reference);
-    image = std::move(run.image);
-  } else if (r.timed()) {
-    write_text_output((pd / "design.toml").string(), hw_config_to_toml(r.hw));
-    CycleRun run = run_cycle(r.input, r.method, r.hw);
-    report = cycle_report(ctx, run, reference);
-    summary = cycle_summary(ctx, run, reference);
-    image = std::move(run.image);
-  } else {
-    FunctionalRun run = run_functional(r.input, r.method);
-    run.reference = reference;
-    ctx.design = rtl_design_of(r.hw);  // a functional point's silicon cost: the built-in design
-    report = functional_report(ctx, run);
-    summary = functional_summary(ctx, run);
-    image = std::move(run.image);
   }
+  if (!r.timed()) ctx.design = rtl_design_of(r.hw);  // a functional point's silicon cost: the built-in design
+  RunResult run = run_fidelity(req);
+  run.set_reference(std::move(reference));
+  const nlohmann::ordered_json report = run_report(ctx, run);
+  const std::string summary = run_summary(ctx, run);
+  const Image& image = run.image();
   if (s.save_images) write_image(image, (pd / "image.png").string());
   write_text_output((pd / "log.txt").string(), note + summary);
   write_text_output((pd / "report.json").string(), report.dump(2) + "\n");

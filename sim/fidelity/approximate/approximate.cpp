@@ -9,14 +9,17 @@
 #include "rtl_models/algo/bits.h"
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/functional_rop.h"
+#include "rtl_models/functional/pass_loop.h"
 #include "rtl_models/memory/address_map.h"
 #include "rtl_models/memory/cache_tags.h"
 #include "rtl_models/memory/line_set.h"
+#include "rtl_models/memory/tag_cache.h"
+#include "rtl_models/memory/tag_compression.h"
+#include "rtl_models/memory/tag_dram.h"
 #include "rtl_models/sorter/sort_algorithm.h"
 #include "rtl_models/top/memory_estimate.h"
 #include "rtl_models/top/store_tile_source.h"
 #include "rtl_models/units/rop_ownership.h"
-#include "sim/fidelity/approximate/approx_compression.h"
 #include "sim/fidelity/cycle/cycle_run.h"
 #include "util/errors.h"
 #include "util/memory_budget.h"
@@ -45,282 +48,6 @@ const char* to_string(ApproxBound b) {
 }
 
 namespace {
-
-// ------------------------------------------------------------ tag-only DRAM
-
-/// The DRAM's address map (dram.h: channel from the interleave granule folded
-/// with higher bits, bank from the row) and its row buffers, tag-only; and
-/// each channel's bursts served in arrival order, twice:
-///  - as fast as the channel can, as Dram::access does for requests that all
-///    arrive at once: a burst starts when the data bus is free and its bank
-///    is free (plus the row-miss penalty). The clock this keeps per channel
-///    (bus_free) is the cycles the channel needs for its bursts so far,
-///    whatever the arrival times: a lower bound (the DRAM bound).
-///  - timed, by Dram::access's rule for a burst requested at a cycle
-///    (set_now: the estimated cycle its fragment entered the depth test): it
-///    starts no earlier than its request, its bank (plus the row-miss
-///    penalty) and the channel's data bus, behind every burst requested
-///    before it -- the posted write-backs and the other ROPs' reads. A
-///    read's latency is the cycles from its request to its data: the
-///    queueing behind the channel's backlog included. The bursts come in the
-///    order the model visits the fragments (input order), so one requested
-///    earlier than a burst already served waits behind it.
-class DramTags : public BurstSink {
- public:
-  explicit DramTags(const HwConfig::Dram& cfg) : cfg_(cfg), map_(cfg), ch_(cfg.channels) {
-    for (auto& c : ch_) {
-      c.open_row.assign(cfg.banks, ~uint64_t{0});
-      c.bank_free.assign(cfg.banks, 0);
-      c.timed_bank_free.assign(cfg.banks, 0);
-    }
-  }
-  /// The cycle of the next bursts' request (the timed service).
-  void set_now(uint64_t now) { now_ = now; }
-  /// One burst of `bytes`, requested at set_now's cycle; returns a read's
-  /// latency (the timed service: queueing behind the channel's earlier
-  /// bursts, row miss, transfer, the read latency). A burst requested
-  /// `after` cycles later (a compressed fill's data after its state bits)
-  /// starts no earlier than that; its latency counts from set_now's cycle.
-  uint64_t access(uint64_t addr, uint32_t bytes, bool write, Buffer b, uint64_t after) override {
-    const DramAddressMap::Place at = map_.place(addr);
-    const size_t ch_index = at.channel;
-    Channel& c = ch_[ch_index];
-    if (!write) c.read = true;
-    const uint64_t row = at.row, bank = at.bank;
-    uint64_t ready = c.bank_free[bank], penalty = 0;
-    if (c.open_row[bank] == row) {
-      ++s_.row_hits;
-    } else {
-      ++s_.row_misses;
-      c.open_row[bank] = row;
-      penalty = cfg_.row_miss_cycles;
-    }
-    ready += penalty;
-    const uint64_t transfer = ceil_div<uint64_t>(bytes, cfg_.bytes_per_clock);
-    const uint64_t start = std::max(ready, c.bus_free);
-    c.bus_free = c.bank_free[bank] = start + transfer;
-    c.busy += transfer;
-    // Timed, as Dram::access: the bank from the request (or its previous
-    // burst), the row switch in the bank, then the shared data bus.
-    const uint64_t timed_start = std::max(std::max(now_ + after, c.timed_bank_free[bank]) + penalty, c.timed_bus_free);
-    // Dram::access's service: from the request (or the previous burst's end)
-    // to the end of the transfer.
-    c.timed_service += timed_start + transfer - std::max(now_ + after, c.timed_bus_free);
-    c.timed_bus_free = c.timed_bank_free[bank] = timed_start + transfer;
-    if (write) {
-      ++s_.writes;
-      s_.bytes_written[size_t(b)] += bytes;
-      return 0;
-    }
-    ++s_.reads;
-    s_.bytes_read[size_t(b)] += bytes;
-    return timed_start + transfer + cfg_.latency_cycles - now_;
-  }
-  /// The busiest channel's service clock (cycles).
-  uint64_t max_clock() const {
-    uint64_t m = 0;
-    for (const auto& c : ch_) m = std::max(m, c.bus_free);
-    return m;
-  }
-  /// The channel of a burst address.
-  size_t channel_of(uint64_t addr) const { return map_.channel_of(addr); }
-  /// Each channel's service clock.
-  void clocks(std::vector<uint64_t>& out) const {
-    out.resize(ch_.size());
-    for (size_t i = 0; i < ch_.size(); ++i) out[i] = ch_[i].bus_free;
-  }
-  /// The busiest channel's service cycles in the timed service.
-  uint64_t max_timed_service() const {
-    uint64_t m = 0;
-    for (const auto& c : ch_) m = std::max(m, c.timed_service);
-    return m;
-  }
-  uint64_t max_busy() const {
-    uint64_t m = 0;
-    for (const auto& c : ch_) m = std::max(m, c.busy);
-    return m;
-  }
-  /// Whether channel i served a read since the last call, and forget it.
-  bool take_read(size_t i) {
-    const bool r = ch_[i].read;
-    ch_[i].read = false;
-    return r;
-  }
-  size_t channels() const { return ch_.size(); }
-  const DramStats& stats() const { return s_; }
-
- private:
-  HwConfig::Dram cfg_;
-  DramAddressMap map_;
-  struct Channel {
-    uint64_t bus_free = 0, busy = 0;
-    uint64_t timed_bus_free = 0;  // the timed service's data bus
-    uint64_t timed_service = 0;   // the timed service's cycles, as Dram::access counts them
-    bool read = false;            // a read since the last take_reads
-    std::vector<uint64_t> open_row, bank_free, timed_bank_free;
-  };
-  std::vector<Channel> ch_;
-  uint64_t now_ = 0;
-  DramStats s_;
-};
-
-// ------------------------------------------------------------ tag-only cache
-
-/// One ROP cache's tags, as RopCache holds them: the same sets (the same
-/// index function), ways, LRU replacement, read-allocate with a fill,
-/// write-allocate without one, fast clear from the lines DRAM holds, and the
-/// final flush in way order. Its misses and write-backs go to the DRAM model
-/// (dram.h: the channel, bank and row map, the row buffers, each channel's
-/// bursts served in arrival order) at the cycle the model estimates for the
-/// access. With compression (comp), the compressed surfaces' fills and
-/// write-backs move their tiles' compressed bytes and the state bits
-/// (approx_compression.h), and a dirty line's eviction writes its tile's
-/// other dirty lines with it, as RopCache does.
-class TagOnlyCache {
- public:
-  enum class Read { kHit, kClearFill, kMiss };
-  /// window: the depth test's outstanding fragments (depth_test.max_outstanding);
-  /// rop: the cache's ROP (its metadata cache).
-  TagOnlyCache(const HwConfig::Cache& cfg, uint32_t window, DramTags& dram, LineSet& in_dram, TagOnlyCompression* comp,
-               uint32_t rop)
-      : window_(window),
-        cfg_(cfg),
-        dram_(dram),
-        in_dram_(in_dram),
-        comp_(comp),
-        rop_(rop),
-        tags_(cfg),
-        ways_(tags_.size()) {}
-
-  /// A read; latency: the cycles until its data is there, unloaded.
-  Read read(uint64_t line, Buffer b, uint64_t& latency) {
-    bool hit = false;
-    Way& w = ways_[lookup(line, hit)];
-    if (hit) {
-      ++s_.read_hits[size_t(b)];
-      latency = cfg_.hit_latency_cycles;
-      // A hit on a line whose fill is still in flight waits for it (the
-      // cache's MSHR merge). The fill is in flight while its fragment waits
-      // in the depth test: for the next `window` fragments of this ROP, the
-      // k-th of which (entering k / window of a fill's latency later, when
-      // the depth test's slots turn over once per fill) waits the rest. Not a
-      // fragment of the same pixel: pixel ordering issued it only after the
-      // filling fragment retired, its data there.
-      const uint64_t k = seq_ - w.fill_seq;
-      if (w.fill_seq != kNoFill && k > 0 && k < window_ && w.fill_pixel != pixel_) {
-        ++s_.merged;
-        latency = std::max<uint64_t>(latency, w.fill_latency * (window_ - k) / window_);
-      }
-      return Read::kHit;
-    }
-    ++s_.read_misses[size_t(b)];
-    w.buf = b;
-    w.dirty = false;
-    w.fill_seq = kNoFill;
-    if (cfg_.fast_clear && !in_dram_.contains(line)) {
-      ++s_.clear_fills;
-      latency = cfg_.hit_latency_cycles;
-      return Read::kClearFill;
-    }
-    if (comp_ && comp_->compresses(b))
-      latency = comp_->fill(line, b, rop_) + cfg_.hit_latency_cycles;
-    else
-      latency = dram_.access(line, cfg_.line_bytes, false, b, 0) + cfg_.hit_latency_cycles;
-    w.fill_seq = seq_;
-    w.fill_latency = uint32_t(latency);
-    w.fill_pixel = pixel_;
-    return Read::kMiss;
-  }
-  void write(uint64_t line, Buffer b) {
-    bool hit = false;
-    Way& w = ways_[lookup(line, hit)];
-    if (hit) {
-      ++s_.write_hits[size_t(b)];
-    } else {
-      ++s_.write_misses[size_t(b)];
-      w.buf = b;
-      w.fill_seq = kNoFill;
-    }
-    if (!w.dirty) ++s_.dirtied;
-    w.dirty = true;
-    if (comp_) comp_->touched(line, b);
-  }
-  void flush() {
-    for (size_t i = 0; i < ways_.size(); ++i)
-      if (Way& w = ways_[i]; tags_.tag(i) != CacheTags::kInvalid && w.dirty) {
-        write_back(tags_.tag(i), w.buf);
-        w.dirty = false;
-      }
-  }
-  /// The next fragment of this ROP, at pixel key `pixel` (its reads follow).
-  void next_fragment(uint32_t pixel) {
-    ++seq_;
-    pixel_ = pixel;
-  }
-  const CacheStats& stats() const { return s_; }
-
- private:
-  static constexpr uint64_t kNoFill = ~uint64_t{0};
-  struct Way {
-    uint64_t fill_seq = kNoFill;  // the fragment whose read filled it from DRAM
-    uint32_t fill_latency = 0;    // that fill's latency
-    uint32_t fill_pixel = 0;      // that fragment's pixel
-    Buffer buf = Buffer::kDepth;
-    bool dirty = false;
-  };
-  // The cycle model's placement (cache_tags.h); a miss evicts the way's line.
-  size_t lookup(uint64_t line, bool& hit) {
-    const size_t victim = tags_.find(line, hit);
-    if (hit) return victim;
-    if (const uint64_t old = tags_.tag(victim); old != CacheTags::kInvalid) {
-      ++s_.evictions;
-      if (ways_[victim].dirty) {
-        ++s_.dirty_evictions;
-        const Buffer b = ways_[victim].buf;
-        write_back(old, b);
-        // A compressed tile leaves as a block: the tile's other dirty lines
-        // are written back with it (and stay, clean).
-        if (comp_ && comp_->compresses(b)) {
-          uint64_t first = 0, count = 0;
-          comp_->tile_lines(old, b, first, count);
-          for (uint64_t k = 0; k < count; ++k) {
-            const uint64_t other = first + k * cfg_.line_bytes;
-            if (other == old) continue;
-            const size_t ow = tags_.probe(other);
-            if (ow == CacheTags::kNone || !ways_[ow].dirty || ways_[ow].buf != b) continue;
-            write_back(other, b);
-            ways_[ow].dirty = false;
-          }
-        }
-      }
-      ways_[victim].dirty = false;
-    }
-    tags_.install(victim, line);
-    return victim;
-  }
-  /// A dirty line to DRAM: compressed (a cleared tile writes no data and
-  /// stays out of DRAM: a later fill is a clear fill), or whole.
-  void write_back(uint64_t line, Buffer b) {
-    if (comp_ && comp_->compresses(b)) {
-      if (comp_->write_back(line, b, rop_)) in_dram_.insert(line);
-      return;
-    }
-    if (comp_ && b == Buffer::kDepth) comp_->depth_written_back(line);  // Hi-Z alone
-    dram_.access(line, cfg_.line_bytes, true, b, 0);
-    in_dram_.insert(line);
-  }
-  static_assert(sizeof(Way) == kApproxWayBytes, "memory_estimate.h's kApproxWayBytes is a tag-only way's size");
-  uint64_t window_, seq_ = 0;
-  uint32_t pixel_ = 0;
-  HwConfig::Cache cfg_;
-  DramTags& dram_;
-  LineSet& in_dram_;
-  TagOnlyCompression* comp_;
-  uint32_t rop_;
-  CacheTags tags_;
-  std::vector<Way> ways_;
-  CacheStats s_;
-};
 
 // ------------------------------------------------------------ the model
 
@@ -763,96 +490,96 @@ ApproxRun run_approximate(const InputSpec& in, const GoldenConfig& method, const
   std::vector<std::array<double, kUnitKinds>> rop_demand(hw.distributor.rop_units);
   Progress progress("approximate", "fragments");
   uint64_t read = 0;
-  for (int pass = 0; pass < rop->passes(); ++pass) {
-    rop->begin_pass(pass);
-    if (pass > 0) src = open_fragments(in);
-    Model model(hw, *rop, in_dram, s, comp.get());
-    const MethodTraits& mt = rop->traits();
-    const bool blend_pass = is_blend_pass(rop->pass());
-    // The functional pass fills batches of records; the model (the tag-only
-    // caches and DRAM, the epochs) consumes the previous batch on a second
-    // thread meanwhile, in order, so the result does not depend on it.
-    constexpr size_t kBatch = size_t{1} << 15;
-    static_assert(kBatch == kApproxBatchRecords, "memory_estimate.h counts two batches of kApproxBatchRecords");
-    std::vector<FragRec> batch, spare;
-    batch.reserve(kBatch);
-    spare.reserve(kBatch);
-    std::future<void> job;
-    auto hand_over = [&] {
-      if (job.valid()) job.get();
-      std::swap(batch, spare);
-      batch.clear();
-      job = std::async(std::launch::async, [&model, &spare] {
-        for (const FragRec& r : spare) model.fragment(r);
-      });
-    };
-    FragWork w;
-    Fragment f;
-    while (src->next(f)) {
-      w.f = &f;
-      rop->fetch(w);
-      rop->depth().run(w);
-      FragRec r;
-      r.x = f.x;
-      r.y = f.y;
-      r.covered = w.covered;
-      r.survivors = w.survivors;
-      r.m = uint16_t(w.m);
-      r.depth_test = !w.draw || w.draw->depth_test;
-      if (comp && comp->hiz()) {
-        // Which fragments the depth test may reject by Hi-Z (depth_test.cpp):
-        // the methods' own test, or a draw testing LESS or LEQUAL (blend's
-        // draws and a frame's opaque and blended draws test with their own).
-        const bool own_test = method.method == Method::kBlend || w.route != DrawRoute::kMethod;
-        r.hiz_test = !own_test ? !w.draw || w.draw->depth_test
-                               : w.draw->depth_test && (w.draw->depth_func == DepthFunc::kLess ||
-                                                        w.draw->depth_func == DepthFunc::kLequal);
-        float zmin = 1.0f;
-        for (uint64_t m = w.covered; m; m &= m - 1) zmin = std::min(zmin, w.z[__builtin_ctzll(m)]);
-        r.zmin = zmin;
-      }
-      if (!w.killed()) {
-        if (blend_pass) {
-          r.blended = uint16_t(rop->blend().run(w));
-        } else {
-          if (mt.tracker) rop->track().run(w);
-          if (mt.sorter) rop->sort().run(w);
-          if (mt.reference) r.hashes = uint16_t(rop->reference().run(w));
-          r.examined = uint16_t(rop->write().run(w));
-          r.slab_kept = method.method == Method::kSlab && w.slab.kept;
+  for_each_pass(
+      *rop, src, [&] { return open_fragments(in); },
+      [&](int pass, int passes) {
+        Model model(hw, *rop, in_dram, s, comp.get());
+        const MethodTraits& mt = rop->traits();
+        const bool blend_pass = is_blend_pass(rop->pass());
+        // The functional pass fills batches of records; the model (the tag-only
+        // caches and DRAM, the epochs) consumes the previous batch on a second
+        // thread meanwhile, in order, so the result does not depend on it.
+        constexpr size_t kBatch = size_t{1} << 15;
+        static_assert(kBatch == kApproxBatchRecords, "memory_estimate.h counts two batches of kApproxBatchRecords");
+        std::vector<FragRec> batch, spare;
+        batch.reserve(kBatch);
+        spare.reserve(kBatch);
+        std::future<void> job;
+        auto hand_over = [&] {
+          if (job.valid()) job.get();
+          std::swap(batch, spare);
+          batch.clear();
+          job = std::async(std::launch::async, [&model, &spare] {
+            for (const FragRec& r : spare) model.fragment(r);
+          });
+        };
+        FragWork w;
+        Fragment f;
+        while (src->next(f)) {
+          w.f = &f;
+          rop->fetch(w);
+          rop->depth().run(w);
+          FragRec r;
+          r.x = f.x;
+          r.y = f.y;
+          r.covered = w.covered;
+          r.survivors = w.survivors;
+          r.m = uint16_t(w.m);
+          r.depth_test = !w.draw || w.draw->depth_test;
+          if (comp && comp->hiz()) {
+            // Which fragments the depth test may reject by Hi-Z (depth_test.cpp):
+            // the methods' own test, or a draw testing LESS or LEQUAL (blend's
+            // draws and a frame's opaque and blended draws test with their own).
+            const bool own_test = method.method == Method::kBlend || w.route != DrawRoute::kMethod;
+            r.hiz_test = !own_test ? !w.draw || w.draw->depth_test
+                                   : w.draw->depth_test && (w.draw->depth_func == DepthFunc::kLess ||
+                                                            w.draw->depth_func == DepthFunc::kLequal);
+            float zmin = 1.0f;
+            for (uint64_t m = w.covered; m; m &= m - 1) zmin = std::min(zmin, w.z[__builtin_ctzll(m)]);
+            r.zmin = zmin;
+          }
+          if (!w.killed()) {
+            if (blend_pass) {
+              r.blended = uint16_t(rop->blend().run(w));
+            } else {
+              if (mt.tracker) rop->track().run(w);
+              if (mt.sorter) rop->sort().run(w);
+              if (mt.reference) r.hashes = uint16_t(rop->reference().run(w));
+              r.examined = uint16_t(rop->write().run(w));
+              r.slab_kept = method.method == Method::kSlab && w.slab.kept;
+            }
+            r.written = rop->pass() == PassKind::kFramebuffer ? w.depth_written : w.written;
+            r.route = w.route;
+            if (w.draw) r.reads_colour = (blend_pass || w.route != DrawRoute::kMethod) && draw_reads_colour(*w.draw);
+            r.depth_write = w.route != DrawRoute::kMethod && w.depth_written != 0;
+          }
+          if (comp) {  // the model reads the store as it is now
+            model.fragment(r);
+            if (++read % kBatch == 0) progress.update(pass_progress(pass, passes, src->consumed()), read);
+            continue;
+          }
+          batch.push_back(r);
+          if (batch.size() == kBatch) {
+            hand_over();
+            read += kBatch;
+            progress.update(pass_progress(pass, passes, src->consumed()), read);
+          }
         }
-        r.written = rop->pass() == PassKind::kFramebuffer ? w.depth_written : w.written;
-        r.route = w.route;
-        if (w.draw) r.reads_colour = (blend_pass || w.route != DrawRoute::kMethod) && draw_reads_colour(*w.draw);
-        r.depth_write = w.route != DrawRoute::kMethod && w.depth_written != 0;
-      }
-      if (comp) {  // the model reads the store as it is now
-        model.fragment(r);
-        if (++read % kBatch == 0) progress.update((double(pass) + src->consumed()) / double(rop->passes()), read);
-        continue;
-      }
-      batch.push_back(r);
-      if (batch.size() == kBatch) {
-        hand_over();
-        read += kBatch;
-        progress.update((double(pass) + src->consumed()) / double(rop->passes()), read);
-      }
-    }
-    if (job.valid()) job.get();
-    read += batch.size();
-    for (const FragRec& x : batch) model.fragment(x);
-    const PassResult p = model.finish();
-    s.pipeline_cycles += p.cycles + p.fill;
-    s.fill_cycles += p.fill;
-    s.flush_cycles += p.flush;
-    s.total_cycles += p.cycles + p.fill + p.flush;
-    s.epochs += p.epochs;
-    s.dram_service_cycles += p.dram_service;
-    s.dram_timed_service_cycles += p.dram_timed_service;
-    for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
-    for (size_t r = 0; r < rop_demand.size(); ++r)
-      for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
-  }
+        if (job.valid()) job.get();
+        read += batch.size();
+        for (const FragRec& x : batch) model.fragment(x);
+        const PassResult p = model.finish();
+        s.pipeline_cycles += p.cycles + p.fill;
+        s.fill_cycles += p.fill;
+        s.flush_cycles += p.flush;
+        s.total_cycles += p.cycles + p.fill + p.flush;
+        s.epochs += p.epochs;
+        s.dram_service_cycles += p.dram_service;
+        s.dram_timed_service_cycles += p.dram_timed_service;
+        for (int k = 0; k < kUnitKinds; ++k) unit_cycles[size_t(k)] += model.unit_cycles[size_t(k)];
+        for (size_t r = 0; r < rop_demand.size(); ++r)
+          for (int k = 0; k < kUnitKinds; ++k) rop_demand[r][size_t(k)] += model.rop_demand[r][size_t(k)];
+      });
   if (comp) s.compression = comp->stats();
   progress.update(1.0, read);
   progress.finish();

@@ -1,4 +1,4 @@
-// The analytical timing model (--fidelity approximate; issue #12, part 2).
+// The analytical timing model (--fidelity approximate).
 //
 // One functional pass over the input (the golden image, bit for bit, and each
 // fragment's design-independent work: the samples it tested, passed, hashed,
@@ -12,7 +12,7 @@
 // DRAM channels' service of their bursts -- and adds the epochs' largest
 // bounds, the pipeline's fill and the final cache flush. With surface
 // compression or Hi-Z on, the caches' DRAM traffic follows the cycle model's
-// rules, tag-only (approx_compression.h), over the functional store's tiles. docs/architecture.md
+// rules, tag-only (tag_compression.h), over the functional store's tiles. docs/architecture.md
 // ("The analytical model") derives each term from the design's parameters;
 // nothing is fitted to the cycle model's outputs.
 #pragma once
@@ -30,7 +30,7 @@
 #include "rtl_models/memory/compression_model.h"
 #include "rtl_models/memory/dram.h"
 #include "rtl_models/memory/rop_cache.h"
-#include "sim/fidelity/bottleneck.h"
+#include "sim/fidelity/common/bottleneck.h"
 
 namespace ropsim {
 
@@ -81,7 +81,7 @@ struct ApproxStats {
   Bottleneck bottleneck;
   CacheStats cache;  ///< tag-only, summed over the ROPs
   DramStats dram;    ///< bytes, bursts and row hits of the tag-only DRAM
-  /// Compression and Hi-Z (approx_compression.h), when the design has either.
+  /// Compression and Hi-Z (tag_compression.h), when the design has either.
   bool compression_on = false;
   CompressionTraffic compression;
   uint32_t listed = (1u << kBaseBuffers) - 1;  ///< as CycleStats::listed

@@ -8,6 +8,7 @@
 
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/compressibility.h"
+#include "rtl_models/functional/pass_loop.h"
 #include "rtl_models/memory/compression_model.h"
 #include "rtl_models/memory/line_set.h"
 #include "rtl_models/top/memory_estimate.h"
@@ -194,15 +195,13 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
     uint32_t draw, tile;
   };
   std::vector<Retired> retired;
-  for (int pass = 0; pass < n_passes; ++pass) {
-    rop->begin_pass(pass);
-    if (pass > 0) input = open_input();
+  for_each_pass(*rop, input, open_input, [&](int pass, int) {
     FreshSimContext sim;
     const char* top_name = n_passes > 1 ? to_string(rop->pass()) : "top";
     auto top = std::make_unique<RopPipeline>(top_name, std::move(input), *rop, in_dram, hw);
     if (opt.progress)
       top->source().on_progress = [&opt, progress_base, pass, n_passes](uint64_t n, double consumed) {
-        opt.progress(progress_base + n, (double(pass) + consumed) / double(n_passes));
+        opt.progress(progress_base + n, pass_progress(pass, n_passes, consumed));
       };
     top->retirement().hook = opt.retire_hook;
     if (RunBreakdown* b = run.breakdown.get()) {
@@ -286,7 +285,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
     if (pass == 0 && n_passes == 1) s.dram = ps.dram;  // a single pass: its figures exactly
     s.tokens_allocated = std::max(s.tokens_allocated, top->tokens().allocated());
     top.reset();
-  }
+  });
   if (wave) {
     const uint64_t end = s.total_cycles, shown = wave->last_shown(end);
     char comment[448];

@@ -24,7 +24,7 @@
 #include "rtl_models/observe/attribution.h"
 #include "rtl_models/observe/interval_log.h"
 #include "rtl_models/top/store_tile_source.h"
-#include "sim/fidelity/bottleneck.h"
+#include "sim/fidelity/common/bottleneck.h"
 
 namespace ropsim {
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <fstream>
 
+#include "rtl_models/functional/pass_loop.h"
 #include "util/errors.h"
 #include "util/memory_budget.h"
 #include "util/progress.h"
@@ -52,30 +53,31 @@ FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool 
   }
   Progress progress(cfg.method == Method::kReference ? "reference" : "functional", "fragments");
   uint64_t read = 0;
-  int pass = 0;
-  const int passes = model->passes();
+  int pass = 0, passes = 1;
   auto fill = [&](std::vector<Fragment>& b) {
     size_t n = 0;
     while (n < b.size() && src->next(b[n])) ++n;
     read += n;
-    progress.update((double(pass) + src->consumed()) / double(passes), read);
+    progress.update(pass_progress(pass, passes, src->consumed()), read);
     return n;
   };
-  for (; pass < passes; ++pass) {
-    if (pass > 0) src = open_fragments(in);  // every pass replays the input
-    model->begin_pass(pass);
-    FunctionalModel* r = pass == 0 ? ref.get() : nullptr;
-    for (size_t n = fill(cur), n_next = 0; n > 0; n = n_next) {
-      model->draw_batch(cur.data(), n, [&] {
-        if (r)
-          for (size_t i = 0; i < n; ++i) r->draw(cur[i]);
-        n_next = fill(next);
+  for_each_pass(
+      *model, src, [&] { return open_fragments(in); },
+      [&](int p, int n_passes) {
+        pass = p;
+        passes = n_passes;
+        FunctionalModel* r = pass == 0 ? ref.get() : nullptr;
+        for (size_t n = fill(cur), n_next = 0; n > 0; n = n_next) {
+          model->draw_batch(cur.data(), n, [&] {
+            if (r)
+              for (size_t i = 0; i < n; ++i) r->draw(cur[i]);
+            n_next = fill(next);
+          });
+          if (RunBreakdown* b = run.breakdown.get())
+            for (size_t i = 0; i < n; ++i) b->add(cur[i], deltas[i]);
+          cur.swap(next);
+        }
       });
-      if (RunBreakdown* b = run.breakdown.get())
-        for (size_t i = 0; i < n; ++i) b->add(cur[i], deltas[i]);
-      cur.swap(next);
-    }
-  }
   progress.update(1.0, read);
   progress.finish();
   run.image = model->resolve();

@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "rtl_models/algo/bits.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/functional_rop.h"
 #include "rtl_models/golden/golden_model.h"

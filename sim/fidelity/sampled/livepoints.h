@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "rtl_models/algo/buffers.h"
+#include "rtl_models/algo/compression.h"
 #include "rtl_models/config/hw_config.h"
 #include "rtl_models/functional/frag_work.h"
 #include "rtl_models/functional/fragment_source.h"
@@ -266,6 +267,12 @@ struct SampledRun {
   double cpu_seconds = 0;            ///< the units' host time summed over the processes that ran them
   int jobs = 1;                      ///< worker processes
 };
+/// Where a sampled run's live-points came from.
+struct LibrarySource {
+  std::string path;    ///< the library file read, or "" (recorded by this run)
+  double seconds = 0;  ///< host time to record or read it
+};
+
 /// Simulates every unit (in `jobs` worker processes when jobs > 1; the
 /// figures are the same for every job count) and estimates the run's.
 SampledRun run_sampled(const LivePoints& lib, const HwConfig& hw, int jobs = 1);

@@ -1,9 +1,8 @@
-#include "sim/fidelity/approximate/approx_compression.h"
+#include "rtl_models/memory/tag_compression.h"
 
 #include <algorithm>
 
 #include "rtl_models/algo/bits.h"
-#include "rtl_models/top/memory_estimate.h"
 
 namespace ropsim {
 

@@ -1,4 +1,4 @@
-#include "sim/fidelity/bottleneck.h"
+#include "sim/fidelity/common/bottleneck.h"
 
 #include <algorithm>
 #include <cmath>
