@@ -41,6 +41,7 @@
 #include "sim/fidelity/sampled/livepoint_file.h"
 #include "sim/fidelity/sampled/livepoints.h"
 #include "sim/report/cycle_report.h"
+#include "tests/compare_util.h"
 #include "tests/vcd_reader.h"
 #include "traces/raster/rasterizer.h"
 #include "traces/raster/sample_patterns.h"
@@ -122,7 +123,7 @@ inline void expect_bit_exact(const TraceHeader& header, const std::vector<Fragme
   const CycleRun cyc = cycle(opt);
   const std::string diff = first_state_difference(golden.store(), *cyc.state);
   EXPECT_EQ(diff, "") << what << ": the cycle model's final state differs from the golden model's";
-  EXPECT_TRUE(golden.resolve() == cyc.image) << what << ": resolved images differ";
+  EXPECT_EQ(ropsim_test::first_image_difference(golden.resolve(), cyc.image), "") << what << ": resolved images differ";
   const Counters& a = golden.counters();
   const Counters& b = cyc.counters;
   EXPECT_EQ(a.fragments, b.fragments) << what;
@@ -264,19 +265,28 @@ inline void expect_same_timing(const CycleStats& a, const CycleStats& b, const s
     }
 }
 
-/// Every field of two fragments, bit for bit.
-inline bool same_fragment(const Fragment& a, const Fragment& b) {
-  auto bits = [](const auto& x, const auto& y) { return std::memcmp(&x, &y, sizeof x) == 0; };
-  return a.draw_id == b.draw_id && a.prim_id == b.prim_id && a.x == b.x && a.y == b.y && a.coverage == b.coverage &&
-         bits(a.z0, b.z0) && bits(a.dzdx, b.dzdx) && bits(a.dzdy, b.dzdy) && bits(a.z, b.z) && bits(a.rgb, b.rgb) &&
-         bits(a.alpha, b.alpha);
+/// Every field of two fragments, bit for bit: "" or the first that differs, with both values.
+inline std::string fragment_difference(const Fragment& a, const Fragment& b) {
+  return ropsim_test::Fields()
+      .eq("draw_id", a.draw_id, b.draw_id)
+      .eq("prim_id", a.prim_id, b.prim_id)
+      .eq("x", a.x, b.x)
+      .eq("y", a.y, b.y)
+      .eq("coverage", a.coverage, b.coverage)
+      .bits("z0", a.z0, b.z0)
+      .bits("dzdx", a.dzdx, b.dzdx)
+      .bits("dzdy", a.dzdy, b.dzdy)
+      .bits("z", a.z, b.z)
+      .bits("rgb", a.rgb, b.rgb)
+      .bits("alpha", a.alpha, b.alpha)
+      .str();
 }
 
 /// Two libraries hold the same live-points, bit for bit; "" or the first difference.
 inline std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
   if (a.fragments != b.fragments || a.points.size() != b.points.size()) return "sizes";
   if (a.input.digest != b.input.digest || a.input.description != b.input.description) return "input";
-  if (!(a.image == b.image)) return "image";
+  if (const std::string d = ropsim_test::first_image_difference(a.image, b.image); !d.empty()) return "image: " + d;
   std::string c;
   std::vector<uint64_t> ca, cb;
   a.counters.for_each([&](const char*, uint64_t v) { ca.push_back(v); });
@@ -288,7 +298,8 @@ inline std::string libraries_differ(const LivePoints& a, const LivePoints& b) {
     if (p.first != q.first || p.warmup != q.warmup || p.window != q.window) return u + "placement";
     if (p.fragments.size() != q.fragments.size()) return u + "fragment count";
     for (size_t i = 0; i < p.fragments.size(); ++i)
-      if (!same_fragment(p.fragments[i], q.fragments[i])) return u + "fragment " + std::to_string(i);
+      if (const std::string d = fragment_difference(p.fragments[i], q.fragments[i]); !d.empty())
+        return u + "fragment " + std::to_string(i) + ": " + d;
     auto bits = [](const auto& x, const auto& y) {
       return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof x[0]) == 0);
     };

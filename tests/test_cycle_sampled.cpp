@@ -88,7 +88,8 @@ TEST(Sampled, OneUnitOverTheWholeInputIsTheFullRun) {
                   full.stats.dram.total_bytes_written())
             << what << ": every line made dirty is written to DRAM once";
       EXPECT_EQ(first_state_difference(*u.state, *full.state), "") << what;
-      EXPECT_TRUE(lib.image == full.image) << what << ": the library holds the golden image";
+      EXPECT_EQ(ropsim_test::first_image_difference(lib.image, full.image), "")
+          << what << ": the library holds the golden image";
     }
   }
 }
@@ -183,8 +184,15 @@ TEST(Sampled, AFrameOfOpaqueAndBlendedDrawsIsSampled) {
       ASSERT_EQ(lp.warming.size(), lp.first) << what;
       for (size_t i = 0; i < lp.warming.size(); ++i) {
         const Touch &a = lp.warming[i], &b = touches[i];
-        ASSERT_TRUE(a.covered == b.covered && a.written == b.written && a.reached_write == b.reached_write &&
-                    a.routed == b.routed && a.reads_colour == b.reads_colour && a.depth_write == b.depth_write)
+        ASSERT_EQ(ropsim_test::Fields()
+                      .eq("covered", a.covered, b.covered)
+                      .eq("written", a.written, b.written)
+                      .eq("reached_write", a.reached_write, b.reached_write)
+                      .eq("routed", a.routed, b.routed)
+                      .eq("reads_colour", a.reads_colour, b.reads_colour)
+                      .eq("depth_write", a.depth_write, b.depth_write)
+                      .str(),
+                  "")
             << what << " unit " << k << ": warming touch " << i << " is not fragment " << i << "'s";
       }
     }
@@ -351,8 +359,15 @@ TEST(LivePointLibrary, TheWarmingIsTheTouchesBeforeEachPoint) {
           ASSERT_EQ(lp.warming.size(), lp.first - from) << unit << "the warming holds the T fragments before it";
           for (size_t i = 0; i < lp.warming.size(); ++i) {
             const Touch &a = lp.warming[i], &b = touches[from + i];
-            ASSERT_TRUE(a.x == b.x && a.y == b.y && a.covered == b.covered && a.written == b.written &&
-                        a.reached_write == b.reached_write && a.slab_kept == b.slab_kept)
+            ASSERT_EQ(ropsim_test::Fields()
+                          .eq("x", a.x, b.x)
+                          .eq("y", a.y, b.y)
+                          .eq("covered", a.covered, b.covered)
+                          .eq("written", a.written, b.written)
+                          .eq("reached_write", a.reached_write, b.reached_write)
+                          .eq("slab_kept", a.slab_kept, b.slab_kept)
+                          .str(),
+                      "")
                 << unit << "warming touch " << i << " is not fragment " << from + i << "'s";
           }
           for (size_t i = 0; i < lp.fragments.size(); ++i) {
@@ -360,7 +375,7 @@ TEST(LivePointLibrary, TheWarmingIsTheTouchesBeforeEachPoint) {
             const bool per = h.depth_mode == DepthMode::kPerSample;
             for (size_t s = 0; s < want.z.size(); ++s)
               if (!per || s >= size_t(h.spp) || !(want.coverage >> s & 1)) want.z[s] = 0.0f;
-            ASSERT_TRUE(same_fragment(lp.fragments[i], want))
+            ASSERT_EQ(fragment_difference(lp.fragments[i], want), "")
                 << unit << "fragment " << i << " is not the input's, canonicalised";
           }
         }
