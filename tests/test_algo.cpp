@@ -24,6 +24,7 @@
 #include "rtl_models/algo/slab.h"
 #include "rtl_models/algo/sort_order.h"
 #include "rtl_models/algo/tracker.h"
+#include "tests/compare_util.h"
 
 using namespace ropsim;
 
@@ -324,7 +325,7 @@ TEST(SortOrder, ByStoredDepthThenSampleId) {
   }
   sort_keys(a, 64);
   std::sort(b, b + 64);
-  EXPECT_TRUE(std::equal(a, a + 64, b));
+  EXPECT_EQ(ropsim_test::first_element_difference(a, b), "");
 }
 
 TEST(Depth, PlaneTiesAndCanonicalZero) {

@@ -11,6 +11,7 @@
 #include "sim/fidelity/approximate/approximate.h"
 #include "sim/fidelity/cycle/cycle_run.h"
 #include "sim/fidelity/functional/driver.h"
+#include "tests/compare_util.h"
 #include "util/errors.h"
 
 using namespace ropsim;
@@ -49,7 +50,8 @@ TEST(Approximate, WritesTheGoldenImageBitForBit) {
       const InputSpec in = scene(s, 8);
       const FunctionalRun golden = run_functional(in, method(m));
       const ApproxRun a = run_approximate(in, method(m), HwConfig{});
-      EXPECT_TRUE(golden.image == a.image) << what << ": the approximate run's image is not the golden image";
+      EXPECT_EQ(ropsim_test::first_image_difference(golden.image, a.image), "")
+          << what << ": the approximate run's image is not the golden image";
       EXPECT_EQ(golden.counters.fragments, a.counters.fragments) << what;
       EXPECT_EQ(golden.counters.samples_written, a.counters.samples_written) << what;
       EXPECT_EQ(golden.counters.samples_blended, a.counters.samples_blended) << what;
@@ -150,7 +152,8 @@ TEST(Approximate, CompressionMovesFewerDramBytesOnAnOpaqueScene) {
   EXPECT_GT(t.metadata_bytes_read[size_t(Buffer::kDepth)] + t.metadata_bytes_written[size_t(Buffer::kDepth)], 0u)
       << "the state bits cost no DRAM traffic";
   EXPECT_GT(t.hiz_tests, 0u) << "Hi-Z tested no fragment";
-  EXPECT_TRUE(a.image == run_functional(in, m).image) << "compression changed the image";
+  EXPECT_EQ(ropsim_test::first_image_difference(a.image, run_functional(in, m).image), "")
+      << "compression changed the image";
 }
 
 // The analytical model against the cycle model with compression and Hi-Z on

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "rtl_models/algo/random_hash.h"
+#include "tests/compare_util.h"
 #include "traces/capture/capture.h"
 #include "traces/capture/mesh_loader.h"
 #include "traces/capture/scene_file.h"
@@ -664,7 +665,7 @@ TEST(CaptureCli, WritesAValidTraceWithoutAProgressBarWhenNotATerminal) {
   std::stringstream sa, sb;
   sa << a.rdbuf();
   sb << b.rdbuf();
-  EXPECT_TRUE(sa.str() == sb.str()) << "two captures of one scene differ";
+  EXPECT_EQ(ropsim_test::first_byte_difference(sa.str(), sb.str()), "") << "two captures of one scene differ";
   EXPECT_TRUE(tr.header().checksummed) << "capture writes a checksummed payload by default";
   // --progress forces the progress into a log (stderr not a terminal).
   const CliResult pr =

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "sim/image/image_io.h"
+#include "tests/compare_util.h"
 #include "tests/study_test_util.h"
 #include "traces/capture/capture.h"
 #include "traces/capture/scene_file.h"
@@ -618,7 +619,8 @@ TEST(CaptureGl, AnOpaqueFrameIsBlendsFrameForEveryPerSampleMethod) {
     const Result r = box.run(std::string("run --trace build.trace --method ") + m + " --quiet -o " + m +
                              ".png --report " + m + ".json");
     ASSERT_EQ(r.code, 0) << m << ": " << r.describe();
-    EXPECT_TRUE(slurp(box.path(std::string(m) + ".png")) == want) << m << "'s PNG differs from blend's";
+    EXPECT_EQ(ropsim_test::first_byte_difference(slurp(box.path(std::string(m) + ".png")), want), "")
+        << m << "'s PNG differs from blend's";
     const json rep = json::parse(slurp(box.path(std::string(m) + ".json")));
     EXPECT_EQ(rep.at("draw_kinds").at("opaque").get<uint64_t>(), t.fragments.size()) << m;
     if (std::string(m) == "lk") {
@@ -632,7 +634,8 @@ TEST(CaptureGl, AnOpaqueFrameIsBlendsFrameForEveryPerSampleMethod) {
     ASSERT_EQ(r.code, 0) << m << ": " << r.describe();
     const json rep = json::parse(slurp(box.path(std::string(m) + ".json")));
     EXPECT_EQ(rep.at("passes").at(0).get<std::string>(), "prepass") << m;
-    EXPECT_TRUE(slurp(box.path(std::string(m) + ".png")) == want) << m << "'s PNG differs from blend's";
+    EXPECT_EQ(ropsim_test::first_byte_difference(slurp(box.path(std::string(m) + ".png")), want), "")
+        << m << "'s PNG differs from blend's";
   }
 }
 
@@ -857,7 +860,7 @@ TEST(CaptureGl, CapturesAreByteIdenticalForEveryThreadCount) {
     const std::string a = slurp(box.path(std::string(app) + "1.trace")),
                       b = slurp(box.path(std::string(app) + "2.trace"));
     EXPECT_FALSE(a.empty());
-    EXPECT_TRUE(a == b) << app << ": LP_NUM_THREADS=1 and 2 give different traces";
+    EXPECT_EQ(ropsim_test::first_byte_difference(a, b), "") << app << ": LP_NUM_THREADS=1 and 2 give different traces";
   }
 }
 
@@ -879,8 +882,16 @@ TEST(CaptureGl, ReplayCapturesWhatTheApplicationDrewLive) {
   ASSERT_EQ(a.fragments.size(), b.fragments.size());
   for (size_t i = 0; i < a.fragments.size(); ++i) {
     const auto &f = a.fragments[i], &g = b.fragments[i];
-    ASSERT_TRUE(f.draw_id == g.draw_id && f.prim_id == g.prim_id && f.x == g.x && f.y == g.y &&
-                f.coverage == g.coverage && f.rgb == g.rgb && f.alpha == g.alpha)
+    ASSERT_EQ(ropsim_test::Fields()
+                  .eq("draw_id", f.draw_id, g.draw_id)
+                  .eq("prim_id", f.prim_id, g.prim_id)
+                  .eq("x", f.x, g.x)
+                  .eq("y", f.y, g.y)
+                  .eq("coverage", f.coverage, g.coverage)
+                  .eq("rgb", f.rgb, g.rgb)
+                  .eq("alpha", f.alpha, g.alpha)
+                  .str(),
+              "")
         << "fragment " << i << " differs between the live run and the replay";
   }
 #endif

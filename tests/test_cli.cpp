@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "sim/image/heat_map.h"
+#include "tests/compare_util.h"
 #include "tests/vcd_reader.h"
 #include "traces/format/trace.h"
 #include "util/codec/image_codec.h"
@@ -673,8 +674,10 @@ TEST(Cli, NoChecksumWritesTheBytesOfBeforeTheChecksum) {
     // count (count + 1; the kept traces hold 0, "not recorded").
     const std::string plain = slurp(box.path("plain.trace"));
     ASSERT_EQ(plain.size(), before.size()) << args << " --no-checksum differs in size from " << file;
-    EXPECT_TRUE(plain.substr(0, 42) == before.substr(0, 42) && plain.substr(48) == before.substr(48))
-        << args << " --no-checksum differs from " << file << " outside bytes 42..47";
+    EXPECT_EQ(ropsim_test::first_byte_difference(plain.substr(0, 42), before.substr(0, 42)), "")
+        << args << " --no-checksum differs from " << file << " before bytes 42..47";
+    EXPECT_EQ(ropsim_test::first_byte_difference(plain.substr(48), before.substr(48)), "")
+        << args << " --no-checksum differs from " << file << " after bytes 42..47 (byte 0 is byte 48)";
     EXPECT_EQ(before.substr(42, 6), std::string(6, '\0')) << file;
     uint64_t field = 0;
     for (int i = 0; i < 6; ++i) field |= uint64_t(uint8_t(plain[size_t(42 + i)])) << (8 * i);
@@ -706,8 +709,7 @@ TEST(Cli, SameInputsAndSeedGiveIdenticalOutputs) {
   expect_ok(b.run(args), args + " (again)");
   const std::string png_a = slurp(a.path("a.png")), png_b = slurp(b.path("a.png"));
   ASSERT_FALSE(png_a.empty()) << "no a.png";
-  EXPECT_TRUE(png_a == png_b) << "two identical runs wrote different a.png (" << png_a.size() << " vs " << png_b.size()
-                              << " bytes)";
+  EXPECT_EQ(ropsim_test::first_byte_difference(png_a, png_b), "") << "two identical runs wrote different a.png";
   const auto ra = nlohmann::json::parse(slurp(a.path("r.json")));
   const auto rb = nlohmann::json::parse(slurp(b.path("r.json")));
   // Counter names of sim/report/report.cpp.

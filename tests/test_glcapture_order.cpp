@@ -10,6 +10,7 @@
 #include <random>
 #include <tuple>
 
+#include "tests/compare_util.h"
 #include "traces/glcapture/fragment_order.h"
 #include "traces/glcapture/glsl_rewrite.h"
 #include "traces/raster/sample_patterns.h"
@@ -201,8 +202,15 @@ TEST(GlCaptureOrder, FragmentsMatchTheRuleWrittenOutDirectly) {
     ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, sized, side, side), "");
     ASSERT_EQ(sized.size(), got.size()) << side;
     for (size_t i = 0; i < got.size(); ++i)
-      ASSERT_TRUE(sized[i].prim_id == got[i].prim_id && sized[i].x == got[i].x && sized[i].y == got[i].y &&
-                  sized[i].coverage == got[i].coverage && sized[i].z == got[i].z && sized[i].rgba == got[i].rgba)
+      ASSERT_EQ(ropsim_test::Fields()
+                    .eq("prim_id", sized[i].prim_id, got[i].prim_id)
+                    .eq("x", sized[i].x, got[i].x)
+                    .eq("y", sized[i].y, got[i].y)
+                    .eq("coverage", sized[i].coverage, got[i].coverage)
+                    .eq("z", sized[i].z, got[i].z)
+                    .eq("rgba", sized[i].rgba, got[i].rgba)
+                    .str(),
+                "")
           << side << " x " << side << ": fragment " << i;
   }
   std::vector<CapturedFragment> small;

@@ -13,6 +13,7 @@
 #include "sim/driver/pixel_kinds.h"
 #include "sim/fidelity/functional/driver.h"
 #include "sim/image/image_io.h"
+#include "tests/compare_util.h"
 #include "traces/raster/sample_patterns.h"
 
 using namespace ropsim;
@@ -374,7 +375,7 @@ TEST(Slab, KOneOnOpaqueInputIsTheZBufferImage) {
   cfg.slab_layers = 1;
   for (int bits : {1, 32}) {
     cfg.slab_bits = bits;
-    EXPECT_TRUE(run_functional(in, cfg).image == zbuf) << "b " << bits;
+    EXPECT_EQ(ropsim_test::first_image_difference(run_functional(in, cfg).image, zbuf), "") << "b " << bits;
   }
 }
 
@@ -411,7 +412,7 @@ TEST(Methods, AlphaOneIsAPlainZBuffer) {
   for (Method meth :
        {Method::kLk, Method::kEnderton, Method::kNaive, Method::kA2c, Method::kHashed, Method::kHashedA2c}) {
     cfg.method = meth;
-    EXPECT_TRUE(run_functional(in, cfg).image == zbuf) << to_string(meth);
+    EXPECT_EQ(ropsim_test::first_image_difference(run_functional(in, cfg).image, zbuf), "") << to_string(meth);
   }
   cfg.method = Method::kReference;
   const Image ref = run_functional(in, cfg).image;
@@ -480,7 +481,7 @@ TEST(Determinism, SameSeedSameBitsOtherSeedOtherBits) {
   GoldenConfig cfg;
   cfg.method = Method::kEnderton;
   const Image a = run_functional(in, cfg).image, b = run_functional(in, cfg).image;
-  EXPECT_TRUE(a == b);
+  EXPECT_EQ(ropsim_test::first_image_difference(a, b), "") << "the same seed gave another image";
   cfg.seed = 2;
   EXPECT_TRUE(run_functional(in, cfg).image != a) << "--seed must change the random numbers";
   in.scene.seed = 7;
@@ -529,7 +530,8 @@ TEST(DepthModes, PerSampleTraceGivesThePlaneTracesImage) {
     img[k] = run_functional(in, c).image;
   }
   ASSERT_EQ(img[0].width, img[1].width);
-  EXPECT_TRUE(img[0] == img[1]) << "plane and per-sample depth traces of one scene resolve differently";
+  EXPECT_EQ(ropsim_test::first_image_difference(img[0], img[1]), "")
+      << "plane and per-sample depth traces of one scene resolve differently";
 }
 
 // Bias: the mean signed error, zero for equal images, its sign the direction.

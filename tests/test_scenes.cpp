@@ -10,6 +10,7 @@
 
 #include "rtl_models/algo/random_hash.h"
 #include "sim/fidelity/functional/driver.h"
+#include "tests/compare_util.h"
 #include "traces/raster/rasterizer.h"
 #include "traces/raster/sample_patterns.h"
 #include "traces/scenes/scenes.h"
@@ -342,8 +343,16 @@ TEST(FragmentSource, SceneStreamEqualsItsTraceAndRepeats) {
       const bool ga = a->next(fa), gb = b->next(fb);
       ASSERT_EQ(ga, gb) << "one source ended first, after " << n << " fragments (repeat " << repeat << ")";
       if (!ga) break;
-      ASSERT_TRUE(fa.x == fb.x && fa.y == fb.y && fa.coverage == fb.coverage && fa.prim_id == fb.prim_id &&
-                  fa.draw_id == fb.draw_id && std::memcmp(&fa.z0, &fb.z0, 4) == 0 && fa.alpha == fb.alpha)
+      ASSERT_EQ(ropsim_test::Fields()
+                    .eq("x", fa.x, fb.x)
+                    .eq("y", fa.y, fb.y)
+                    .eq("coverage", fa.coverage, fb.coverage)
+                    .eq("prim_id", fa.prim_id, fb.prim_id)
+                    .eq("draw_id", fa.draw_id, fb.draw_id)
+                    .bits("z0", fa.z0, fb.z0)
+                    .eq("alpha", fa.alpha, fb.alpha)
+                    .str(),
+                "")
           << "fragment " << n << " differs (repeat " << repeat << ")";
       ++n;
     }

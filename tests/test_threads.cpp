@@ -9,6 +9,7 @@
 
 #include "rtl_models/golden/golden_model.h"
 #include "sim/fidelity/functional/driver.h"
+#include "tests/compare_util.h"
 #include "util/host_threads.h"
 
 using namespace ropsim;
@@ -78,7 +79,8 @@ TEST_P(GoldenThreads, OneTwoAndThreeThreadsGiveTheSameBits) {
         const std::string w = where + ", " + std::to_string(threads) + " threads";
         EXPECT_EQ(counter_difference(one.model->counters(), many.model->counters()), "") << w << ": counters";
         EXPECT_EQ(first_state_difference(one.sm().store(), many.sm().store()), "") << w << ": state";
-        EXPECT_TRUE(one.model->resolve() == many.model->resolve()) << w << ": image";
+        EXPECT_EQ(ropsim_test::first_image_difference(one.model->resolve(), many.model->resolve()), "")
+            << w << ": image";
         EXPECT_EQ(one.model->state_bytes(), many.model->state_bytes()) << w << ": state bytes";
       }
     }
@@ -108,9 +110,9 @@ TEST(GoldenThreadsDriver, RunFunctionalWithTheReferenceIsTheSameOnEveryThreadCou
   EXPECT_EQ(a.threads, 1);
   EXPECT_EQ(b.threads, 2);
   EXPECT_EQ(counter_difference(a.counters, b.counters), "");
-  EXPECT_TRUE(a.image == b.image);
+  EXPECT_EQ(ropsim_test::first_image_difference(a.image, b.image), "") << "the image";
   ASSERT_TRUE(a.reference && b.reference);
-  EXPECT_TRUE(*a.reference == *b.reference);
+  EXPECT_EQ(ropsim_test::first_image_difference(*a.reference, *b.reference), "") << "the reference";
   EXPECT_EQ(a.state_bytes, b.state_bytes);
 }
 

@@ -25,6 +25,7 @@
 #include "rtl_models/functional/fragment_source.h"
 #include "sim/fidelity/sampled/livepoint_file.h"
 #include "sim/fidelity/sampled/livepoints.h"
+#include "tests/compare_util.h"
 #include "traces/format/trace.h"
 #include "traces/raster/sample_patterns.h"
 #include "util/memory_budget.h"
@@ -326,7 +327,8 @@ TEST(TraceV2, RoundTripOfEveryEnumerationAndAUtf8Name) {
         EXPECT_EQ(r.header().version(), 2) << what;
         EXPECT_EQ(r.header_checked(), checksummed) << what << ": a checksummed v2 trace checks its header";
         ASSERT_EQ(r.header().draws.size(), states.size()) << what;
-        EXPECT_TRUE(r.header().draws == h.draws) << what << ": the table read back differs";
+        EXPECT_EQ(ropsim_test::first_draw_table_difference(r.header().draws, h.draws), "")
+            << what << ": the table read back differs";
         for (const DrawState& s : states) {
           const DrawState* got = r.header().draws.find(s.draw_id);
           ASSERT_NE(got, nullptr) << what << ": draw " << s.draw_id;
@@ -718,7 +720,7 @@ TEST(TraceV2, FragmentSourcesCarryTheTable) {
   in.trace_path = path;
   in.repeat = 3;
   auto src = open_fragments(in);
-  EXPECT_TRUE(src->header().draws == h.draws) << "the trace's source";
+  EXPECT_EQ(ropsim_test::first_draw_table_difference(src->header().draws, h.draws), "") << "the trace's source";
   Fragment f;
   uint64_t n = 0;
   while (src->next(f)) {
@@ -726,9 +728,10 @@ TEST(TraceV2, FragmentSourcesCarryTheTable) {
     EXPECT_NE(src->header().draws.find(f.draw_id), nullptr) << "a repeat's draw ids are the table's";
   }
   EXPECT_EQ(n, 6u);
-  EXPECT_TRUE(src->header().draws == h.draws) << "after the repeats";
+  EXPECT_EQ(ropsim_test::first_draw_table_difference(src->header().draws, h.draws), "") << "after the repeats";
   const std::vector<Fragment> held = {frag(3, 1, 1, 1)};
-  EXPECT_TRUE(fragments_from(h, held)->header().draws == h.draws) << "fragments_from";
+  EXPECT_EQ(ropsim_test::first_draw_table_difference(fragments_from(h, held)->header().draws, h.draws), "")
+      << "fragments_from";
 }
 
 TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
@@ -766,7 +769,7 @@ TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
   p.units = 2;
   p.unit_fragments = 200;
   const LivePoints lib = record_livepoints(in, GoldenConfig{}, p);
-  EXPECT_TRUE(lib.header.draws == h.draws) << "the recorded library";
+  EXPECT_EQ(ropsim_test::first_draw_table_difference(lib.header.draws, h.draws), "") << "the recorded library";
   {  // a frame with an opaque draw is recorded; slab, which draws it in a pre-pass, is refused
     TraceHeader ho = h;
     std::vector<DrawState> so = states;
@@ -780,7 +783,8 @@ TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
     }
     InputSpec io;
     io.trace_path = opaque_trace;
-    EXPECT_TRUE(record_livepoints(io, GoldenConfig{}, p).header.draws == ho.draws);
+    EXPECT_EQ(ropsim_test::first_draw_table_difference(record_livepoints(io, GoldenConfig{}, p).header.draws, ho.draws),
+              "");
     GoldenConfig slab;
     slab.method = Method::kSlab;
     try {
@@ -793,7 +797,7 @@ TEST(TraceV2, TheLivePointLibraryCarriesTheTable) {
   const std::string file = tmp.path("lib.rlp");
   write_livepoints(file, lib);
   const LivePoints back = read_livepoints(file);
-  EXPECT_TRUE(back.header.draws == h.draws) << "the library read back";
+  EXPECT_EQ(ropsim_test::first_draw_table_difference(back.header.draws, h.draws), "") << "the library read back";
   EXPECT_FALSE(back.header.draws.empty());
   // Version 1 libraries (without the table) are refused in one line.
   std::vector<uint8_t> bytes = read_file(file);

@@ -13,7 +13,7 @@
 // no SystemC activation, like a TLM-2.0 loosely-timed initiator that never
 // needs to synchronise. Units that access memory stay in lockstep with
 // SystemC time, so the cache and DRAM see requests in cycle order. Lockstep
-// and decoupled runs give identical results (tests/test_cycle.cpp).
+// and decoupled runs give identical results (tests/test_cycle_determinism.cpp).
 #pragma once
 #include <algorithm>
 #include <array>
