@@ -52,11 +52,6 @@ int failure_status(const std::string& error);
 /// error: <what>: please report it" (any other error as it is).
 std::string broken_invariant(const std::string& error);
 
-/// The exit status of a study run (or collect) whose summary this is: 0 when
-/// no point failed and none is left to run, else the highest status of its
-/// failures (1, or 2 when a point broke an invariant).
-int study_exit_status(const StudySummary& sum, size_t not_run = 0);
-
 struct StudySummary {
   size_t points = 0;       ///< in the study
   size_t reused = 0;       ///< already in the folder: not run again
@@ -65,6 +60,11 @@ struct StudySummary {
   size_t failed_host = 0;  ///< of failed: host failures
   std::vector<StudyPointFailure> failures;
 };
+
+/// The exit status of a study run (or collect) whose summary this is: 0 when
+/// no point failed and none is left to run, else the highest status of its
+/// failures (1, or 2 when a point broke an invariant).
+int study_exit_status(const StudySummary& sum, size_t not_run = 0);
 
 /// "1 point", "2 points".
 std::string count_of(size_t n, const char* noun);
