@@ -25,6 +25,7 @@
 namespace {
 
 using namespace ropsim;
+namespace fs = std::filesystem;
 using ropsim_test::Ran;
 using ropsim_test::Scratch;
 
@@ -159,7 +160,7 @@ TEST(Errors, BadInputsOfEveryKindExitWith1ThroughMain) {
 
 TEST(Errors, TheTestHookGivesExitStatus2ThroughMain) {
   Scratch s("ropsim-test-errors");
-  const Ran r = ropsim_test::shell(s.dir, "ROPSIM_TEST_INTERNAL_ERROR=1 '" ROPSIM_BINARY "' config");
+  const Ran r = ropsim_test::shell(s.dir, "env ROPSIM_TEST_INTERNAL_ERROR=1 '" ROPSIM_BINARY "' config");
   EXPECT_EQ(r.status, 2) << "the internal error hook did not give exit status 2: " << r.err;
   EXPECT_EQ(lines_of(r.err), 1u) << "stderr must be one line: " << r.err;
   EXPECT_EQ(r.err.rfind("ropsim: internal error: ", 0), 0u) << "not the internal error form: " << r.err;
@@ -193,7 +194,7 @@ TEST(Errors, AStudyPointsUserErrorGivesExitStatus1) {
 TEST(Errors, AStudyPointsBrokenInvariantGivesExitStatus2) {
   Scratch s("ropsim-test-errors");
   s.put("one.toml", kOnePointStudy);
-  const std::string hook = "ROPSIM_TEST_INTERNAL_ERROR=study-point '" ROPSIM_BINARY "' ";
+  const std::string hook = "env ROPSIM_TEST_INTERNAL_ERROR=study-point '" ROPSIM_BINARY "' ";
   const Ran r = ropsim_test::shell(s.dir, hook + "study run one.toml --out st -j 2 --quiet");
   EXPECT_EQ(r.status, 2) << "a point's broken invariant (in a worker process) must give the study exit status 2\n"
                          << r.out << r.err;
@@ -222,7 +223,7 @@ TEST(Errors, ASampledWorkersBrokenInvariantGivesExitStatus2) {
   const std::string run = "run --fidelity sampled --livepoints lib.rlp -j 2 --quiet --report r.json";
   const Ran ok = ropsim_test::ropsim(s.dir, run);
   ASSERT_EQ(ok.status, 0) << "the sampled run fails without the hook: " << ok.err;
-  const Ran r = ropsim_test::shell(s.dir, "ROPSIM_TEST_INTERNAL_ERROR=livepoint-worker '" ROPSIM_BINARY "' " + run);
+  const Ran r = ropsim_test::shell(s.dir, "env ROPSIM_TEST_INTERNAL_ERROR=livepoint-worker '" ROPSIM_BINARY "' " + run);
   EXPECT_EQ(r.status, 2) << "a live-point worker's broken invariant must give exit status 2: " << r.err;
   EXPECT_EQ(lines_of(r.err), 1u) << "stderr must be one line: " << r.err;
   EXPECT_EQ(r.err,
