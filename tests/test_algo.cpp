@@ -581,7 +581,7 @@ TEST(Vectors, EveryUnitWritesWellFormedCsv) {
       ASSERT_EQ(std::count(lines[i].begin(), lines[i].end(), ','), cols) << unit << " row " << i << ": " << lines[i];
     EXPECT_EQ(make_vectors(unit, 200, 3, Numerics{}), csv) << unit << ": same seed, same vectors";
   }
-  EXPECT_THROW(make_vectors("bogus", 1, 1, Numerics{}), std::invalid_argument);
+  EXPECT_THROW(make_vectors("bogus", 1, 1, Numerics{}), VectorError);
   // The tracker row for a conflict: covered 0x00ff, surviving 0x0180 -> new surface 4, n 0.
   const std::string t = make_vectors("tracker", 3, 1, Numerics{});
   EXPECT_NE(t.find("16,32,00000000000000ff,3,0000000000000180,1,0,4,0000000000000180"), std::string::npos) << t;
@@ -630,7 +630,7 @@ TEST(Vectors, HexWordsMatchTheCsvRows) {
   EXPECT_NE(h.find("2ed32d8e\n"), std::string::npos) << h;
   VectorOptions bad;
   bad.spp = 3;
-  EXPECT_THROW(make_vectors("sorter", 1, 1, Numerics{}, bad), std::invalid_argument);
+  EXPECT_THROW(make_vectors("sorter", 1, 1, Numerics{}, bad), VectorError);
 }
 
 // hashed-a2c (Wyman & McGuire 2017, Eq. 9): for every power-of-two n, a

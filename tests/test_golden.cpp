@@ -1226,11 +1226,11 @@ TEST(TraceVectors, EveryRowIsTheUnitFunctionAndEveryCallIsARow) {
   // A method that never calls the unit, and a unit --trace cannot capture.
   TraceVectorRequest e = req;
   e.method.method = Method::kEnderton;
-  EXPECT_THROW(make_trace_vectors("tracker", e, [](std::string_view) {}), std::invalid_argument);
-  EXPECT_THROW(make_trace_vectors("half", req, [](std::string_view) {}), std::invalid_argument);
+  EXPECT_THROW(make_trace_vectors("tracker", e, [](std::string_view) {}), VectorError);
+  EXPECT_THROW(make_trace_vectors("half", req, [](std::string_view) {}), VectorError);
   e.method.method = Method::kSlab;
-  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), std::invalid_argument);
+  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), VectorError);
   // blend tests depth with each draw's function, not the unit's LESS_EQUAL.
   e.method.method = Method::kBlend;
-  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), std::invalid_argument);
+  EXPECT_THROW(make_trace_vectors("depth-test", e, [](std::string_view) {}), VectorError);
 }

@@ -91,7 +91,7 @@ TEST(SamplePatterns, StandardPositionsExactly) {
       EXPECT_EQ(rows[size_t(k)], 1) << spp << " spp row " << k;
     }
   }
-  EXPECT_THROW(standard_sample_positions(3), std::invalid_argument);
+  EXPECT_THROW(standard_sample_positions(3), UserError);
 }
 
 // A mesh of adjacent triangles covering the screen covers every sample

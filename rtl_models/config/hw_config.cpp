@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "rtl_models/algo/bits.h"
+#include "util/errors.h"
 #include "util/toml_guard.h"
 
 namespace ropsim {
@@ -250,10 +251,10 @@ const char* basis_of(const char* key) {
   const char* found = nullptr;
   for (const Basis& b : kBasis)
     if (std::string(b.key) == key) {
-      if (found) throw std::logic_error(std::string("parameter ") + key + " has two bases");
+      if (found) throw InternalError(std::string("parameter ") + key + " has two bases");
       found = b.basis;
     }
-  if (!found) throw std::logic_error(std::string("parameter ") + key + " has no basis");
+  if (!found) throw InternalError(std::string("parameter ") + key + " has no basis");
   return found;
 }
 
@@ -408,7 +409,7 @@ const std::vector<ParamInfo>& hw_params() {
     HwConfig def;
     for (const auto& p : params())
       r.push_back({p.key, p.unit, p.meaning, range_of(p), value_to_string(p, def), basis_of(p.key)});
-    if (r.size() != std::size(kBasis)) throw std::logic_error("a basis names no parameter");
+    if (r.size() != std::size(kBasis)) throw InternalError("a basis names no parameter");
     return r;
   }();
   return v;

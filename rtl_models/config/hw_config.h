@@ -14,6 +14,7 @@
 #include "rtl_models/algo/blend.h"
 #include "rtl_models/algo/compression_format.h"
 #include "rtl_models/algo/numerics.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -128,8 +129,9 @@ struct HwConfig {
 };
 
 /// A bad configuration file, key or value: the message names the file and key.
-struct ConfigError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+class ConfigError : public UserError {
+ public:
+  using UserError::UserError;
 };
 
 /// One declared parameter (for the parser, the docs and the report).

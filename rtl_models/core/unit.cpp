@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "util/errors.h"
+
 namespace ropsim {
 
 const char* to_string(Activity a) {
@@ -24,7 +26,7 @@ const char* to_string(Activity a) {
 
 namespace {
 Scheduler& scheduler_of(const Clock& clk) {
-  if (!clk.scheduler()) throw std::logic_error("a Unit needs a Scheduler on its Clock (build the Scheduler first)");
+  if (!clk.scheduler()) throw InternalError("a Unit needs a Scheduler on its Clock (build the Scheduler first)");
   return *clk.scheduler();
 }
 }  // namespace

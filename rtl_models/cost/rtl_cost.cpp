@@ -10,6 +10,7 @@
 #include "rtl_models/algo/bits.h"
 #include "rtl_models/algo/hilbert.h"
 #include "rtl_synth_sweep_csv.h"  // docs/data/rtl_synth_sweep.csv, embedded by cmake/embed_csv.cmake
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -252,9 +253,7 @@ std::vector<RtlSynthRow> parse_rtl_synth_csv(const std::string& text, const std:
   std::istringstream in(text);
   std::string line;
   int no = 0;
-  auto fail = [&](const std::string& why) {
-    throw std::runtime_error(name + ": line " + std::to_string(no) + ": " + why);
-  };
+  auto fail = [&](const std::string& why) { throw UserError(name + ": line " + std::to_string(no) + ": " + why); };
   while (std::getline(in, line)) {
     ++no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -296,17 +295,17 @@ std::vector<RtlSynthRow> parse_rtl_synth_csv(const std::string& text, const std:
     }
     int64_t* cols[] = {&r.cells, &r.flipflops, &r.transistors, &r.nand2_eq, &r.levels};
     for (int i = 0; i < 5; ++i) {
+      size_t used = 0;
       try {
-        size_t used = 0;
         *cols[i] = std::stoll(f[size_t(2 + i)], &used);
-        if (used != f[size_t(2 + i)].size()) throw std::invalid_argument("trailing");
-      } catch (const std::exception&) {
-        fail("column " + std::to_string(3 + i) + " is not an integer");
+      } catch (const std::exception&) {  // std::stoll's: not a number, or out of range
+        used = 0;
       }
+      if (used == 0 || used != f[size_t(2 + i)].size()) fail("column " + std::to_string(3 + i) + " is not an integer");
     }
     rows.push_back(std::move(r));
   }
-  if (rows.empty()) throw std::runtime_error(name + ": no synthesis run");
+  if (rows.empty()) throw UserError(name + ": no synthesis run");
   return rows;
 }
 

@@ -27,7 +27,7 @@ struct RtlSynthRow {
 };
 
 /// Parses a synthesis CSV (scripts/synth.sh's columns); a malformed row
-/// throws std::runtime_error naming `name` and the line.
+/// throws UserError naming `name` and the line.
 std::vector<RtlSynthRow> parse_rtl_synth_csv(const std::string& text, const std::string& name);
 /// The committed sweep, docs/data/rtl_synth_sweep.csv, as built into ropsim.
 const std::vector<RtlSynthRow>& rtl_synth_table();

@@ -9,6 +9,7 @@
 #include "rtl_models/algo/compression.h"
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/surface_bytes.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -86,7 +87,7 @@ TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8
     return st;
   }
   if (b == Buffer::kDepth && f.depth_encoder == DepthEncoder::kPlane) {
-    if (!planes) throw std::logic_error("the rasterizer-plane depth encoder needs the store's plane keys");
+    if (!planes) throw InternalError("the rasterizer-plane depth encoder needs the store's plane keys");
     st.size = plane_depth_tile_size(DepthPlanesIn{planes, f.tile_pixels, int(spp)}, f);
   } else if (b == Buffer::kDepth) {
     const TraceHeader& h = store.header();
@@ -199,7 +200,7 @@ TileState TileCompressor::state(Buffer b, uint32_t x, uint32_t y, bool size, con
   const bool planes = b == Buffer::kDepth && t->plane;
   if (planes) keys.assign(t->plane + size_t(first) * spp, t->plane + size_t(first + f_.tile_pixels) * spp);
   for (size_t i = 0; i < n; ++i) {
-    if (size_t(patches[i].offset) + patches[i].len > len) throw std::logic_error("a tile patch lies outside its tile");
+    if (size_t(patches[i].offset) + patches[i].len > len) throw InternalError("a tile patch lies outside its tile");
     std::memcpy(bytes + patches[i].offset, patches[i].old, patches[i].len);
     if (planes && patches[i].old_planes)
       std::memcpy(keys.data() + patches[i].offset / kDepthSampleBytes, patches[i].old_planes,

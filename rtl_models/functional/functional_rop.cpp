@@ -6,6 +6,7 @@
 #include "rtl_models/algo/method_kernels.h"
 #include "rtl_models/functional/composite.h"
 #include "rtl_models/functional/framebuffer_blend.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -24,9 +25,9 @@ RopSetup::RopSetup(const TraceHeader& h, const MethodConfig& c)
       hilbert_n(hilbert_side(h.width, h.height)),
       tracker_bytes(tracker_state_bytes(h.spp, c.numerics.surface_id_bits)),
       a2c_prefix(a2c_prefix_table(h.spp)) {
-  if (const char* err = validate(c.numerics)) throw std::invalid_argument(err);
+  if (const char* err = validate(c.numerics)) throw UserError(err);
   if (c.method == Method::kSlab) {
-    if (const char* err = validate_slab(c.slab_layers, c.slab_bits)) throw std::invalid_argument(err);
+    if (const char* err = validate_slab(c.slab_layers, c.slab_bits)) throw UserError(err);
     slab_bits_of = slab_sample_bits(h.spp, c.slab_bits);
     slab_bytes = slab_pixel_bytes(c.slab_layers, c.slab_bits);
   }
@@ -152,13 +153,13 @@ FunctionalRop::FunctionalRop(const TraceHeader& h, const MethodConfig& cfg)
       ROPSIM_CASE(Method::kBlend)
 #undef ROPSIM_CASE
     case Method::kReference:
-      throw std::invalid_argument(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
+      throw UserError(std::string("the ") + setup_.traits.name + " method has no ROP pipeline");
   }
 }
 
 void FunctionalRop::absorb(FunctionalRop& o) {
   if (o.setup_.cfg.method != setup_.cfg.method || o.setup_.pass != setup_.pass)
-    throw std::logic_error("FunctionalRop::absorb: the ROPs run different methods or passes");
+    throw InternalError("FunctionalRop::absorb: the ROPs run different methods or passes");
   store_.absorb(o.store_);
   depth_.absorb(o.depth_);
   track_.absorb(o.track_);
@@ -184,9 +185,7 @@ Counters FunctionalRop::counters() const {
 namespace ropsim {
 
 void FunctionalRop::begin_pass(int i) {
-  if (i < 0 || i >= setup_.passes.count)
-    throw std::invalid_argument("pass " + std::to_string(i) + " of a method with " +
-                                std::to_string(setup_.passes.count) + " passes");
+  invariant(i >= 0 && i < setup_.passes.count, "begin_pass: the pass is one of the method's passes");
   setup_.pass = setup_.passes.pass[i];
 }
 

@@ -216,7 +216,7 @@ class WriteStage : public Stage {
 
 class FunctionalRop {
  public:
-  /// Throws std::invalid_argument for bad numerics or a method without a pipeline.
+  /// Throws UserError for bad numerics or a method without a pipeline.
   FunctionalRop(const TraceHeader& h, const MethodConfig& cfg);
   FunctionalRop(const FunctionalRop&) = delete;
   FunctionalRop& operator=(const FunctionalRop&) = delete;
@@ -239,6 +239,7 @@ class FunctionalRop {
   int passes() const { return setup_.passes.count; }
   /// Selects pass i (0-based) for the fragments that follow; every pass
   /// replays the whole input. The state carries over from pass to pass.
+  /// i out of [0, passes()) is a broken invariant (InternalError).
   void begin_pass(int i);
   PassKind pass() const { return setup_.pass; }
   /// Does the current pass read and write the lk tracker?
@@ -260,7 +261,7 @@ class FunctionalRop {
   /// golden model's threads, one ROP each over its own tiles). Every rule is
   /// per pixel, so the union is the state one ROP would hold after all the
   /// fragments, and the counts add. o is left without tiles. Throws
-  /// std::logic_error if the two ROPs differ or share a tile.
+  /// InternalError if the two ROPs differ or share a tile.
   void absorb(FunctionalRop& o);
 
   /// The stages' counters summed, with the tiles allocated so far.

@@ -10,6 +10,7 @@
 #include "rtl_models/algo/half.h"
 #include "rtl_models/algo/numerics.h"
 #include "rtl_models/functional/framebuffer_blend.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -102,8 +103,8 @@ void SampleStore::absorb(SampleStore& o) {
       o.with_tracker_ != with_tracker_ || o.slab_bits_ != slab_bits_ ||
       o.targets_.transmittance != targets_.transmittance || o.targets_.accum != targets_.accum ||
       o.targets_.planes != targets_.planes)
-    throw std::logic_error("SampleStore::absorb: the stores hold different buffers");
-  if (!tiles_.absorb(o.tiles_)) throw std::logic_error("SampleStore::absorb: a tile held by both stores");
+    throw InternalError("SampleStore::absorb: the stores hold different buffers");
+  if (!tiles_.absorb(o.tiles_)) throw InternalError("SampleStore::absorb: a tile held by both stores");
   mem_.take(o.mem_);  // its tiles' bytes (and its directory's, until it is freed)
 }
 
@@ -112,7 +113,7 @@ void SampleStore::copy_tile_from(const SampleStore& src, uint32_t x, uint32_t y)
       src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
       src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum ||
       src.targets_.planes != targets_.planes)
-    throw std::logic_error("SampleStore::copy_tile_from: the stores hold different buffers");
+    throw InternalError("SampleStore::copy_tile_from: the stores hold different buffers");
   const SampleTile* from = src.tiles_.find(x, y);
   if (!from) return;
   const uint32_t x0 = x & ~7u, y0 = y & ~7u;
@@ -133,7 +134,7 @@ void SampleStore::copy_pixel_from(const SampleStore& src, uint32_t x, uint32_t y
       src.with_tracker_ != with_tracker_ || src.slab_bits_ != slab_bits_ ||
       src.targets_.transmittance != targets_.transmittance || src.targets_.accum != targets_.accum ||
       src.targets_.planes != targets_.planes)
-    throw std::logic_error("SampleStore::copy_pixel_from: the stores hold different buffers");
+    throw InternalError("SampleStore::copy_pixel_from: the stores hold different buffers");
   const PixelRef to = pixel(x, y);
   const PixelView from = src.view(x, y);
   if (!from.depth) return;

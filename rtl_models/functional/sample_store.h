@@ -130,7 +130,7 @@ class SampleStore {
   size_t state_bytes() const;
   /// Moves every tile of o, a store of the same screen and buffers holding
   /// none of this store's tiles, into this one (the golden model's threads
-  /// each fill a store over their own tiles). Throws std::logic_error on a
+  /// each fill a store over their own tiles). Throws InternalError on a
   /// tile both hold.
   void absorb(SampleStore& o);
   /// Copies the tile holding pixel (x, y) from src, a store of the same

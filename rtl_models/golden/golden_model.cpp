@@ -12,6 +12,7 @@
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/algo/half.h"
 #include "rtl_models/functional/composite.h"
+#include "util/errors.h"
 #include "util/host_threads.h"
 
 namespace ropsim {
@@ -372,7 +373,7 @@ size_t ReferenceModel::state_bytes() const {
 }
 
 std::unique_ptr<FunctionalModel> make_functional_model(const TraceHeader& h, const GoldenConfig& cfg, int threads) {
-  if (const char* err = validate(cfg.numerics)) throw std::invalid_argument(err);
+  if (const char* err = validate(cfg.numerics)) throw UserError(err);
   if (cfg.method == Method::kReference) return std::make_unique<ReferenceModel>(h);
   return std::make_unique<StochasticModel>(h, cfg, threads > 0 ? threads : host_threads());
 }

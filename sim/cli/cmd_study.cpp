@@ -75,9 +75,15 @@ int cmd_study_task(const StudyOpts& o) {
                  o.kind.c_str(), o.index);
     return 0;
   }
+  const int status = failure_status(res.error);
+  if (status == kInternalErrorStatus) {  // "ropsim: internal error: ...", as main says it
+    std::fprintf(stderr, "ropsim: internal error: study task %s %zu failed: %s: please report it\n", o.kind.c_str(),
+                 o.index, broken_invariant(res.error).c_str());
+    return status;
+  }
   std::fprintf(stderr, "ropsim: error: study task %s %zu failed (%s): %s\n", o.kind.c_str(), o.index,
                res.failure == StudyFailure::kHost ? "its host failed" : "an input error", res.error.c_str());
-  return 1;
+  return status;
 }
 
 /// One line per failed point, its kind of failure named.
@@ -115,7 +121,7 @@ int collect_summary(const Study& s, const std::string& dir, const TaskLogs& logs
         fmt::print("  not run: {}: its task never started; the phase before it failed: {}\n",
                    describe_point(points.at(pi)), it->second.second);
     }
-  return sum.failed || !plan.points.empty() ? 1 : 0;
+  return study_exit_status(sum, plan.points.size());
 }
 
 /// `study run --executor slurm`: submits what the folder lacks as job arrays.
@@ -147,7 +153,7 @@ int cmd_study_run_slurm(const StudyOpts& o, const Study& s, const StudyRunOption
                                     (sdir / fmt::format("{}_*.log", sub.after[i])).string()};
   }
   std::fflush(stdout);
-  if (!o.wait) return sum.failed ? 1 : 0;
+  if (!o.wait) return study_exit_status(sum);
   wait_slurm_jobs(sub.job_ids, so.poll_ms);
   return collect_summary(s, ro.out_dir, logs);
 }
@@ -171,7 +177,7 @@ int cmd_study_run(const StudyOpts& o) {
                count_of(r.points, "point"), count_of(r.ran, "point"), r.reused, describe_failures(r), ro.out_dir);
     print_failures(r);
   }
-  return r.failed ? 1 : 0;
+  return study_exit_status(r);
 }
 
 int cmd_study_points(const StudyOpts& o) {

@@ -58,7 +58,7 @@ int trace_vectors(const VectorOpts& o, const CLI::App& sub) {
   uint64_t rows = 0;
   try {
     rows = make_trace_vectors(o.unit, req, [&out](std::string_view s) { out.write(s); });
-  } catch (const std::invalid_argument& e) {
+  } catch (const VectorError& e) {
     throw UserError(std::string("vectors: ") + e.what());
   }
   out.commit();
@@ -74,7 +74,7 @@ int cmd_vectors(const VectorOpts& o, const CLI::App& sub) {
   std::string text;
   try {
     text = make_vectors(o.unit, o.count, o.seed, o.num, o.opt);
-  } catch (const std::invalid_argument& e) {
+  } catch (const VectorError& e) {
     throw UserError(std::string("vectors: ") + e.what());
   }
   ensure_parent_dir(o.out);

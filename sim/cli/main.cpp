@@ -1,6 +1,6 @@
 // ropsim: command-line entry point. Only dispatches: builds the CLI11 app,
 // registers the verbs (one source file each, cli_common.h) and maps what they
-// throw to the exit status (README "Exit status"):
+// throw to the exit status by the one rule of util/errors.h (README "Exit status"):
 //   0  success (and --help, --version)
 //   1  user error: a bad trace, config, scene, flag or input, or an output
 //      that cannot be written. One line "ropsim: error: ...".
@@ -11,8 +11,6 @@
 // is a user error; a reader that closed it ends ropsim quietly, as SIGPIPE).
 #include <CLI/CLI.hpp>
 #include <cstdio>
-#include <cstdlib>
-#include <new>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -29,18 +27,13 @@ using namespace ropsim;
 
 namespace {
 
-int user_error(const char* what) {
+/// Reports an error classified by the one rule (util/errors.h): removes the
+/// outputs this run created, prints the one line, returns the exit status.
+int report(const ErrorVerdict& v) {
   std::fflush(stdout);
   remove_created_outputs();
-  std::fprintf(stderr, "ropsim: error: %s\n", what);
-  return 1;
-}
-
-int internal_error(const char* what) {
-  std::fflush(stdout);
-  remove_created_outputs();
-  std::fprintf(stderr, "ropsim: internal error: %s: please report it\n", what);
-  return 2;
+  std::fprintf(stderr, "ropsim: %s\n", v.message().c_str());
+  return v.status;
 }
 
 }  // namespace
@@ -94,17 +87,16 @@ int main(int argc, char** argv) {
     if (rc == 0) {               // --help, --version: on std::cout, synchronised with stdout
       try {
         finish_standard_output();
-      } catch (const std::exception& w) {
-        return user_error(w.what());
+      } catch (...) {
+        return report(classify_current_exception());
       }
     }
     return rc == 0 ? 0 : 1;  // CLI11's own codes (105, 106...) are all "bad flag"
   }
 
   try {
-    // Test hook (tests/test_output.cpp): exercises the exit status 2 path.
-    if (const char* t = std::getenv("ROPSIM_TEST_INTERNAL_ERROR"); t && *t && std::string(t) != "0")
-      throw InternalError("test hook ROPSIM_TEST_INTERNAL_ERROR is set");
+    // Test hook (tests/test_output.cpp, tests/test_errors.cpp): exercises the exit status 2 path.
+    test_hook_internal_error("main");
     if (opt_memory_limit->count()) memory_budget().set_limit(parse_memory_size(memory_limit, "--memory-limit"));
     if (opt_output_timeout->count()) set_output_timeout(output_timeout);
     if (threads > 0) set_host_threads(threads);
@@ -116,27 +108,18 @@ int main(int argc, char** argv) {
       }
     finish_standard_output();
     return 0;
-  } catch (const InternalError& e) {
-    return internal_error(e.what());
-  } catch (const std::invalid_argument& e) {  // bad input rejected by a library layer
-    return user_error(e.what());
-  } catch (const std::logic_error& e) {  // e.g. the cycle model's stall check
-    return internal_error(e.what());
   } catch (const std::system_error& e) {
     // fmt::print (every verb's printing to standard output) throws this when the write fails.
-    if (std::string(e.what()).rfind("cannot write to file", 0) != 0) return user_error(e.what());
-    try {
-      standard_output_failed(e.code().value());
-    } catch (const std::exception& w) {
-      return user_error(w.what());
+    // That is the standard output's error, said as such (or a quiet end on EPIPE).
+    if (std::string(e.what()).rfind("cannot write to file", 0) == 0) {
+      try {
+        standard_output_failed(e.code().value());
+      } catch (...) {
+        return report(classify_current_exception());
+      }
     }
-  } catch (const std::runtime_error& e) {  // UserError, TraceError, ImageError, ConfigError, ...
-    return user_error(e.what());
-  } catch (const std::bad_alloc&) {
-    return user_error("out of memory");
-  } catch (const std::exception& e) {
-    return internal_error(e.what());
+    return report(classify_current_exception());
   } catch (...) {
-    return internal_error("an unknown exception");
+    return report(classify_current_exception());
   }
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "util/errors.h"
 #include "util/memory_budget.h"
 
 namespace ropsim {
@@ -91,7 +92,7 @@ PixelKinds classify_pixels(const InputSpec& in) {
 
 std::array<double, kPixelKinds> rmse_by_kind(const PixelKinds& k, const Image& image, const Image& reference) {
   if (image.width != k.width || image.height != k.height || reference.width != k.width || reference.height != k.height)
-    throw std::invalid_argument("pixel kinds: the images and the input differ in size");
+    throw InternalError("pixel kinds: the images and the input differ in size");
   std::array<double, kPixelKinds> sum{}, rmse{};
   for (size_t i = 0; i < k.kind.size(); ++i) {
     const uint32_t x = uint32_t(i % k.width), y = uint32_t(i / k.width);

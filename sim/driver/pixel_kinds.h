@@ -36,8 +36,8 @@ struct PixelKinds {
 PixelKinds classify_pixels(const InputSpec& in);
 
 /// RMSE in 8-bit units of image against reference over the pixels of each
-/// kind (0 where a kind has no pixel). Throws std::invalid_argument when the
-/// sizes differ.
+/// kind (0 where a kind has no pixel). The three are of one input: sizes
+/// that differ are an InternalError.
 std::array<double, kPixelKinds> rmse_by_kind(const PixelKinds& k, const Image& image, const Image& reference);
 
 }  // namespace ropsim

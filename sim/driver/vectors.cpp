@@ -18,6 +18,7 @@
 #include "rtl_models/algo/tracker.h"
 #include "rtl_models/golden/golden_model.h"
 #include "traces/raster/sample_patterns.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -390,7 +391,7 @@ std::string hex_comment(const std::string& unit) {
 std::string hex_word(const std::string& unit, const std::string& row) {
   const auto& layout = hex_layout(unit);
   const auto cols = split(row, ',');
-  if (cols.size() != layout.size()) throw std::logic_error("vectors: hex layout of " + unit + " does not fit its CSV");
+  if (cols.size() != layout.size()) throw InternalError("vectors: hex layout of " + unit + " does not fit its CSV");
   std::string word;
   for (size_t c = 0; c < layout.size(); ++c) {
     const ColSpec& spec = layout[c];
@@ -526,27 +527,26 @@ uint64_t make_trace_vectors(const std::string& unit, const TraceVectorRequest& r
   if (std::find(units.begin(), units.end(), unit) == units.end()) {
     std::string known;
     for (const auto& u : units) known += (known.empty() ? "" : ", ") + u;
-    throw std::invalid_argument("--trace captures the calls of " + known + ", not " + unit);
+    throw VectorError("--trace captures the calls of " + known + ", not " + unit);
   }
-  if (req.format != "csv" && req.format != "hex") throw std::invalid_argument("format must be csv or hex");
+  if (req.format != "csv" && req.format != "hex") throw VectorError("format must be csv or hex");
   if (const std::string why = calls_unit(req.method.method, unit); !why.empty())
-    throw std::invalid_argument(unit + " vectors of " + to_string(req.method.method) + ": " + why);
+    throw VectorError(unit + " vectors of " + to_string(req.method.method) + ": " + why);
   if (const auto& b = req.window; b && (b->x0 > b->x1 || b->y0 > b->y1))
-    throw std::invalid_argument("--window: x0 > x1 or y0 > y1");
+    throw VectorError("--window: x0 > x1 or y0 > y1");
   auto src = open_fragments(req.input);
   const TraceHeader h = src->header();
   if (unit == "depth-test") {
     // The depth-test vectors hold a plane and the standard sample positions.
     if (h.depth_mode != DepthMode::kPlane)
-      throw std::invalid_argument(
-          req.input.describe() +
-          ": the trace stores per-sample depths; depth-test vectors take a plane (z0, dzdx, dzdy)");
+      throw VectorError(req.input.describe() +
+                        ": the trace stores per-sample depths; depth-test vectors take a plane (z0, dzdx, dzdy)");
     const auto standard = standard_sample_positions(h.spp);
     for (int i = 0; i < h.spp; ++i)
       if (h.positions[size_t(i)].x != standard[size_t(i)].x || h.positions[size_t(i)].y != standard[size_t(i)].y)
-        throw std::invalid_argument(req.input.describe() + ": sample " + std::to_string(i) +
-                                    "'s position is not the standard one of " + std::to_string(h.spp) +
-                                    " spp, which the depth-test vectors assume");
+        throw VectorError(req.input.describe() + ": sample " + std::to_string(i) +
+                          "'s position is not the standard one of " + std::to_string(h.spp) +
+                          " spp, which the depth-test vectors assume");
   }
   StochasticModel model(h, req.method, 1);
   VectorCapture capture(unit, h, req, write);
@@ -580,9 +580,9 @@ const std::vector<std::string>& vector_units() {
 
 std::string make_vectors(const std::string& unit, uint64_t count, uint64_t seed, const Numerics& num,
                          const VectorOptions& opt) {
-  if (opt.spp != 0 && !is_valid_spp(opt.spp)) throw std::invalid_argument("spp must be 1, 2, 4, ..., 64");
-  if (opt.hilbert_order < 0 || opt.hilbert_order > 16) throw std::invalid_argument("order must be in [1, 16]");
-  if (opt.format != "csv" && opt.format != "hex") throw std::invalid_argument("format must be csv or hex");
+  if (opt.spp != 0 && !is_valid_spp(opt.spp)) throw VectorError("spp must be 1, 2, 4, ..., 64");
+  if (opt.hilbert_order < 0 || opt.hilbert_order > 16) throw VectorError("order must be in [1, 16]");
+  if (opt.format != "csv" && opt.format != "hex") throw VectorError("format must be csv or hex");
   VecRng rng(seed, opt.spp);
   std::string csv;
   if (unit == "alpha-ref") {
@@ -602,7 +602,7 @@ std::string make_vectors(const std::string& unit, uint64_t count, uint64_t seed,
   } else {
     std::string known;
     for (const auto& u : vector_units()) known += (known.empty() ? "" : ", ") + u;
-    throw std::invalid_argument("unknown unit '" + unit + "' (known: " + known + ")");
+    throw VectorError("unknown unit '" + unit + "' (known: " + known + ")");
   }
   return opt.format == "hex" ? csv_to_hex(unit, csv) : csv;
 }

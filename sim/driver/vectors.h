@@ -11,8 +11,16 @@
 #include "rtl_models/algo/numerics.h"
 #include "rtl_models/functional/fragment_source.h"
 #include "rtl_models/functional/method.h"
+#include "util/errors.h"
 
 namespace ropsim {
+
+/// A vector request that cannot be met (an unknown unit, an option out of
+/// range, an input the vectors' columns cannot hold): a user error.
+class VectorError : public UserError {
+ public:
+  using UserError::UserError;
+};
 
 const std::vector<std::string>& vector_units();
 const std::vector<std::string>& vector_formats();
@@ -28,7 +36,7 @@ struct VectorOptions {
 /// The text of `count` vectors of `unit` (directed corner cases first, then
 /// random cases from `seed`). The hex format is the CSV's rows re-encoded,
 /// one fixed-width word per vector, with a comment block naming the fields'
-/// bits (docs/vectors.md). Throws std::invalid_argument for an unknown unit
+/// bits (docs/vectors.md). Throws VectorError for an unknown unit
 /// or an option out of range.
 std::string make_vectors(const std::string& unit, uint64_t count, uint64_t seed, const Numerics& num,
                          const VectorOptions& opt = {});
@@ -55,7 +63,7 @@ struct TraceVectorRequest {
 /// format of make_vectors: the header (or the hex comment block), then one
 /// row per call the ROP's stages make of the unit's rule, in the order made,
 /// with the inputs and outputs the stage used (captured by a RopObserver,
-/// not recomputed). Returns the rows written. Throws std::invalid_argument
+/// not recomputed). Returns the rows written. Throws VectorError
 /// for a unit --trace cannot capture, a method that never calls it, or a
 /// depth-test input the vectors' columns cannot hold (per-sample depths,
 /// sample positions other than the standard ones); TraceError or SceneError

@@ -9,12 +9,13 @@
 #include <vector>
 
 #include "rtl_models/functional/image.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
-class ImageError : public std::runtime_error {
+class ImageError : public UserError {
  public:
-  using std::runtime_error::runtime_error;
+  using UserError::UserError;
 };
 
 /// Encodes img by the extension of path (.exr: linear binary32 RGB, zip;

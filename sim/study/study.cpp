@@ -169,6 +169,7 @@ void check_run_value(const Study& s, const std::string& key, const std::string& 
     try {
       load_hw_config(design_path(s, *f));
     } catch (const std::exception& e) {
+      if (exit_status_of(e) != kUserErrorStatus) throw;  // a broken invariant stays one
       fail(s, at, e.what());
     }
   } else if (key == "order") {
@@ -185,6 +186,7 @@ void check_hw_value(const Study& s, const std::string& key, const std::string& a
   try {
     apply_hw_override(c, key + "=" + to_string(v));
   } catch (const std::exception& e) {
+    if (exit_status_of(e) != kUserErrorStatus) throw;  // a broken invariant stays one
     fail(s, at, e.what());
   }
 }
@@ -445,12 +447,14 @@ Study parse_study(const std::string& text, const std::string& path, const std::s
             try {
               si.label = load_app_entry(si.app).name;  // checked now: a bad entry runs nothing
             } catch (const std::exception& ex) {
+              if (exit_status_of(ex) != kUserErrorStatus) throw;  // a broken invariant stays one
               fail(s, si.at, ex.what());
             }
           } else if (!trace) {
             try {
               si.label = load_scene_file(si.mesh, scene_overrides(s)).name;  // checked now: a bad file runs nothing
             } catch (const std::exception& ex) {
+              if (exit_status_of(ex) != kUserErrorStatus) throw;  // a broken invariant stays one
               fail(s, si.at, ex.what());
             }
           }
@@ -690,6 +694,7 @@ void check_study_inputs(const Study& s) {
       try {
         e = load_app_entry(in.app);
       } catch (const std::exception& ex) {
+        if (exit_status_of(ex) != kUserErrorStatus) throw;  // a broken invariant stays one
         missing(ex.what());
       }
       if (find_executable(e.command[0]).empty())
@@ -704,6 +709,7 @@ void check_study_inputs(const Study& s) {
     try {
       spec = load_scene_file(in.mesh, scene_overrides(s));
     } catch (const std::exception& e) {
+      if (exit_status_of(e) != kUserErrorStatus) throw;  // a broken invariant stays one
       missing(e.what());
     }
     const std::string where = s.mesh_dir.empty() ? "give --mesh-dir DIR or set ROPSIM_MESH_DIR to the "

@@ -43,7 +43,31 @@ namespace fs = std::filesystem;
 
 namespace ropsim {
 
+namespace {
+/// How a broken invariant's recorded error begins (ErrorVerdict::message).
+constexpr const char* kInternalPrefix = "internal error: ";
+}  // namespace
+
 const char* to_string(StudyFailure f) { return f == StudyFailure::kHost ? "host" : "input"; }
+
+int failure_status(const std::string& error) {
+  return error.rfind(kInternalPrefix, 0) == 0 ? kInternalErrorStatus : kUserErrorStatus;
+}
+
+std::string broken_invariant(const std::string& error) {
+  if (failure_status(error) != kInternalErrorStatus) return error;
+  std::string w = error.substr(std::strlen(kInternalPrefix));
+  const std::string tail = ": please report it";
+  if (w.size() >= tail.size() && w.compare(w.size() - tail.size(), tail.size(), tail) == 0)
+    w.resize(w.size() - tail.size());
+  return w;
+}
+
+int study_exit_status(const StudySummary& sum, size_t not_run) {
+  int st = sum.failed || not_run ? kUserErrorStatus : 0;
+  for (const auto& f : sum.failures) st = std::max(st, f.status);
+  return st;
+}
 
 std::string count_of(size_t n, const char* noun) { return fmt::format("{} {}{}", n, noun, n == 1 ? "" : "s"); }
 
@@ -76,34 +100,29 @@ bool host_errno(int e) {
   }
 }
 
-/// The kind of a task's failure, and its error on one line.
+/// A classified error as a study records it (failure_status).
+std::string recorded_form(const ErrorVerdict& v) { return v.status == kUserErrorStatus ? v.what : v.message(); }
+
+/// The kind of a task's failure, and its error on one line (recorded_form).
+/// Its exit status is the one rule's (util/errors.h); whether its host failed
+/// is the study's own question (a plain rerun retries it).
 std::pair<StudyFailure, std::string> failure_of(const std::exception_ptr& e) {
+  const ErrorVerdict v = classify_error(e);
   StudyFailure kind = StudyFailure::kInput;
-  std::string what;
   try {
     std::rethrow_exception(e);
-  } catch (const HostFailure& x) {
+  } catch (const HostFailure&) {
     kind = StudyFailure::kHost;
-    what = x.what();
   } catch (const SystemError& x) {
     kind = host_errno(x.error_number()) ? StudyFailure::kHost : StudyFailure::kInput;
-    what = x.what();
   } catch (const std::system_error& x) {  // std::filesystem_error among them
     const bool os = x.code().category() == std::system_category() || x.code().category() == std::generic_category();
     kind = os && host_errno(x.code().value()) ? StudyFailure::kHost : StudyFailure::kInput;
-    what = x.what();
   } catch (const std::bad_alloc&) {
     kind = StudyFailure::kHost;
-    what = "out of memory";
-  } catch (const std::exception& x) {
-    what = x.what();
   } catch (...) {
-    what = "an unknown exception";
   }
-  for (char& c : what)
-    if (c == '\n' || c == '\r') c = ' ';
-  while (!what.empty() && what.back() == ' ') what.pop_back();
-  return {kind, what};
+  return {kind, recorded_form(v)};
 }
 
 // ------------------------------------------------------------------ tasks
@@ -158,7 +177,12 @@ std::string recorded_error(const fs::path& f) {
 void require_inputs(const ResolvedPoint& r, const std::string& dir, bool with_reference) {
   auto require = [](const fs::path& made, const fs::path& error, const char* what) {
     if (fs::exists(made)) return;
-    if (fs::exists(error)) throw UserError(std::string("its ") + what + " failed: " + recorded_error(error));
+    if (fs::exists(error)) {
+      const std::string e = recorded_error(error);
+      if (failure_status(e) == kInternalErrorStatus)  // a bug, whichever task met it
+        throw InternalError(std::string("its ") + what + " failed: " + broken_invariant(e));
+      throw UserError(std::string("its ") + what + " failed: " + e);
+    }
     if (fs::exists(host_error_path(error)))
       throw HostFailure(std::string("its ") + what + " failed: " + recorded_error(host_error_path(error)));
     throw HostFailure(std::string("its ") + what + " " + made.string() + " is missing");
@@ -796,7 +820,7 @@ bool replaces_folder(Db& db, const Study& s, const std::vector<StudyPoint>& poin
 void count_failure(StudySummary& sum, const StudyPoint& p, const std::string& error, StudyFailure kind) {
   ++sum.failed;
   if (kind == StudyFailure::kHost) ++sum.failed_host;
-  sum.failures.push_back(StudyPointFailure{describe_point(p), error, kind});
+  sum.failures.push_back(StudyPointFailure{describe_point(p), error, kind, failure_status(error)});
 }
 
 }  // namespace
@@ -897,8 +921,10 @@ StudyTaskResult run_task(const Study& s, const std::vector<StudyPoint>& points, 
       capture_input(s, p, dir);
     else if (kind == 'r')
       render_reference(s, p, dir);
-    else
+    else {
+      test_hook_internal_error("study-point");  // tests/test_errors.cpp
       run_point(s, p, dir);
+    }
     res.ok = true;
     return res;
   } catch (...) {

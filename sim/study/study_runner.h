@@ -37,9 +37,20 @@ const char* to_string(StudyFailure f);  ///< "input", "host": the database's `fa
 
 struct StudyPointFailure {
   std::string point;  ///< its hash and parameters (describe_point)
-  std::string error;  ///< one line
+  std::string error;  ///< one line (failure_status)
   StudyFailure kind = StudyFailure::kInput;
+  int status = 1;  ///< its exit status (failure_status): 1 user error, 2 broken invariant
 };
+
+/// A task's error is classified by the rule main applies (util/errors.h) and
+/// recorded (error files, the database, a worker's reply) on one line: a user
+/// error's text, or a broken invariant's as main prints it, "internal error:
+/// <what>: please report it". The exit status a recorded error stands for: 2
+/// for a broken invariant, else 1.
+int failure_status(const std::string& error);
+/// What a broken invariant's recorded error names: "<what>" of "internal
+/// error: <what>: please report it" (any other error as it is).
+std::string broken_invariant(const std::string& error);
 
 struct StudySummary {
   size_t points = 0;       ///< in the study
@@ -49,6 +60,11 @@ struct StudySummary {
   size_t failed_host = 0;  ///< of failed: host failures
   std::vector<StudyPointFailure> failures;
 };
+
+/// The exit status of a study run (or collect) whose summary this is: 0 when
+/// no point failed and none is left to run, else the highest status of its
+/// failures (1, or 2 when a point broke an invariant).
+int study_exit_status(const StudySummary& sum, size_t not_run = 0);
 
 /// "1 point", "2 points".
 std::string count_of(size_t n, const char* noun);
@@ -84,7 +100,7 @@ StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum
 struct StudyTaskResult {
   bool ok = false;
   StudyFailure failure = StudyFailure::kInput;  ///< when not ok
-  std::string error;                            ///< when not ok: one line
+  std::string error;                            ///< when not ok: one line (failure_status)
   /// Whether the error is in the task's error file (a full disk may keep it out).
   bool recorded = false;
 };

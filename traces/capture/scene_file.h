@@ -12,14 +12,15 @@
 #include <vector>
 
 #include "traces/format/trace.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
 /// A user error in a capture (scene file, mesh, camera): one line naming the
 /// file and the key or record.
-class CaptureError : public std::runtime_error {
+class CaptureError : public UserError {
  public:
-  using std::runtime_error::runtime_error;
+  using UserError::UserError;
 };
 
 using Vec3d = std::array<double, 3>;

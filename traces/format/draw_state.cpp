@@ -6,6 +6,7 @@
 #include <string>
 
 #include "traces/format/utf8.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -105,7 +106,7 @@ const DrawState& DrawTable::at(uint32_t draw_id) const {
     return kDefault;
   }
   if (const DrawState* s = find(draw_id)) return *s;
-  throw std::out_of_range("draw " + std::to_string(draw_id) + " has no draw state");
+  throw InternalError("every fragment's draw has a draw state (draw " + std::to_string(draw_id) + " has none)");
 }
 
 std::string DrawTable::validate() const {

@@ -111,7 +111,8 @@ class DrawTable {
   const DrawState* find(uint32_t draw_id) const;
   /// The state of draw_id: find()'s, or for an empty table the one default
   /// state (default_draw_state(0): its draw_id is 0 whatever the id asked;
-  /// thread-safe). Throws std::out_of_range for an id the non-empty table lacks.
+  /// thread-safe). An id the non-empty table lacks is an InternalError (the
+  /// trace reader refuses a fragment whose draw has no state).
   const DrawState& at(uint32_t draw_id) const;
   /// "" when the table is valid (distinct ids, enumerations in range, mask in
   /// 0..15, a UTF-8 name of at most 255 bytes, finite blend colour), else the

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "traces/format/draw_state.h"
+#include "util/errors.h"
 #include "util/memory_budget.h"
 
 namespace ropsim {
@@ -104,9 +105,9 @@ struct Fragment {
 };
 
 /// A user-facing trace error: one line naming the file and the record.
-class TraceError : public std::runtime_error {
+class TraceError : public UserError {
  public:
-  using std::runtime_error::runtime_error;
+  using UserError::UserError;
 };
 
 /// Validates a header; returns "" when valid, otherwise the reason.

@@ -132,8 +132,9 @@ class ByteSink {
 namespace {
 
 /// An error inside the byte stream; TraceReader::next adds the file and record.
-struct SourceError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+class SourceError : public UserError {
+ public:
+  using UserError::UserError;
 };
 
 class FileSource : public ByteSource {

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "rtl_models/algo/numerics.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -49,7 +50,7 @@ std::array<SamplePos, 64> standard_sample_positions(int spp) {
       return out;
     }
     default:
-      throw std::invalid_argument("no standard sample pattern for " + std::to_string(spp) + " spp");
+      throw UserError("no standard sample pattern for " + std::to_string(spp) + " spp");
   }
 }
 

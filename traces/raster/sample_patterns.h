@@ -7,7 +7,8 @@
 
 namespace ropsim {
 
-/// Positions in 1/256 pixel units from the pixel's top-left corner.
+/// Positions in 1/256 pixel units from the pixel's top-left corner. An spp
+/// with no standard pattern (not 1, 2, 4, ..., 64) is a UserError.
 std::array<SamplePos, 64> standard_sample_positions(int spp);
 
 }  // namespace ropsim

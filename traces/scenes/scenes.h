@@ -9,6 +9,7 @@
 
 #include "traces/format/trace.h"
 #include "traces/raster/rasterizer.h"
+#include "util/errors.h"
 
 namespace ropsim {
 
@@ -21,9 +22,9 @@ struct SceneInfo {
 /// The catalogue of built-in scenes, in a fixed order.
 const std::vector<SceneInfo>& scene_catalog();
 
-class SceneError : public std::runtime_error {
+class SceneError : public UserError {
  public:
-  using std::runtime_error::runtime_error;
+  using UserError::UserError;
 };
 
 struct SceneParams {

@@ -17,12 +17,14 @@
 #include <string>
 #include <vector>
 
+#include "util/errors.h"
+
 namespace ropsim {
 
 /// A failure to load the module, decode or encode; the message names the file.
-class ImageCodecError : public std::runtime_error {
+class ImageCodecError : public UserError {
  public:
-  using std::runtime_error::runtime_error;
+  using UserError::UserError;
 };
 
 /// A decoded image: channels as stored (1 to 4, alpha unassociated: colour is

@@ -123,8 +123,8 @@ CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConf
 CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_input, const GoldenConfig& method,
                    const HwConfig& hw, const CycleOptions& opt) {
   if (method.method == Method::kReference)
-    throw std::invalid_argument("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
-  if (const char* err = validate(method.numerics)) throw std::invalid_argument(err);
+    throw UserError("the reference method (A-buffer) has no ROP pipeline; use --fidelity functional");
+  if (const char* err = validate(method.numerics)) throw UserError(err);
   validate_hw_config(hw);
   const auto t0 = std::chrono::steady_clock::now();
   CycleRun run;

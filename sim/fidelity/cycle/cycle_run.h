@@ -141,7 +141,7 @@ const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
 /// uses (surface_bytes.h; 0: unused), as the CompressionModel takes them.
 std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop);
 
-/// Throws std::invalid_argument for the reference method (it has no pipeline)
+/// Throws UserError for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt = {});
 /// The same over the input open_input returns (called once per pass, each

@@ -863,6 +863,7 @@ bool write_all(int fd, const void* data, size_t n) {
 [[noreturn]] void worker(const LivePoints& lib, const HwConfig& hw, int j, int jobs, int fd) {
   int status = 0;
   try {
+    test_hook_internal_error("livepoint-worker");  // tests/test_errors.cpp
     for (size_t i = size_t(j); i < lib.points.size(); i += size_t(jobs)) {
       const std::string m =
           encode_figures(i, figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
@@ -872,9 +873,12 @@ bool write_all(int fd, const void* data, size_t n) {
     const double cpu = process_cpu_seconds();
     const uint64_t end = ~uint64_t{0} - 1;
     if (!write_all(fd, &end, 8) || !write_all(fd, &cpu, sizeof cpu)) _exit(3);
-  } catch (const std::exception& e) {
-    const std::string what = e.what();
-    const uint64_t fail = ~uint64_t{0}, len = what.size(), kind = dynamic_cast<const UserError*>(&e) ? 1 : 2;
+  } catch (...) {
+    // Classified by the rule main applies (util/errors.h); the parent throws
+    // it again as a UserError or an InternalError, so main reports it alike.
+    const ErrorVerdict v = classify_current_exception();
+    const std::string& what = v.what;
+    const uint64_t fail = ~uint64_t{0}, len = what.size(), kind = uint64_t(v.status);
     write_all(fd, &fail, 8);
     write_all(fd, &kind, 8);
     write_all(fd, &len, 8);
@@ -995,11 +999,11 @@ std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, 
                 std::string(WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status))
                                                 : "exit status " + std::to_string(WEXITSTATUS(status))) +
                 ")";
-      failure_kind = 2;
+      failure_kind = kInternalErrorStatus;
     }
   }
   if (!failure.empty()) {
-    if (failure_kind == 1) throw UserError(failure);
+    if (failure_kind == kUserErrorStatus) throw UserError(failure);
     throw InternalError(failure);
   }
   for (bool g : got) invariant(g, "every unit's figures come back from a worker");
