@@ -2,11 +2,9 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
-#include <poll.h>
 #include <signal.h>
 #include <sqlite3.h>
 #include <sys/file.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -38,6 +36,7 @@
 #include "util/output_file.h"
 #include "util/progress.h"
 #include "util/version.h"
+#include "util/worker_pool.h"
 
 namespace fs = std::filesystem;
 
@@ -662,13 +661,6 @@ void clear_point_errors(const std::string& dir, const StudyPoint& p) {
   fs::remove(point_dir(dir, p) / "host-error.txt");
 }
 
-struct Worker {
-  pid_t pid = -1;
-  int to = -1, from = -1;
-  std::string buf;
-  std::optional<Task> busy;
-};
-
 }  // namespace
 
 std::string describe_point(const StudyPoint& p) {
@@ -970,36 +962,29 @@ std::string describe_failures(const StudySummary& sum) {
 
 namespace {
 
-/// A worker process: reads tasks ("c N", "r N" or "p N") from in_fd, answers
-/// "c N ok" or "c N fail KIND ERROR" (KIND: host or input; the error on one
-/// line) on out_fd; the error also goes to the task's error file.
-[[noreturn]] void worker_main(const Study& s, const std::vector<StudyPoint>& points, const std::string& dir, int in_fd,
-                              int out_fd) {
-  FILE* in = fdopen(in_fd, "r");
+/// A task in a worker process: "c N", "r N" or "p N" (a capture, a
+/// reference, a point); answers "ok" or "fail KIND ERROR" (KIND: host or
+/// input; the error on one line), the error also in the task's error file.
+std::string serve_task(const Study& s, const std::vector<StudyPoint>& points, const std::string& dir,
+                       const std::string& task) {
   char kind = 0;
   size_t index = 0;
-  while (in && std::fscanf(in, " %c %zu", &kind, &index) == 2) {
-    StudyTaskResult res;
-    try {
-      res = run_task(s, points, kind, index, dir);
-    } catch (...) {
-      std::tie(res.failure, res.error) = failure_of(std::current_exception());
-    }
-    const std::string reply = res.ok
-                                  ? fmt::format("{} {} ok\n", kind, index)
-                                  : fmt::format("{} {} fail {} {}\n", kind, index, to_string(res.failure), res.error);
-    if (::write(out_fd, reply.data(), reply.size()) != ssize_t(reply.size())) break;
+  std::istringstream(task) >> kind >> index;
+  StudyTaskResult res;
+  try {
+    res = run_task(s, points, kind, index, dir);
+  } catch (...) {
+    std::tie(res.failure, res.error) = failure_of(std::current_exception());
   }
-  std::fflush(nullptr);
-  _exit(0);
+  return res.ok ? std::string("ok") : fmt::format("fail {} {}", to_string(res.failure), res.error);
 }
 
-/// A worker's reply (worker_main) as the task's result.
+/// A worker's reply (serve_task) as the task's result.
 StudyTaskResult parse_reply(const std::string& line) {
   StudyTaskResult res;
   std::istringstream in(line);
-  std::string kind, index, verdict, failure;
-  in >> kind >> index >> verdict;
+  std::string verdict, failure;
+  in >> verdict;
   res.ok = verdict == "ok";
   if (res.ok) return res;
   in >> failure;
@@ -1036,32 +1021,14 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   std::map<std::string, StudyTaskResult> failed_refs, failed_caps;  // key -> how its task failed
 
   const size_t n_workers = std::max<size_t>(1, std::min<size_t>(o.jobs, caps.size() + refs.size() + runs.size()));
-  std::vector<Worker> workers(n_workers);
-  std::fflush(nullptr);
-  for (auto& w : workers) {
-    int down[2], up[2];
-    if (pipe(down) != 0 || pipe(up) != 0) throw UserError("study: cannot create a pipe");
-    w.pid = fork();
-    if (w.pid < 0) throw UserError("study: cannot start a worker process");
-    if (w.pid == 0) {
-      close_inherited_folder_locks();
-      // The cores are the workers' to share: each point's golden model gets its share.
-      set_host_threads(std::max(1, host_threads() / int(n_workers)));
-      ::close(down[1]);
-      ::close(up[0]);
-      for (const auto& other : workers)
-        if (other.pid > 0) {
-          ::close(other.to);
-          ::close(other.from);
-        }
-      worker_main(s, points, o.out_dir, down[0], up[1]);
-    }
-    ::close(down[0]);
-    ::close(up[1]);
-    w.to = down[1];
-    w.from = up[0];
-  }
-  signal(SIGPIPE, SIG_IGN);
+  WorkerPool pool(
+      n_workers, [&](const std::string& task) { return serve_task(s, points, o.out_dir, task); },
+      [n_workers] {
+        close_inherited_folder_locks();
+        // The cores are the workers' to share: each point's golden model gets its share.
+        set_host_threads(std::max(1, host_threads() / int(n_workers)));
+      });
+  std::vector<std::optional<Task>> held(n_workers);  // each worker's task
 
   Db db((fs::path(o.out_dir) / "results.db").string());
   const auto t0 = std::chrono::steady_clock::now();
@@ -1085,8 +1052,8 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
   };
 
   auto busy_with = [&](char kind) {
-    for (const auto& w : workers)
-      if (w.busy && w.busy->kind == kind) return true;
+    for (const auto& h : held)
+      if (h && h->kind == kind) return true;
     return false;
   };
   // Why task t cannot run: its capture (or, for a point, its reference)
@@ -1152,11 +1119,11 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     return std::nullopt;
   };
   auto dispatch = [&]() {
-    for (auto& w : workers)
-      if (w.pid > 0 && !w.busy)
+    for (size_t w = 0; w < pool.size(); ++w)
+      if (pool.idle(w))
         if (auto t = next_task()) {
-          const std::string line = fmt::format("{} {}\n", t->kind, t->index);
-          if (::write(w.to, line.data(), line.size()) == ssize_t(line.size())) w.busy = t;
+          pool.send(w, fmt::format("{} {}", t->kind, t->index));
+          held[w] = t;
         }
   };
   auto finish = [&](const Task& t, const StudyTaskResult& res) {
@@ -1182,61 +1149,20 @@ StudySummary run_study(const Study& s, const StudyRunOptions& o) {
     progress(false);
   };
 
-  dispatch();
-  for (;;) {
-    std::vector<pollfd> fds;
-    std::vector<Worker*> who;
-    for (auto& w : workers)
-      if (w.pid > 0 && w.busy) {
-        fds.push_back(pollfd{w.from, POLLIN, 0});
-        who.push_back(&w);
-      }
-    if (fds.empty()) break;
-    if (poll(fds.data(), fds.size(), -1) < 0) {
-      if (errno == EINTR) continue;
-      throw UserError("study: poll failed");
-    }
-    for (size_t i = 0; i < fds.size(); ++i) {
-      if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
-      Worker& w = *who[i];
-      char buf[256];
-      const ssize_t n = ::read(w.from, buf, sizeof buf);
-      if (n <= 0) {  // the worker died (a host failure): its task fails, the others go on
-        const Task t = *w.busy;
-        w.busy.reset();
-        ::close(w.to);
-        ::close(w.from);
-        int st = 0;
-        waitpid(w.pid, &st, 0);
-        w.pid = -1;
-        finish(t, StudyTaskResult{false, StudyFailure::kHost,
-                                  WIFSIGNALED(st) ? fmt::format("the worker running it was killed by signal {} ({})",
-                                                                WTERMSIG(st), strsignal(WTERMSIG(st)))
-                                                  : fmt::format("the worker running it stopped (exit status {})",
-                                                                WIFEXITED(st) ? WEXITSTATUS(st) : -1)});
-        continue;
-      }
-      w.buf.append(buf, size_t(n));
-      size_t nl;
-      while ((nl = w.buf.find('\n')) != std::string::npos) {
-        const std::string line = w.buf.substr(0, nl);
-        w.buf.erase(0, nl + 1);
-        if (w.busy) {
-          const Task t = *w.busy;
-          w.busy.reset();
-          finish(t, parse_reply(line));
-        }
-      }
-    }
-    dispatch();
+  for (dispatch(); pool.any_busy(); dispatch()) {
+    const WorkerPool::Reply r = pool.next();
+    const Task t = *held[r.worker];
+    held[r.worker].reset();
+    if (r.kind == WorkerPool::Reply::Kind::kDied)  // a host failure: its task fails, the others go on
+      finish(t, StudyTaskResult{
+                    false, StudyFailure::kHost,
+                    "the worker running it " + std::string(r.text.rfind("killed", 0) == 0 ? "was " : "") + r.text});
+    else if (r.kind == WorkerPool::Reply::Kind::kFailed)  // serve_task itself failed
+      finish(t, StudyTaskResult{false, StudyFailure::kInput, recorded_form(ErrorVerdict{r.status, r.text})});
+    else
+      finish(t, parse_reply(r.text));
   }
-  for (auto& w : workers)
-    if (w.pid > 0) {
-      ::close(w.to);
-      ::close(w.from);
-      int st = 0;
-      waitpid(w.pid, &st, 0);
-    }
+  pool.close();
   // Points a dead worker left (no worker remained to run them).
   while (!runs.empty()) {
     const StudyPoint& p = points[runs.front().index];

@@ -1,7 +1,5 @@
 #include "sim/fidelity/sampled/livepoints.h"
 
-#include <poll.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -29,6 +27,7 @@
 #include "util/host_threads.h"
 #include "util/memory_budget.h"
 #include "util/progress.h"
+#include "util/worker_pool.h"
 
 namespace ropsim {
 
@@ -845,165 +844,49 @@ double process_cpu_seconds() {
   return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
-bool write_all(int fd, const void* data, size_t n) {
-  const char* p = static_cast<const char*>(data);
-  while (n > 0) {
-    const ssize_t w = ::write(fd, p, n);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) return false;
-    p += w;
-    n -= size_t(w);
-  }
-  return true;
-}
-
-/// A worker: simulates units j, j + jobs, ... and writes, per unit, a
-/// length-prefixed message; then its CPU seconds; or, on failure, a message
-/// of length ~0 and the error's text. Never returns.
-[[noreturn]] void worker(const LivePoints& lib, const HwConfig& hw, int j, int jobs, int fd) {
-  int status = 0;
-  try {
-    test_hook_internal_error("livepoint-worker");  // tests/test_errors.cpp
-    for (size_t i = size_t(j); i < lib.points.size(); i += size_t(jobs)) {
-      const std::string m =
-          encode_figures(i, figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
-      const uint64_t len = m.size();
-      if (!write_all(fd, &len, 8) || !write_all(fd, m.data(), m.size())) _exit(3);
-    }
-    const double cpu = process_cpu_seconds();
-    const uint64_t end = ~uint64_t{0} - 1;
-    if (!write_all(fd, &end, 8) || !write_all(fd, &cpu, sizeof cpu)) _exit(3);
-  } catch (...) {
-    // Classified by the rule main applies (util/errors.h); the parent throws
-    // it again as a UserError or an InternalError, so main reports it alike.
-    const ErrorVerdict v = classify_current_exception();
-    const std::string& what = v.what;
-    const uint64_t fail = ~uint64_t{0}, len = what.size(), kind = uint64_t(v.status);
-    write_all(fd, &fail, 8);
-    write_all(fd, &kind, 8);
-    write_all(fd, &len, 8);
-    write_all(fd, what.data(), what.size());
-    status = int(kind);
-  }
-  ::close(fd);
-  std::fflush(nullptr);
-  _exit(status);
-}
-
-/// Runs every unit in `jobs` forked workers; the figures by unit index.
+/// Runs every unit in `jobs` worker processes (worker_pool.h), each unit a
+/// task as the workers free up; the figures by unit index, which do not
+/// depend on the workers (each unit is simulated from its live-point alone).
 std::vector<UnitFigures> run_workers(const LivePoints& lib, const HwConfig& hw, int jobs, double& cpu_seconds) {
-  std::fflush(nullptr);
-  struct Child {
-    pid_t pid = -1;
-    int fd = -1;
-    std::string in;
-    bool done = false;
-    size_t scanned = 0;  ///< bytes of `in` counted into units_done (whole messages)
-  };
+  const size_t k = lib.points.size();
   Progress progress("sampled: units", "units");
-  size_t units_done = 0;
-  std::vector<Child> kids(static_cast<size_t>(jobs));
-  for (int j = 0; j < jobs; ++j) {
-    int p[2];
-    if (::pipe(p) != 0)
-      throw UserError(std::string("sampled: cannot create a pipe for a worker: ") + std::strerror(errno));
-    const pid_t pid = ::fork();
-    if (pid < 0) throw UserError(std::string("sampled: cannot start a worker process: ") + std::strerror(errno));
-    if (pid == 0) {
-      ::close(p[0]);
-      for (int i = 0; i < j; ++i) ::close(kids[size_t(i)].fd);
-      worker(lib, hw, j, jobs, p[1]);
-    }
-    ::close(p[1]);
-    kids[size_t(j)].pid = pid;
-    kids[size_t(j)].fd = p[0];
-  }
-  // Read every pipe to its end (poll: no worker blocks on a full pipe).
-  std::vector<char> buf(1 << 16);
-  for (size_t open = kids.size(); open > 0;) {
-    std::vector<pollfd> fds;
-    std::vector<size_t> who;
-    for (size_t i = 0; i < kids.size(); ++i)
-      if (!kids[i].done) {
-        fds.push_back(pollfd{kids[i].fd, POLLIN, 0});
-        who.push_back(i);
+  WorkerPool pool(size_t(jobs), [&lib, &hw](const std::string& task) {
+    test_hook_internal_error("livepoint-worker");  // tests/test_errors.cpp
+    const size_t i = size_t(std::stoull(task));
+    return encode_figures(i, figures_of(simulate_livepoint(lib, i, hw), lib.points[i].fragments.size()));
+  });
+  std::vector<UnitFigures> out(k);
+  std::vector<bool> got(k, false);
+  size_t next = 0, done = 0;
+  std::string failure;
+  int failure_status = 0;
+  auto dispatch = [&] {
+    for (size_t w = 0; w < pool.size() && next < k && failure.empty(); ++w)
+      if (pool.idle(w)) pool.send(w, std::to_string(next++));
+  };
+  for (dispatch(); pool.any_busy(); dispatch()) {
+    const WorkerPool::Reply r = pool.next();
+    if (!r.ok()) {
+      if (failure.empty()) {
+        // The first failure ends the run (the rest finish their units).
+        const bool died = r.kind == WorkerPool::Reply::Kind::kDied;
+        failure = died ? "a worker process ended without its results (" + r.text + ")" : r.text;
+        failure_status = died ? kInternalErrorStatus : r.status;
       }
-    if (::poll(fds.data(), fds.size(), -1) < 0) {
-      if (errno == EINTR) continue;
-      throw UserError(std::string("sampled: poll: ") + std::strerror(errno));
+      continue;
     }
-    for (size_t k = 0; k < fds.size(); ++k) {
-      if (!(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
-      Child& c = kids[who[k]];
-      const ssize_t n = ::read(c.fd, buf.data(), buf.size());
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) {
-        ::close(c.fd);
-        c.done = true;
-        --open;
-      } else {
-        c.in.append(buf.data(), size_t(n));
-        // Whole unit messages so far (the last messages, of length ~0 or
-        // ~0 - 1, end a worker's stream).
-        for (uint64_t len = 0; c.scanned + 8 <= c.in.size(); c.scanned += 8 + size_t(len), ++units_done) {
-          std::memcpy(&len, c.in.data() + c.scanned, 8);
-          if (len >= ~uint64_t{0} - 1 || c.scanned + 8 + len > c.in.size()) break;
-        }
-        progress.update(double(units_done) / double(std::max<size_t>(lib.points.size(), 1)), units_done);
-      }
-    }
+    uint64_t unit = 0;
+    UnitFigures f = decode_figures(r.text, unit);
+    invariant(unit < k && !got[unit], "each unit is simulated by one worker, once");
+    got[unit] = true;
+    out[unit] = std::move(f);
+    ++done;
+    progress.update(double(done) / double(std::max<size_t>(k, 1)), done);
   }
   progress.finish();
-  std::vector<UnitFigures> out(lib.points.size());
-  std::vector<bool> got(lib.points.size(), false);
-  std::string failure;
-  int failure_kind = 0;
-  cpu_seconds = 0;
-  for (Child& c : kids) {
-    int status = 0;
-    while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    MessageReader r{c.in};
-    bool ended = false;
-    while (r.at + 8 <= c.in.size()) {
-      const uint64_t len = r.u64();
-      if (len == ~uint64_t{0}) {
-        const uint64_t kind = r.u64();
-        const std::string what = r.str();
-        if (failure.empty()) {
-          failure = what;
-          failure_kind = int(kind);
-        }
-        ended = true;
-        break;
-      }
-      if (len == ~uint64_t{0} - 1) {
-        double cpu = 0;
-        invariant(r.at + sizeof cpu <= c.in.size(), "a worker sends its CPU time");
-        std::memcpy(&cpu, c.in.data() + r.at, sizeof cpu);
-        r.at += sizeof cpu;
-        cpu_seconds += cpu;
-        ended = true;
-        break;
-      }
-      invariant(r.at + len <= c.in.size(), "a worker's unit message arrives whole");
-      uint64_t unit = 0;
-      UnitFigures f = decode_figures(c.in.substr(r.at, size_t(len)), unit);
-      r.at += size_t(len);
-      invariant(unit < out.size() && !got[unit], "each unit is simulated by one worker, once");
-      got[unit] = true;
-      out[unit] = std::move(f);
-    }
-    if (!ended && failure.empty()) {
-      failure = "a worker process ended without its results (" +
-                std::string(WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status))
-                                                : "exit status " + std::to_string(WEXITSTATUS(status))) +
-                ")";
-      failure_kind = kInternalErrorStatus;
-    }
-  }
+  cpu_seconds = pool.close();
   if (!failure.empty()) {
-    if (failure_kind == kUserErrorStatus) throw UserError(failure);
+    if (failure_status == kUserErrorStatus) throw UserError(failure);
     throw InternalError(failure);
   }
   for (bool g : got) invariant(g, "every unit's figures come back from a worker");
