@@ -51,6 +51,7 @@ class Context:
         self.jobs = jobs
         self.work = work
         self.count = 0
+        self.studies = {}
 
     def tmp(self, name):
         self.count += 1
@@ -80,6 +81,9 @@ class Context:
 
         extra_toml: replaces the study's [axes] lines given as {key: toml value}
         (a copy of the study is written beside the original's folder layout)."""
+        key = (study_file, tuple(sorted((extra_toml or {}).items(), key=lambda kv: kv[0])))
+        if key in self.studies:
+            return self.studies[key]
         out = self.tmp("study")
         path = os.path.join(ROOT, study_file)
         if extra_toml:
@@ -100,7 +104,8 @@ class Context:
         finally:
             if extra_toml:
                 os.unlink(path)
-        return out, sqlite3.connect(os.path.join(out, "results.db"))
+        self.studies[key] = (out, sqlite3.connect(os.path.join(out, "results.db"), check_same_thread=False))
+        return self.studies[key]
 
 
 def q(name):
@@ -140,13 +145,8 @@ def lk_rmse_by_spp(db, inp):
     return [(int(s), lk, en) for s, lk, en in rows]
 
 
-_lk_table_cache = {}
-
-
 def lk_table_db(ctx):
-    if "db" not in _lk_table_cache:
-        _lk_table_cache["db"] = ctx.study("studies/lk-table.toml")[1]
-    return _lk_table_cache["db"]
+    return ctx.study("studies/lk-table.toml")[1]
 
 
 def make_lk_table_cloth(ctx):
@@ -298,6 +298,85 @@ def make_slab(ctx):
                   "DRAM bytes at b = 8 / 32 / 64"], ["---", "---:", "---", "---", "---"], rows)
 
 
+UNCOMPRESSED = {"design": '"../configs/uncompressed.toml"'}
+
+
+def qvc_by(db, inp=None):
+    """{(method, spp): (rmse, cycles, dram bytes)}: means over the seeds."""
+    where = "input = '%s'" % inp if inp else "1"
+    return {(m, int(s)): (e, c, b) for m, s, e, c, b in qvc_rows(db, where)}
+
+
+def make_quality_vs_cost_motor(ctx):
+    out, db = ctx.study("studies/quality-vs-cost-motor.toml")
+    v = qvc_by(db)
+    keep = [("lk", s) for s in (4, 16, 32, 64)] + [("enderton", s) for s in (4, 16, 32, 64)]
+    keep += [("naive", 64), ("a2c", 64), ("opaque", 64)]
+    return table(["method", "spp", "RMSE", "cycles", "DRAM bytes"], ["---", "---:", "---:", "---:", "---:"],
+                 [(m, s, f2(v[(m, s)][0]), thousands(v[(m, s)][1]), thousands(v[(m, s)][2])) for m, s in keep])
+
+
+def make_hashed_foliage(ctx):
+    out, db = ctx.study("studies/quality-vs-cost.toml", UNCOMPRESSED)
+    rows = []
+    for inp in ("cloth", "foliage"):
+        v = qvc_by(db, inp)
+        for m in ("lk", "enderton", "hashed-a2c", "hashed", "a2c"):
+            r = [v[(m, s)] for s in (4, 16, 64)]
+            rows.append((inp, m, "4 / 16 / 64", " / ".join(f2(x[0]) for x in r),
+                         " / ".join(thousands(x[1]) for x in r), " / ".join("%.1f M" % (x[2] / 1e6) for x in r)))
+    return table(["scene", "method", "spp", "RMSE", "cycles", "DRAM bytes"],
+                 ["---", "---", "---:", "---:", "---:", "---:"], rows)
+
+
+def make_slab_qvc(ctx):
+    out, db = ctx.study("studies/quality-vs-cost.toml", UNCOMPRESSED)
+    rows = []
+    for inp in ("cloth", "foliage"):
+        v = qvc_by(db, inp)
+        r = [v[("slab", s)] for s in (4, 16, 64)]
+        rows.append((inp, "4 / 16 / 64", " / ".join(f2(x[0]) for x in r), " / ".join(thousands(x[1]) for x in r),
+                     " / ".join("%.1f M" % (x[2] / 1e6) for x in r)))
+    return table(["scene", "spp", "RMSE", "cycles", "DRAM bytes"], ["---", "---:", "---:", "---:", "---:"], rows)
+
+
+def multipass_table(v):
+    rows = []
+    for s in (4, 8, 16, 32, 64):
+        row = [s]
+        for suffix in ("", "+ac", "+depth", "+depth+ac"):
+            lk, en = v[("lk" + suffix, s)][0], v[("enderton" + suffix, s)][0]
+            row.append("%s / %s (%s)" % (f2(lk), f2(en), f2(lk / en)))
+        rows.append(row)
+    return table(["spp", "plain: lk / enderton (ratio)", "+ac", "+depth", "+depth+ac"], ["---:", "---", "---", "---",
+                                                                                         "---"], rows)
+
+
+def make_multipass_cloth(ctx):
+    return multipass_table(qvc_by(ctx.study("studies/quality-vs-cost.toml", UNCOMPRESSED)[1], "cloth"))
+
+
+def make_multipass_foliage(ctx):
+    return multipass_table(qvc_by(ctx.study("studies/quality-vs-cost.toml", UNCOMPRESSED)[1], "foliage"))
+
+
+def make_multipass_motor(ctx):
+    return multipass_table(qvc_by(ctx.study("studies/quality-vs-cost-motor.toml")[1]))
+
+
+def make_multipass_cost(ctx):
+    v = qvc_by(ctx.study("studies/quality-vs-cost.toml", UNCOMPRESSED)[1], "cloth")
+    keep = [(m, s) for m in ("wboit", "lk+ac", "lk+depth", "lk+depth+ac") for s in (4, 16, 64)]
+    keep += [(m, 16) for m in ("enderton+ac", "enderton+depth", "enderton+depth+ac")]
+    rows = []
+    for m, s in keep:
+        e, c, b = v[(m, s)]
+        _, lc, lb = v[("lk", s)]
+        rows.append((m, s, f2(e), thousands(c), f2(c / lc), thousands(b), f2(b / lb)))
+    return table(["method", "spp", "RMSE", "cycles", "x lk cycles", "DRAM bytes", "x lk DRAM"],
+                 ["---", "---:", "---:", "---:", "---:", "---:", "---:"], rows)
+
+
 # ---------------------------------------------------------------- compression and Hi-Z
 
 def compression_rows(ctx, scenes_only):
@@ -405,6 +484,13 @@ TABLES = {
     "lk-table-cloth-mesh": ("slow", make_lk_table_cloth_mesh),
     "numerics": ("slow", make_numerics),
     "quality-vs-cost-cloth": ("slow", make_quality_vs_cost_cloth),
+    "quality-vs-cost-motor": ("slow", make_quality_vs_cost_motor),
+    "hashed-foliage": ("slow", make_hashed_foliage),
+    "slab-qvc": ("slow", make_slab_qvc),
+    "multipass-cloth": ("slow", make_multipass_cloth),
+    "multipass-foliage": ("slow", make_multipass_foliage),
+    "multipass-motor": ("slow", make_multipass_motor),
+    "multipass-cost": ("slow", make_multipass_cost),
     "table1": ("slow", make_table1),
     "slab": ("slow", make_slab),
     "cycle-designs": ("fast", make_cycle_designs),
