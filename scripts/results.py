@@ -81,9 +81,9 @@ class Context:
 
         extra_toml: replaces the study's [axes] lines given as {key: toml value}
         (a copy of the study is written beside the original's folder layout)."""
-        key = (study_file, tuple(sorted((extra_toml or {}).items(), key=lambda kv: kv[0])))
-        if key in self.studies:
-            return self.studies[key]
+        cache_key = (study_file, tuple(sorted((extra_toml or {}).items(), key=lambda kv: kv[0])))
+        if cache_key in self.studies:
+            return self.studies[cache_key]
         out = self.tmp("study")
         path = os.path.join(ROOT, study_file)
         if extra_toml:
@@ -104,8 +104,8 @@ class Context:
         finally:
             if extra_toml:
                 os.unlink(path)
-        self.studies[key] = (out, sqlite3.connect(os.path.join(out, "results.db"), check_same_thread=False))
-        return self.studies[key]
+        self.studies[cache_key] = (out, sqlite3.connect(os.path.join(out, "results.db"), check_same_thread=False))
+        return self.studies[cache_key]
 
 
 def q(name):
@@ -203,6 +203,15 @@ def make_numerics(ctx):
             row += [f3(r), sgn(b)]
         rows.append(row)
     return table(["width", "cloth RMSE", "cloth bias", "smoke RMSE", "smoke bias"], ["---"] + ["---:"] * 4, rows)
+
+
+def make_hash_width(ctx):
+    out, db = ctx.study("studies/hash-width.toml")
+    md = ctx.tmp("hash-width.md")
+    subprocess.run([sys.executable, os.path.join(ROOT, "analysis", "study_cost.py"), out, "--param", "hash_bits",
+                    "--spp", "16", "--markdown", md], check=True, stdout=subprocess.DEVNULL)
+    with open(md) as f:
+        return f.read()
 
 
 # ---------------------------------------------------------------- cost
@@ -483,6 +492,7 @@ TABLES = {
     "lk-table-motor": ("slow", make_lk_table_motor),
     "lk-table-cloth-mesh": ("slow", make_lk_table_cloth_mesh),
     "numerics": ("slow", make_numerics),
+    "hash-width": ("slow", make_hash_width),
     "quality-vs-cost-cloth": ("slow", make_quality_vs_cost_cloth),
     "quality-vs-cost-motor": ("slow", make_quality_vs_cost_motor),
     "hashed-foliage": ("slow", make_hashed_foliage),
