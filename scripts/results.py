@@ -80,7 +80,7 @@ class Context:
         """`ropsim study run STUDY --out DIR -j N`: an sqlite3 connection to its results.
 
         extra_toml: replaces the study's [axes] lines given as {key: toml value}
-        (a copy of the study is written beside the original's folder layout)."""
+        (a copy of the study in the work folder, its paths relative to studies/ made absolute)."""
         cache_key = (study_file, tuple(sorted((extra_toml or {}).items(), key=lambda kv: kv[0])))
         if cache_key in self.studies:
             return self.studies[cache_key]
@@ -95,15 +95,12 @@ class Context:
                 text = re.sub(r"(?m)^%s = .*$" % re.escape(key), lambda m: "%s = %s" % (key, value), text)
                 if not re.search(r"(?m)^%s = " % re.escape(key), text):
                     text = text.rstrip("\n") + "\n%s = %s\n" % (key, value)
-            # the copy lives in studies/ so that its relative paths resolve the same way
-            path = os.path.join(os.path.dirname(path), ".results-%d-%s" % (os.getpid(), os.path.basename(path)))
+            # the copy lives in the work folder: its paths relative to studies/ made absolute
+            text = text.replace('"../', '"%s/' % ROOT)
+            path = os.path.join(self.work, "%03d-%s" % (self.count, os.path.basename(path)))
             with open(path, "w") as f:
                 f.write(text)
-        try:
-            self.call(["study", "run", path, "--out", out, "-j", str(self.jobs)])
-        finally:
-            if extra_toml:
-                os.unlink(path)
+        self.call(["study", "run", path, "--out", out, "-j", str(self.jobs)])
         self.studies[cache_key] = (out, sqlite3.connect(os.path.join(out, "results.db"), check_same_thread=False))
         return self.studies[cache_key]
 
