@@ -165,7 +165,7 @@ def lk_table_mesh(ctx, study, lk2011):
     out, db = ctx.study(study)
     rows = []
     for s, lk, en in lk_rmse_by_spp(db, db.execute("select input from results limit 1").fetchone()[0]):
-        frags = db.execute("select max(%s) from results where spp = ?" % q("input.fragments"), (s,)).fetchone()[0]
+        frags = db.execute("select max(%s) from results where spp = ?" % q("counters.fragments"), (s,)).fetchone()[0]
         rows.append((s, thousands(frags), f2(lk), f2(en), f2(lk / en), lk2011[s]))
     return table(["spp", "fragments", "lk", "enderton", "ratio lk/enderton", "LK 2011 %s ratio" %
                   ("MOTOR" if lk2011 is LK2011_MOTOR else "CLOTH")], ["---:"] * 6, rows)
