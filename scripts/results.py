@@ -35,6 +35,7 @@ import sqlite3
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -52,10 +53,13 @@ class Context:
         self.work = work
         self.count = 0
         self.studies = {}
+        self.lock = threading.Lock()
+        self.study_locks = {}
 
     def tmp(self, name):
-        self.count += 1
-        return os.path.join(self.work, "%03d-%s" % (self.count, name))
+        with self.lock:
+            self.count += 1
+            return os.path.join(self.work, "%03d-%s" % (self.count, name))
 
     def call(self, args, cwd=None):
         p = subprocess.run([self.ropsim, *args], cwd=cwd or self.work, stdout=subprocess.PIPE,
@@ -82,8 +86,15 @@ class Context:
         extra_toml: replaces the study's [axes] lines given as {key: toml value}
         (a copy of the study in the work folder, its paths relative to studies/ made absolute)."""
         cache_key = (study_file, tuple(sorted((extra_toml or {}).items(), key=lambda kv: kv[0])))
-        if cache_key in self.studies:
-            return self.studies[cache_key]
+        with self.lock:
+            key_lock = self.study_locks.setdefault(cache_key, threading.Lock())
+        with key_lock:  # tables run side by side; one run of each study
+            if cache_key not in self.studies:
+                self.studies[cache_key] = self._run_study(study_file, extra_toml)
+        out = self.studies[cache_key]
+        return out, sqlite3.connect(os.path.join(out, "results.db"))  # a connection per caller (thread)
+
+    def _run_study(self, study_file, extra_toml):
         out = self.tmp("study")
         path = os.path.join(ROOT, study_file)
         if extra_toml:
@@ -97,12 +108,11 @@ class Context:
                     text = text.rstrip("\n") + "\n%s = %s\n" % (key, value)
             # the copy lives in the work folder: its paths relative to studies/ made absolute
             text = text.replace('"../', '"%s/' % ROOT)
-            path = os.path.join(self.work, "%03d-%s" % (self.count, os.path.basename(path)))
+            path = self.tmp(os.path.basename(path))
             with open(path, "w") as f:
                 f.write(text)
         self.call(["study", "run", path, "--out", out, "-j", str(self.jobs)])
-        self.studies[cache_key] = (out, sqlite3.connect(os.path.join(out, "results.db"), check_same_thread=False))
-        return self.studies[cache_key]
+        return out
 
 
 def q(name):
@@ -555,11 +565,19 @@ def main(argv):
     work = tempfile.mkdtemp(prefix="ropsim-results-")
     ctx = Context(os.path.abspath(a.ropsim), a.jobs, work)
     generated = {}
+
+    def make(n):
+        t0 = time.time()
+        text = TABLES[n][1](ctx)
+        print("results.py: %s (%s): %.1f s" % (n, TABLES[n][0], time.time() - t0), file=sys.stderr)
+        return text
+
     try:
-        for n in names:
-            t0 = time.time()
-            generated[n] = TABLES[n][1](ctx)
-            print("results.py: %s (%s): %.1f s" % (n, TABLES[n][0], time.time() - t0), file=sys.stderr)
+        # two tables at a time (each runs up to -j ropsim processes): the text of
+        # each depends only on its own runs, so the order does not matter
+        with concurrent.futures.ThreadPoolExecutor(2) as ex:
+            for n, text in zip(names, ex.map(make, names)):
+                generated[n] = text
     finally:
         if a.keep:
             print("results.py: work folder kept: %s" % work, file=sys.stderr)
