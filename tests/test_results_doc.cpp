@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "study_test_util.h"
+#include "tests/study_test_util.h"
 
 namespace {
 
