@@ -34,9 +34,10 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # every bit-exact test here runs), the run of every help text's examples (the
 # verbs' code runs here in their own tests) and the report rendered in
 # chromium (chromium's code; the report's writer runs in the other StudyReport
-# tests). The
+# tests), and the check of docs/results.md's figures (ResultsDoc: the same
+# ropsim runs as the tests above, compared with the committed text). The
 # RTL testbenches (RTL.*) are Verilator's and Yosys's code, not ropsim's: the
 # sanitizer build does not build them (tests/CMakeLists.txt), and the
 # pattern keeps them out should a build-asan/ from before have them.
 ctest --output-on-failure -j "$(nproc)" \
-  -E 'RTL\.|TimingDigest|GoldenDigest|EndertonExamples|Cli\.EveryVerbsHelpHasExamplesThatRun|StudyReport\.ASmallStudysReportIsSelfContainedAndRendersInChromium|BitExact\..*_(narrow|wide)|BitExact\..*/(eight_layers|cloth|smoke|opaque|foliage)_default|BitExactCompression|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|Decoupling\.EqualsLockstepExactlyWithCompression|GoldenThreads\..*/(cloth|smoke|opaque|foliage)( |$)' "$@"
+  -E 'RTL\.|TimingDigest|GoldenDigest|EndertonExamples|Cli\.EveryVerbsHelpHasExamplesThatRun|StudyReport\.ASmallStudysReportIsSelfContainedAndRendersInChromium|BitExact\..*_(narrow|wide)|BitExact\..*/(eight_layers|cloth|smoke|opaque|foliage)_default|BitExactCompression|SlurmStudy|StudySlurm|FidelityStudy|Readme\.UsingIt|ResultsDoc|Decoupling\.EqualsLockstepExactlyWithCompression|GoldenThreads\..*/(cloth|smoke|opaque|foliage)( |$)' "$@"
