@@ -150,8 +150,8 @@ void WorkerPool::send(size_t i, const std::string& task) {
 }
 
 void WorkerPool::reap(Worker& w, int* status) {
-  ::close(w.to);
-  ::close(w.from);
+  if (w.to >= 0) ::close(w.to);
+  if (w.from >= 0) ::close(w.from);
   int st = 0;
   rusage ru{};
   while (::wait4(w.pid, &st, 0, &ru) < 0 && errno == EINTR) {
@@ -219,25 +219,15 @@ WorkerPool::Reply WorkerPool::next() {
 }
 
 double WorkerPool::close() {
-  // Closing a worker's task pipe ends its loop; then it is reaped.
+  // Closing every worker's task pipe first ends their loops together; then
+  // each is reaped.
   for (Worker& w : workers_)
-    if (w.pid > 0) {
+    if (w.pid > 0 && w.to >= 0) {
       ::close(w.to);
       w.to = -1;
     }
   for (Worker& w : workers_)
-    if (w.pid > 0) {
-      ::close(w.from);
-      w.from = -1;
-      int st = 0;
-      rusage ru{};
-      while (::wait4(w.pid, &st, 0, &ru) < 0 && errno == EINTR) {
-      }
-      cpu_seconds_ += double(ru.ru_utime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec) + double(ru.ru_stime.tv_sec) +
-                      1e-6 * double(ru.ru_stime.tv_usec);
-      w.pid = -1;
-      w.busy = false;
-    }
+    if (w.pid > 0) reap(w, nullptr);
   return cpu_seconds_;
 }
 
