@@ -536,6 +536,22 @@ std::string first_line(const fs::path& p) {
 
 }  // namespace
 
+// A study's progress (stderr, not a terminal here) is one line per period
+// and a last line with every point done; --quiet shows none.
+TEST(Study, ShowsItsPointsProgressAndQuietShowsNone) {
+  Scratch s;
+  s.put("p.toml", tiny_study("prog", "[\"lk\", \"enderton\", \"naive\"]"));
+  const Ran r = ropsim(s.dir, "study run p.toml --out st -j 2");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("study prog: 3 of 3 points done (100.0 %), 0 failed, 0 remaining, "), std::string::npos)
+      << "no final progress line with every point done:\n"
+      << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos) << "a log's progress redraws a line:\n" << r.err;
+  const Ran q = ropsim(s.dir, "study run p.toml --out st2 -j 2 --quiet");
+  ASSERT_EQ(q.status, 0) << q.err;
+  EXPECT_EQ(q.err.find("points done"), std::string::npos) << "--quiet showed progress:\n" << q.err;
+}
+
 // A study folder holds one study: another study's run into it is refused in
 // one line naming the folder and the study it holds, and changes nothing; the
 // report names the study of the database; --force replaces the results (and
@@ -684,6 +700,46 @@ sample_cooldown = 500
       }
     EXPECT_EQ(slurp(lib16), own) << "the library recorded again differs from the first";
   }
+}
+
+// A broken invariant met while reading a cached library is the point's
+// failure (exit status 2), not the cache's: the library is not recorded again.
+TEST(Study, ABrokenInvariantReadingACachedLibraryFailsThePointAndKeepsTheLibrary) {
+  Scratch s;
+  s.put("lib.toml", R"(
+[study]
+reference = false
+
+[inputs]
+scenes = ["smoke"]
+
+[axes]
+fidelity = "sampled"
+spp = 4
+sample_units = 6
+sample_size = 500
+sample_warmup = 1000
+sample_cooldown = 500
+)");
+  ASSERT_EQ(ropsim(s.dir, "study run lib.toml --out st -j 1 --quiet").status, 0);
+  const Rows rows = export_rows(s.dir, "st");
+  ASSERT_EQ(rows.size(), 1u);
+  const fs::path lib = s.dir / rows[0].at("timing.sampling.library");
+  const std::string bytes = slurp(lib);
+  ASSERT_FALSE(bytes.empty()) << "the study cached no library at " << lib;
+  const auto written = fs::last_write_time(lib);
+  fs::remove_all(s.dir / "st" / "points" / rows[0].at("point"));
+  delete_row(s.dir / "st" / "results.db", rows[0].at("point"));
+  const Ran r = ropsim_test::shell(s.dir, "env ROPSIM_TEST_INTERNAL_ERROR=livepoint-read '" ROPSIM_BINARY
+                                          "' study run lib.toml --out st -j 1 --quiet");
+  EXPECT_EQ(r.status, 2) << "a broken invariant reading the cached library must fail the point with status 2\n"
+                         << r.out << r.err;
+  EXPECT_NE(r.out.find("internal error: test hook ROPSIM_TEST_INTERNAL_ERROR=livepoint-read is set"), std::string::npos)
+      << "the summary does not carry the broken invariant:\n"
+      << r.out;
+  EXPECT_EQ(r.err.find("recorded again"), std::string::npos) << "the library was recorded again:\n" << r.err;
+  EXPECT_EQ(slurp(lib), bytes) << "the cached library changed";
+  EXPECT_EQ(fs::last_write_time(lib), written) << "the cached library was written again";
 }
 
 // A point whose host failed (here its folder on a full disk: ENOSPC) is a

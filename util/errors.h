@@ -80,8 +80,8 @@ int exit_status_of(const std::exception& e);
 /// Test hook (docs/testing.md "Fault injection"): throws an InternalError
 /// naming the hook when $ROPSIM_TEST_INTERNAL_ERROR names `place` -- "main"
 /// (or any other non-empty value but 0: before a verb runs), "study-point"
-/// (in a study point's task) or "livepoint-worker" (in a sampled run's
-/// worker process).
+/// (in a study point's task), "livepoint-worker" (in a sampled run's
+/// worker process) or "livepoint-read" (reading a live-point library).
 void test_hook_internal_error(const char* place);
 
 }  // namespace ropsim

@@ -1,3 +1,8 @@
+// The output discipline of output_file.h in one file: the temporary files,
+// the targets written in place (FIFOs, devices), the created-target list and
+// the fatal-signal handler that removes pending temporaries. They stay
+// together because the handler must see every state an OutputFile passes
+// through (the pending registry is this file's own, async-signal-safe).
 #include "util/output_file.h"
 
 #include <fcntl.h>
@@ -98,13 +103,6 @@ std::mutex g_created_mutex;
 /// The mode of a new file: what open(..., 0666) would give it.
 mode_t new_file_mode() { return 0666 & ~current_umask(); }
 
-std::string dir_of(const std::string& p) {
-  const auto slash = p.find_last_of('/');
-  if (slash == std::string::npos) return ".";
-  if (slash == 0) return "/";
-  return p.substr(0, slash);
-}
-
 std::string base_of(const std::string& p) {
   const auto slash = p.find_last_of('/');
   return slash == std::string::npos ? p : p.substr(slash + 1);
@@ -199,7 +197,7 @@ OutputFile::OutputFile(std::string path, Options opt) : path_(std::move(path)), 
     // In place / stdout: in $TMPDIR, then copied (never a temporary in /dev).
     const bool beside = mode_ == Mode::kReplace;
     const int fd =
-        make_temp(beside ? dir_of(target_) : temp_dir(), beside ? base_of(target_) : "ropsim", opt_.suffix, temp_);
+        make_temp(beside ? folder_of(target_) : temp_dir(), beside ? base_of(target_) : "ropsim", opt_.suffix, temp_);
     if (fd < 0) fail_errno(errno);
     add_pending(temp_, 1);
     ::close(fd);
@@ -217,7 +215,7 @@ OutputFile::OutputFile(std::string path, Options opt) : path_(std::move(path)), 
       fail_errno(e);
     }
   } else {
-    const int fd = make_temp(dir_of(target_), base_of(target_), "", temp_);
+    const int fd = make_temp(folder_of(target_), base_of(target_), "", temp_);
     if (fd < 0) fail_errno(errno);
     add_pending(temp_, 1);
     f_ = ::fdopen(fd, "wb");
@@ -475,7 +473,7 @@ void OutputFile::rename_onto_target(int) {
   drop_pending(temp_);
   temp_.clear();
   // Make the rename durable (best effort: some file systems refuse fsync on a folder).
-  const int dfd = ::open(dir_of(target_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const int dfd = ::open(folder_of(target_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);
     ::close(dfd);
@@ -594,74 +592,6 @@ mode_t current_umask() {
   const mode_t u = ::umask(022);
   ::umask(u);
   return u;
-}
-
-FileIdentity file_identity(const std::string& path) {
-  namespace fs = std::filesystem;
-  FileIdentity id;
-  std::error_code ec;
-  fs::path p = fs::absolute(resolve_symlinks(path), ec);
-  if (ec) p = resolve_symlinks(path);
-  // The folders' symlinks resolved where they exist, the rest made normal.
-  const fs::path c = fs::weakly_canonical(p, ec);
-  id.path = (ec ? p.lexically_normal() : c).string();
-  struct stat st;
-  if (::stat(id.path.c_str(), &st) == 0) {
-    id.exists = true;
-    id.char_device = S_ISCHR(st.st_mode);
-    id.dev = st.st_dev;
-    id.ino = st.st_ino;
-  }
-  return id;
-}
-
-bool same_file(const FileIdentity& a, const FileIdentity& b) {
-  if (a.exists && b.exists) return a.dev == b.dev && a.ino == b.ino;
-  return a.path == b.path;
-}
-
-void OutputPlan::output(std::string what, std::string path) {
-  if (path.empty() || path == "-") return;
-  entries_.push_back(Entry{std::move(what), std::move(path), false});
-}
-
-void OutputPlan::input(std::string what, std::string path) {
-  if (path.empty() || path == "-") return;
-  entries_.push_back(Entry{std::move(what), std::move(path), true});
-}
-
-void OutputPlan::check() const {
-  std::vector<FileIdentity> ids;
-  ids.reserve(entries_.size());
-  for (const auto& e : entries_) ids.push_back(file_identity(e.path));
-  for (size_t j = 0; j < entries_.size(); ++j)
-    for (size_t i = 0; i < j; ++i) {
-      const Entry &a = entries_[i], &b = entries_[j];
-      if (a.input && b.input) continue;
-      if (!same_file(ids[i], ids[j]) || ids[i].char_device) continue;
-      const Entry& out = a.input ? b : a;  // the first output named, then the other
-      const Entry& other = a.input ? a : b;
-      const std::string other_what = other.input ? "the input " + other.what : other.what;
-      std::string msg = out.path == other.path
-                            ? out.what + " and " + other_what + " both name " + out.path
-                            : out.what + " " + out.path + " and " + other_what + " " + other.path + " are one file";
-      msg += other.input ? ": an output must not replace an input" : ": give each output a file of its own";
-      throw UserError(msg);
-    }
-}
-
-std::string resolve_symlinks(const std::string& path) {
-  std::string p = path;
-  for (int hops = 0; hops < 40; ++hops) {
-    struct stat st;
-    if (::lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return p;
-    std::vector<char> buf(PATH_MAX + 1);
-    const ssize_t n = ::readlink(p.c_str(), buf.data(), buf.size() - 1);
-    if (n < 0) return p;
-    std::string link(buf.data(), size_t(n));
-    p = (!link.empty() && link[0] == '/') ? link : dir_of(p) + "/" + link;
-  }
-  throw UserError(path + ": " + std::strerror(ELOOP));
 }
 
 }  // namespace ropsim

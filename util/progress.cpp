@@ -24,6 +24,13 @@ Progress::Progress(std::string label, std::string unit)
   last_ = tty_ ? t0_ - std::chrono::seconds(1) : t0_;
 }
 
+Progress::Progress(Text text, bool shown) : text_(std::move(text)), t0_(std::chrono::steady_clock::now()) {
+  tty_ = ::isatty(2) == 1;
+  on_ = shown;
+  // The first line at once, on a terminal and in a log.
+  last_ = t0_ - std::chrono::seconds(2 * kLogPeriod);
+}
+
 // Not finished (an exception on its way): end a terminal line, claim no 100 %.
 Progress::~Progress() {
   if (!finished_ && on_ && printed_ && tty_) std::fputs("\n", stderr);
@@ -74,7 +81,7 @@ std::string Progress::line(const std::string& label, const std::string& unit, do
 
 void Progress::print(double fraction, uint64_t done, bool final) {
   const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
-  const std::string l = line(label_, unit_, fraction, done, el);
+  const std::string l = text_ ? text_(el) : line(label_, unit_, fraction, done, el);
   if (tty_)
     std::fprintf(stderr, "\r  %s   %s", l.c_str(), final ? "\n" : "");
   else
@@ -92,6 +99,8 @@ void Progress::update(double fraction, uint64_t done) {
   last_ = now;
   print(fraction, done, false);
 }
+
+void Progress::tick() { update(fraction_, done_); }
 
 void Progress::finish() {
   if (finished_) return;

@@ -7,6 +7,7 @@
 #pragma once
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <string>
 
 namespace ropsim {
@@ -29,6 +30,12 @@ class Progress {
   static constexpr std::chrono::seconds kLogPeriod{5};
   /// unit names what `done` counts ("fragments", "triangles").
   Progress(std::string label, std::string unit);
+  /// A line whose text the caller makes (a study's points: "study NAME: 3 of
+  /// 8 points done ..."), from the seconds elapsed; shown when `shown` (the
+  /// verb's own choice, whatever the process's mode), redrawn in place on a
+  /// terminal and a line every kLogPeriod in a log. tick() prints it when due.
+  using Text = std::function<std::string(double elapsed_s)>;
+  Progress(Text text, bool shown);
   ~Progress();
   Progress(const Progress&) = delete;
   Progress& operator=(const Progress&) = delete;
@@ -37,6 +44,8 @@ class Progress {
   /// fraction: of the whole input consumed, in [0, 1] (negative: unknown,
   /// then no percentage and no ETA); done: units processed so far.
   void update(double fraction, uint64_t done);
+  /// The caller's line (the Text constructor), when it is due.
+  void tick();
   /// The last line (100 %, the elapsed time), then a newline.
   void finish();
 
@@ -49,6 +58,7 @@ class Progress {
  private:
   void print(double fraction, uint64_t done, bool final);
   std::string label_, unit_;
+  Text text_;
   bool on_ = false, tty_ = false, printed_ = false, finished_ = false;
   std::chrono::steady_clock::time_point t0_, last_;
   double fraction_ = -1;

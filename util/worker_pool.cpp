@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "util/byte_codec.h"
 #include "util/errors.h"
 
 namespace ropsim {
@@ -42,16 +43,17 @@ bool read_all(int fd, void* data, size_t n) {
   return true;
 }
 
-// A reply's frame: kind (1 byte: 0 ok, 1 failed), status (4 bytes), length
-// (8 bytes), then the text.
+// A task's frame: length (8 bytes), then the task. A reply's: kind (1 byte:
+// 0 ok, 1 failed), status (4 bytes), length (8 bytes), then the text. The
+// numbers are little-endian (util/byte_codec.h).
 constexpr size_t kReplyHead = 1 + 4 + 8;
 
 /// The worker's loop; never returns.
 [[noreturn]] void serve_tasks(const WorkerPool::Serve& serve, int in, int out) {
   for (;;) {
-    uint64_t len = 0;
-    if (!read_all(in, &len, 8)) break;  // the parent closed the pool
-    std::string task(size_t(len), '\0');
+    uint8_t len_bytes[8];
+    if (!read_all(in, len_bytes, 8)) break;  // the parent closed the pool
+    std::string task(size_t(get_u64(len_bytes)), '\0');
     if (!read_all(in, task.data(), task.size())) break;
     uint8_t kind = 0;
     int32_t status = 0;
@@ -64,11 +66,10 @@ constexpr size_t kReplyHead = 1 + 4 + 8;
       status = v.status;
       reply = v.what;
     }
-    const uint64_t n = reply.size();
-    char head[kReplyHead];
-    head[0] = char(kind);
-    std::memcpy(head + 1, &status, 4);
-    std::memcpy(head + 5, &n, 8);
+    uint8_t head[kReplyHead];
+    head[0] = kind;
+    put_u32(head + 1, uint32_t(status));
+    put_u64(head + 5, reply.size());
     if (!write_all(out, head, sizeof head) || !write_all(out, reply.data(), reply.size())) break;
   }
   std::fflush(nullptr);
@@ -142,10 +143,11 @@ bool WorkerPool::any_busy() const {
 void WorkerPool::send(size_t i, const std::string& task) {
   Worker& w = workers_.at(i);
   invariant(w.pid > 0 && !w.busy, "a task goes to an idle worker");
-  const uint64_t len = task.size();
+  uint8_t len[8];
+  put_u64(len, task.size());
   w.busy = true;
   // A worker that died cannot take it: next() reports its death.
-  if (!write_all(w.to, &len, 8)) return;
+  if (!write_all(w.to, len, 8)) return;
   write_all(w.to, task.data(), task.size());
 }
 
@@ -171,15 +173,13 @@ WorkerPool::Reply WorkerPool::next() {
     for (size_t i = 0; i < workers_.size(); ++i) {
       Worker& w = workers_[i];
       if (w.pid <= 0 || !w.busy || w.in.size() < kReplyHead) continue;
-      uint64_t len = 0;
-      std::memcpy(&len, w.in.data() + 5, 8);
+      const auto* head = reinterpret_cast<const uint8_t*>(w.in.data());
+      const uint64_t len = get_u64(head + 5);
       if (w.in.size() < kReplyHead + len) continue;
       Reply r;
       r.worker = i;
-      int32_t status = 0;
-      std::memcpy(&status, w.in.data() + 1, 4);
-      r.kind = w.in[0] ? Reply::Kind::kFailed : Reply::Kind::kOk;
-      r.status = status;
+      r.kind = head[0] ? Reply::Kind::kFailed : Reply::Kind::kOk;
+      r.status = int32_t(get_u32(head + 1));
       r.text = w.in.substr(kReplyHead, size_t(len));
       w.in.erase(0, kReplyHead + size_t(len));
       w.busy = false;

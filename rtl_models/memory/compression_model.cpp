@@ -9,23 +9,12 @@
 namespace ropsim {
 
 CompressionTraffic& CompressionTraffic::operator+=(const CompressionTraffic& o) {
-  for (size_t b = 0; b < size_t(kBuffers); ++b) {
-    lines_written[b] += o.lines_written[b];
-    lines_read[b] += o.lines_read[b];
-    bytes_written_uncompressed[b] += o.bytes_written_uncompressed[b];
-    bytes_written[b] += o.bytes_written[b];
-    bytes_read_uncompressed[b] += o.bytes_read_uncompressed[b];
-    bytes_read[b] += o.bytes_read[b];
-    for (size_t j = 0; j < 4; ++j) writes_per_class[b][j] += o.writes_per_class[b][j];
-    writes_cleared[b] += o.writes_cleared[b];
-    metadata_bytes_read[b] += o.metadata_bytes_read[b];
-    metadata_bytes_written[b] += o.metadata_bytes_written[b];
-  }
-  metadata_hits += o.metadata_hits;
-  metadata_misses += o.metadata_misses;
-  hiz_tests += o.hiz_tests;
-  hiz_rejected += o.hiz_rejected;
-  hiz_lines_skipped += o.hiz_lines_skipped;
+  for_each_count(*this, o, [](uint64_t& x, const uint64_t& y) { x += y; });
+  return *this;
+}
+
+CompressionTraffic& CompressionTraffic::operator-=(const CompressionTraffic& o) {
+  for_each_count(*this, o, [](uint64_t& x, const uint64_t& y) { x -= y; });
   return *this;
 }
 

@@ -72,6 +72,31 @@ struct CompressionTraffic {
   uint64_t hiz_tests = 0, hiz_rejected = 0;
   uint64_t hiz_lines_skipped = 0;  ///< depth lines the rejected fragments did not read
   CompressionTraffic& operator+=(const CompressionTraffic& o);
+  CompressionTraffic& operator-=(const CompressionTraffic& o);
+
+  /// Calls f(x, y) for every count x of a and its like y of b, in one fixed
+  /// order: the one list of the counts (sums, differences, a worker's
+  /// message).
+  template <class A, class B, class F>
+  static void for_each_count(A& a, B& b, F&& f) {
+    for (size_t i = 0; i < size_t(kBuffers); ++i) {
+      f(a.lines_written[i], b.lines_written[i]);
+      f(a.lines_read[i], b.lines_read[i]);
+      f(a.bytes_written_uncompressed[i], b.bytes_written_uncompressed[i]);
+      f(a.bytes_written[i], b.bytes_written[i]);
+      f(a.bytes_read_uncompressed[i], b.bytes_read_uncompressed[i]);
+      f(a.bytes_read[i], b.bytes_read[i]);
+      for (size_t j = 0; j < 4; ++j) f(a.writes_per_class[i][j], b.writes_per_class[i][j]);
+      f(a.writes_cleared[i], b.writes_cleared[i]);
+      f(a.metadata_bytes_read[i], b.metadata_bytes_read[i]);
+      f(a.metadata_bytes_written[i], b.metadata_bytes_written[i]);
+    }
+    f(a.metadata_hits, b.metadata_hits);
+    f(a.metadata_misses, b.metadata_misses);
+    f(a.hiz_tests, b.hiz_tests);
+    f(a.hiz_rejected, b.hiz_rejected);
+    f(a.hiz_lines_skipped, b.hiz_lines_skipped);
+  }
 };
 
 class CompressionModel {

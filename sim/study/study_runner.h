@@ -3,12 +3,17 @@
 // process; each worker runs many tasks, so start-up is paid once per worker).
 // Results go to DIR/results.db (SQLite, one row per point) and to a folder per
 // point; a run that was killed runs only what is missing when started again.
+// This file plans and schedules; study_tasks.h runs one task, study_db.h
+// records the results, study_folder.h is the folder's layout and lock.
 #pragma once
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "sim/study/study.h"
+#include "sim/study/study_db.h"
+#include "sim/study/study_folder.h"
+#include "sim/study/study_tasks.h"
 
 namespace ropsim {
 
@@ -28,29 +33,12 @@ struct StudyRunOptions {
   bool progress = true;  ///< a progress line on stderr
 };
 
-/// Why a point failed. A host failure (a full disk, an I/O error, no memory,
-/// a worker killed, a SLURM task that ended without a result) says nothing of
-/// the point: a plain rerun runs it again. An input failure (a bad input or
-/// design, a broken invariant) would fail again: only --retry-failed reruns it.
-enum class StudyFailure { kInput, kHost };
-const char* to_string(StudyFailure f);  ///< "input", "host": the database's `failure` column
-
 struct StudyPointFailure {
   std::string point;  ///< its hash and parameters (describe_point)
   std::string error;  ///< one line (failure_status)
   StudyFailure kind = StudyFailure::kInput;
   int status = 1;  ///< its exit status (failure_status): 1 user error, 2 broken invariant
 };
-
-/// A task's error is classified by the rule main applies (util/errors.h) and
-/// recorded (error files, the database, a worker's reply) on one line: a user
-/// error's text, or a broken invariant's as main prints it, "internal error:
-/// <what>: please report it". The exit status a recorded error stands for: 2
-/// for a broken invariant, else 1.
-int failure_status(const std::string& error);
-/// What a broken invariant's recorded error names: "<what>" of "internal
-/// error: <what>: please report it" (any other error as it is).
-std::string broken_invariant(const std::string& error);
 
 struct StudySummary {
   size_t points = 0;       ///< in the study
@@ -81,12 +69,6 @@ std::string describe_point(const StudyPoint& p);
 struct StudyPlan {
   std::vector<size_t> captures, references, points;
 };
-/// Takes the study folder's lock (DIR/.lock, flock) for the rest of the
-/// process: one `study run` or `study collect` writes a folder at a time (the
-/// per-point tasks of a cluster run do not take it). Another holder is a
-/// UserError naming the folder. Idempotent within a process.
-void hold_study_folder(const std::string& dir);
-
 /// Creates the folder and takes its lock (hold_study_folder), checks that the
 /// folder holds this study (o.use: else UserError naming the folder and the
 /// study it holds), records in the database every point whose folder holds
@@ -96,40 +78,9 @@ void hold_study_folder(const std::string& dir);
 /// recorded.
 StudyPlan plan_study(const Study& s, const StudyRunOptions& o, StudySummary& sum);
 
-/// How a task ended.
-struct StudyTaskResult {
-  bool ok = false;
-  StudyFailure failure = StudyFailure::kInput;  ///< when not ok
-  std::string error;                            ///< when not ok: one line (failure_status)
-  /// Whether the error is in the task's error file (a full disk may keep it out).
-  bool recorded = false;
-};
-
-/// Runs one task in this process: 'c' the capture, 'r' the reference or 'p'
-/// the point named by point_index. A failure's error is written to the
-/// task's error file (an input error to error.txt, refs/<key>.error or
-/// traces/<key>.error; a host failure to host-error.txt, <key>.host-error).
-/// Throws UserError for a bad index or kind.
-StudyTaskResult run_study_task(const Study& s, char kind, size_t point_index, const std::string& dir);
-
 /// Runs the points of s that the folder does not hold yet. A point that fails
 /// records its error and the others go on. Throws UserError when the folder
 /// cannot be used.
 StudySummary run_study(const Study& s, const StudyRunOptions& o);
-
-/// The study file a study folder was made from (its database records it).
-std::string study_file_of(const std::string& dir);
-
-/// What an export wrote.
-struct StudyExport {
-  std::string study;  ///< the study's name, as its database records it
-  size_t rows = 0, ok = 0, failed = 0, columns = 0;
-};
-
-/// Writes the results table of a study folder as CSV: one row per point, one
-/// column per parameter and metric (the report JSON left out). Opens the
-/// database read-only, so a finished study on read-only media exports.
-/// Throws UserError.
-StudyExport export_study_csv(const std::string& dir, const std::string& csv_path);
 
 }  // namespace ropsim

@@ -1,3 +1,8 @@
+// The analytical timing model (docs/architecture.md "The analytical
+// model"): the functional pass records each fragment's work, then a
+// tag-only model of the caches, the compression metadata and DRAM replays it
+// epoch by epoch and bounds the cycles. One concern in one file: Model holds
+// the epoch state that run_approximate feeds, and the bounds read both.
 #include "sim/fidelity/approximate/approximate.h"
 
 #include <algorithm>
@@ -19,6 +24,7 @@
 #include "rtl_models/sorter/sort_algorithm.h"
 #include "rtl_models/top/memory_estimate.h"
 #include "rtl_models/top/store_tile_source.h"
+#include "rtl_models/top/surface_compression.h"
 #include "rtl_models/units/rop_ownership.h"
 #include "sim/fidelity/cycle/cycle_run.h"
 #include "util/errors.h"

@@ -31,6 +31,7 @@
 #include "rtl_models/memory/dram.h"
 #include "rtl_models/memory/rop_cache.h"
 #include "sim/fidelity/common/bottleneck.h"
+#include "sim/fidelity/common/run_outcome.h"
 
 namespace ropsim {
 
@@ -88,14 +89,8 @@ struct ApproxStats {
   bool lists(int b) const { return (listed >> b) & 1u; }
 };
 
-struct ApproxRun {
-  TraceHeader header;
-  Counters counters;
-  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
-  Image image;
+struct ApproxRun : RunOutcome {
   ApproxStats stats;
-  size_t state_bytes = 0;
-  double wall_seconds = 0;
 };
 
 /// Throws UserError for the reference method (no pipeline) and bad numerics;

@@ -14,7 +14,7 @@
 #include "rtl_models/top/memory_estimate.h"
 #include "rtl_models/top/rop_pipeline.h"
 #include "rtl_models/top/sim_context.h"
-#include "rtl_models/top/store_tile_source.h"
+#include "rtl_models/top/surface_compression.h"
 #include "util/errors.h"
 #include "util/memory_budget.h"
 #include "util/output_file.h"
@@ -104,18 +104,6 @@ void add_dram(DramStats& a, const DramStats& b) {
 
 }  // namespace
 
-std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop) {
-  const SurfaceBytes& sb = rop.setup().bytes;
-  const Method m = rop.setup().cfg.method;
-  std::array<uint32_t, kBuffers> bps{};
-  bps[size_t(Buffer::kDepth)] = sb.of(Buffer::kDepth);
-  bps[size_t(Buffer::kColor)] = sb.of(Buffer::kColor);
-  if (run_uses_transmittance(m, rop.setup().prepass))
-    bps[size_t(Buffer::kTransmittance)] = sb.of(Buffer::kTransmittance);
-  if (run_uses_accum(m, rop.setup().prepass)) bps[size_t(Buffer::kAccum)] = sb.of(Buffer::kAccum);
-  return bps;
-}
-
 CycleRun run_cycle(const InputSpec& in, const GoldenConfig& method, const HwConfig& hw, const CycleOptions& opt) {
   return run_cycle([&in] { return open_fragments(in); }, method, hw, opt);
 }
@@ -143,15 +131,7 @@ CycleRun run_cycle(const std::function<std::unique_ptr<FragmentSource>()>& open_
   LineSet in_dram(hw.cache.line_bytes);
   // Surface compression and Hi-Z: the stored state bits and Hi-Z bounds
   // outlive the passes, like the lines DRAM holds.
-  std::unique_ptr<CompressionModel> comp;
-  std::unique_ptr<StoreTileSource> tiles;
-  if (hw.compression.any() || hw.hiz.enable) {
-    const std::array<uint32_t, kBuffers> bps = compressed_bytes_per_sample(*rop);
-    comp = std::make_unique<CompressionModel>(hw, run.header.width, run.header.height, run.header.spp, bps,
-                                              canonical_depth(run.header.clear_depth), hw.distributor.rop_units);
-    tiles = std::make_unique<StoreTileSource>(rop->store(), hw.compression.setup().format);
-    comp->set_source(tiles.get());
-  }
+  const SurfaceCompression comp = compress_surfaces(hw, run.header, *rop);
   const int n_passes = rop->passes();
   // The waveform records every event at its own cycle (waveform.h), so a
   // --vcd run stays decoupled like any other.

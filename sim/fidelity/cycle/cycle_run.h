@@ -25,6 +25,7 @@
 #include "rtl_models/observe/interval_log.h"
 #include "rtl_models/top/store_tile_source.h"
 #include "sim/fidelity/common/bottleneck.h"
+#include "sim/fidelity/common/run_outcome.h"
 
 namespace ropsim {
 
@@ -108,16 +109,10 @@ std::vector<ResourceBound> cycle_bounds(const CycleStats& s);
 /// classify_bottleneck(cycle_bounds(s), s.total_cycles).
 Bottleneck classify_bottleneck(const CycleStats& s);
 
-struct CycleRun {
-  TraceHeader header;
-  Counters counters;
-  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
-  Image image;
+struct CycleRun : RunOutcome {
   std::unique_ptr<SampleStore> state;  ///< the final per-sample state
   CycleStats stats;
-  size_t state_bytes = 0;
-  double wall_seconds = 0;  ///< whole run: input, elaboration, simulation, resolve
-  double sim_seconds = 0;   ///< sc_start alone
+  double sim_seconds = 0;  ///< sc_start alone (wall_seconds: elaboration and resolve too)
   /// With CycleOptions::stats_interval: the statistics per interval; each
   /// column adds up to the run's total.
   std::unique_ptr<IntervalLog> intervals;
@@ -136,10 +131,6 @@ const std::vector<StatDesc>& tile_map_descs();
 /// Map i of tile_map_descs(): its value per distributor tile, row by row
 /// (CycleRun::tiles_x per row).
 const std::vector<uint64_t>& tile_map(const Attribution& a, size_t i);
-
-/// The bytes per sample in memory of each surface a run of rop's method
-/// uses (surface_bytes.h; 0: unused), as the CompressionModel takes them.
-std::array<uint32_t, kBuffers> compressed_bytes_per_sample(const FunctionalRop& rop);
 
 /// Throws UserError for the reference method (it has no pipeline)
 /// and TraceError for a bad trace.

@@ -10,6 +10,7 @@
 #include "rtl_models/functional/compressibility.h"
 #include "rtl_models/functional/fragment_source.h"
 #include "rtl_models/golden/golden_model.h"
+#include "sim/fidelity/common/run_outcome.h"
 #include "traces/format/trace.h"
 
 namespace ropsim {
@@ -21,14 +22,8 @@ struct FragmentList {
 };
 FragmentList load_fragments(const InputSpec& in);
 
-struct FunctionalRun {
-  TraceHeader header;
-  Counters counters;
-  DrawKindCounts kind_fragments{};  ///< fragments by their draw's kind (a frame of draw states)
-  Image image;
-  size_t state_bytes = 0;
+struct FunctionalRun : RunOutcome {
   int threads = 1;                          ///< host threads of the model
-  double wall_seconds = 0;                  ///< whole run: input, model and resolve
   std::optional<Image> reference;           ///< the reference method's image, when asked for
   std::unique_ptr<RunBreakdown> breakdown;  ///< per draw and per pixel, when asked for
   CompressionStats compression;             ///< the final buffers' compressibility (cfg.compression)
