@@ -60,7 +60,7 @@ lib_passes = json.load(open(f"{tmp}/passes.json"))["passes"]
 with open(f"{tmp}/runs.json", "a") as f:
     f.write(json.dumps({"cap": cap - lst, "passes": passes - lst, "lib_passes": lib_passes, "whole": cap,
                         "rss": int(sys.argv[5]) / 1e6, "phases": ph}) + "\n")
-phases = ", ".join(f"{k} {ph[k]:.2f}" for k in ("passes", "read_back", "decode", "build", "write"))
+phases = ", ".join(f"{k} {ph[k]:.2f}" for k in ("passes", "read_back", "build", "write"))
 print(f"run {run}: replays: capture {cap:.2f} s, passes {passes:.2f} s, list {lst:.2f} s; frame: capture "
       f"{cap - lst:.2f} s, passes {passes - lst:.2f} s (library's timer {lib_passes:.2f} s); peak "
       f"{int(sys.argv[5]) / 1e6:.2f} GB, trace {int(sys.argv[8]) / 1e6:.1f} MB; capture phases (s): {phases}")

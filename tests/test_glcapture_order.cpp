@@ -1,7 +1,7 @@
 // The GL capture's plain-C++ rules (traces/glcapture/fragment_order.h,
 // glsl_rewrite.h; docs/capture.md "Capturing a GL frame"): the per-pass
-// sample offset, the decoding of a pass's records, the API order rebuilt
-// from ids, and the shader rewrite. No GL context needed.
+// sample offset, the fragments of a draw's nodes in API order, and the
+// shader rewrite. No GL context needed.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -18,18 +18,57 @@
 namespace ropsim::glcapture {
 namespace {
 
-PassRecord rec(uint32_t part, uint32_t instance, uint32_t prim, uint16_t x, uint16_t y, int sample, float z,
-               float red = 0.5f) {
-  PassRecord r;
-  r.part = part;
-  r.instance = instance;
-  r.prim = prim;
-  r.x = x;
-  r.y = y;
-  r.sample = uint8_t(sample);
-  r.z = z;
-  r.rgba = {red, 0.25f, 0.125f, 0.5f};
-  return r;
+// A draw's nodes as the passes leave them (glsl_rewrite.h), built by hand.
+struct Nodes {
+  std::vector<uint32_t> keys, state;
+  std::vector<float> colour;
+  std::vector<std::vector<uint32_t>> depth = std::vector<std::vector<uint32_t>>(64);
+
+  /// A node of (part, instance, prim) at GL window pixel (x, gy) covering
+  /// `coverage`, sample s's depth z + 0.01 s; flags kNodeKept by default.
+  void add(uint32_t part, uint32_t instance, uint32_t prim, uint16_t x, uint16_t gy, uint64_t coverage, float z,
+           float red = 0.5f, uint32_t flags = kNodeKept) {
+    keys.insert(keys.end(), {prim, instance, part, kNoNode});
+    state.insert(state.end(), {uint32_t(x) | uint32_t(gy) << 16, uint32_t(coverage), uint32_t(coverage >> 32), flags});
+    colour.insert(colour.end(), {red, 0.25f, 0.125f, 0.5f});
+    for (int s = 0; s < 64; ++s) {
+      const float d = z + 0.01f * float(s);
+      uint32_t u;
+      std::memcpy(&u, &d, 4);
+      depth[size_t(s)].push_back(u);
+    }
+  }
+  size_t size() const { return keys.size() / 4; }
+  /// The same nodes in another order (as llvmpipe's threads may make them).
+  Nodes permuted(std::mt19937& rng) const {
+    std::vector<size_t> order(size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    Nodes o;
+    for (size_t i : order) {
+      o.keys.insert(o.keys.end(), keys.begin() + std::ptrdiff_t(4 * i), keys.begin() + std::ptrdiff_t(4 * i + 4));
+      o.state.insert(o.state.end(), state.begin() + std::ptrdiff_t(4 * i), state.begin() + std::ptrdiff_t(4 * i + 4));
+      o.colour.insert(o.colour.end(), colour.begin() + std::ptrdiff_t(4 * i),
+                      colour.begin() + std::ptrdiff_t(4 * i + 4));
+      for (int s = 0; s < 64; ++s) o.depth[size_t(s)].push_back(depth[size_t(s)][i]);
+    }
+    return o;
+  }
+  NodeView view() const {
+    NodeView v;
+    v.count = size();
+    v.keys = keys.data();
+    v.state = state.data();
+    v.colour = colour.data();
+    for (int s = 0; s < 64; ++s) v.depth[size_t(s)] = depth[size_t(s)].data();
+    return v;
+  }
+};
+
+/// A fragment's depths.
+std::vector<float> depths(const CapturedDraw& d, size_t i) {
+  const size_t n = size_t(__builtin_popcountll(d.fragments[i].coverage));
+  return std::vector<float>(d.z.data() + d.fragments[i].z_first, d.z.data() + d.fragments[i].z_first + n);
 }
 
 // Moving the geometry by the pass's offset brings every standard sample
@@ -60,221 +99,123 @@ TEST(GlCaptureOffsets, OnlyPatternsWithoutACentreSampleNeedACentrePass) {
     EXPECT_TRUE(needs_centre_pass(standard_sample_positions(spp), spp)) << spp << " spp";
 }
 
-TEST(GlCaptureOrder, DecodingFlipsRowsAndRefusesPixelsOutsideAndDepthsOutsideZeroOne) {
-  auto word = [](float f) {
-    uint32_t u;
-    std::memcpy(&u, &f, 4);
-    return u;
-  };
-  std::vector<uint32_t> raw = {5u | (0u << 16), 7, 2, word(0.25f), word(1), word(0), word(0), word(1),
-                               6u | (9u << 16), 8, 0, word(0.5f),  word(0), word(1), word(0), word(1)};
-  std::vector<PassRecord> out;
-  ASSERT_EQ(decode_records(raw.data(), 2, 16, 10, 3, 4, out), "");
-  ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(out[0].x, 5);
-  EXPECT_EQ(out[0].y, 9);  // GL row 0 is the bottom: trace row height - 1
-  EXPECT_EQ(out[1].y, 0);
-  EXPECT_EQ(out[0].prim, 7u);
-  EXPECT_EQ(out[0].instance, 2u);
-  EXPECT_EQ(out[0].part, 3u);
-  EXPECT_EQ(out[0].sample, 4);
-  EXPECT_EQ(out[0].z, 0.25f);
-  raw[8] = 6u | (10u << 16);  // row 10 of a 10-row target
-  out.clear();
-  EXPECT_NE(decode_records(raw.data(), 2, 16, 10, 0, 0, out).find("outside the 16x10 target"), std::string::npos);
-  raw[8] = 6u | (9u << 16);
-  raw[11] = word(1.5f);
-  out.clear();
-  EXPECT_NE(decode_records(raw.data(), 2, 16, 10, 0, 0, out).find("not in [0, 1]"), std::string::npos);
+TEST(GlCaptureOrder, NodesFlipRowsAndRefusePixelsOutsideAndDepthsOutsideZeroOne) {
+  Nodes n;
+  n.add(0, 2, 7, 5, 0, 0b1, 0.25f);
+  n.add(0, 0, 8, 6, 9, 0b1, 0.5f);
+  CapturedDraw out;
+  ASSERT_EQ(build_fragments(n.view(), 3, {{0}}, true, 16, 10, out), "");
+  ASSERT_EQ(out.fragments.size(), 2u);
+  EXPECT_EQ(out.fragments[0].x, 6);
+  EXPECT_EQ(out.fragments[0].y, 0);  // GL row 9 of 10 is the top: trace row 0
+  EXPECT_EQ(out.fragments[1].x, 5);
+  EXPECT_EQ(out.fragments[1].y, 9);
+  EXPECT_EQ(out.fragments[1].draw_id, 3u);
+  EXPECT_EQ(depths(out, 1), std::vector<float>{0.25f});
+  n.state[4] = 6u | (10u << 16);  // row 10 of a 10-row target
+  EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("outside the 16x10 target"), std::string::npos);
+  n.state[4] = 6u | (9u << 16);
+  const float far = 1.5f;
+  std::memcpy(&n.depth[0][1], &far, 4);
+  EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("not in [0, 1]"), std::string::npos);
 }
 
-// Fragments in (part, instance, primitive, row, column) order, each pass's
-// coverage bit and depth merged, and the same bytes whatever order the
-// passes' records arrived in (llvmpipe's threads).
-TEST(GlCaptureOrder, FragmentsComeInApiOrderWhateverTheRecordOrder) {
-  std::vector<PassRecord> base;
-  for (uint32_t part = 0; part < 2; ++part)
-    for (uint32_t inst = 0; inst < 2; ++inst)
-      for (uint32_t prim = 0; prim < 3; ++prim)
-        for (uint16_t y = 0; y < 3; ++y)
-          for (uint16_t x = 0; x < 3; ++x)
-            for (int s = 0; s < 4; ++s)
-              if ((x + y + s + prim) % 3 != 0)
-                base.push_back(rec(part, inst, prim, x, y, s, 0.1f * float(s) + 0.01f * float(prim)));
-  std::vector<CapturedFragment> expected;
-  std::vector<PassRecord> sorted = base;
-  ASSERT_EQ(build_fragments(sorted, 7, {{3}, {3}}, true, expected), "");
-  ASSERT_FALSE(expected.empty());
-  for (size_t i = 1; i < expected.size(); ++i) {
-    const auto& a = expected[i - 1];
-    const auto& b = expected[i];
-    EXPECT_TRUE(std::make_tuple(a.prim_id, a.y, a.x) < std::make_tuple(b.prim_id, b.y, b.x)) << "fragment " << i;
-  }
-  for (const auto& f : expected) {
-    EXPECT_EQ(f.draw_id, 7u);
-    EXPECT_EQ(size_t(__builtin_popcountll(f.coverage)), f.z.size());
-    size_t k = 0;
-    for (uint64_t m = f.coverage; m; m &= m - 1, ++k)
-      EXPECT_FLOAT_EQ(f.z[k], 0.1f * float(__builtin_ctzll(m)) + 0.01f * float(f.prim_id % 3));
-  }
-  std::mt19937 rng(12345);
-  for (int trial = 0; trial < 5; ++trial) {
-    std::vector<PassRecord> shuffled = base;
-    std::shuffle(shuffled.begin(), shuffled.end(), rng);
-    std::vector<CapturedFragment> got;
-    ASSERT_EQ(build_fragments(shuffled, 7, {{3}, {3}}, true, got), "");
-    ASSERT_EQ(got.size(), expected.size());
-    for (size_t i = 0; i < got.size(); ++i) {
-      EXPECT_EQ(got[i].prim_id, expected[i].prim_id);
-      EXPECT_EQ(got[i].x, expected[i].x);
-      EXPECT_EQ(got[i].y, expected[i].y);
-      EXPECT_EQ(got[i].coverage, expected[i].coverage);
-      EXPECT_EQ(got[i].z, expected[i].z);
+// Fragments in (part, instance, primitive, row, column) order, one a node,
+// and the same bytes whatever order the nodes were made in (llvmpipe's
+// threads); more than 2^18 nodes split the work over threads.
+TEST(GlCaptureOrder, FragmentsComeInApiOrderWhateverTheNodeOrder) {
+  for (int big : {0, 1}) {
+    Nodes base;
+    const uint16_t side = big ? 300 : 3;
+    for (uint32_t part = 0; part < 2; ++part)
+      for (uint32_t inst = 0; inst < 2; ++inst)
+        for (uint32_t prim = 0; prim < 3; ++prim)
+          for (uint16_t y = 0; y < side; ++y)
+            for (uint16_t x = 0; x < side; ++x)
+              if ((x + y + prim) % 3 != 0)
+                base.add(part, inst, prim, x, y, uint64_t(x * 7 + y + prim) & 0xF, 0.01f * float(prim));
+    CapturedDraw expected;
+    ASSERT_EQ(build_fragments(base.view(), 7, {{3}, {3}}, true, side, side, expected), "");
+    ASSERT_FALSE(expected.fragments.size() == 0);
+    for (size_t i = 1; i < expected.fragments.size(); ++i) {
+      const auto& a = expected.fragments[i - 1];
+      const auto& b = expected.fragments[i];
+      ASSERT_TRUE(std::make_tuple(a.prim_id, a.y, a.x) < std::make_tuple(b.prim_id, b.y, b.x)) << "fragment " << i;
+    }
+    for (size_t i = 0; i < expected.fragments.size(); ++i) {
+      const auto& f = expected.fragments[i];
+      ASSERT_EQ(f.draw_id, 7u);
+      ASSERT_NE(f.coverage, 0u);
+      const std::vector<float> z = depths(expected, i);
+      size_t k = 0;
+      for (uint64_t m = f.coverage; m; m &= m - 1, ++k)
+        ASSERT_FLOAT_EQ(z[k], 0.01f * float(f.prim_id % 3) + 0.01f * float(__builtin_ctzll(m)));
+    }
+    std::mt19937 rng(12345);
+    for (int trial = 0; trial < 3; ++trial) {
+      CapturedDraw got;
+      ASSERT_EQ(build_fragments(base.permuted(rng).view(), 7, {{3}, {3}}, true, side, side, got), "");
+      ASSERT_EQ(got.fragments.size(), expected.fragments.size());
+      ASSERT_EQ(got.z.size(), expected.z.size());
+      ASSERT_EQ(
+          std::memcmp(got.fragments.data(), expected.fragments.data(), got.fragments.size() * sizeof(CapturedFragment)),
+          0);
+      ASSERT_EQ(std::memcmp(got.z.data(), expected.z.data(), got.z.size() * sizeof(float)), 0);
     }
   }
 }
 
-// The fragments equal those of the rule written out directly (each
-// (prim_id, pixel)'s records in (sample, depth, colour) order: the first
-// record of each sample, the first centre record's colour, else the lowest
-// sample's), in (prim_id, row, column) order, for records with repeats,
-// parts, instances, centre-only pixels and a pixel with many primitives.
-TEST(GlCaptureOrder, FragmentsMatchTheRuleWrittenOutDirectly) {
-  std::mt19937 rng(7);
-  std::vector<PassRecord> r;
-  // More than 2^20 records: build_fragments then splits its work over threads.
-  for (int i = 0; i < 1100000; ++i) {
-    const int sample = int(rng() % 5) == 0 ? kCentrePass : int(rng() % 16);
-    PassRecord a = rec(rng() % 2, rng() % 3, rng() % 4, uint16_t(rng() % 90), uint16_t(rng() % 50), sample,
-                       float(rng() % 8) / 8.0f, float(rng() % 4) / 4.0f);
-    r.push_back(a);
-  }
-  for (uint32_t prim = 0; prim < 4; ++prim)  // pixel (8, 4): 4 x 2 x 3 x 17 more records
-    for (uint32_t inst = 0; inst < 3; ++inst)
-      for (uint32_t part = 0; part < 2; ++part)
-        for (int s = 0; s <= 16; ++s) r.push_back(rec(part, inst, prim, 8, 4, s == 16 ? kCentrePass : s, 0.5f));
-  std::vector<CapturedFragment> got;
-  ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, got), "");
-
-  auto id = [](const PassRecord& a) { return a.part * 12 + a.instance * 4 + a.prim; };
-  auto bits = [](float f) {
-    uint32_t u;
-    std::memcpy(&u, &f, 4);
-    return u;
-  };
-  std::vector<PassRecord> sorted = r;
-  std::sort(sorted.begin(), sorted.end(), [&](const PassRecord& a, const PassRecord& b) {
-    auto ka = std::make_tuple(id(a), a.y, a.x, a.sample, bits(a.z), bits(a.rgba[0]));
-    auto kb = std::make_tuple(id(b), b.y, b.x, b.sample, bits(b.z), bits(b.rgba[0]));
-    return ka < kb;
-  });
-  std::vector<CapturedFragment> want;
-  for (size_t i = 0; i < sorted.size();) {
-    size_t j = i;
-    CapturedFragment f;
-    const PassRecord *centre = nullptr, *lowest = nullptr;
-    for (; j < sorted.size() && id(sorted[j]) == id(sorted[i]) && sorted[j].x == sorted[i].x &&
-           sorted[j].y == sorted[i].y;
-         ++j) {
-      const PassRecord& a = sorted[j];
-      if (a.sample == kCentrePass) {
-        if (!centre) centre = &a;
-      } else if (!(f.coverage >> a.sample & 1)) {
-        if (!lowest) lowest = &a;
-        f.coverage |= uint64_t(1) << a.sample;
-        f.z.push_back(a.z);
-      }
-    }
-    if (f.coverage) {
-      f.prim_id = id(sorted[i]);
-      f.x = sorted[i].x;
-      f.y = sorted[i].y;
-      f.rgba = (centre ? centre : lowest)->rgba;
-      want.push_back(f);
-    }
-    i = j;
-  }
-  ASSERT_EQ(got.size(), want.size());
-  // The target's size given: its pixels as buckets, and, for a target far
-  // larger than the records cover, only the pixels they hit; the same fragments.
-  for (uint32_t side : {100u, 32768u}) {
-    std::vector<CapturedFragment> sized;
-    ASSERT_EQ(build_fragments(r, 2, {{4}, {4}}, true, sized, side, side), "");
-    ASSERT_EQ(sized.size(), got.size()) << side;
-    for (size_t i = 0; i < got.size(); ++i)
-      ASSERT_EQ(ropsim_test::Fields()
-                    .eq("prim_id", sized[i].prim_id, got[i].prim_id)
-                    .eq("x", sized[i].x, got[i].x)
-                    .eq("y", sized[i].y, got[i].y)
-                    .eq("coverage", sized[i].coverage, got[i].coverage)
-                    .eq("z", sized[i].z, got[i].z)
-                    .eq("rgba", sized[i].rgba, got[i].rgba)
-                    .str(),
-                "")
-          << side << " x " << side << ": fragment " << i;
-  }
-  std::vector<CapturedFragment> small;
-  EXPECT_NE(build_fragments(r, 2, {{4}, {4}}, true, small, 50, 50).find("outside the 50x50 target"), std::string::npos);
-  for (size_t i = 0; i < got.size(); ++i) {
-    ASSERT_EQ(got[i].draw_id, 2u);
-    ASSERT_EQ(got[i].prim_id, want[i].prim_id) << i;
-    ASSERT_EQ(got[i].x, want[i].x) << i;
-    ASSERT_EQ(got[i].y, want[i].y) << i;
-    ASSERT_EQ(got[i].coverage, want[i].coverage) << i;
-    ASSERT_EQ(got[i].z, want[i].z) << i;
-    ASSERT_EQ(got[i].rgba, want[i].rgba) << i;
-  }
+// A node makes a fragment when its shaded invocation kept it (kNodeKept) and
+// it covers a sample: a discarded one (not kept) and a centre-only one
+// (kept, no coverage) make none.
+TEST(GlCaptureOrder, OnlyKeptNodesThatCoverASampleAreFragments) {
+  Nodes n;
+  n.add(0, 0, 0, 1, 1, 0b110, 0.5f, 0.9f, kNodeCentre | kNodeKept);
+  n.add(0, 0, 0, 2, 1, 0b1001, 0.5f, 0.35f);
+  n.add(0, 0, 0, 3, 1, 0, 0.5f, 0.8f, kNodeCentre | kNodeKept);  // centre only
+  n.add(0, 0, 0, 4, 1, 0b1111, 0.5f, 0.7f, kNodeCentre);         // discarded
+  CapturedDraw out;
+  ASSERT_EQ(build_fragments(n.view(), 0, {{1}}, true, 8, 8, out), "");
+  ASSERT_EQ(out.fragments.size(), 2u);
+  EXPECT_EQ(out.fragments[0].x, 1);
+  EXPECT_EQ(out.fragments[0].coverage, 0b110u);
+  EXPECT_EQ(depths(out, 0), (std::vector<float>{0.51f, 0.52f}));
+  EXPECT_FLOAT_EQ(out.fragments[0].rgba[0], 0.9f);
+  EXPECT_EQ(out.fragments[1].x, 2);
+  EXPECT_EQ(out.fragments[1].coverage, 0b1001u);
+  EXPECT_FLOAT_EQ(out.fragments[1].rgba[0], 0.35f);
 }
 
 // prim_id = the earlier parts' primitives + instance * primitives per
-// instance + gl_PrimitiveID; the records raise a count the call understated.
+// instance + gl_PrimitiveID; the nodes raise a count the call understated.
 TEST(GlCaptureOrder, PrimitiveIdsNumberInstancesAndPartsOneAfterAnother) {
-  std::vector<PassRecord> r = {rec(0, 1, 2, 0, 0, 0, 0.5f), rec(1, 0, 0, 0, 0, 0, 0.5f), rec(1, 2, 4, 0, 0, 0, 0.5f)};
-  std::vector<CapturedFragment> out;
+  Nodes n;
+  n.add(0, 1, 2, 0, 0, 1, 0.5f);
+  n.add(1, 0, 0, 0, 0, 1, 0.5f);
+  n.add(1, 2, 4, 0, 0, 1, 0.5f);
+  CapturedDraw out;
   // Part 0: 3 primitives an instance, 2 instances (0..5); part 1: the call
-  // says 2 an instance, the records show primitive 4, so 5, 3 instances.
-  ASSERT_EQ(build_fragments(r, 0, {{3}, {2}}, true, out), "");
-  ASSERT_EQ(out.size(), 3u);
-  EXPECT_EQ(out[0].prim_id, 1u * 3 + 2);
-  EXPECT_EQ(out[1].prim_id, 6u + 0);
-  EXPECT_EQ(out[2].prim_id, 6u + 2 * 5 + 4);
-  std::vector<PassRecord> big = {rec(0, 0x10000, 0xFFFF, 0, 0, 0, 0.5f)};
-  EXPECT_NE(build_fragments(big, 3, {{0x10000}}, true, out).find("32-bit"), std::string::npos);
-}
-
-// Colour: the centre pass's where it covers, else the lowest covered sample's;
-// a centre record without a covered sample makes no fragment; a repeated
-// sample keeps the smaller depth.
-TEST(GlCaptureOrder, ColourFromTheCentreElseTheLowestSampleAndRepeatsKeepTheNearestDepth) {
-  std::vector<PassRecord> r = {
-      rec(0, 0, 0, 1, 1, 2, 0.75f, 0.2f),          rec(0, 0, 0, 1, 1, 1, 0.5f, 0.1f),
-      rec(0, 0, 0, 1, 1, kCentrePass, 0.6f, 0.9f), rec(0, 0, 0, 1, 1, 2, 0.25f, 0.3f),  // repeat of sample 2, nearer
-      rec(0, 0, 0, 2, 1, 3, 0.5f, 0.4f),           rec(0, 0, 0, 2, 1, 0, 0.5f, 0.35f),
-      rec(0, 0, 0, 3, 1, kCentrePass, 0.5f, 0.8f),  // centre only
-  };
-  std::vector<CapturedFragment> out;
-  ASSERT_EQ(build_fragments(r, 0, {{1}}, true, out), "");
-  ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(out[0].x, 1);
-  EXPECT_EQ(out[0].coverage, 0b110u);
-  EXPECT_EQ(out[0].z, (std::vector<float>{0.5f, 0.25f}));
-  EXPECT_FLOAT_EQ(out[0].rgba[0], 0.9f);  // the centre's
-  EXPECT_EQ(out[1].x, 2);
-  EXPECT_EQ(out[1].coverage, 0b1001u);
-  EXPECT_FLOAT_EQ(out[1].rgba[0], 0.35f);  // sample 0's: no centre record
+  // says 2 an instance, the nodes show primitive 4, so 5, 3 instances.
+  ASSERT_EQ(build_fragments(n.view(), 0, {{3}, {2}}, true, 1, 1, out), "");
+  ASSERT_EQ(out.fragments.size(), 3u);
+  EXPECT_EQ(out.fragments[0].prim_id, 1u * 3 + 2);
+  EXPECT_EQ(out.fragments[1].prim_id, 6u + 0);
+  EXPECT_EQ(out.fragments[2].prim_id, 6u + 2 * 5 + 4);
+  Nodes big;
+  big.add(0, 0x10000, 0xFFFF, 0, 0, 1, 0.5f);
+  EXPECT_NE(build_fragments(big.view(), 3, {{0x10000}}, true, 1, 1, out).find("32-bit"), std::string::npos);
 }
 
 TEST(GlCaptureOrder, ColourIsClampedToWhatTheTargetAndTheTraceHold) {
-  PassRecord a = rec(0, 0, 0, 0, 0, 0, 0.5f);
-  a.rgba = {1.5f, -0.5f, std::nanf(""), 1.25f};
-  std::vector<PassRecord> r = {a};
-  std::vector<CapturedFragment> unorm, flt;
-  ASSERT_EQ(build_fragments(r, 0, {{1}}, true, unorm), "");
-  r = {a};
-  ASSERT_EQ(build_fragments(r, 0, {{1}}, false, flt), "");
-  EXPECT_EQ(unorm[0].rgba, (std::array<float, 4>{1.0f, 0.0f, 0.0f, 1.0f}));
-  EXPECT_EQ(flt[0].rgba, (std::array<float, 4>{1.5f, 0.0f, 0.0f, 1.0f}));
-  const Fragment f = to_trace_fragment(unorm[0]);
+  Nodes n;
+  n.add(0, 0, 0, 0, 0, 1, 0.5f);
+  std::copy_n(std::array<float, 4>{1.5f, -0.5f, std::nanf(""), 1.25f}.begin(), 4, n.colour.begin());
+  CapturedDraw unorm, flt;
+  ASSERT_EQ(build_fragments(n.view(), 0, {{1}}, true, 1, 1, unorm), "");
+  ASSERT_EQ(build_fragments(n.view(), 0, {{1}}, false, 1, 1, flt), "");
+  EXPECT_EQ(unorm.fragments[0].rgba, (std::array<float, 4>{1.0f, 0.0f, 0.0f, 1.0f}));
+  EXPECT_EQ(flt.fragments[0].rgba, (std::array<float, 4>{1.5f, 0.0f, 0.0f, 1.0f}));
+  const Fragment f = to_trace_fragment(unorm.fragments[0], unorm.z.data());
   EXPECT_EQ(f.coverage, 1u);
   EXPECT_EQ(f.z[0], 0.5f);
   EXPECT_EQ(f.alpha, 1.0f);

@@ -68,12 +68,12 @@ uint32_t primitives_per_instance(GLenum mode, GLsizei count) {
 
 namespace {
 
-// The library's own storage block binding (the last one): an application
-// program that binds a block there cannot be captured.
-GLint record_binding() {
+// The library's own storage block bindings (the last kCaptureBindings): an
+// application program that binds a block there cannot be captured.
+GLint capture_binding() {
   GLint n = 0;
   real_gl().GetIntegerv(GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS, &n);
-  return std::max(0, n - 1);
+  return std::max(0, n - kCaptureBindings);
 }
 
 std::string env(const char* name) {
@@ -308,6 +308,10 @@ class Session final : public CaptureSession {
   void set_alpha_test(const Instrumented& ins, bool on);
   void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
   void render_passes(const std::vector<DrawCallPart>& parts);
+  /// Node buffers for `nodes` fragments (keys, state, colour; the depths at the next pass).
+  void reserve_nodes(uint64_t nodes);
+  /// Binds the node buffers (the depths of sample `sample`'s pass).
+  void bind_nodes(int sample);
   void finish_frame();
   std::vector<uint8_t> read_target(GLint fbo, bool presented, int w, int h, bool upside_down = false) const;
 
@@ -342,24 +346,25 @@ class Session final : public CaptureSession {
   std::vector<FramebufferInfo> framebuffers_;
   std::vector<DrawRecord> draws_;
   std::vector<Unsupported> unsupported_;
-  std::vector<std::vector<CapturedFragment>> fragments_;  ///< a draw's in API order, draw by draw
-  uint32_t target_draws_ = 0;                             ///< draws into the target so far (the next trace draw id)
+  std::vector<CapturedDraw> fragments_;  ///< a draw's in API order, draw by draw
+  uint32_t target_draws_ = 0;            ///< draws into the target so far (the next trace draw id)
   bool target_known_ = false;
   bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
   bool color_cleared_ = false, depth_cleared_ = false;
   std::array<float, 3> clear_color_{0, 0, 0};
   float clear_depth_ = 1.0f;
-  GLuint capture_fbo_ = 0, record_buffer_ = 0, query_ = 0;
+  GLuint capture_fbo_ = 0, query_ = 0;
+  /// The node buffers (glsl_rewrite.h kCaptureBindings): list heads, keys,
+  /// state, colour, and the depths (a range of node_capacity_ words a sample).
+  std::array<GLuint, kCaptureBindings> node_buffers_{};
   GLint binding_ = 0;
-  uint64_t capacity_ = 0, max_capacity_ = 0;
-  GLuint msaa_fbo_ = 0, reference_buffer_ = 0;
+  uint64_t node_capacity_ = 0, max_nodes_ = 0, depth_capacity_ = 0;
+  GLuint msaa_fbo_ = 0;
   GLuint render_fbo_ = 0;  ///< ROPSIM_GL_RENDER_PASSES's colour buffer
-  std::vector<PassRecord> records_;
-  std::vector<uint32_t> raw_;
   /// Seconds in each phase of the frame's capture (ROPSIM_GL_TIMES).
   struct Times {
-    double passes = 0, read_back = 0, decode = 0, build = 0, write = 0;
+    double passes = 0, read_back = 0, build = 0, write = 0;
   } times_s_;
 };
 
@@ -597,7 +602,7 @@ void Session::use_target(const FramebufferInfo& fb) {
     g.GetIntegerv(GL_CONTEXT_PROFILE_MASK, &mask);
     compatibility_ = (mask & GL_CONTEXT_COMPATIBILITY_PROFILE_BIT) != 0;
   }
-  binding_ = record_binding();
+  binding_ = capture_binding();
   // The capture framebuffer: the target's size, no attachments (every write
   // but the storage buffer's goes nowhere; no depth or stencil buffer, so
   // no fragment is tested away).
@@ -607,13 +612,20 @@ void Session::use_target(const FramebufferInfo& fb) {
   if (g.CheckNamedFramebufferStatus(capture_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     fail("the " + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
          " capture framebuffer (no attachments) is not complete");
+  // The node buffers: a list head a pixel (one storage block), and nodes
+  // (16 bytes each in the keys, state and colour blocks) for as many
+  // fragments as the target has pixels, grown when a draw makes more.
   GLint max_block = 0;
   g.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
-  const uint64_t record_bytes = kRecordWords * 4, head = kRecordHeaderWords * 4;
-  max_capacity_ = max_block > int64_t(head) ? (uint64_t(max_block) - head) / record_bytes : 0;
-  capacity_ = std::min<uint64_t>(max_capacity_, std::max<uint64_t>(65536, uint64_t(fb.width) * uint64_t(fb.height)));
-  g.CreateBuffers(1, &record_buffer_);
-  g.NamedBufferData(record_buffer_, GLsizeiptr(head + capacity_ * record_bytes), nullptr, GL_DYNAMIC_READ);
+  const uint64_t pixels = uint64_t(fb.width) * uint64_t(fb.height);
+  if (kHeadsHeaderWords * 4 + pixels * 4 > uint64_t(max_block))
+    fail("the target " + fb.name + " (" + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
+         ") has more pixels than a storage block of " + std::to_string(max_block) +
+         " bytes (GL_MAX_SHADER_STORAGE_BLOCK_SIZE) has list heads for");
+  max_nodes_ = uint64_t(max_block) / 16 / 64 * 64;
+  g.CreateBuffers(kCaptureBindings, node_buffers_.data());
+  g.NamedBufferData(node_buffers_[0], GLsizeiptr(kHeadsHeaderWords * 4 + pixels * 4), nullptr, GL_DYNAMIC_READ);
+  reserve_nodes(std::max<uint64_t>(65536, pixels));
   g.GenQueries(1, &query_);
   if (reference_msaa_) {
     // The 4x reference: the frame's draws into a multisampled copy.
@@ -629,9 +641,16 @@ void Session::use_target(const FramebufferInfo& fb) {
     g.NamedFramebufferRenderbuffer(msaa_fbo_, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb[1]);
     if (g.CheckNamedFramebufferStatus(msaa_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       fail("the 4x multisampled reference framebuffer is not complete");
-    g.CreateBuffers(1, &reference_buffer_);
-    g.NamedBufferData(reference_buffer_, kRecordHeaderWords * 4 + kRecordWords * 4, nullptr, GL_DYNAMIC_COPY);
   }
+}
+
+void Session::reserve_nodes(uint64_t nodes) {
+  // A multiple of 64 nodes: each sample's depth range starts aligned.
+  const GlFunctions& g = real_gl();
+  node_capacity_ = std::min<uint64_t>(max_nodes_, (nodes + 63) / 64 * 64);
+  for (int b = 1; b <= 3; ++b)
+    g.NamedBufferData(node_buffers_[size_t(b)], GLsizeiptr(node_capacity_ * 16), nullptr, GL_DYNAMIC_READ);
+  depth_capacity_ = 0;  // sized by the draw's spp at its first pass
 }
 
 std::string Session::program_name(GLuint program) const {
@@ -752,10 +771,40 @@ Instrumented* Session::fixed_function(std::string& unsupported) {
 #endif
 }
 
+/// The storage buffer bindings the capture's buffers take, restored after them.
+struct SavedBindings {
+  GLint generic = 0;
+  std::array<GLint, kCaptureBindings> buffer{};
+  std::array<GLint64, kCaptureBindings> start{}, size{};
+
+  void save(GLint binding) {
+    const GlFunctions& g = real_gl();
+    g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic);
+    for (int k = 0; k < kCaptureBindings; ++k) {
+      const GLuint i = GLuint(binding + k);
+      g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, i, &buffer[size_t(k)]);
+      g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, i, &start[size_t(k)]);
+      g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, i, &size[size_t(k)]);
+    }
+  }
+  void restore(GLint binding) const {
+    const GlFunctions& g = real_gl();
+    for (int k = 0; k < kCaptureBindings; ++k) {
+      const GLuint i = GLuint(binding + k);
+      const size_t j = size_t(k);
+      if (size[j] > 0)
+        g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, i, GLuint(buffer[j]), GLintptr(start[j]), GLsizeiptr(size[j]));
+      else
+        g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, i, GLuint(buffer[j]));
+    }
+    g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic));
+  }
+};
+
 /// The GL state a capture pass changes, restored after it.
 struct SavedState {
-  GLint program = 0, draw_fbo = 0, generic_ssbo = 0, ssbo = 0;
-  GLint64 ssbo_start = 0, ssbo_size = 0;
+  GLint program = 0, draw_fbo = 0;
+  SavedBindings bindings;
   GLboolean depth_test = GL_FALSE, stencil_test = GL_FALSE;
   GLint draw_buffers = 1;
   GLboolean blend[16] = {};
@@ -765,10 +814,7 @@ struct SavedState {
     const GlFunctions& g = real_gl();
     g.GetIntegerv(GL_CURRENT_PROGRAM, &program);
     g.GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_fbo);
-    g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic_ssbo);
-    g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, GLuint(binding), &ssbo);
-    g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, GLuint(binding), &ssbo_start);
-    g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, GLuint(binding), &ssbo_size);
+    bindings.save(binding);
     depth_test = g.IsEnabled(GL_DEPTH_TEST);
     stencil_test = g.IsEnabled(GL_STENCIL_TEST);
     g.GetIntegerv(GL_MAX_DRAW_BUFFERS, &draw_buffers);
@@ -782,12 +828,7 @@ struct SavedState {
     const GlFunctions& g = real_gl();
     g.UseProgram(GLuint(program));
     g.BindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(draw_fbo));
-    if (ssbo_size > 0)
-      g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding), GLuint(ssbo), GLintptr(ssbo_start),
-                        GLsizeiptr(ssbo_size));
-    else
-      g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding), GLuint(ssbo));
-    g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic_ssbo));
+    bindings.restore(binding);
     (depth_test ? g.Enable : g.Disable)(GL_DEPTH_TEST);
     (stencil_test ? g.Enable : g.Disable)(GL_STENCIL_TEST);
     for (GLint i = 0; i < draw_buffers; ++i) {
@@ -797,6 +838,20 @@ struct SavedState {
   }
 };
 
+void Session::bind_nodes(int sample) {
+  const GlFunctions& g = real_gl();
+  const GLsizeiptr nodes = GLsizeiptr(node_capacity_ * 16);
+  g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0,
+                    GLsizeiptr(kHeadsHeaderWords * 4 + uint64_t(target_.width) * uint64_t(target_.height) * 4));
+  for (int b = 1; b <= 3; ++b)
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0, nodes);
+  if (depth_capacity_ >= uint64_t(sample + 1) * node_capacity_)
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + 4), node_buffers_[4],
+                      GLintptr(uint64_t(sample) * node_capacity_ * 4), GLsizeiptr(node_capacity_ * 4));
+  else  // the 4x reference before any capture pass: bound, never written
+    g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + 4), node_buffers_[4]);
+}
+
 void Session::capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts,
                            DrawRecord& d) {
   const GlFunctions& g = real_gl();
@@ -804,9 +859,10 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
     const GLenum prop = GL_BUFFER_BINDING;
     GLint binding = 0;
     g.GetProgramResourceiv(program, GL_SHADER_STORAGE_BLOCK, b.first, 1, &prop, 1, nullptr, &binding);
-    if (binding == binding_)
-      fail("program " + std::to_string(program) + ": a storage block uses binding " + std::to_string(binding_) +
-           ", the one the capture appends its records to");
+    if (binding >= binding_ && binding < binding_ + kCaptureBindings)
+      fail("program " + std::to_string(program) + ": a storage block uses binding " + std::to_string(binding) +
+           ", one of those the capture keeps its fragments in (" + std::to_string(binding_) + ".." +
+           std::to_string(binding_ + kCaptureBindings - 1) + ")");
   }
   // An occlusion query of the application's own would count the passes.
   GLint app_query = 0;
@@ -823,94 +879,108 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   g.UseProgram(ins.program);
   copy_uniforms(program, ins);
   g.ProgramUniform1i(ins.program, ins.loc_upside_down, 0);
+  // With the counts a sample pass shades every fragment (its query counts
+  // those the shader keeps), else only those it gives the colour of.
+  if (ins.loc_gate >= 0) g.ProgramUniform1i(ins.program, ins.loc_gate, count ? 0 : 1);
   GLint vp[4] = {};
   g.GetIntegerv(GL_VIEWPORT, vp);
   const std::array<SamplePos, 64> positions = standard_sample_positions(spp_);
-  const uint64_t record_bytes = kRecordWords * 4, head = kRecordHeaderWords * 4;
-  records_.clear();
-  uint64_t passed = 0;
-  const int passes = spp_ + (needs_centre_pass(positions, spp_) ? 1 : 0);
-  for (int pass = 0; pass < passes; ++pass) {
-    const int s = pass < spp_ ? pass : kCentrePass;
-    const std::array<float, 2> off =
-        s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
-                         : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
-    g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
-    // The shift in pixels: the fragment shader reads its inputs there, at the
-    // pixel centre of the unshifted geometry, where multisampling shades.
-    if (ins.loc_pixel_offset >= 0)
-      g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, off[0] * 0.5f * float(std::max(1, vp[2])),
-                         off[1] * 0.5f * float(std::max(1, vp[3])));
-    for (size_t k = 0; k < parts.size(); ++k) {
-      for (;;) {
-        g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), record_buffer_, 0,
-                          GLsizeiptr(head + capacity_ * record_bytes));
-        g.ProgramUniform1ui(ins.program, ins.loc_capacity, GLuint(capacity_));
-        const uint32_t zero[kRecordHeaderWords] = {};
-        g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous pass's writes before the reset
-        g.NamedBufferSubData(record_buffer_, 0, sizeof zero, zero);
-        auto t = std::chrono::steady_clock::now();
+  // The centre pass first: it makes the nodes of the fragments whose
+  // primitive covers the pixel centre and shades them; then the sample
+  // passes in sample order, so that a pass knows whether its sample is a
+  // node's lowest covered one.
+  std::vector<int> order;
+  if (needs_centre_pass(positions, spp_)) order.push_back(kCentrePass);
+  for (int s = 0; s < spp_; ++s) order.push_back(s);
+  uint64_t passed = 0, made = 0;
+  for (;;) {
+    if (depth_capacity_ < uint64_t(spp_) * node_capacity_) {
+      depth_capacity_ = uint64_t(spp_) * node_capacity_;
+      g.NamedBufferData(node_buffers_[4], GLsizeiptr(depth_capacity_ * 4), nullptr, GL_DYNAMIC_READ);
+    }
+    g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous draw's nodes read before the reset
+    const uint32_t empty = kNoNode;
+    g.ClearNamedBufferData(node_buffers_[0], GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &empty);
+    const uint32_t zero[kHeadsHeaderWords] = {};
+    g.NamedBufferSubData(node_buffers_[0], 0, sizeof zero, zero);
+    g.ProgramUniform1ui(ins.program, ins.loc_capacity, GLuint(node_capacity_));
+    if (ins.loc_width >= 0) g.ProgramUniform1ui(ins.program, ins.loc_width, GLuint(target_.width));
+    passed = 0;
+    const auto t = std::chrono::steady_clock::now();
+    for (const int s : order) {
+      const std::array<float, 2> off =
+          s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
+                           : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
+      g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
+      // The shift in pixels: the fragment shader reads its inputs there, at
+      // the pixel centre of the unshifted geometry, where multisampling shades.
+      if (ins.loc_pixel_offset >= 0)
+        g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, off[0] * 0.5f * float(std::max(1, vp[2])),
+                           off[1] * 0.5f * float(std::max(1, vp[3])));
+      g.ProgramUniform1i(ins.program, ins.loc_pass, int(s == kCentrePass ? PassKind::kCentre : PassKind::kSample));
+      if (ins.loc_sample >= 0) g.ProgramUniform1ui(ins.program, ins.loc_sample, GLuint(s == kCentrePass ? 0 : s));
+      bind_nodes(s == kCentrePass ? 0 : s);
+      for (size_t k = 0; k < parts.size(); ++k) {
+        if (ins.loc_part >= 0) g.ProgramUniform1ui(ins.program, ins.loc_part, GLuint(k));
         if (count && s != kCentrePass) g.BeginQuery(GL_SAMPLES_PASSED, query_);
         parts[k].replay();
-        if (count && s != kCentrePass) g.EndQuery(GL_SAMPLES_PASSED);
-        g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-        uint32_t n = 0;
-        g.GetNamedBufferSubData(record_buffer_, 0, 4, &n);  // waits for the pass
-        times_s_.passes += seconds_since(t);
-        if (n <= capacity_) {
-          t = std::chrono::steady_clock::now();
-          // The records read in place (mapped), else copied out.
-          const GLsizeiptr bytes = GLsizeiptr(uint64_t(n) * record_bytes);
-          const uint32_t* words = nullptr;
-          if (n)
-            words = static_cast<const uint32_t*>(
-                g.MapNamedBufferRange(record_buffer_, GLintptr(head), bytes, GL_MAP_READ_BIT));
-          if (n && !words) {
-            raw_.resize(size_t(n) * kRecordWords);
-            g.GetNamedBufferSubData(record_buffer_, GLintptr(head), bytes, raw_.data());
-            words = raw_.data();
-          }
-          times_s_.read_back += seconds_since(t);
-          if (count && s != kCentrePass) {  // the centre pass adds colour, no coverage
-            GLuint64 r = 0;
-            g.GetQueryObjectui64v(query_, GL_QUERY_RESULT, &r);
-            passed += r;
-          }
-          t = std::chrono::steady_clock::now();
-          // Room for the part's every pass as large as its first: for a draw
-          // of one part one allocation, not a doubling's copies.
-          if (pass == 0 && records_.capacity() < records_.size() + size_t(n) * size_t(passes))
-            records_.reserve(std::max(records_.size() + size_t(n) * size_t(passes) + (size_t(1) << 16),
-                                      k == 0 ? size_t(0) : 2 * records_.capacity()));
-          const std::string err =
-              decode_records(words, n, uint32_t(target_.width), uint32_t(target_.height), uint32_t(k), s, records_);
-          if (n && words != raw_.data()) g.UnmapNamedBuffer(record_buffer_);
-          times_s_.decode += seconds_since(t);
-          if (!err.empty()) fail("draw " + std::to_string(d.index) + " (" + d.name + "): " + err);
-          break;
+        if (count && s != kCentrePass) {  // the centre pass adds colour, no coverage
+          g.EndQuery(GL_SAMPLES_PASSED);
+          GLuint64 r = 0;
+          g.GetQueryObjectui64v(query_, GL_QUERY_RESULT, &r);
+          passed += r;
         }
-        if (n > max_capacity_)
-          fail("draw " + std::to_string(d.index) + " (" + d.name + "): one pass makes " + std::to_string(n) +
-               " fragments, more than the " + std::to_string(max_capacity_) +
-               " records a storage block holds (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
-        capacity_ = std::min<uint64_t>(max_capacity_, std::max<uint64_t>(n, capacity_ * 2));
-        g.NamedBufferData(record_buffer_, GLsizeiptr(head + capacity_ * record_bytes), nullptr, GL_DYNAMIC_READ);
       }
+      g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);  // a pass's nodes before the next pass
     }
+    g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    uint32_t n = 0;
+    g.GetNamedBufferSubData(node_buffers_[0], 0, 4, &n);  // waits for the passes
+    times_s_.passes += seconds_since(t);
+    made = n;
+    if (made <= node_capacity_) break;
+    if (made > max_nodes_)
+      fail("draw " + std::to_string(d.index) + " (" + d.name + "): it makes " + std::to_string(made) +
+           " fragments, more than the " + std::to_string(max_nodes_) +
+           " nodes a storage block holds (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
+    reserve_nodes(made + made / 8);  // and the draw's passes again
   }
   saved.restore(binding_);
+
+  // The nodes read in place (mapped).
+  auto t = std::chrono::steady_clock::now();
+  NodeView nodes;
+  nodes.count = size_t(made);
+  std::array<const void*, kCaptureBindings> mapped{};
+  if (made) {
+    for (int b = 1; b <= 3; ++b)
+      mapped[size_t(b)] = g.MapNamedBufferRange(node_buffers_[size_t(b)], 0, GLsizeiptr(made * 16), GL_MAP_READ_BIT);
+    mapped[4] =
+        g.MapNamedBufferRange(node_buffers_[4], 0, GLsizeiptr(uint64_t(spp_) * node_capacity_ * 4), GL_MAP_READ_BIT);
+    for (int b = 1; b <= 4; ++b)
+      if (!mapped[size_t(b)]) fail("draw " + std::to_string(d.index) + " (" + d.name + "): the nodes cannot be mapped");
+    nodes.keys = static_cast<const uint32_t*>(mapped[1]);
+    nodes.state = static_cast<const uint32_t*>(mapped[2]);
+    nodes.colour = static_cast<const float*>(mapped[3]);
+    for (int s = 0; s < spp_; ++s)
+      nodes.depth[size_t(s)] = static_cast<const uint32_t*>(mapped[4]) + uint64_t(s) * node_capacity_;
+  }
+  times_s_.read_back += seconds_since(t);
   std::vector<DrawPart> shape;
   for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
-  std::vector<CapturedFragment> made;  // a vector a draw: no earlier draw's fragments move
+  CapturedDraw draw;  // a draw's own: no earlier draw's fragments move
   const bool clamp = target_.encoding != TargetEncoding::kFloat;
-  const auto t = std::chrono::steady_clock::now();
+  t = std::chrono::steady_clock::now();
   const std::string err =
-      build_fragments(records_, d.trace_id, shape, clamp, made, uint32_t(target_.width), uint32_t(target_.height));
+      made ? build_fragments(nodes, d.trace_id, shape, clamp, uint32_t(target_.width), uint32_t(target_.height), draw)
+           : "";
+  if (made)
+    for (int b = 1; b <= 4; ++b) g.UnmapNamedBuffer(node_buffers_[size_t(b)]);
   if (!err.empty()) fail(err);
   times_s_.build += seconds_since(t);
-  d.fragments = made.size();
-  for (const CapturedFragment& f : made) d.covered_samples += f.z.size();
-  if (!list_only_) fragments_.push_back(std::move(made));  // else counted, no trace to write
+  d.fragments = draw.fragments.size();
+  d.covered_samples = draw.z.size();
+  if (!list_only_) fragments_.push_back(std::move(draw));  // else counted, no trace to write
   d.counted = count;
   d.samples_passed = passed;
 }
@@ -987,16 +1057,13 @@ struct FlippedState {
 
 void Session::reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts) {
   // The application's state but the framebuffer, drawn upside down with the
-  // instrumented program writing no record (capacity 0): GL window row y is
+  // instrumented program recording nothing (pass kind none): GL window row y is
   // then trace row y, and llvmpipe's 4 sample positions are the header's.
   const GlFunctions& g = real_gl();
-  GLint current = 0, generic = 0, bound = 0;
-  GLint64 start = 0, size = 0;
+  GLint current = 0;
   g.GetIntegerv(GL_CURRENT_PROGRAM, &current);
-  g.GetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &generic);
-  g.GetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, GLuint(binding_), &bound);
-  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, GLuint(binding_), &start);
-  g.GetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, GLuint(binding_), &size);
+  SavedBindings bindings;
+  bindings.save(binding_);
   FlippedState flipped;
   flipped.flip(msaa_fbo_, target_.height);
   g.UseProgram(ins.program);
@@ -1005,17 +1072,15 @@ void Session::reference_draw(GLuint program, const Instrumented& ins, const std:
   if (ins.loc_pixel_offset >= 0) g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, 0.0f, 0.0f);
   g.ProgramUniform1i(ins.program, ins.loc_upside_down, 1);
   g.ProgramUniform1ui(ins.program, ins.loc_capacity, 0);
-  // A buffer of its own (the count alone), so that its increments never
-  // meet the capture's records.
-  g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), reference_buffer_);
+  // Pass kind none: the shader touches none of the node buffers (bound all
+  // the same, as the program declares them).
+  g.ProgramUniform1i(ins.program, ins.loc_pass, int(PassKind::kNone));
+  if (ins.loc_gate >= 0) g.ProgramUniform1i(ins.program, ins.loc_gate, 0);
+  bind_nodes(0);
   for (const DrawCallPart& p : parts) p.replay();
   flipped.restore();
   g.UseProgram(GLuint(current));
-  if (size > 0)
-    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound), GLintptr(start), GLsizeiptr(size));
-  else
-    g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), GLuint(bound));
-  g.BindBuffer(GL_SHADER_STORAGE_BUFFER, GLuint(generic));
+  bindings.restore(binding_);
 }
 
 void Session::set_alpha_test(const Instrumented& ins, bool on) {
@@ -1236,8 +1301,8 @@ void Session::finish_frame() {
     const auto t = std::chrono::steady_clock::now();
     try {
       TraceWriter w(out_, h, kTraceZstdLevel);
-      for (const std::vector<CapturedFragment>& draw : fragments_)
-        for (const CapturedFragment& f : draw) w.write(to_trace_fragment(f));
+      for (const CapturedDraw& draw : fragments_)
+        for (const CapturedFragment& f : draw.fragments) w.write(to_trace_fragment(f, draw.z.data()));
       w.finish();
     } catch (const std::exception& e) {
       fail(e.what());
@@ -1247,7 +1312,6 @@ void Session::finish_frame() {
   if (!times_.empty()) {
     const json j = {{"passes", times_s_.passes},
                     {"read_back", times_s_.read_back},
-                    {"decode", times_s_.decode},
                     {"build", times_s_.build},
                     {"write", times_s_.write}};
     if (!write_json(times_, j, err)) fail(err);

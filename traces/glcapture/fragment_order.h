@@ -1,11 +1,13 @@
 // The GL capture's plain-C++ rules (docs/capture.md "Capturing a GL frame"):
-// the per-pass sample offset, and the fragments of a draw rebuilt in API order
-// from the records its passes appended. No GL calls here, so the rules are
+// the per-pass sample offset, and the fragments of a draw in API order from
+// the nodes its passes left. No GL calls here, so the rules are
 // tested without a context.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "traces/format/trace.h"
@@ -19,8 +21,9 @@ namespace ropsim::glcapture {
 /// down); GL's window y points up. viewport_w/h: glViewport's size.
 std::array<float, 2> sample_clip_offset(SamplePos p, int viewport_w, int viewport_h);
 
-/// The pass at the pixel centre (PassRecord::sample): it gives the colour of
-/// the fragments whose centre it covers, and no coverage.
+/// The pass at the pixel centre (in the pass loop, after the sample
+/// indices): it shades the fragments whose centre it covers, and gives no
+/// coverage.
 inline constexpr int kCentrePass = 64;
 
 /// Whether the capture makes a centre pass at `spp`: unless a sample lies at
@@ -28,58 +31,100 @@ inline constexpr int kCentrePass = 64;
 /// shades it.
 bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp);
 
-/// One record a pass appended (glsl_rewrite.h kRecordWords), decoded.
-struct PassRecord {
-  uint16_t x = 0, y = 0;  ///< pixel in trace coordinates (row 0 at the top)
-  uint32_t prim = 0;      ///< gl_PrimitiveID
-  uint32_t instance = 0;  ///< gl_InstanceID
-  uint32_t part = 0;      ///< the sub-draw (glMultiDraw*), 0 otherwise
-  uint8_t sample = 0;     ///< the pass: the sample position it samples, or kCentrePass
-  float z = 0;            ///< gl_FragCoord.z
-  std::array<float, 4> rgba{};
+/// A draw's fragment nodes as its passes left them (glsl_rewrite.h), read in
+/// place: node i's key words keys[4i ..] (gl_PrimitiveID, instance, part,
+/// next), state words state[4i ..] (pixel x | y << 16 in GL window
+/// coordinates, coverage bits 0-31, 32-63, flags), colour colour[4i ..], and
+/// sample s's depth depth[s][i] (float bits; valid where the coverage has
+/// bit s).
+struct NodeView {
+  size_t count = 0;
+  const uint32_t* keys = nullptr;
+  const uint32_t* state = nullptr;
+  const float* colour = nullptr;
+  std::array<const uint32_t*, 64> depth{};
 };
 
-/// Decodes `count` raw records of one pass; gl window y becomes trace row
-/// height - 1 - y. Records whose pixel is outside width x height are
-/// refused (returns the reason), as is a depth outside [0, 1].
-std::string decode_records(const uint32_t* raw, size_t count, uint32_t width, uint32_t height, uint32_t part,
-                           int sample, std::vector<PassRecord>& out);
-
 /// A draw's part: how many primitives one instance of it has, when the call
-/// says (0: unknown, taken from the records).
+/// says (0: unknown, taken from the nodes).
 struct DrawPart {
   uint32_t prims_per_instance = 0;
 };
 
 /// A fragment kept until the frame ends (its draw states go into the header
-/// first): the per-sample depths of its covered samples, in sample order.
+/// first): its covered samples' depths, lowest sample first, are
+/// CapturedDraw::z[z_first ..].
 struct CapturedFragment {
   uint32_t draw_id = 0, prim_id = 0;
   uint16_t x = 0, y = 0;
   uint64_t coverage = 0;
   std::array<float, 4> rgba{};
-  std::vector<float> z;  ///< one per covered sample, lowest sample first
+  size_t z_first = 0;
+};
+
+/// `bytes` of fresh memory (madvise MADV_HUGEPAGE); throws std::bad_alloc.
+void* map_pages(size_t bytes);
+void unmap_pages(void* p, size_t bytes);
+
+/// An array of a trivially copyable type in a mapping of its own, not
+/// zeroed, on transparent huge pages where the kernel gives them: a frame's
+/// fragments and depths are hundreds of MB written once, and fresh small
+/// pages' faults and zeroing would cost more than writing them.
+template <class T>
+class LargeArray {
+  static_assert(std::is_trivially_copyable<T>::value, "LargeArray holds trivially copyable values");
+
+ public:
+  LargeArray() = default;
+  explicit LargeArray(size_t n) : n_(n) {
+    if (n) data_ = static_cast<T*>(map_pages(n * sizeof(T)));
+  }
+  LargeArray(LargeArray&& o) noexcept : data_(o.data_), n_(o.n_) { o.data_ = nullptr, o.n_ = 0; }
+  LargeArray& operator=(LargeArray&& o) noexcept {
+    std::swap(data_, o.data_);
+    std::swap(n_, o.n_);
+    return *this;
+  }
+  ~LargeArray() {
+    if (data_) unmap_pages(data_, n_ * sizeof(T));
+  }
+  size_t size() const { return n_; }
+  T* data() { return data_; }
+  const T* data() const { return data_; }
+  T& operator[](size_t i) { return data_[i]; }
+  const T& operator[](size_t i) const { return data_[i]; }
+  const T* begin() const { return data_; }
+  const T* end() const { return data_ + n_; }
+
+ private:
+  T* data_ = nullptr;
+  size_t n_ = 0;
+};
+
+/// One draw's fragments in API order and their depths.
+struct CapturedDraw {
+  LargeArray<CapturedFragment> fragments;
+  LargeArray<float> z;
 };
 
 /// The fragments of one draw in API order: by part, then instance, then
 /// primitive (prim_id = the parts' primitives before it + instance *
-/// primitives per instance + gl_PrimitiveID), then row, then column. Every
-/// sample pass contributes its sample's coverage bit and depth; the colour is
-/// the centre pass's where it covers the pixel, else the lowest covered
-/// sample's (a centre the primitive misses is not shaded). A primitive and
-/// pixel with a centre record but no covered sample makes no fragment. clamp: colour and alpha clamped to
-/// [0, 1] (unorm and sRGB targets); otherwise alpha is clamped to [0, 1]
-/// and colour to >= 0 (what a trace holds). The result does not depend on
-/// the records' order (a record that repeats a
-/// (part, instance, primitive, pixel, sample) keeps the smallest depth, then
-/// colour, bit for bit). width x height: the target (0 x 0: the records'
-/// extent). Returns "" or why the ids overflow 32 bits (or a record lies
-/// outside the target).
-std::string build_fragments(const std::vector<PassRecord>& records, uint32_t draw_id,
-                            const std::vector<DrawPart>& parts, bool clamp, std::vector<CapturedFragment>& out,
-                            uint32_t width = 0, uint32_t height = 0);
+/// primitives per instance + gl_PrimitiveID), then row, then column; one a
+/// node that is kept (kNodeKept) and covers a sample. Its colour is the one
+/// shaded invocation's (at the pixel centre where the primitive covers it,
+/// else at its lowest covered sample); clamp: colour and alpha clamped to
+/// [0, 1] (unorm and sRGB targets); otherwise alpha is clamped to [0, 1] and
+/// colour to >= 0 (what a trace holds). The result does not depend on the
+/// nodes' order (the order llvmpipe's threads made them in): a node is one
+/// (part, instance, primitive, pixel), so the API-order keys are unique.
+/// width x height: the target (GL rows flipped into trace rows). `out` is
+/// replaced. Returns ""
+/// or why a node is out of range (a pixel outside the target, a depth
+/// outside [0, 1]) or the ids overflow 32 bits.
+std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                            uint32_t width, uint32_t height, CapturedDraw& out);
 
-/// A CapturedFragment as the trace's Fragment (DepthMode::kPerSample).
-Fragment to_trace_fragment(const CapturedFragment& f);
+/// A CapturedFragment (its depths at z) as the trace's Fragment (DepthMode::kPerSample).
+Fragment to_trace_fragment(const CapturedFragment& f, const float* z);
 
 }  // namespace ropsim::glcapture

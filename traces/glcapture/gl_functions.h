@@ -111,6 +111,7 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLCREATEBUFFERSPROC, CreateBuffers)                                                             \
   X(PFNGLNAMEDBUFFERDATAPROC, NamedBufferData)                                                         \
   X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)                                                   \
+  X(PFNGLCLEARNAMEDBUFFERDATAPROC, ClearNamedBufferData)                                               \
   X(PFNGLGETNAMEDBUFFERSUBDATAPROC, GetNamedBufferSubData)                                             \
   X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)                                                 \
   X(PFNGLUNMAPNAMEDBUFFERPROC, UnmapNamedBuffer)                                                       \

@@ -295,18 +295,42 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
         "  float ropsim_q = gl_FragCoord.w;\n"
         "  float ropsim_q_at = ropsim_at_offset(ropsim_q);\n" +
         centre;
-  s += "\n// ropsim capture: one record per fragment that survives the shader, its inputs read at the pixel centre\n"
+  const std::string b = std::to_string(binding);
+  auto at = [binding](int k) { return std::to_string(binding + k); };
+  s += "\n// ropsim capture: one node per fragment (pixel, part, instance, primitive), its coverage, depths and the\n"
+       "// colour of its one shaded invocation; its inputs read at the pixel centre\n"
        "uniform vec2 ropsim_pixel_offset;\n"
        "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)\n"
        "layout(std430, binding = " +
-       std::to_string(binding) +
-       ") buffer RopsimFragments { uint ropsim_count; uvec4 ropsim_rec[]; };\n"
+       b +
+       ") coherent buffer RopsimHeads { uint ropsim_count; uint ropsim_pad[3]; uint ropsim_head[]; };\n"
+       "layout(std430, binding = " +
+       at(1) +
+       ") coherent buffer RopsimKeys { uvec4 ropsim_key[]; };\n"
+       "layout(std430, binding = " +
+       at(2) +
+       ") buffer RopsimState { uvec4 ropsim_state[]; };\n"
+       "layout(std430, binding = " +
+       at(3) +
+       ") writeonly buffer RopsimColour { vec4 ropsim_colour[]; };\n"
+       "layout(std430, binding = " +
+       at(4) +
+       ") writeonly buffer RopsimDepth { uint ropsim_depth[]; };\n"
+       // ropsim_pass: 0 writes nothing (the 4x reference); 1 the centre pass;
+       // 2 a sample pass, of sample ropsim_sample. ropsim_gate: a sample
+       // pass ends the invocations it does not shade before the
+       // application's main (off when GL_SAMPLES_PASSED counts the passes).
+       "uniform int ropsim_pass;\n"
+       "uniform uint ropsim_sample;\n"
+       "uniform bool ropsim_gate;\n"
+       "uniform uint ropsim_part;\n"
        "uniform uint ropsim_capacity;\n"
+       "uniform uint ropsim_width;\n"
        "flat in int ropsim_instance;\n"
        // A compatibility context's alpha test (GL_ALPHA_TEST) with a GLSL
        // program: GL applies it after the shader, so the wrapper applies it
-       // first, before the record. ropsim_alpha_func: 0 off, else the
-       // function's enum less GL_NEVER - 1 (1 never ... 8 always);
+       // first, before the fragment is kept. ropsim_alpha_func: 0 off, else
+       // the function's enum less GL_NEVER - 1 (1 never ... 8 always);
        // ropsim_alpha_one: 0 compares floats, else 2^bits - 1 for a target
        // of <= 8 bits a channel, compared as llvmpipe does there: both rounded
        // to that many bits, ties to even (the reference rounded by the host).
@@ -326,20 +350,61 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    default: return true;\n"
        "  }\n"
        "}\n"
-       "void main() {\n" +
+       // The fragment's node in its pixel's list: found, else made and
+       // pushed on the list (lock-free: the head swapped in by
+       // atomicCompSwap; a failed swap walks only the nodes pushed since).
+       // A pass covers a pixel at most once per primitive, so no two
+       // invocations of one pass make the same node. kNoNode when the nodes
+       // overflow ropsim_capacity (the count goes on, and the draw is
+       // captured again with room for them).
+       "uint ropsim_node(uint pixel, uint list) {\n"
+       "  uvec3 key = uvec3(uint(gl_PrimitiveID), uint(ropsim_instance), ropsim_part);\n"
+       "  uint head = ropsim_head[list], stop = 0xFFFFFFFFu, mine = 0xFFFFFFFFu;\n"
+       "  for (;;) {\n"
+       "    for (uint n = head; n != stop; n = ropsim_key[n].w)\n"
+       "      if (ropsim_key[n].xyz == key) return n;\n"
+       "    if (mine == 0xFFFFFFFFu) {\n"
+       "      mine = atomicAdd(ropsim_count, 1u);\n"
+       "      if (mine >= ropsim_capacity) return 0xFFFFFFFFu;\n"
+       "      ropsim_state[mine] = uvec4(pixel, 0u, 0u, ropsim_pass == 1 ? 1u : 0u);\n"
+       "    }\n"
+       "    ropsim_key[mine] = uvec4(key, head);\n"
+       "    memoryBarrierBuffer();\n"
+       "    uint seen = atomicCompSwap(ropsim_head[list], head, mine);\n"
+       "    if (seen == head) return mine;\n"
+       "    stop = head;\n"
+       "    head = seen;\n"
+       "  }\n"
+       "}\n"
+       "void main() {\n"
+       "  uint ropsim_n = 0xFFFFFFFFu;\n"
+       "  bool ropsim_shade = true;\n"
+       "  if (ropsim_pass != 0 && !gl_HelperInvocation) {\n"
+       "    uint x = uint(gl_FragCoord.x), y = uint(gl_FragCoord.y);\n"
+       "    ropsim_n = ropsim_node(x | (y << 16), y * ropsim_width + x);\n"
+       "    if (ropsim_n != 0xFFFFFFFFu && ropsim_pass == 2) {\n"
+       // The sample's coverage bit and depth; the fragment is shaded here
+       // when its primitive misses the pixel centre and this is its lowest
+       // covered sample (the passes run in sample order after the centre's).
+       "      uvec4 st = ropsim_state[ropsim_n];\n"
+       "      uvec2 bit = ropsim_sample < 32u ? uvec2(1u << ropsim_sample, 0u) : uvec2(0u, 1u << (ropsim_sample - "
+       "32u));\n"
+       "      ropsim_shade = (st.w & 1u) == 0u && st.y == 0u && st.z == 0u;\n"
+       "      ropsim_state[ropsim_n].yz = st.yz | bit;\n"
+       "      ropsim_depth[ropsim_n] = floatBitsToUint(gl_FragCoord.z);\n"
+       "    }\n"
+       "  }\n"
+       "  if (ropsim_gate && !ropsim_shade) discard;\n" +
        centre +
        "  ropsim_app_main();\n"
        "  vec4 ropsim_color = " +
        color +
        ";\n"
        "  if (ropsim_alpha_func != 0 && !ropsim_alpha_passes(ropsim_color.a)) discard;\n"
-       "  if (!gl_HelperInvocation) {\n"
-       "    uint i = atomicAdd(ropsim_count, 1u);\n"
-       "    if (i < ropsim_capacity) {\n"
-       "      ropsim_rec[2u * i] = uvec4(uint(gl_FragCoord.x) | (uint(gl_FragCoord.y) << 16), uint(gl_PrimitiveID),\n"
-       "                                 uint(ropsim_instance), floatBitsToUint(gl_FragCoord.z));\n"
-       "      ropsim_rec[2u * i + 1u] = floatBitsToUint(ropsim_color);\n"
-       "    }\n"
+       // Kept: the shaded invocation did not discard (flag 2).
+       "  if (ropsim_n != 0xFFFFFFFFu && ropsim_shade) {\n"
+       "    ropsim_colour[ropsim_n] = ropsim_color;\n"
+       "    ropsim_state[ropsim_n].w |= 2u;\n"
        "  }\n"
        "}\n";
   return {s, ""};

@@ -1,9 +1,10 @@
 // The shader rewrite of the GL capture (docs/capture.md "Capturing a GL
 // frame"): an application's vertex and fragment shader sources become the
 // instrumented pair that re-executes a draw, one pass per sample position,
-// and appends every fragment that survives the fragment shader to a shader
-// storage buffer. Plain text in, plain text out: no GL calls here.
+// and gathers each fragment (coverage, depths, colour) into one node of a
+// per-pixel list in shader storage buffers. Plain text in, plain text out: no GL calls here.
 #pragma once
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -14,13 +15,24 @@ namespace ropsim::glcapture {
 /// GLSL ES sources); `core` serves core-profile contexts.
 enum class GlslProfile { kCompatibility, kCore };
 
-/// 32-bit words per fragment record in the storage buffer: the pixel (x | y
-/// << 16, GL window coordinates), gl_PrimitiveID, the instance, gl_FragCoord.z
-/// (float bits), and the colour's r, g, b, a (float bits).
-inline constexpr unsigned kRecordWords = 8;
-/// Words before the records: the atomic count and three pad words (the
-/// records are two uvec4 each, 16-byte aligned in std430).
-inline constexpr unsigned kRecordHeaderWords = 4;
+/// The storage bindings the instrumented fragment shader uses, from the
+/// `binding` given to instrument_fragment_shader() on: the pixels' list heads
+/// (after the node count and three pad words), the nodes' keys (uvec4:
+/// gl_PrimitiveID, instance, part, next node), their state (uvec4: pixel
+/// x | y << 16 in GL window coordinates, coverage bits 0-31 and 32-63,
+/// flags), their colour (vec4), and one pass's depths (a float's bits per
+/// node; each sample pass binds its own range).
+inline constexpr int kCaptureBindings = 5;
+/// Words before the list heads: the node count and three pad words.
+inline constexpr unsigned kHeadsHeaderWords = 4;
+/// The pixel list's end, and a node index that is no node.
+inline constexpr uint32_t kNoNode = 0xFFFFFFFFu;
+/// Node flags (the state's fourth word): the primitive covers the pixel
+/// centre (the centre pass made the node), and the shaded invocation kept
+/// the fragment (it did not discard).
+inline constexpr uint32_t kNodeCentre = 1, kNodeKept = 2;
+/// ropsim_pass: what a pass records.
+enum class PassKind : int { kNone = 0, kCentre = 1, kSample = 2 };
 
 struct Rewritten {
   std::string source;  ///< empty when error is set
@@ -45,12 +57,16 @@ Rewritten instrument_vertex_shader(const std::string& src, GlslProfile profile);
 /// gl_FragData[0], gl_FragColor, or opaque black when it writes none.
 std::string fragment_color_expression(const std::string& stripped_src);
 
-/// The fragment shader: its `main` renamed, and a new `main` that calls it
-/// and then appends one record (kRecordWords) to the buffer at `binding`
-/// (block RopsimFragments; uniform `ropsim_capacity` bounds the records
-/// written, the count goes on past it so that an overflow is seen). An
-/// invocation that discards appends nothing; helper invocations append
-/// nothing.
+/// The fragment shader: its `main` renamed, and a new `main` that records
+/// the fragment in the buffers at `binding` .. `binding` + kCaptureBindings
+/// - 1 (uniform `ropsim_capacity` bounds the nodes written; the count goes
+/// on past it so that an overflow is seen). The centre pass makes each
+/// fragment's node (flag kNodeCentre) and shades it; a sample pass sets
+/// its sample's coverage bit and depth in the node (made if the centre pass
+/// did not), and shades the fragment only when its primitive misses the
+/// pixel centre and the sample is its lowest covered one. A shaded
+/// invocation that does not discard stores the colour and kNodeKept; helper
+/// invocations record nothing.
 /// as_is: inputs not to read at the pixel centre (the library's retry for an
 /// input whose centre read fails to link: see instrumented_program.cpp).
 Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding,

@@ -169,7 +169,12 @@ void build_once(GLuint program, const std::vector<ShaderSource>& src, const std:
   ins.loc_alpha_func = g.GetUniformLocation(q, "ropsim_alpha_func");
   ins.loc_alpha_ref = g.GetUniformLocation(q, "ropsim_alpha_ref");
   ins.loc_alpha_one = g.GetUniformLocation(q, "ropsim_alpha_one");
-  if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0) {
+  ins.loc_pass = g.GetUniformLocation(q, "ropsim_pass");
+  ins.loc_sample = g.GetUniformLocation(q, "ropsim_sample");
+  ins.loc_gate = g.GetUniformLocation(q, "ropsim_gate");
+  ins.loc_part = g.GetUniformLocation(q, "ropsim_part");
+  ins.loc_width = g.GetUniformLocation(q, "ropsim_width");
+  if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_pass < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;
   }

@@ -31,6 +31,9 @@ struct Instrumented {
   GLuint program = 0;
   std::string error;  ///< "" or why it cannot be made ("program N: ...")
   GLint loc_offset = -1, loc_capacity = -1, loc_upside_down = -1;
+  /// ropsim_pass (PassKind), ropsim_sample, ropsim_gate, ropsim_part,
+  /// ropsim_width (the target's: a pixel's list head) (glsl_rewrite.cpp).
+  GLint loc_pass = -1, loc_sample = -1, loc_gate = -1, loc_part = -1, loc_width = -1;
   /// ropsim_pixel_offset, the pass's geometry shift in pixels (window
   /// coordinates); -1 when the fragment shader has no interpolated input.
   GLint loc_pixel_offset = -1;
@@ -47,8 +50,8 @@ struct ShaderSource {
 };
 
 /// Builds `ins` for `program` (0: a fixed-function equivalent, no uniforms
-/// to copy) from its shader sources; the fragment records go to storage
-/// binding `binding`. On failure `ins.error` says why, naming `who`.
+/// to copy) from its shader sources; the fragment nodes go to storage
+/// bindings `binding` .. `binding` + kCaptureBindings - 1. On failure `ins.error` says why, naming `who`.
 void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
                         Instrumented& ins);
 
