@@ -99,18 +99,10 @@ uint32_t CompressionModel::pend(uint64_t line, Buffer b, uint64_t pixel_addr, ui
   if (hi <= lo) return kNoPatch;
   const uint64_t tile = tile_of(pixel_addr, b);
   const uint64_t tile_start = (uint64_t(b) << 48) + tile * tile_bytes_[size_t(b)];
-  if (bytes_head_ > (size_t{1} << 20) && bytes_head_ * 2 > bytes_end_) {  // drop the applied front
-    std::memmove(bytes_.data(), bytes_.data() + bytes_head_, bytes_end_ - bytes_head_);
-    pending_.for_each([&](Pending& p) { p.at -= bytes_head_; });
-    bytes_end_ -= bytes_head_;
-    bytes_head_ = 0;
-  }
   // The replaced bytes, then (depth: kDepthSampleBytes a sample) the same samples' keys.
   const uint32_t len = uint32_t(hi - lo);
   const uint32_t plane_len = old_planes ? uint32_t(len / kDepthSampleBytes * sizeof(uint64_t)) : 0;
-  const size_t at = bytes_end_;
-  bytes_end_ += len + plane_len;
-  if (bytes_end_ > bytes_.size()) bytes_.resize(std::max(bytes_end_, 2 * bytes_.size()));
+  const size_t at = log_reserve(len + plane_len);
   std::memcpy(&bytes_[at], old + (lo - pixel_addr), len);
   if (old_planes) std::memcpy(&bytes_[at + len], old_planes + (lo - pixel_addr) / kDepthSampleBytes, plane_len);
   pending_.push_back(Pending{tile, at, uint32_t(lo - tile_start), len, plane_len, uint8_t(b), false});
@@ -125,12 +117,41 @@ void CompressionModel::applied(uint32_t id) {
   Pending& p = pending_[size_t(id >= first_id_ ? id - first_id_ : uint64_t(id) + kNoPatch - first_id_)];
   p.applied = true;
   --pending_count_[p.buf][p.tile];
-  while (!pending_.empty() && pending_.front().applied) {
-    bytes_head_ = pending_.front().at + pending_.front().len + pending_.front().plane_len;
+  if (!pending_.front().applied) return;
+  do {
     pending_.pop_front();
     first_id_ = first_id_ + 1 == kNoPatch ? 0 : first_id_ + 1;  // modulo 2^32 - 1 (pend)
+  } while (!pending_.empty() && pending_.front().applied);
+  if (pending_.empty()) {
+    bytes_head_ = bytes_end_ = 0;
+    wrapped_ = false;
+    return;
   }
-  if (pending_.empty()) bytes_head_ = bytes_end_ = 0;
+  // The front's bytes are the log's oldest; below the end, the ring's upper part is free.
+  bytes_head_ = pending_.front().at;
+  if (wrapped_ && bytes_head_ < bytes_end_) wrapped_ = false;
+}
+
+size_t CompressionModel::log_reserve_past_top(size_t n) {
+  if (!wrapped_ && n <= bytes_head_) {
+    wrapped_ = true;
+    bytes_end_ = n;
+    return 0;
+  }
+  // Full: the pending writes' bytes in order into a ring twice the size.
+  std::vector<uint8_t> w(std::max<size_t>({size_t{1} << 14, 2 * bytes_.size(), 2 * n}));
+  size_t end = 0;
+  pending_.for_each([&](Pending& p) {
+    const size_t k = p.len + p.plane_len;
+    std::memcpy(&w[end], &bytes_[p.at], k);
+    p.at = end;
+    end += k;
+  });
+  bytes_.swap(w);
+  wrapped_ = false;
+  bytes_head_ = 0;
+  bytes_end_ = end + n;
+  return end;
 }
 
 uint64_t CompressionModel::metadata(Buffer b, uint64_t tile, bool write, uint64_t now, uint32_t rop) {

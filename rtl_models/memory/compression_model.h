@@ -218,8 +218,10 @@ class CompressionModel {
   std::array<PagedArray<uint8_t>, kBuffers> stored_;      // state bits in memory: 0 cleared, 1 + class, kNever
   static constexpr uint8_t kNever = 0xFF;                 // never written back (stored uncompressed)
   // Pending writes, in post order: record id - first_id_ (modulo kNoPatch)
-  // indexes pending_; their replaced bytes in bytes_ from bytes_head_ to
-  // bytes_end_ (bytes_ grows, never shrinks).
+  // indexes pending_; their replaced bytes in the ring bytes_, in the same
+  // order, from bytes_head_ to bytes_end_ (log_reserve). The ring grows,
+  // never shrinks: it stays the size of the writes in flight, so the log
+  // stays in the host's caches.
   struct Pending {  // 32 bytes
     uint64_t tile;
     size_t at;             // in bytes_: len replaced bytes, then the plane keys' bytes
@@ -233,6 +235,19 @@ class CompressionModel {
   uint32_t first_id_ = 0;
   std::vector<uint8_t> bytes_;
   size_t bytes_head_ = 0, bytes_end_ = 0;
+  bool wrapped_ = false;  // the live bytes wrap past the ring's top
+  /// Room for n bytes at the log's end; returns their offset in bytes_. The
+  /// live bytes run from bytes_head_ to bytes_end_, or when wrapped_ from
+  /// bytes_head_ to the ring's top and from 0 to bytes_end_.
+  size_t log_reserve(size_t n) {
+    if (bytes_end_ + n > (wrapped_ ? bytes_head_ : bytes_.size())) return log_reserve_past_top(n);
+    const size_t at = bytes_end_;
+    bytes_end_ += n;
+    return at;
+  }
+  /// log_reserve when the bytes do not fit at the end: at the ring's bottom,
+  /// or the ring grows.
+  size_t log_reserve_past_top(size_t n);
   std::array<PagedArray<uint32_t>, kBuffers> pending_count_;  // per tile, not yet applied
   std::vector<TilePatch> patches_;                            // view's scratch
   struct MetaCache {

@@ -159,9 +159,10 @@ class RopCache {
   struct Way {
     uint64_t ready = 0;
     uint32_t draw = 0;  // the draw that wrote the line last (its write-back's, attribution.h)
-    Buffer buf = Buffer::kDepth;
+    Buffer buf : 8;     // its surface (a value-initialized way's is kDepth)
     bool dirty = false;
   };
+  static_assert(sizeof(Way) == 16, "a way's state packs into 16 bytes");
   Attribution* attr_ = nullptr;
   /// The way (index) holding line, allocated (after an eviction) on a miss.
   size_t lookup(uint64_t line, bool& hit, uint64_t now);
