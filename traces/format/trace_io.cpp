@@ -225,10 +225,14 @@ class FileSink : public ByteSink {
 
 class ZstdSink : public FileSink {
  public:
-  ZstdSink(FILE* f, std::string path, int level) : FileSink(f, std::move(path)), buf_(ZSTD_CStreamOutSize()) {
+  ZstdSink(FILE* f, std::string path, int level, int workers)
+      : FileSink(f, std::move(path)), buf_(ZSTD_CStreamOutSize()) {
     cs_ = ZSTD_createCCtx();
     ZSTD_CCtx_setParameter(cs_, ZSTD_c_compressionLevel, level);
     ZSTD_CCtx_setParameter(cs_, ZSTD_c_checksumFlag, 1);
+    // A libzstd built without threads refuses workers: then the one thread.
+    if (workers > 0 && ZSTD_isError(ZSTD_CCtx_setParameter(cs_, ZSTD_c_nbWorkers, workers)))
+      ZSTD_CCtx_setParameter(cs_, ZSTD_c_nbWorkers, 0);
     pending_.reserve(kIoChunk);
   }
   ~ZstdSink() override { ZSTD_freeCCtx(cs_); }
@@ -681,7 +685,7 @@ bool TraceReader::next(Fragment& f) {
 
 // ---------------------------------------------------------------- writer
 
-TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level)
+TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level, int zstd_workers)
     : path_(path), header_(header) {
   std::string err = validate_header(header_);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
@@ -716,7 +720,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
     raw.write(c, sizeof c);
   }
   if (header_.compression == Compression::kZstd)
-    sink_ = std::make_unique<ZstdSink>(f, path, zstd_level);
+    sink_ = std::make_unique<ZstdSink>(f, path, zstd_level, zstd_workers);
   else
     sink_ = std::make_unique<FileSink>(f, path);
   if (header_.checksummed) block_.reserve(kChecksumBlockBytes);

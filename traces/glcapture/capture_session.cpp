@@ -385,6 +385,9 @@ class Session final : public CaptureSession {
 /// 1920 x 1080 16-spp frame, 308 MB of records, compresses in 0.5 s instead
 /// of 0.85 s, into a trace 2 % larger).
 constexpr int kTraceZstdLevel = 1;
+/// zstd's compression threads for the trace: a fixed count (not the
+/// machine's), so that the trace's bytes are the same on every machine.
+constexpr int kTraceZstdWorkers = 2;
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -643,7 +646,10 @@ void Session::use_target(const FramebufferInfo& fb) {
   g.NamedBufferData(node_buffers_[0], GLsizeiptr(kHeadsHeaderWords * 4 + pixels * 4), nullptr, GL_DYNAMIC_READ);
   g.CreateTextures(GL_TEXTURE_BUFFER, 2, fetch_textures_.data());
   g.TextureBuffer(fetch_textures_[0], GL_R32UI, node_buffers_[0]);
-  reserve_nodes(std::max<uint64_t>(65536, pixels));
+  // A quarter more nodes than pixels: a draw that covers the target makes
+  // a few more fragments than pixels (its triangles share pixels along
+  // their edges), and a draw that overflows is drawn again.
+  reserve_nodes(std::max<uint64_t>(65536, pixels + pixels / 4));
   g.GenQueries(1, &query_);
   if (reference_msaa_) {
     // The 4x reference: the frame's draws into a multisampled copy.
@@ -1475,7 +1481,7 @@ void Session::finish_frame() {
     if (const std::string why = h.draws.validate(); !why.empty()) fail("the draw states: " + why);
     const auto t = std::chrono::steady_clock::now();
     try {
-      TraceWriter w(out_, h, kTraceZstdLevel);
+      TraceWriter w(out_, h, kTraceZstdLevel, kTraceZstdWorkers);
       for (const CapturedDraw& draw : fragments_)
         for (const CapturedFragment& f : draw.fragments) w.write(to_trace_fragment(f, draw.z.data()));
       w.finish();
