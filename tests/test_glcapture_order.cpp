@@ -25,17 +25,18 @@ struct Nodes {
   std::vector<std::vector<uint32_t>> depth = std::vector<std::vector<uint32_t>>(64);
 
   /// A node of (part, instance, prim) at GL window pixel (x, gy) covering
-  /// `coverage`, sample s's depth z + 0.01 s; flags kNodeKept by default.
+  /// `coverage`: sample s's depth z + 0.01 s, kNoDepth where the node does
+  /// not cover s; flags kNodeKept by default.
   void add(uint32_t part, uint32_t instance, uint32_t prim, uint16_t x, uint16_t gy, uint64_t coverage, float z,
            float red = 0.5f, uint32_t flags = kNodeKept) {
     keys.insert(keys.end(), {prim, instance, part, kNoNode});
-    state.insert(state.end(), {uint32_t(x) | uint32_t(gy) << 16, uint32_t(coverage), uint32_t(coverage >> 32), flags});
+    state.insert(state.end(), {uint32_t(x) | uint32_t(gy) << 16, 0u, 0u, flags});
     colour.insert(colour.end(), {red, 0.25f, 0.125f, 0.5f});
     for (int s = 0; s < 64; ++s) {
       const float d = z + 0.01f * float(s);
       uint32_t u;
       std::memcpy(&u, &d, 4);
-      depth[size_t(s)].push_back(u);
+      depth[size_t(s)].push_back((coverage >> s) & 1 ? u : kNoDepth);
     }
   }
   size_t size() const { return keys.size() / 4; }
@@ -57,6 +58,7 @@ struct Nodes {
   NodeView view() const {
     NodeView v;
     v.count = size();
+    v.spp = 64;
     v.keys = keys.data();
     v.state = state.data();
     v.colour = colour.data();
@@ -242,6 +244,22 @@ TEST(GlslRewrite, MainIsRenamedAndTheVersionReplacedCommentsIgnored) {
   EXPECT_NE(fs.source.find("binding = 5"), std::string::npos);
   EXPECT_NE(fs.source.find("vec4 ropsim_color = gl_FragColor;"), std::string::npos);
   EXPECT_EQ(fs.source.find("mainly"), std::string::npos);
+  EXPECT_EQ(fs.source.find("early_fragment_tests"), std::string::npos);
+  // The shading passes' twin tests before the shader; the sample passes'
+  // coverage shader runs none of the application's and walks the list
+  // through texel fetches on the units given.
+  const Rewritten early =
+      instrument_fragment_shader("void main() { gl_FragColor = vec4(1.0); }", GlslProfile::kCore, 5, {}, true);
+  EXPECT_NE(early.source.find("layout(early_fragment_tests) in;"), std::string::npos);
+  const Rewritten cov = coverage_fragment_shader(GlslProfile::kCompatibility, 5, 94);
+  ASSERT_EQ(cov.error, "");
+  EXPECT_EQ(cov.source.find("#version 450 compatibility"), 0u);
+  for (const char* want :
+       {"binding = 9) writeonly buffer RopsimDepth", "layout(binding = 94) uniform usamplerBuffer",
+        "layout(binding = 95) uniform usamplerBuffer", "texelFetch(ropsim_keys", "if (found) discard;"})
+    EXPECT_NE(cov.source.find(want), std::string::npos) << want << " in\n" << cov.source;
+  EXPECT_EQ(cov.source.find("ropsim_app_main"), std::string::npos);
+  EXPECT_EQ(cov.source.find("atomic"), std::string::npos);
 }
 
 TEST(GlslRewrite, TheColourIsTheOutputAtLocationZeroOrTheBuiltIns) {

@@ -209,7 +209,11 @@ uint64_t max_fragments_in_payload(const TraceHeader& h, uint64_t payload_bytes);
 /// write error (full disk, file size limit) throws UserError "PATH: reason".
 class TraceWriter {
  public:
-  TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level = 3);
+  /// zstd_workers: 0 compresses on the calling thread; N > 0 on N threads of
+  /// zstd's own (ZSTD_c_nbWorkers), overlapping the records' encoding. The
+  /// payload bytes depend on the level and the worker count (0, or any N),
+  /// never on the timing: a fixed count gives the same trace every run.
+  TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level = 3, int zstd_workers = 0);
   ~TraceWriter();
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;

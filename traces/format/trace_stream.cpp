@@ -161,10 +161,14 @@ class FileSink : public ByteSink {
 
 class ZstdSink : public FileSink {
  public:
-  ZstdSink(FILE* f, std::string path, int level) : FileSink(f, std::move(path)), buf_(ZSTD_CStreamOutSize()) {
+  ZstdSink(FILE* f, std::string path, int level, int workers)
+      : FileSink(f, std::move(path)), buf_(ZSTD_CStreamOutSize()) {
     cs_ = ZSTD_createCCtx();
     ZSTD_CCtx_setParameter(cs_, ZSTD_c_compressionLevel, level);
     ZSTD_CCtx_setParameter(cs_, ZSTD_c_checksumFlag, 1);
+    // A libzstd built without threads refuses workers: then the one thread.
+    if (workers > 0 && ZSTD_isError(ZSTD_CCtx_setParameter(cs_, ZSTD_c_nbWorkers, workers)))
+      ZSTD_CCtx_setParameter(cs_, ZSTD_c_nbWorkers, 0);
     pending_.reserve(kIoChunk);
   }
   ~ZstdSink() override { ZSTD_freeCCtx(cs_); }
@@ -198,8 +202,9 @@ std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c) {
   return std::make_unique<FileSource>(f);
 }
 
-std::unique_ptr<ByteSink> open_record_sink(FILE* f, const std::string& path, Compression c, int zstd_level) {
-  if (c == Compression::kZstd) return std::make_unique<ZstdSink>(f, path, zstd_level);
+std::unique_ptr<ByteSink> open_record_sink(FILE* f, const std::string& path, Compression c, int zstd_level,
+                                           int zstd_workers) {
+  if (c == Compression::kZstd) return std::make_unique<ZstdSink>(f, path, zstd_level, zstd_workers);
   return std::make_unique<FileSink>(f, path);
 }
 

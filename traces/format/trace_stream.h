@@ -53,7 +53,9 @@ class SourceError : public UserError {
 /// are (Compression::kNone) or through zstd. The FILE stays the caller's.
 std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c);
 /// Writes to f (path names it in errors): as given, or through zstd at
-/// zstd_level. The FILE stays the caller's.
-std::unique_ptr<ByteSink> open_record_sink(FILE* f, const std::string& path, Compression c, int zstd_level = 0);
+/// zstd_level on zstd_workers threads of zstd's own (0: this thread). The
+/// FILE stays the caller's.
+std::unique_ptr<ByteSink> open_record_sink(FILE* f, const std::string& path, Compression c, int zstd_level = 0,
+                                           int zstd_workers = 0);
 
 }  // namespace ropsim

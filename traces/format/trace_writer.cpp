@@ -21,7 +21,7 @@
 
 namespace ropsim {
 
-TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level)
+TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level, int zstd_workers)
     : path_(path), header_(header) {
   std::string err = validate_header(header_);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
@@ -55,7 +55,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
     put_u64(c, XXH3_64bits(head_.data(), head_.size()));
     raw->write(c, sizeof c);
   }
-  sink_ = open_record_sink(f, path, header_.compression, zstd_level);
+  sink_ = open_record_sink(f, path, header_.compression, zstd_level, zstd_workers);
   if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
 }
 

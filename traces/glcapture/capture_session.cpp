@@ -300,10 +300,18 @@ class Session final : public CaptureSession {
   void use_target(const FramebufferInfo& fb);
   DrawState read_state(uint32_t index, const FramebufferInfo& fb, std::string& unsupported) const;
   std::string program_name(GLuint program) const;
-  Instrumented& instrumented(GLuint program);
+  ProgramSet& instrumented(GLuint program);
   /// The fixed-function state's program, instrumented; or the reason it is not captured.
-  Instrumented* fixed_function(std::string& unsupported);
-  void capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts, DrawRecord& d);
+  ProgramSet* fixed_function(std::string& unsupported);
+  /// Builds the set's shading and coverage twins (once).
+  void build_split(GLuint program, ProgramSet& set);
+  void capture_draw(GLuint program, const ProgramSet& set, const std::vector<DrawCallPart>& parts, DrawRecord& d);
+  /// The capture framebuffer's stencil buffer (made at the first draw that needs it).
+  void attach_capture_stencil();
+  /// Sample pass `s` above 1 spp: the coverage pass, then the shading pass
+  /// (shifted by `off` in clip space, `pixel_off` in pixels).
+  void split_pass(const ProgramSet& set, int s, std::array<float, 2> off, std::array<float, 2> pixel_off,
+                  const std::vector<DrawCallPart>& parts);
   /// The wrapper's alpha test for this draw (on: a GLSL program with GL_ALPHA_TEST on).
   void set_alpha_test(const Instrumented& ins, bool on);
   void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
@@ -339,8 +347,8 @@ class Session final : public CaptureSession {
   bool used_gl_ = false;
   std::set<const void*> contexts_;
   std::map<GLuint, std::vector<ShaderSource>> sources_;
-  std::map<GLuint, Instrumented> instrumented_;
-  std::map<std::string, Instrumented> fixed_function_;  ///< by the generated sources
+  std::map<GLuint, ProgramSet> instrumented_;
+  std::map<std::string, ProgramSet> fixed_function_;  ///< by the generated sources
 
   // Frame N.
   std::vector<FramebufferInfo> framebuffers_;
@@ -355,6 +363,11 @@ class Session final : public CaptureSession {
   std::array<float, 3> clear_color_{0, 0, 0};
   float clear_depth_ = 1.0f;
   GLuint capture_fbo_ = 0, query_ = 0;
+  bool capture_stencil_ = false;  ///< the capture framebuffer has its stencil buffer
+  /// The coverage passes' buffer textures over the list heads and the keys,
+  /// on texture units fetch_unit_ and fetch_unit_ + 1 (the last two).
+  std::array<GLuint, 2> fetch_textures_{};
+  GLint fetch_unit_ = 0;
   /// The node buffers (glsl_rewrite.h kCaptureBindings): list heads, keys,
   /// state, colour, and the depths (a range of node_capacity_ words a sample).
   std::array<GLuint, kCaptureBindings> node_buffers_{};
@@ -372,6 +385,9 @@ class Session final : public CaptureSession {
 /// 1920 x 1080 16-spp frame, 308 MB of records, compresses in 0.5 s instead
 /// of 0.85 s, into a trace 2 % larger).
 constexpr int kTraceZstdLevel = 1;
+/// zstd's compression threads for the trace: a fixed count (not the
+/// machine's), so that the trace's bytes are the same on every machine.
+constexpr int kTraceZstdWorkers = 2;
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -603,6 +619,9 @@ void Session::use_target(const FramebufferInfo& fb) {
     compatibility_ = (mask & GL_CONTEXT_COMPATIBILITY_PROFILE_BIT) != 0;
   }
   binding_ = capture_binding();
+  GLint units = 0;
+  g.GetIntegerv(GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS, &units);
+  fetch_unit_ = std::max(0, units - 2);
   // The capture framebuffer: the target's size, no attachments (every write
   // but the storage buffer's goes nowhere; no depth or stencil buffer, so
   // no fragment is tested away).
@@ -625,7 +644,12 @@ void Session::use_target(const FramebufferInfo& fb) {
   max_nodes_ = uint64_t(max_block) / 16 / 64 * 64;
   g.CreateBuffers(kCaptureBindings, node_buffers_.data());
   g.NamedBufferData(node_buffers_[0], GLsizeiptr(kHeadsHeaderWords * 4 + pixels * 4), nullptr, GL_DYNAMIC_READ);
-  reserve_nodes(std::max<uint64_t>(65536, pixels));
+  g.CreateTextures(GL_TEXTURE_BUFFER, 2, fetch_textures_.data());
+  g.TextureBuffer(fetch_textures_[0], GL_R32UI, node_buffers_[0]);
+  // A quarter more nodes than pixels: a draw that covers the target makes
+  // a few more fragments than pixels (its triangles share pixels along
+  // their edges), and a draw that overflows is drawn again.
+  reserve_nodes(std::max<uint64_t>(65536, pixels + pixels / 4));
   g.GenQueries(1, &query_);
   if (reference_msaa_) {
     // The 4x reference: the frame's draws into a multisampled copy.
@@ -650,7 +674,8 @@ void Session::reserve_nodes(uint64_t nodes) {
   node_capacity_ = std::min<uint64_t>(max_nodes_, (nodes + 63) / 64 * 64);
   for (int b = 1; b <= 3; ++b)
     g.NamedBufferData(node_buffers_[size_t(b)], GLsizeiptr(node_capacity_ * 16), nullptr, GL_DYNAMIC_READ);
-  depth_capacity_ = 0;  // sized by the draw's spp at its first pass
+  g.TextureBuffer(fetch_textures_[1], GL_RGBA32UI, node_buffers_[1]);  // the keys' new store
+  depth_capacity_ = 0;                                                 // sized by the draw's spp at its first pass
 }
 
 std::string Session::program_name(GLuint program) const {
@@ -723,21 +748,42 @@ void Session::deleting_program(GLuint program) {
   sources_.erase(program);
   auto it = instrumented_.find(program);
   if (it != instrumented_.end()) {
-    if (it->second.program) real_gl().DeleteProgram(it->second.program);
+    for (const Instrumented* ins : {&it->second.plain, &it->second.shading, &it->second.coverage})
+      if (ins->program) real_gl().DeleteProgram(ins->program);
     instrumented_.erase(it);
   }
 }
 
-Instrumented& Session::instrumented(GLuint program) {
+ProgramSet& Session::instrumented(GLuint program) {
   auto it = instrumented_.find(program);
   if (it != instrumented_.end()) return it->second;
-  Instrumented& ins = instrumented_[program];
+  ProgramSet& set = instrumented_[program];
   if (!sources_.count(program)) linked(program);  // linked before the library saw it (or never through glLinkProgram)
-  build_instrumented(program, sources_[program], "program " + std::to_string(program), binding_, ins);
-  return ins;
+  build_instrumented(program, sources_[program], "program " + std::to_string(program), binding_, set.plain);
+  return set;
 }
 
-Instrumented* Session::fixed_function(std::string& unsupported) {
+void Session::build_split(GLuint program, ProgramSet& set) {
+  if (set.split_tried) return;
+  set.split_tried = true;
+  std::vector<ShaderSource> src;
+  if (program != 0) {
+    src = sources_[program];
+  } else {
+#if ROPSIM_GLCAPTURE_FIXED_FUNCTION
+    for (const auto& [key, ff] : fixed_function_)
+      if (&ff == &set) {
+        const size_t nul = key.find('\0');
+        src = {{GL_VERTEX_SHADER, key.substr(0, nul)}, {GL_FRAGMENT_SHADER, key.substr(nul + 1)}};
+      }
+#endif
+  }
+  const std::string who = program ? "program " + std::to_string(program) : "the fixed-function program";
+  build_instrumented(program, src, who, binding_, set.shading, ProgramVariant::kShading);
+  build_instrumented(program, src, who, binding_, set.coverage, ProgramVariant::kCoverage, fetch_unit_);
+}
+
+ProgramSet* Session::fixed_function(std::string& unsupported) {
 #if ROPSIM_GLCAPTURE_FIXED_FUNCTION
   const GlFunctions& g = real_gl();
   GlGetters get;
@@ -760,9 +806,9 @@ Instrumented* Session::fixed_function(std::string& unsupported) {
   const std::string key = p.vertex + '\0' + p.fragment;
   auto it = fixed_function_.find(key);
   if (it == fixed_function_.end()) {
-    it = fixed_function_.emplace(key, Instrumented{}).first;
+    it = fixed_function_.emplace(key, ProgramSet{}).first;
     build_instrumented(0, {{GL_VERTEX_SHADER, p.vertex}, {GL_FRAGMENT_SHADER, p.fragment}},
-                       "the fixed-function program", binding_, it->second);
+                       "the fixed-function program", binding_, it->second.plain);
   }
   return &it->second;
 #else
@@ -801,11 +847,23 @@ struct SavedBindings {
   }
 };
 
+/// The stencil state of each face, in SavedState::stencil's order.
+constexpr GLenum kStencilState[2][7] = {
+    {GL_STENCIL_FUNC, GL_STENCIL_REF, GL_STENCIL_VALUE_MASK, GL_STENCIL_FAIL, GL_STENCIL_PASS_DEPTH_FAIL,
+     GL_STENCIL_PASS_DEPTH_PASS, GL_STENCIL_WRITEMASK},
+    {GL_STENCIL_BACK_FUNC, GL_STENCIL_BACK_REF, GL_STENCIL_BACK_VALUE_MASK, GL_STENCIL_BACK_FAIL,
+     GL_STENCIL_BACK_PASS_DEPTH_FAIL, GL_STENCIL_BACK_PASS_DEPTH_PASS, GL_STENCIL_BACK_WRITEMASK}};
+
 /// The GL state a capture pass changes, restored after it.
 struct SavedState {
   GLint program = 0, draw_fbo = 0;
   SavedBindings bindings;
-  GLboolean depth_test = GL_FALSE, stencil_test = GL_FALSE;
+  GLboolean depth_test = GL_FALSE, stencil_test = GL_FALSE, scissor_test = GL_FALSE;
+  /// Per face (front, back): function, reference, value mask, the three
+  /// operations, write mask.
+  GLint stencil[2][7] = {};
+  GLint depth_func = GL_LESS;
+  GLboolean depth_mask = GL_TRUE;
   GLint draw_buffers = 1;
   GLboolean blend[16] = {};
   GLboolean mask[16][4] = {};
@@ -817,6 +875,11 @@ struct SavedState {
     bindings.save(binding);
     depth_test = g.IsEnabled(GL_DEPTH_TEST);
     stencil_test = g.IsEnabled(GL_STENCIL_TEST);
+    scissor_test = g.IsEnabled(GL_SCISSOR_TEST);
+    g.GetIntegerv(GL_DEPTH_FUNC, &depth_func);
+    g.GetBooleanv(GL_DEPTH_WRITEMASK, &depth_mask);
+    for (int f = 0; f < 2; ++f)
+      for (int k = 0; k < 7; ++k) g.GetIntegerv(kStencilState[f][k], &stencil[f][k]);
     g.GetIntegerv(GL_MAX_DRAW_BUFFERS, &draw_buffers);
     draw_buffers = std::min(16, std::max(1, draw_buffers));
     for (GLint i = 0; i < draw_buffers; ++i) {
@@ -831,6 +894,16 @@ struct SavedState {
     bindings.restore(binding);
     (depth_test ? g.Enable : g.Disable)(GL_DEPTH_TEST);
     (stencil_test ? g.Enable : g.Disable)(GL_STENCIL_TEST);
+    (scissor_test ? g.Enable : g.Disable)(GL_SCISSOR_TEST);
+    g.DepthFunc(GLenum(depth_func));
+    g.DepthMask(depth_mask);
+    for (int f = 0; f < 2; ++f) {
+      const GLenum face = f ? GL_BACK : GL_FRONT;
+      const GLint* v = stencil[f];
+      g.StencilFuncSeparate(face, GLenum(v[0]), v[1], GLuint(v[2]));
+      g.StencilOpSeparate(face, GLenum(v[3]), GLenum(v[4]), GLenum(v[5]));
+      g.StencilMaskSeparate(face, GLuint(v[6]));
+    }
     for (GLint i = 0; i < draw_buffers; ++i) {
       (blend[i] ? g.Enablei : g.Disablei)(GL_BLEND, GLuint(i));
       g.ColorMaski(GLuint(i), mask[i][0], mask[i][1], mask[i][2], mask[i][3]);
@@ -852,9 +925,69 @@ void Session::bind_nodes(int sample) {
     g.BindBufferBase(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + 4), node_buffers_[4]);
 }
 
-void Session::capture_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts,
+void Session::attach_capture_stencil() {
+  if (capture_stencil_) return;
+  capture_stencil_ = true;
+  const GlFunctions& g = real_gl();
+  GLuint rb = 0;
+  g.CreateRenderbuffers(1, &rb);
+  g.NamedRenderbufferStorage(rb, GL_DEPTH32F_STENCIL8, target_.width, target_.height);
+  g.NamedFramebufferRenderbuffer(capture_fbo_, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb);
+  if (g.CheckNamedFramebufferStatus(capture_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    fail("the capture framebuffer with its " + std::to_string(target_.width) + "x" + std::to_string(target_.height) +
+         " stencil buffer is not complete");
+}
+
+void Session::split_pass(const ProgramSet& set, int s, std::array<float, 2> off, std::array<float, 2> pixel_off,
+                         const std::vector<DrawCallPart>& parts) {
+  const GlFunctions& g = real_gl();
+  // The coverage pass: a fragment without a node (the coverage twin keeps
+  // it) counts itself in its pixel's stencil and writes its depth.
+  const GLint zero = 0;
+  // Under the application's scissor, as the passes: outside it no fragment reads the stencil.
+  g.ClearNamedFramebufferiv(capture_fbo_, GL_STENCIL, 0, &zero);
+  const Instrumented& cov = set.coverage;
+  g.UseProgram(cov.program);
+  g.ProgramUniform2f(cov.program, cov.loc_offset, off[0], off[1]);
+  g.Enable(GL_STENCIL_TEST);
+  g.Enable(GL_DEPTH_TEST);
+  g.DepthFunc(GL_ALWAYS);
+  g.DepthMask(GL_TRUE);
+  g.StencilFuncSeparate(GL_FRONT_AND_BACK, GL_ALWAYS, 0, 0xFF);
+  g.StencilOpSeparate(GL_FRONT_AND_BACK, GL_KEEP, GL_KEEP, GL_INCR);
+  for (size_t k = 0; k < parts.size(); ++k) {
+    if (cov.loc_part >= 0) g.ProgramUniform1ui(cov.program, cov.loc_part, GLuint(k));
+    parts[k].replay();
+  }
+  g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);  // the coverage pass's depths before the shading passes
+  // The shading passes, tested before the shader: where one fragment of the
+  // pixel has no node, only the fragments at its depth (it, and any other
+  // at the same depth, which finds its node and shades nothing); where
+  // several have none, every fragment of the pixel.
+  const Instrumented& sh = set.shading;
+  g.UseProgram(sh.program);
+  g.ProgramUniform2f(sh.program, sh.loc_offset, off[0], off[1]);
+  if (sh.loc_pixel_offset >= 0) g.ProgramUniform2f(sh.program, sh.loc_pixel_offset, pixel_off[0], pixel_off[1]);
+  g.ProgramUniform1i(sh.program, sh.loc_pass, int(PassKind::kSample));
+  if (sh.loc_sample >= 0) g.ProgramUniform1ui(sh.program, sh.loc_sample, GLuint(s));
+  g.DepthMask(GL_FALSE);
+  g.StencilOpSeparate(GL_FRONT_AND_BACK, GL_KEEP, GL_KEEP, GL_KEEP);
+  for (int several = 0; several < 2; ++several) {
+    g.DepthFunc(several ? GL_ALWAYS : GL_EQUAL);
+    g.StencilFuncSeparate(GL_FRONT_AND_BACK, several ? GL_LESS : GL_EQUAL, 1, 0xFF);  // 1 < stencil; 1 == stencil
+    for (size_t k = 0; k < parts.size(); ++k) {
+      if (sh.loc_part >= 0) g.ProgramUniform1ui(sh.program, sh.loc_part, GLuint(k));
+      parts[k].replay();
+    }
+  }
+  g.Disable(GL_STENCIL_TEST);
+  g.Disable(GL_DEPTH_TEST);
+}
+
+void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vector<DrawCallPart>& parts,
                            DrawRecord& d) {
   const GlFunctions& g = real_gl();
+  const Instrumented& ins = set.plain;
   for (const auto& b : ins.storage_blocks) {
     const GLenum prop = GL_BUFFER_BINDING;
     GLint binding = 0;
@@ -868,6 +1001,13 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   GLint app_query = 0;
   g.GetQueryiv(GL_SAMPLES_PASSED, GL_CURRENT_QUERY, &app_query);
   const bool count = count_samples_ && app_query == 0;
+  // Above 1 spp (and unless the passes are counted) each sample pass is a
+  // coverage pass with the coverage twin, which marks in the stencil buffer
+  // the pixels of fragments that have no node yet, and a shading pass with
+  // the shading twin at the same shift, culled to those pixels by the
+  // stencil test before the shader.
+  const bool split = !count && spp_ > 1 && set.split();
+  if (split) attach_capture_stencil();
 
   SavedState saved;
   saved.save(binding_);
@@ -877,11 +1017,27 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
   g.Disable(GL_BLEND);
   g.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   g.UseProgram(ins.program);
-  copy_uniforms(program, ins);
-  g.ProgramUniform1i(ins.program, ins.loc_upside_down, 0);
-  // With the counts a sample pass shades every fragment (its query counts
-  // those the shader keeps), else only those it gives the colour of.
-  if (ins.loc_gate >= 0) g.ProgramUniform1i(ins.program, ins.loc_gate, count ? 0 : 1);
+  for (const Instrumented* p : {&ins, &set.shading, &set.coverage}) {
+    if (!p->program || (p != &ins && !split)) continue;
+    copy_uniforms(program, *p);
+    g.ProgramUniform1i(p->program, p->loc_upside_down, 0);
+    // With the counts a sample pass shades every fragment (its query counts
+    // those the shader keeps), else only those it gives the colour of.
+    if (p->loc_gate >= 0) g.ProgramUniform1i(p->program, p->loc_gate, count ? 0 : 1);
+  }
+  // The coverage passes' buffer textures on the last two units (the
+  // application's bindings there restored after the passes).
+  GLint active_unit = GL_TEXTURE0;
+  std::array<GLint, 2> unit_texture{};
+  if (split) {
+    g.StencilMaskSeparate(GL_FRONT_AND_BACK, 0xFF);
+    g.GetIntegerv(GL_ACTIVE_TEXTURE, &active_unit);
+    for (int k = 0; k < 2; ++k) {
+      g.ActiveTexture(GLenum(GL_TEXTURE0 + fetch_unit_ + k));
+      g.GetIntegerv(GL_TEXTURE_BINDING_BUFFER, &unit_texture[size_t(k)]);
+      g.BindTexture(GL_TEXTURE_BUFFER, fetch_textures_[size_t(k)]);
+    }
+  }
   GLint vp[4] = {};
   g.GetIntegerv(GL_VIEWPORT, vp);
   const std::array<SamplePos, 64> positions = standard_sample_positions(spp_);
@@ -903,23 +1059,34 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
     g.ClearNamedBufferData(node_buffers_[0], GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &empty);
     const uint32_t zero[kHeadsHeaderWords] = {};
     g.NamedBufferSubData(node_buffers_[0], 0, sizeof zero, zero);
-    g.ProgramUniform1ui(ins.program, ins.loc_capacity, GLuint(node_capacity_));
-    if (ins.loc_width >= 0) g.ProgramUniform1ui(ins.program, ins.loc_width, GLuint(target_.width));
+    // Every sample uncovered until a pass writes its depth.
+    g.ClearNamedBufferSubData(node_buffers_[4], GL_R32UI, 0, GLsizeiptr(uint64_t(spp_) * node_capacity_ * 4),
+                              GL_RED_INTEGER, GL_UNSIGNED_INT, &kNoDepth);
+    for (const Instrumented* p : {&ins, &set.shading, &set.coverage}) {
+      if (!p->program || (p != &ins && !split)) continue;
+      if (p->loc_capacity >= 0) g.ProgramUniform1ui(p->program, p->loc_capacity, GLuint(node_capacity_));
+      if (p->loc_width >= 0) g.ProgramUniform1ui(p->program, p->loc_width, GLuint(target_.width));
+    }
     passed = 0;
     const auto t = std::chrono::steady_clock::now();
     for (const int s : order) {
       const std::array<float, 2> off =
           s == kCentrePass ? std::array<float, 2>{0.0f, 0.0f}
                            : sample_clip_offset(positions[size_t(s)], std::max(1, vp[2]), std::max(1, vp[3]));
-      g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
       // The shift in pixels: the fragment shader reads its inputs there, at
       // the pixel centre of the unshifted geometry, where multisampling shades.
-      if (ins.loc_pixel_offset >= 0)
-        g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, off[0] * 0.5f * float(std::max(1, vp[2])),
-                           off[1] * 0.5f * float(std::max(1, vp[3])));
+      const std::array<float, 2> pixel_off = {off[0] * 0.5f * float(std::max(1, vp[2])),
+                                              off[1] * 0.5f * float(std::max(1, vp[3]))};
+      bind_nodes(s == kCentrePass ? 0 : s);
+      if (split && s != kCentrePass) {
+        split_pass(set, s, off, pixel_off, parts);
+        continue;
+      }
+      g.UseProgram(ins.program);
+      g.ProgramUniform2f(ins.program, ins.loc_offset, off[0], off[1]);
+      if (ins.loc_pixel_offset >= 0) g.ProgramUniform2f(ins.program, ins.loc_pixel_offset, pixel_off[0], pixel_off[1]);
       g.ProgramUniform1i(ins.program, ins.loc_pass, int(s == kCentrePass ? PassKind::kCentre : PassKind::kSample));
       if (ins.loc_sample >= 0) g.ProgramUniform1ui(ins.program, ins.loc_sample, GLuint(s == kCentrePass ? 0 : s));
-      bind_nodes(s == kCentrePass ? 0 : s);
       for (size_t k = 0; k < parts.size(); ++k) {
         if (ins.loc_part >= 0) g.ProgramUniform1ui(ins.program, ins.loc_part, GLuint(k));
         if (count && s != kCentrePass) g.BeginQuery(GL_SAMPLES_PASSED, query_);
@@ -931,7 +1098,8 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
           passed += r;
         }
       }
-      g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);  // a pass's nodes before the next pass
+      g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT |
+                      GL_TEXTURE_FETCH_BARRIER_BIT);  // a pass's nodes before the next pass
     }
     g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     uint32_t n = 0;
@@ -946,11 +1114,19 @@ void Session::capture_draw(GLuint program, const Instrumented& ins, const std::v
     reserve_nodes(made + made / 8);  // and the draw's passes again
   }
   saved.restore(binding_);
+  if (split) {
+    for (int k = 0; k < 2; ++k) {
+      g.ActiveTexture(GLenum(GL_TEXTURE0 + fetch_unit_ + k));
+      g.BindTexture(GL_TEXTURE_BUFFER, GLuint(unit_texture[size_t(k)]));
+    }
+    g.ActiveTexture(GLenum(active_unit));
+  }
 
   // The nodes read in place (mapped).
   auto t = std::chrono::steady_clock::now();
   NodeView nodes;
   nodes.count = size_t(made);
+  nodes.spp = spp_;
   std::array<const void*, kCaptureBindings> mapped{};
   if (made) {
     for (int b = 1; b <= 3; ++b)
@@ -1135,28 +1311,33 @@ void Session::draw(const std::function<void()>& app, const std::vector<DrawCallP
     draws_.push_back(d);
     return;
   }
-  const Instrumented* ins = nullptr;
+  ProgramSet* set = nullptr;
   if (unsupported.empty() && program == 0) {
     g.GetIntegerv(GL_PROGRAM_PIPELINE_BINDING, &pipeline);
     if (pipeline != 0)
       unsupported = "a separable program pipeline cannot be instrumented";
     else
-      ins = fixed_function(unsupported);
+      set = fixed_function(unsupported);
   } else if (unsupported.empty() && (msaa_fbo_ || !list_only_ || count_samples_)) {
-    ins = &instrumented(GLuint(program));  // a list without counts re-executes nothing
+    set = &instrumented(GLuint(program));  // a list without counts re-executes nothing
   }
-  if (ins && !ins->error.empty()) fail(ins->error);
-  if (ins) set_alpha_test(*ins, program != 0 && compatibility_ && g.IsEnabled(GL_ALPHA_TEST));
+  if (set && !set->plain.error.empty()) fail(set->plain.error);
+  // The split sample passes' twins: above 1 spp when the passes are not counted.
+  if (set && spp_ > 1 && !list_only_ && !count_samples_) build_split(GLuint(program), *set);
+  const bool alpha_test = program != 0 && compatibility_ && g.IsEnabled(GL_ALPHA_TEST);
+  if (set)
+    for (const Instrumented* p : {&set->plain, &set->shading})
+      if (p->program) set_alpha_test(*p, alpha_test);
   GLboolean tf = GL_FALSE;
   g.GetBooleanv(GL_TRANSFORM_FEEDBACK_ACTIVE, &tf);
   if (unsupported.empty() && tf) unsupported = "transform feedback is active (re-executing would append to it)";
   if (!unsupported.empty()) {
     unsupported_.push_back({d.index, d.name, unsupported});
   } else if (!g.IsEnabled(GL_RASTERIZER_DISCARD)) {  // a discarded rasterizer draws nothing: no fragments
-    if (msaa_fbo_) reference_draw(GLuint(program), *ins, parts);
+    if (msaa_fbo_) reference_draw(GLuint(program), set->plain, parts);
     // ROPSIM_GL_LIST_ONLY: the passes only when the counts are asked for (ROPSIM_GL_COUNT_SAMPLES)
     if (!list_only_ || count_samples_)
-      capture_draw(GLuint(program), *ins, parts, d);
+      capture_draw(GLuint(program), *set, parts, d);
     else if (render_passes_)
       render_passes(parts);
   }
@@ -1300,7 +1481,7 @@ void Session::finish_frame() {
     if (const std::string why = h.draws.validate(); !why.empty()) fail("the draw states: " + why);
     const auto t = std::chrono::steady_clock::now();
     try {
-      TraceWriter w(out_, h, kTraceZstdLevel);
+      TraceWriter w(out_, h, kTraceZstdLevel, kTraceZstdWorkers);
       for (const CapturedDraw& draw : fragments_)
         for (const CapturedFragment& f : draw.fragments) w.write(to_trace_fragment(f, draw.z.data()));
       w.finish();

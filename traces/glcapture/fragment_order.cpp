@@ -110,15 +110,24 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   };
   // Counted a thread a range of nodes, then made into one array at each
   // range's place.
-  auto fragment_node = [&](size_t i) {
-    const uint32_t* st = nodes.state + 4 * i;
-    return (st[3] & kNodeKept) && (st[1] | st[2]) != 0;
+  // A node's coverage: the samples whose depth a pass wrote.
+  const int spp = std::min(64, std::max(1, nodes.spp));
+  auto coverage = [&](size_t i) {
+    uint64_t c = 0;
+    for (int s = 0; s < spp; ++s) c |= uint64_t(nodes.depth[size_t(s)][i] != kNoDepth) << s;
+    return c;
   };
+  // Each kept node's coverage (0 for the others), made while counting.
+  LargeArray<uint64_t> node_coverage(n);
+  auto fragment_node = [&](size_t i) { return node_coverage[i] != 0; };
   std::vector<size_t> at(nthreads + 1, 0);
   in_parallel([&](size_t t) {
     const auto [lo, hi] = slice(n, t, nthreads);
     size_t c = 0;
-    for (size_t i = lo; i < hi; ++i) c += fragment_node(i) ? 1 : 0;
+    for (size_t i = lo; i < hi; ++i) {
+      node_coverage[i] = (nodes.state[4 * i + 3] & kNodeKept) ? coverage(i) : 0;
+      c += fragment_node(i) ? 1 : 0;
+    }
     at[t + 1] = c;
   });
   for (size_t t = 0; t < nthreads; ++t) at[t + 1] += at[t];
@@ -160,10 +169,8 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   // The fragments in that order, a thread a range of them: first each
   // one's place among the depths.
   std::vector<size_t> z_at(order.size() + 1, 0);
-  for (size_t j = 0; j < order.size(); ++j) {
-    const uint32_t* st = nodes.state + 4 * size_t(order[j].node);
-    z_at[j + 1] = z_at[j] + size_t(__builtin_popcount(st[1]) + __builtin_popcount(st[2]));
-  }
+  for (size_t j = 0; j < order.size(); ++j)
+    z_at[j + 1] = z_at[j] + size_t(__builtin_popcountll(node_coverage[order[j].node]));
   const size_t first = 0, z_base = 0;
   out.fragments = LargeArray<CapturedFragment>(order.size());
   out.z = LargeArray<float>(z_at.back());
@@ -171,13 +178,12 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     const auto [lo, hi] = slice(order.size(), t, nthreads);
     for (size_t j = lo; j < hi; ++j) {
       const size_t i = order[j].node;
-      const uint32_t* st = nodes.state + 4 * i;
       CapturedFragment& f = out.fragments[first + j];
       f.draw_id = draw_id;
       f.prim_id = uint32_t(order[j].order >> 32);
       f.y = uint16_t(order[j].order >> 16);
       f.x = uint16_t(order[j].order);
-      f.coverage = uint64_t(st[1]) | uint64_t(st[2]) << 32;
+      f.coverage = node_coverage[i];
       f.z_first = z_base + z_at[j];
       float* z = out.z.data() + f.z_first;
       for (uint64_t m = f.coverage; m; m &= m - 1) {

@@ -34,11 +34,12 @@ bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp);
 /// A draw's fragment nodes as its passes left them (glsl_rewrite.h), read in
 /// place: node i's key words keys[4i ..] (gl_PrimitiveID, instance, part,
 /// next), state words state[4i ..] (pixel x | y << 16 in GL window
-/// coordinates, coverage bits 0-31, 32-63, flags), colour colour[4i ..], and
-/// sample s's depth depth[s][i] (float bits; valid where the coverage has
-/// bit s).
+/// coordinates, two unused words, flags), colour colour[4i ..], and sample
+/// s's depth depth[s][i] for s < spp (float bits; kNoDepth where the
+/// fragment does not cover sample s: the node's coverage).
 struct NodeView {
   size_t count = 0;
+  int spp = 1;
   const uint32_t* keys = nullptr;
   const uint32_t* state = nullptr;
   const float* colour = nullptr;

@@ -182,7 +182,17 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLBEGINQUERYPROC, BeginQuery)                                                                   \
   X(PFNGLENDQUERYPROC, EndQuery)                                                                       \
   X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                                                 \
-  X(PFNGLGETQUERYIVPROC, GetQueryiv)
+  X(PFNGLGETQUERYIVPROC, GetQueryiv)                                                                   \
+  X(PFNGLSTENCILFUNCSEPARATEPROC, StencilFuncSeparate)                                                 \
+  X(PFNGLSTENCILOPSEPARATEPROC, StencilOpSeparate)                                                     \
+  X(PFNGLSTENCILMASKSEPARATEPROC, StencilMaskSeparate)                                                 \
+  X(PFNGLCLEARNAMEDFRAMEBUFFERIVPROC, ClearNamedFramebufferiv)                                         \
+  X(decltype(&::glDepthFunc), DepthFunc)                                                               \
+  X(decltype(&::glDepthMask), DepthMask)                                                               \
+  X(PFNGLCLEARNAMEDBUFFERSUBDATAPROC, ClearNamedBufferSubData)                                         \
+  X(PFNGLCREATETEXTURESPROC, CreateTextures)                                                           \
+  X(PFNGLTEXTUREBUFFERPROC, TextureBuffer)                                                             \
+  X(decltype(&::glBindTexture), BindTexture)
 
 #define ROPSIM_WS_ENTRY_POINTS(X)                    \
   X(PfnGlxSwapBuffers, glXSwapBuffers)               \

@@ -200,6 +200,30 @@ std::pair<std::string, std::string> centre_builtin_inputs(std::string& s) {
   return {undefs, fills};
 }
 
+/// The node buffers' declarations (glsl_rewrite.h kCaptureBindings) at
+/// `binding` on.
+std::string node_buffers(int binding) {
+  auto at = [binding](int k) { return std::to_string(binding + k); };
+  return "layout(std430, binding = " + at(0) +
+         ") coherent buffer RopsimHeads { uint ropsim_count; uint ropsim_pad[3]; uint ropsim_head[]; };\n"
+         "layout(std430, binding = " +
+         at(1) +
+         ") coherent buffer RopsimKeys { uvec4 ropsim_key[]; };\n"
+         "layout(std430, binding = " +
+         at(2) +
+         ") buffer RopsimState { uvec4 ropsim_state[]; };\n"
+         "layout(std430, binding = " +
+         at(3) +
+         ") writeonly buffer RopsimColour { vec4 ropsim_colour[]; };\n"
+         "layout(std430, binding = " +
+         at(4) + ") writeonly buffer RopsimDepth { uint ropsim_depth[]; };\n";
+}
+
+/// The shading passes' declaration: the stencil test before the shader, so
+/// that llvmpipe skips the blocks of pixels it rejects (a shader that writes
+/// memory is otherwise tested after it runs).
+constexpr const char* kEarlyTests = "layout(early_fragment_tests) in;\n";
+
 }  // namespace
 
 std::string strip_comments(const std::string& src) {
@@ -266,7 +290,7 @@ Rewritten instrument_vertex_shader(const std::string& src, GlslProfile profile) 
 }
 
 Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding,
-                                     const std::vector<std::string>& as_is) {
+                                     const std::vector<std::string>& as_is, bool early_tests) {
   std::string s = set_version(strip_comments(src), profile);
   const std::string color = fragment_color_expression(s);
   const int mains = rename_main(s);
@@ -295,27 +319,12 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
         "  float ropsim_q = gl_FragCoord.w;\n"
         "  float ropsim_q_at = ropsim_at_offset(ropsim_q);\n" +
         centre;
-  const std::string b = std::to_string(binding);
-  auto at = [binding](int k) { return std::to_string(binding + k); };
   s += "\n// ropsim capture: one node per fragment (pixel, part, instance, primitive), its coverage, depths and the\n"
        "// colour of its one shaded invocation; its inputs read at the pixel centre\n"
-       "uniform vec2 ropsim_pixel_offset;\n"
-       "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)\n"
-       "layout(std430, binding = " +
-       b +
-       ") coherent buffer RopsimHeads { uint ropsim_count; uint ropsim_pad[3]; uint ropsim_head[]; };\n"
-       "layout(std430, binding = " +
-       at(1) +
-       ") coherent buffer RopsimKeys { uvec4 ropsim_key[]; };\n"
-       "layout(std430, binding = " +
-       at(2) +
-       ") buffer RopsimState { uvec4 ropsim_state[]; };\n"
-       "layout(std430, binding = " +
-       at(3) +
-       ") writeonly buffer RopsimColour { vec4 ropsim_colour[]; };\n"
-       "layout(std430, binding = " +
-       at(4) +
-       ") writeonly buffer RopsimDepth { uint ropsim_depth[]; };\n"
+       "uniform vec2 ropsim_pixel_offset;\n" +
+       std::string(early_tests ? kEarlyTests : "") +
+       "#define ropsim_at_offset(v) ((v) + dFdx(v) * ropsim_pixel_offset.x + dFdy(v) * ropsim_pixel_offset.y)\n" +
+       node_buffers(binding) +
        // ropsim_pass: 0 writes nothing (the 4x reference); 1 the centre pass;
        // 2 a sample pass, of sample ropsim_sample. ropsim_gate: a sample
        // pass ends the invocations it does not shade before the
@@ -357,9 +366,10 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        // invocations of one pass make the same node. kNoNode when the nodes
        // overflow ropsim_capacity (the count goes on, and the draw is
        // captured again with room for them).
-       "uint ropsim_node(uint pixel, uint list) {\n"
+       "uint ropsim_node(uint pixel, uint list, out bool made) {\n"
        "  uvec3 key = uvec3(uint(gl_PrimitiveID), uint(ropsim_instance), ropsim_part);\n"
        "  uint head = ropsim_head[list], stop = 0xFFFFFFFFu, mine = 0xFFFFFFFFu;\n"
+       "  made = false;\n"
        "  for (;;) {\n"
        "    for (uint n = head; n != stop; n = ropsim_key[n].w)\n"
        "      if (ropsim_key[n].xyz == key) return n;\n"
@@ -371,7 +381,10 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    ropsim_key[mine] = uvec4(key, head);\n"
        "    memoryBarrierBuffer();\n"
        "    uint seen = atomicCompSwap(ropsim_head[list], head, mine);\n"
-       "    if (seen == head) return mine;\n"
+       "    if (seen == head) {\n"
+       "      made = true;\n"
+       "      return mine;\n"
+       "    }\n"
        "    stop = head;\n"
        "    head = seen;\n"
        "  }\n"
@@ -381,16 +394,15 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "  bool ropsim_shade = true;\n"
        "  if (ropsim_pass != 0 && !gl_HelperInvocation) {\n"
        "    uint x = uint(gl_FragCoord.x), y = uint(gl_FragCoord.y);\n"
-       "    ropsim_n = ropsim_node(x | (y << 16), y * ropsim_width + x);\n"
+       "    bool made;\n"
+       "    ropsim_n = ropsim_node(x | (y << 16), y * ropsim_width + x, made);\n"
        "    if (ropsim_n != 0xFFFFFFFFu && ropsim_pass == 2) {\n"
-       // The sample's coverage bit and depth; the fragment is shaded here
-       // when its primitive misses the pixel centre and this is its lowest
-       // covered sample (the passes run in sample order after the centre's).
-       "      uvec4 st = ropsim_state[ropsim_n];\n"
-       "      uvec2 bit = ropsim_sample < 32u ? uvec2(1u << ropsim_sample, 0u) : uvec2(0u, 1u << (ropsim_sample - "
-       "32u));\n"
-       "      ropsim_shade = (st.w & 1u) == 0u && st.y == 0u && st.z == 0u;\n"
-       "      ropsim_state[ropsim_n].yz = st.yz | bit;\n"
+       // The sample's depth (a depth word that is not kNoDepth is the
+       // sample's coverage); the fragment is shaded here when this pass made
+       // its node: its primitive misses the pixel centre and this is its
+       // lowest covered sample (the passes run in sample order after the
+       // centre's).
+       "      ropsim_shade = made;\n"
        "      ropsim_depth[ropsim_n] = floatBitsToUint(gl_FragCoord.z);\n"
        "    }\n"
        "  }\n"
@@ -408,6 +420,51 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "  }\n"
        "}\n";
   return {s, ""};
+}
+
+Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit) {
+  // The walk of the pixel's list is the wrapper's (ropsim_node()) without
+  // the making of a node, through texel fetches: llvmpipe runs every branch
+  // of a shader on its lanes (masked) and reads a storage buffer a lane at a
+  // time, where a texel fetch gathers the lanes at once. Helper invocations
+  // stay out of the walk: llvmpipe runs a loop until every lane of the exec
+  // mask leaves it, and a helper's reads are not the list's.
+  return {std::string(version_line(profile)) +
+              "\n// ropsim capture: a sample pass's depth in the fragment's node; a fragment without a node is kept\n"
+              "// (it marks its pixel in the stencil buffer) for the shading pass that makes it\n"
+              "layout(std430, binding = " +
+              std::to_string(binding + 4) +
+              ") writeonly buffer RopsimDepth { uint ropsim_depth[]; };\n"
+              "layout(binding = " +
+              std::to_string(unit) +
+              ") uniform usamplerBuffer ropsim_heads;\n"
+              "layout(binding = " +
+              std::to_string(unit + 1) +
+              ") uniform usamplerBuffer ropsim_keys;\n"
+              "uniform uint ropsim_part;\n"
+              "uniform uint ropsim_width;\n"
+              "flat in int ropsim_instance;\n"
+              "void main() {\n"
+              "  bool found = false;\n"
+              "  if (!gl_HelperInvocation) {\n"
+              "    uint x = uint(gl_FragCoord.x), y = uint(gl_FragCoord.y);\n"
+              "    uvec3 key = uvec3(uint(gl_PrimitiveID), uint(ropsim_instance), ropsim_part);\n"
+              "    uint n = texelFetch(ropsim_heads, int(" +
+              std::to_string(kHeadsHeaderWords) +
+              "u + y * ropsim_width + x)).x;\n"
+              "    while (n != 0xFFFFFFFFu) {\n"
+              "      uvec4 k = texelFetch(ropsim_keys, int(n));\n"
+              "      if (k.xyz == key) break;\n"
+              "      n = k.w;\n"
+              "    }\n"
+              "    if (n != 0xFFFFFFFFu) {\n"
+              "      ropsim_depth[n] = floatBitsToUint(gl_FragCoord.z);\n"
+              "      found = true;\n"
+              "    }\n"
+              "  }\n"
+              "  if (found) discard;\n"
+              "}\n",
+          ""};
 }
 
 }  // namespace ropsim::glcapture

@@ -19,9 +19,10 @@ enum class GlslProfile { kCompatibility, kCore };
 /// `binding` given to instrument_fragment_shader() on: the pixels' list heads
 /// (after the node count and three pad words), the nodes' keys (uvec4:
 /// gl_PrimitiveID, instance, part, next node), their state (uvec4: pixel
-/// x | y << 16 in GL window coordinates, coverage bits 0-31 and 32-63,
-/// flags), their colour (vec4), and one pass's depths (a float's bits per
-/// node; each sample pass binds its own range).
+/// x | y << 16 in GL window coordinates, two zero words, flags), their
+/// colour (vec4), and one pass's depths (a float's bits per node, kNoDepth
+/// where the fragment does not cover the sample: the depths are the
+/// coverage; each sample pass binds its own range).
 inline constexpr int kCaptureBindings = 5;
 /// Words before the list heads: the node count and three pad words.
 inline constexpr unsigned kHeadsHeaderWords = 4;
@@ -31,6 +32,10 @@ inline constexpr uint32_t kNoNode = 0xFFFFFFFFu;
 /// centre (the centre pass made the node), and the shaded invocation kept
 /// the fragment (it did not discard).
 inline constexpr uint32_t kNodeCentre = 1, kNodeKept = 2;
+/// A depth word of a sample the fragment does not cover (the depths are
+/// cleared to it before a draw's passes; a pass that covers the sample
+/// writes gl_FragCoord.z's bits, which are never these).
+inline constexpr uint32_t kNoDepth = 0xFFFFFFFFu;
 /// ropsim_pass: what a pass records.
 enum class PassKind : int { kNone = 0, kCentre = 1, kSample = 2 };
 
@@ -69,7 +74,22 @@ std::string fragment_color_expression(const std::string& stripped_src);
 /// invocations record nothing.
 /// as_is: inputs not to read at the pixel centre (the library's retry for an
 /// input whose centre read fails to link: see instrumented_program.cpp).
+/// early_tests: the wrapper declares `layout(early_fragment_tests) in` (the
+/// shading passes, culled by the stencil test before the shader runs).
 Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile, int binding,
-                                     const std::vector<std::string>& as_is = {});
+                                     const std::vector<std::string>& as_is = {}, bool early_tests = false);
+
+/// The sample passes' own fragment shader, linked with the instrumented
+/// vertex shader: it finds the fragment's node in its pixel's list and sets
+/// sample `ropsim_sample`'s coverage bit and depth there, then discards; a
+/// fragment whose node does not exist yet (its primitive misses the pixel
+/// centre and every earlier sample) is kept, so that the pass marks its
+/// pixel in the stencil buffer, and a shading pass (the wrapper with
+/// early_tests, the same shift) makes the node and shades it. It runs none
+/// of the application's shader.
+/// The list heads and the keys are read through texel fetches: buffer
+/// textures (R32UI over the heads' buffer, header included; RGBA32UI over
+/// the keys) on texture units `unit` and `unit` + 1.
+Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit);
 
 }  // namespace ropsim::glcapture

@@ -76,15 +76,25 @@ namespace {
 /// One attempt at the instrumented program, with the inputs in as_is read as
 /// the shader reads them; unmatched: the input a failed link names, if any.
 void build_once(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
-                const std::vector<std::string>& as_is, Instrumented& ins, std::string& unmatched) {
+                ProgramVariant variant, GLint unit, const std::vector<std::string>& as_is, Instrumented& ins,
+                std::string& unmatched) {
   const GlFunctions& g = real_gl();
   std::string log;
+  // The coverage variant: the application's vertex shaders and one fragment
+  // shader of the capture's own in place of the application's.
+  std::vector<ShaderSource> sources;
+  for (const ShaderSource& s : src)
+    if (variant != ProgramVariant::kCoverage || s.type == GL_VERTEX_SHADER) sources.push_back(s);
+  if (variant == ProgramVariant::kCoverage) sources.push_back({GL_FRAGMENT_SHADER, ""});
   for (GlslProfile profile : {GlslProfile::kCompatibility, GlslProfile::kCore}) {
     std::vector<GLuint> shaders;
     bool ok = true;
-    for (const ShaderSource& s : src) {
-      const Rewritten r = s.type == GL_VERTEX_SHADER ? instrument_vertex_shader(s.source, profile)
-                                                     : instrument_fragment_shader(s.source, profile, binding, as_is);
+    for (const ShaderSource& s : sources) {
+      const Rewritten r =
+          s.type == GL_VERTEX_SHADER ? instrument_vertex_shader(s.source, profile)
+          : variant == ProgramVariant::kCoverage
+              ? coverage_fragment_shader(profile, binding, unit)
+              : instrument_fragment_shader(s.source, profile, binding, as_is, variant == ProgramVariant::kShading);
       if (!r.error.empty()) {
         ins.error = who + ": " + r.error;
         for (GLuint sh : shaders) g.DeleteShader(sh);
@@ -174,7 +184,9 @@ void build_once(GLuint program, const std::vector<ShaderSource>& src, const std:
   ins.loc_gate = g.GetUniformLocation(q, "ropsim_gate");
   ins.loc_part = g.GetUniformLocation(q, "ropsim_part");
   ins.loc_width = g.GetUniformLocation(q, "ropsim_width");
-  if (ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_pass < 0) {
+  if (variant == ProgramVariant::kCoverage
+          ? ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_width < 0
+          : ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_pass < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;
   }
@@ -221,7 +233,7 @@ void build_once(GLuint program, const std::vector<ShaderSource>& src, const std:
 }  // namespace
 
 void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
-                        Instrumented& ins) {
+                        Instrumented& ins, ProgramVariant variant, GLint unit) {
   bool vertex = false, fragment = false;
   for (const ShaderSource& s : src) {
     if (s.type == GL_VERTEX_SHADER)
@@ -251,7 +263,7 @@ void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, co
   std::vector<std::string> as_is;
   for (;;) {
     std::string unmatched;
-    build_once(program, src, who, binding, as_is, ins, unmatched);
+    build_once(program, src, who, binding, variant, unit, as_is, ins, unmatched);
     if (ins.program || unmatched.empty() || std::find(as_is.begin(), as_is.end(), unmatched) != as_is.end() ||
         as_is.size() >= 32)
       break;

@@ -49,11 +49,31 @@ struct ShaderSource {
   std::string source;
 };
 
+/// Which instrumented twin (docs/capture.md "One draw"): the wrapper of the
+/// application's fragment shader (the centre pass, the passes counted by
+/// GL_SAMPLES_PASSED, the 4x reference); the same with the fragment tests
+/// before the shader (the stencil-culled shading passes); or the
+/// application's vertex shader with the capture's coverage fragment shader
+/// (the sample passes: glsl_rewrite.h coverage_fragment_shader()).
+enum class ProgramVariant { kPlain, kShading, kCoverage };
+
 /// Builds `ins` for `program` (0: a fixed-function equivalent, no uniforms
 /// to copy) from its shader sources; the fragment nodes go to storage
 /// bindings `binding` .. `binding` + kCaptureBindings - 1. On failure `ins.error` says why, naming `who`.
+/// `unit`: the coverage variant's two texture units (glsl_rewrite.h
+/// coverage_fragment_shader()).
 void build_instrumented(GLuint program, const std::vector<ShaderSource>& src, const std::string& who, GLint binding,
-                        Instrumented& ins);
+                        Instrumented& ins, ProgramVariant variant = ProgramVariant::kPlain, GLint unit = 0);
+
+/// An application program's instrumented twins: the plain one, built at its
+/// first captured draw (its error is the draw's), and the shading and
+/// coverage ones, built when a draw is first captured above 1 spp (when
+/// either fails, the passes use the plain one alone, as at 1 spp).
+struct ProgramSet {
+  Instrumented plain, shading, coverage;
+  bool split_tried = false;
+  bool split() const { return shading.program && coverage.program && shading.error.empty() && coverage.error.empty(); }
+};
 
 /// Copies the application program's uniform values and block bindings to
 /// its instrumented twin (nothing for program 0).
