@@ -354,8 +354,8 @@ class Session final : public CaptureSession {
   std::vector<FramebufferInfo> framebuffers_;
   std::vector<DrawRecord> draws_;
   std::vector<Unsupported> unsupported_;
-  std::vector<CapturedDraw> fragments_;  ///< a draw's in API order, draw by draw
-  uint32_t target_draws_ = 0;            ///< draws into the target so far (the next trace draw id)
+  std::vector<EncodedDraw> records_;  ///< a draw's trace records in API order, draw by draw
+  uint32_t target_draws_ = 0;         ///< draws into the target so far (the next trace draw id)
   bool target_known_ = false;
   bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
@@ -1144,19 +1144,24 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
   times_s_.read_back += seconds_since(t);
   std::vector<DrawPart> shape;
   for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
-  CapturedDraw draw;  // a draw's own: no earlier draw's fragments move
+  EncodedDraw draw;  // a draw's own: no earlier draw's fragments move
   const bool clamp = target_.encoding != TargetEncoding::kFloat;
+  // The records' layout (the trace's header, less what the frame's end knows).
+  TraceHeader layout;
+  layout.width = uint32_t(target_.width);
+  layout.height = uint32_t(target_.height);
+  layout.spp = spp_;
+  layout.depth_mode = DepthMode::kPerSample;
+  layout.color_format = ColorFormat::kRgbF32;
   t = std::chrono::steady_clock::now();
-  const std::string err =
-      made ? build_fragments(nodes, d.trace_id, shape, clamp, uint32_t(target_.width), uint32_t(target_.height), draw)
-           : "";
+  const std::string err = made ? build_records(nodes, d.trace_id, shape, clamp, layout, draw) : "";
   if (made)
     for (int b = 1; b <= 4; ++b) g.UnmapNamedBuffer(node_buffers_[size_t(b)]);
   if (!err.empty()) fail(err);
   times_s_.build += seconds_since(t);
-  d.fragments = draw.fragments.size();
-  d.covered_samples = draw.z.size();
-  if (!list_only_) fragments_.push_back(std::move(draw));  // else counted, no trace to write
+  d.fragments = draw.count;
+  d.covered_samples = draw.covered_samples;
+  if (!list_only_) records_.push_back(std::move(draw));  // else counted, no trace to write
   d.counted = count;
   d.samples_passed = passed;
 }
@@ -1482,8 +1487,7 @@ void Session::finish_frame() {
     const auto t = std::chrono::steady_clock::now();
     try {
       TraceWriter w(out_, h, kTraceZstdLevel, kTraceZstdWorkers);
-      for (const CapturedDraw& draw : fragments_)
-        for (const CapturedFragment& f : draw.fragments) w.write(to_trace_fragment(f, draw.z.data()));
+      for (const EncodedDraw& draw : records_) w.write_records(draw.bytes.data(), draw.bytes.size(), draw.count);
       w.finish();
     } catch (const std::exception& e) {
       fail(e.what());
