@@ -164,6 +164,30 @@ TEST(GlCaptureOrder, FragmentsComeInApiOrderWhateverTheNodeOrder) {
           0);
       ASSERT_EQ(std::memcmp(got.z.data(), expected.z.data(), got.z.size() * sizeof(float)), 0);
     }
+    // The capture's records: those fragments encoded as the trace's, in the
+    // same order, whatever the nodes' order.
+    TraceHeader h;
+    h.width = h.height = side;
+    h.spp = 16;
+    h.depth_mode = DepthMode::kPerSample;
+    h.color_format = ColorFormat::kRgbF32;
+    std::vector<uint8_t> want;
+    for (const CapturedFragment& f : expected.fragments) {
+      uint8_t b[kMaxFragmentRecordBytes];
+      std::string err;
+      const size_t n = encode_fragment_record(h, to_trace_fragment(f, expected.z.data()), b, err);
+      ASSERT_EQ(err, "");
+      want.insert(want.end(), b, b + n);
+    }
+    for (int trial = 0; trial < 2; ++trial) {
+      EncodedDraw records;
+      const Nodes nodes = trial ? base.permuted(rng) : base;
+      ASSERT_EQ(build_records(nodes.view(), 7, {{3}, {3}}, true, h, records), "");
+      EXPECT_EQ(records.count, expected.fragments.size());
+      EXPECT_EQ(records.covered_samples, expected.z.size());
+      ASSERT_EQ(records.bytes.size(), want.size());
+      EXPECT_EQ(std::memcmp(records.bytes.data(), want.data(), want.size()), 0);
+    }
   }
 }
 

@@ -1444,6 +1444,64 @@ TEST(ChecksumFormat, ABlockHoldsAtMost65536BytesOfWholeRecords) {
   }
 }
 
+// Records encoded apart (encode_fragment_record(), as the GL capture's
+// threads do) and appended in runs of any size write the trace that
+// write() of each fragment writes, byte for byte, blocks included; a run
+// that does not frame, or a wrong count, is refused.
+TEST(ChecksumFormat, EncodedRecordsWriteTheSameTraceAsFragments) {
+  TempDir tmp;
+  std::mt19937 rng(7);
+  for (const bool checksummed : {true, false})
+    for (const DepthMode d : {DepthMode::kPerSample, DepthMode::kPlane}) {
+      SCOPED_TRACE(std::string(checksummed ? "checksummed " : "") + to_string(d));
+      TraceHeader h = make_ck_header(16, d, ColorFormat::kRgbF32, Compression::kNone);
+      h.checksummed = checksummed;
+      std::vector<Fragment> frags;
+      std::vector<uint8_t> records;
+      for (uint32_t i = 0; i < 5000; ++i) {
+        Fragment f = one_valid_fragment(h);
+        f.prim_id = i;
+        f.coverage = (rng() & 0xFFFF) | 1;
+        f.z.fill(float(i % 100) / 100.0f);
+        frags.push_back(f);
+        uint8_t b[kMaxFragmentRecordBytes];
+        std::string err;
+        const size_t n = encode_fragment_record(h, f, b, err);
+        ASSERT_EQ(err, "");
+        ASSERT_EQ(n, fragment_record_bytes(h, __builtin_popcountll(f.coverage)));
+        records.insert(records.end(), b, b + n);
+      }
+      const std::string a = tmp.path("a.trace"), b = tmp.path("b.trace");
+      {
+        TraceWriter w(a, h);
+        for (const Fragment& f : frags) w.write(f);
+        w.finish();
+      }
+      {
+        TraceWriter w(b, h);
+        // Runs of 1, 1000 and the rest of the records.
+        size_t at = 0, done = 0;
+        for (size_t run : {size_t(1), size_t(1000), frags.size() - 1001}) {
+          size_t bytes = 0;
+          for (size_t k = done; k < done + run; ++k)
+            bytes += fragment_record_bytes(h, __builtin_popcountll(frags[k].coverage));
+          w.write_records(records.data() + at, bytes, run);
+          at += bytes;
+          done += run;
+        }
+        w.finish();
+      }
+      EXPECT_EQ(read_file(a), read_file(b));
+      TraceWriter w(tmp.path("c.trace"), h);
+      const size_t first = fragment_record_bytes(h, __builtin_popcountll(frags[0].coverage));
+      EXPECT_THROW(w.write_records(records.data(), first - 1, 1), TraceError);  // a record cut short
+      EXPECT_THROW(w.write_records(records.data(), first, 2), TraceError);      // one record counted as two
+      std::vector<uint8_t> bad(records.begin(), records.begin() + std::ptrdiff_t(first));
+      bad[0] = kTagEnd;
+      EXPECT_THROW(w.write_records(bad.data(), bad.size(), 1), TraceError);  // not a fragment record
+    }
+}
+
 TEST(ChecksumFormat, EmptyTraceHasNoBlock) {
   TempDir tmp;
   for (Compression z : {Compression::kNone, Compression::kZstd}) {

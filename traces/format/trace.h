@@ -104,6 +104,15 @@ struct Fragment {
   float alpha = 1.0f;
 };
 
+/// The most bytes one fragment record takes (64 samples' depths, f32 colour).
+inline constexpr size_t kMaxFragmentRecordBytes = 1 + 12 + 8 + 4 * 64 + 16;
+
+/// One fragment record's bytes (its tag first), exactly as TraceWriter::write
+/// writes it, into `out` (kMaxFragmentRecordBytes at least), after checking
+/// `f` with validate_fragment(). Returns the record's size, or 0 with
+/// `error` set. Safe to call from several threads.
+size_t encode_fragment_record(const TraceHeader& h, const Fragment& f, uint8_t* out, std::string& error);
+
 /// A user-facing trace error: one line naming the file and the record.
 class TraceError : public UserError {
  public:
@@ -220,6 +229,12 @@ class TraceWriter {
 
   /// Validates and appends one fragment. Throws TraceError on an invalid one.
   void write(const Fragment& f);
+  /// Appends `count` fragment records that encode_fragment_record() made
+  /// (`bytes` of them, back to back): the same trace as write() of each
+  /// fragment. Their framing is checked (tags, each record's length from its
+  /// coverage); their fields were checked when they were encoded. Throws
+  /// TraceError on a record that does not frame.
+  void write_records(const uint8_t* records, size_t bytes, uint64_t count);
   void finish();
   uint64_t fragments() const { return count_; }
   /// Bytes of fragment and end records written (checksum records not included).
@@ -229,6 +244,8 @@ class TraceWriter {
 
  private:
   void flush_block();
+  /// Appends encoded records (whole ones, `n` bytes) to the payload.
+  void append_records(const uint8_t* b, size_t n);
 
   std::string path_;
   TraceHeader header_;

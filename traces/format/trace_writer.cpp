@@ -64,11 +64,9 @@ TraceWriter::~TraceWriter() {
   out_.reset();  // discards the temporary file unless finish() committed it
 }
 
-void TraceWriter::write(const Fragment& f) {
-  if (finished_ || !sink_) throw TraceError(path_ + ": write after finish()");
-  std::string err = validate_fragment(header_, f);
-  if (!err.empty()) throw TraceError(path_ + ": record " + std::to_string(count_) + ": " + err);
-  uint8_t b[16 + 8 + 256 + 16];
+size_t encode_fragment_record(const TraceHeader& h, const Fragment& f, uint8_t* b, std::string& error) {
+  error = validate_fragment(h, f);
+  if (!error.empty()) return 0;
   size_t n = 0;
   b[n++] = kTagFragment;
   put_u32(b + n, f.draw_id);
@@ -79,9 +77,9 @@ void TraceWriter::write(const Fragment& f) {
   n += 2;
   put_u16(b + n, f.y);
   n += 2;
-  put_le(b + n, f.coverage, coverage_bytes(header_.spp));
-  n += size_t(coverage_bytes(header_.spp));
-  if (header_.depth_mode == DepthMode::kPlane) {
+  put_le(b + n, f.coverage, coverage_bytes(h.spp));
+  n += size_t(coverage_bytes(h.spp));
+  if (h.depth_mode == DepthMode::kPlane) {
     put_f32(b + n, f.z0);
     put_f32(b + n + 4, f.dzdx);
     put_f32(b + n + 8, f.dzdy);
@@ -92,7 +90,7 @@ void TraceWriter::write(const Fragment& f) {
       n += 4;
     }
   }
-  if (header_.color_format == ColorFormat::kRgbF32) {
+  if (h.color_format == ColorFormat::kRgbF32) {
     for (int i = 0; i < 3; ++i) {
       put_f32(b + n, f.rgb[i]);
       n += 4;
@@ -105,6 +103,58 @@ void TraceWriter::write(const Fragment& f) {
   }
   put_f32(b + n, f.alpha);
   n += 4;
+  return n;
+}
+
+void TraceWriter::write(const Fragment& f) {
+  if (finished_ || !sink_) throw TraceError(path_ + ": write after finish()");
+  uint8_t b[kMaxFragmentRecordBytes];
+  std::string err;
+  const size_t n = encode_fragment_record(header_, f, b, err);
+  if (!n) throw TraceError(path_ + ": record " + std::to_string(count_) + ": " + err);
+  append_records(b, n);
+  ++count_;
+}
+
+void TraceWriter::write_records(const uint8_t* records, size_t bytes, uint64_t count) {
+  if (finished_ || !sink_) throw TraceError(path_ + ": write after finish()");
+  // Each record's length from its coverage (the tag and 12 bytes before it).
+  const int cb = coverage_bytes(header_.spp);
+  auto record_bytes = [&](const uint8_t* r) {
+    uint64_t c = 0;
+    for (int i = 0; i < cb; ++i) c |= uint64_t(r[13 + i]) << (8 * i);
+    return fragment_record_bytes(header_, __builtin_popcountll(c));
+  };
+  // Runs of whole records, each as large as the block being gathered
+  // still takes (a record never spans blocks).
+  size_t at = 0;
+  uint64_t seen = 0;
+  while (at < bytes) {
+    const size_t room = header_.checksummed ? kChecksumBlockBytes - block_.size() : bytes - at;
+    size_t run = 0;
+    while (at + run < bytes) {
+      const uint8_t* r = records + at + run;
+      const bool head = at + run + size_t(13 + cb) <= bytes;
+      const size_t n = head ? record_bytes(r) : 0;
+      if (!head || r[0] != kTagFragment || at + run + n > bytes)
+        throw TraceError(path_ + ": record " + std::to_string(count_ + seen) + ": not a whole fragment record");
+      if (run + n > room && (run > 0 || !block_.empty())) break;
+      run += n;
+      ++seen;
+    }
+    if (run == 0) {
+      flush_block();  // the next record opens a block of its own
+      continue;
+    }
+    append_records(records + at, run);
+    at += run;
+  }
+  if (seen != count)
+    throw TraceError(path_ + ": " + std::to_string(seen) + " fragment records given as " + std::to_string(count));
+  count_ += count;
+}
+
+void TraceWriter::append_records(const uint8_t* b, size_t n) {
   if (header_.checksummed) {
     // A record never spans blocks: close the block before it would exceed kChecksumBlockBytes.
     if (block_.size() + n > kChecksumBlockBytes) flush_block();
@@ -113,7 +163,6 @@ void TraceWriter::write(const Fragment& f) {
     sink_->write(b, n);
   }
   raw_bytes_ += n;
-  ++count_;
 }
 
 void TraceWriter::flush_block() {

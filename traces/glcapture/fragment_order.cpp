@@ -45,21 +45,44 @@ bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp) {
   return true;
 }
 
-std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
-                            uint32_t width, uint32_t height, CapturedDraw& out) {
+namespace {
+
+/// Runs work(0 .. nthreads - 1), work(0) on the calling thread.
+void in_parallel(size_t nthreads, const std::function<void(size_t)>& work) {
+  std::vector<std::thread> threads;
+  for (size_t t = 1; t < nthreads; ++t) threads.emplace_back(work, t);
+  work(0);
+  for (std::thread& th : threads) th.join();
+}
+
+/// Part t of k of [0, count).
+std::pair<size_t, size_t> slice(size_t count, size_t t, size_t k) {
+  return std::make_pair(count * t / k, count * (t + 1) / k);
+}
+
+/// A fragment's API-order key, (prim_id, row, column), and its node.
+struct Made {
+  uint64_t order;  ///< prim_id << 32 | row << 16 | column
+  uint32_t node;
+};
+
+/// A draw's fragments in API order: their keys and nodes, and each node's
+/// coverage (0 for a node that is no fragment).
+struct ApiOrder {
+  size_t nthreads = 1;
+  LargeArray<Made> order;
+  LargeArray<uint64_t> coverage;
+};
+
+std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, uint32_t width,
+                            uint32_t height, ApiOrder& api) {
   // The work is split over threads by nodes; each split's result is merged
   // in a fixed order, and the fragments are put into API order by unique
   // keys, so they depend neither on the thread count nor on the nodes' order.
   const size_t n = nodes.count;
   const size_t nthreads =
       n < (size_t(1) << 18) ? 1 : std::max<size_t>(1, std::min(8u, std::thread::hardware_concurrency()));
-  auto in_parallel = [nthreads](const std::function<void(size_t)>& work) {
-    std::vector<std::thread> threads;
-    for (size_t t = 1; t < nthreads; ++t) threads.emplace_back(work, t);
-    work(0);
-    for (std::thread& th : threads) th.join();
-  };
-  auto slice = [](size_t count, size_t t, size_t k) { return std::make_pair(count * t / k, count * (t + 1) / k); };
+  api.nthreads = nthreads;
   auto kept = [&](size_t i) { return (nodes.state[4 * i + 3] & kNodeKept) != 0; };
 
   // Primitive numbering: each part's primitives per instance (the call's
@@ -68,7 +91,7 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     std::vector<uint64_t> per_instance, instances;
   };
   std::vector<Extent> ext(nthreads);
-  in_parallel([&](size_t t) {
+  in_parallel(nthreads, [&](size_t t) {
     Extent& e = ext[t];
     const auto [lo, hi] = slice(n, t, nthreads);
     for (size_t i = lo; i < hi; ++i) {
@@ -103,11 +126,6 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     return "draw " + std::to_string(draw_id) + " has " + std::to_string(n) +
            " fragment nodes, more than 32-bit indices number";
 
-  // Each fragment's API-order key, (prim_id, row, column), and its node.
-  struct Made {
-    uint64_t order;  ///< prim_id << 32 | row << 16 | column
-    uint32_t node;
-  };
   // Counted a thread a range of nodes, then made into one array at each
   // range's place.
   // A node's coverage: the samples whose depth a pass wrote.
@@ -118,10 +136,11 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     return c;
   };
   // Each kept node's coverage (0 for the others), made while counting.
-  LargeArray<uint64_t> node_coverage(n);
+  api.coverage = LargeArray<uint64_t>(n);
+  LargeArray<uint64_t>& node_coverage = api.coverage;
   auto fragment_node = [&](size_t i) { return node_coverage[i] != 0; };
   std::vector<size_t> at(nthreads + 1, 0);
-  in_parallel([&](size_t t) {
+  in_parallel(nthreads, [&](size_t t) {
     const auto [lo, hi] = slice(n, t, nthreads);
     size_t c = 0;
     for (size_t i = lo; i < hi; ++i) {
@@ -133,7 +152,7 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   for (size_t t = 0; t < nthreads; ++t) at[t + 1] += at[t];
   LargeArray<Made> order(at[nthreads]);
   std::vector<std::string> errors(nthreads);
-  in_parallel([&](size_t t) {
+  in_parallel(nthreads, [&](size_t t) {
     const auto [lo, hi] = slice(n, t, nthreads);
     Made* m = order.data() + at[t];
     for (size_t i = lo; i < hi; ++i) {
@@ -166,6 +185,20 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
       std::swap(order, tmp);
     }
   }
+  api.order = std::move(order);
+  return "";
+}
+
+}  // namespace
+
+std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                            uint32_t width, uint32_t height, CapturedDraw& out) {
+  ApiOrder api;
+  if (std::string e = order_fragments(nodes, draw_id, parts, width, height, api); !e.empty()) return e;
+  const size_t nthreads = api.nthreads;
+  const LargeArray<Made>& order = api.order;
+  const LargeArray<uint64_t>& node_coverage = api.coverage;
+  std::vector<std::string> errors(nthreads);
   // The fragments in that order, a thread a range of them: first each
   // one's place among the depths.
   std::vector<size_t> z_at(order.size() + 1, 0);
@@ -174,7 +207,7 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   const size_t first = 0, z_base = 0;
   out.fragments = LargeArray<CapturedFragment>(order.size());
   out.z = LargeArray<float>(z_at.back());
-  in_parallel([&](size_t t) {
+  in_parallel(nthreads, [&](size_t t) {
     const auto [lo, hi] = slice(order.size(), t, nthreads);
     for (size_t j = lo; j < hi; ++j) {
       const size_t i = order[j].node;
@@ -195,6 +228,54 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
       }
       const float* c = nodes.colour + 4 * i;
       for (size_t k = 0; k < 4; ++k) f.rgba[k] = clamp || k == 3 ? clamp_unit(c[k]) : clamp_non_negative(c[k]);
+    }
+  });
+  for (const std::string& e : errors)
+    if (!e.empty()) return e;
+  return "";
+}
+
+std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                          const TraceHeader& header, EncodedDraw& out) {
+  ApiOrder api;
+  if (std::string e = order_fragments(nodes, draw_id, parts, header.width, header.height, api); !e.empty()) return e;
+  const size_t nthreads = api.nthreads;
+  const LargeArray<Made>& order = api.order;
+  const LargeArray<uint64_t>& node_coverage = api.coverage;
+  // Each record's place: the sizes before it.
+  std::vector<size_t> at(order.size() + 1, 0);
+  out.covered_samples = 0;
+  for (size_t j = 0; j < order.size(); ++j) {
+    const int covered = __builtin_popcountll(node_coverage[order[j].node]);
+    at[j + 1] = at[j] + fragment_record_bytes(header, covered);
+    out.covered_samples += size_t(covered);
+  }
+  out.bytes = LargeArray<uint8_t>(at.back());
+  out.count = order.size();
+  std::vector<std::string> errors(nthreads);
+  in_parallel(nthreads, [&](size_t t) {
+    const auto [lo, hi] = slice(order.size(), t, nthreads);
+    Fragment f;
+    for (size_t j = lo; j < hi; ++j) {
+      const size_t i = order[j].node;
+      f.draw_id = draw_id;
+      f.prim_id = uint32_t(order[j].order >> 32);
+      f.y = uint16_t(order[j].order >> 16);
+      f.x = uint16_t(order[j].order);
+      f.coverage = node_coverage[i];
+      for (uint64_t m = f.coverage; m; m &= m - 1) {
+        const int s = __builtin_ctzll(m);
+        f.z[size_t(s)] = word_float(nodes.depth[size_t(s)][i]);
+      }
+      const float* c = nodes.colour + 4 * i;
+      for (size_t k = 0; k < 3; ++k) f.rgb[k] = clamp ? clamp_unit(c[k]) : clamp_non_negative(c[k]);
+      f.alpha = clamp_unit(c[3]);
+      std::string err;
+      if (encode_fragment_record(header, f, out.bytes.data() + at[j], err) != at[j + 1] - at[j]) {
+        errors[t] = "draw " + std::to_string(draw_id) + ": fragment (" + std::to_string(f.x) + ", " +
+                    std::to_string(f.y) + ") of primitive " + std::to_string(f.prim_id) + ": " + err;
+        return;
+      }
     }
   });
   for (const std::string& e : errors)

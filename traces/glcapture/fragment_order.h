@@ -125,6 +125,22 @@ struct CapturedDraw {
 std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
                             uint32_t width, uint32_t height, CapturedDraw& out);
 
+/// One draw's fragments as trace records, in API order.
+struct EncodedDraw {
+  LargeArray<uint8_t> bytes;  ///< the records back to back (encode_fragment_record())
+  size_t count = 0;           ///< fragments
+  size_t covered_samples = 0;
+};
+
+/// The fragments build_fragments() makes, encoded as the trace records of
+/// `header` (its size and spp; DepthMode::kPerSample, ColorFormat::kRgbF32;
+/// the draw table may be empty) by the same threads that order them, so
+/// that the trace's writer only frames and compresses them
+/// (TraceWriter::write_records()). Returns "" or why a node is out of range
+/// or a fragment invalid.
+std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                          const TraceHeader& header, EncodedDraw& out);
+
 /// A CapturedFragment (its depths at z) as the trace's Fragment (DepthMode::kPerSample).
 Fragment to_trace_fragment(const CapturedFragment& f, const float* z);
 
