@@ -2,9 +2,11 @@
 # A/B host-speed benchmark (not a test): builds git revision BASE (default:
 # the first parent of HEAD) beside this checkout and runs both sides'
 # benchmarks alternately, ROUNDS times (default 5), on the same trace in one
-# run: the cycle model's and the golden model's simulated fragments per host
-# second on cloth at 16 spp (ropsim_bench_cycle, default config) and the
-# golden model alone on in-memory fragments (ropsim_bench, BM_Golden).
+# run: the cycle model's simulated fragments per host second on cloth at 16
+# spp (ropsim_bench_cycle, default config), the golden model's on the same
+# trace file as a user runs it (`ropsim run --threads 1`, its own process, so
+# that no other model's heap is left behind in it) and the golden model alone
+# on in-memory fragments (ropsim_bench, BM_Golden).
 # Prints min / median / max of each figure per side and the median ratio.
 # With HEAD_REV, the head side is that revision, built the same way, instead
 # of this checkout (to measure one past change alone).
@@ -20,12 +22,12 @@ build_rev() {
   local sha ab
   sha="$(git -C "$root" rev-parse --short=12 "$1")"
   ab="$root/build-ab/$sha"
-  if [ ! -x "$ab/build/ropsim_bench_cycle" ]; then
+  if [ ! -x "$ab/build/ropsim_bench_cycle" ] || [ ! -x "$ab/build/ropsim" ]; then
     rm -rf "$ab/src"
     mkdir -p "$ab"
     git -C "$root" archive "$sha" | (mkdir -p "$ab/src" && tar -x -C "$ab/src")
     cmake -S "$ab/src" -B "$ab/build" -DCMAKE_BUILD_TYPE=Release -DROPSIM_BUILD_TESTS=OFF >/dev/null
-    cmake --build "$ab/build" -j "$(nproc)" --target ropsim_bench ropsim_bench_cycle >/dev/null
+    cmake --build "$ab/build" -j "$(nproc)" --target ropsim ropsim_bench ropsim_bench_cycle >/dev/null
   fi
   echo "$ab/build"
 }
@@ -47,6 +49,8 @@ for ((i = 0; i < rounds; ++i)); do
     dir="$head_dir"
     [ "$side" = base ] && dir="$base_dir"
     "$dir/ropsim_bench_cycle" --benchmark_filter=bitonic --benchmark_format=json >"$out/$side-cycle-$i.json" 2>/dev/null
+    # The trace the cycle benchmark wrote (bench/bench_cycle.cpp), read by the CLI.
+    "$dir/ropsim" run --trace /tmp/ropsim-bench-cloth16.rtr --threads 1 --quiet --report "$out/$side-run-$i.json"
     "$dir/ropsim_bench" --benchmark_filter='Golden/(lk|opaque)/(16|64)' --benchmark_format=json \
       >"$out/$side-golden-$i.json" 2>/dev/null
   done
@@ -57,11 +61,15 @@ out, rounds, base, head = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4
 def figures(side):
     f = {}
     for i in range(rounds):
-        for kind in ("cycle", "golden"):
-            for b in json.load(open(os.path.join(out, f"{side}-{kind}-{i}.json")))["benchmarks"]:
+        for kind in ("cycle", "run", "golden"):
+            doc = json.load(open(os.path.join(out, f"{side}-{kind}-{i}.json")))
+            if kind == "run":
+                f.setdefault("golden model from the trace file [M frag/s]", []).append(
+                    doc["host"]["fragments_per_second"] / 1e6)
+                continue
+            for b in doc["benchmarks"]:
                 if kind == "cycle":
                     f.setdefault("cycle model, cloth 16 spp [M frag/s]", []).append(b["cycle_frag_per_s"] / 1e6)
-                    f.setdefault("golden model from the trace file [M frag/s]", []).append(b["functional_frag_per_s"] / 1e6)
                 else:
                     f.setdefault(f"{b['name']} in memory [M frag/s]", []).append(b["fragments_per_s"] / 1e6)
     return f

@@ -7,7 +7,7 @@
 set -euo pipefail
 ROPSIM_PACKAGES=(
   cmake g++ make pkg-config
-  libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev
+  libsystemc-dev libgtest-dev libbenchmark-dev libfmt-dev libopenimageio-dev libpng-dev
   libcli11-dev nlohmann-json3-dev libzstd-dev libxxhash-dev libtbb-dev
   libtomlplusplus-dev libassimp-dev libosmesa6-dev libsqlite3-dev sqlite3
   clang-format python3-numpy python3-matplotlib python3-pandas

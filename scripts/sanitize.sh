@@ -12,6 +12,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$root/scripts/asan_build.sh"
 b="$root/build-asan"
+bash "$root/scripts/ctest_cost.sh" seed "$b"
 cd "$b"
 # SystemC switches coroutine stacks, which ASan cannot follow for
 # use-after-return, and LeakSanitizer's exit-time scan of a process that ran

@@ -1,17 +1,20 @@
 // The image codec (util/codec): OpenImageIO is a module loaded on first use,
-// so no ropsim binary links it and a run that writes no image never loads it;
+// so no ropsim binary links it and a run that writes no image, or PNG images
+// only (libpng in the process, to OpenImageIO's bytes), never loads it;
 // what it encodes decodes back; a missing module is a one-line error naming
 // the file being written, with no partial output; and image comparison gives
 // its closed-form figures.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
 #include "sim/image/image_io.h"
 #include "tests/study_test_util.h"
 #include "util/codec/image_codec.h"
+#include "util/codec/png_encode.h"
 
 namespace {
 
@@ -71,13 +74,66 @@ TEST(ImageCodec, AMissingModuleIsAOneLineErrorAndNoOutput) {
   Scratch s("codec-missing");
   const Ran r = shell(s.dir,
                       "env ROPSIM_OIIO_MODULE=/nonexistent/libropsim_oiio.so '" ROPSIM_BINARY
-                      "' run --scene cloth --spp 4 --quiet --out out.png --report r.json",
+                      "' run --scene cloth --spp 4 --quiet --out out.exr --report r.json",
                       120);
   EXPECT_EQ(r.status, 1) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "not one line:\n" << r.err;
-  EXPECT_NE(r.err.find("out.png"), std::string::npos) << "the error does not name the file: " << r.err;
+  EXPECT_NE(r.err.find("out.exr"), std::string::npos) << "the error does not name the file: " << r.err;
   EXPECT_NE(r.err.find("/nonexistent/libropsim_oiio.so"), std::string::npos) << r.err;
-  EXPECT_FALSE(fs::exists(s.dir / "out.png")) << "a partial image was left";
+  EXPECT_FALSE(fs::exists(s.dir / "out.exr")) << "a partial image was left";
+}
+
+// A PNG is written by libpng in the process: a run that writes PNG images
+// only needs no module (so it never loads OpenImageIO's libraries).
+TEST(ImageCodec, WritingAPngNeedsNoModule) {
+  Scratch s("codec-png-only");
+  const Ran r = shell(s.dir,
+                      "env ROPSIM_OIIO_MODULE=/nonexistent/libropsim_oiio.so '" ROPSIM_BINARY
+                      "' run --scene cloth --spp 4 --quiet --out out.png --report r.json",
+                      120);
+  EXPECT_EQ(r.status, 0) << "writing a PNG tried the module:\n" << r.err;
+  EXPECT_TRUE(fs::exists(s.dir / "out.png"));
+}
+
+// The in-process PNG writer gives the bytes OpenImageIO's writer gives for the
+// same pixels, over sizes from one pixel to several IDAT chunks and content
+// from flat to noise (each of libpng's row filters wins somewhere), so an
+// image's file and its digest do not depend on which wrote it.
+TEST(ImageCodec, PngEncoderWritesOpenImageIOsBytes) {
+  struct Case {
+    int w, h;
+    int kind;  // 0 flat, 1 gradients, 2 noise, 3 stripes and steps
+  };
+  const Case cases[] = {{1, 1, 0},     {1, 1, 2},     {3, 2, 1},     {7, 5, 2},   {64, 64, 1},
+                        {257, 129, 3}, {200, 300, 2}, {256, 256, 1}, {31, 400, 3}};
+  for (const Case& c : cases) {
+    std::vector<unsigned char> px(size_t(c.w) * size_t(c.h) * 3);
+    uint32_t state = 2463534242u + uint32_t(c.w * 131 + c.h);  // xorshift32, fixed seed per case
+    for (int y = 0; y < c.h; ++y)
+      for (int x = 0; x < c.w; ++x)
+        for (int ch = 0; ch < 3; ++ch) {
+          unsigned v = 0;
+          if (c.kind == 0) v = 90;
+          if (c.kind == 1) v = unsigned(x * (ch + 1) + y * (3 - ch));
+          if (c.kind == 2) {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            v = state >> 24;
+          }
+          if (c.kind == 3) v = ((x / 4 + y / 3) % 2) * 200 + unsigned(ch * 20 + y % 7);
+          px[(size_t(y) * size_t(c.w) + size_t(x)) * 3 + size_t(ch)] = (unsigned char)(v & 255);
+        }
+    const ropsim::RowSource rows = [&](int y, void* row) {
+      std::memcpy(row, px.data() + size_t(y) * size_t(c.w) * 3, size_t(c.w) * 3);
+    };
+    const auto ours = ropsim::encode_png_libpng(c.w, c.h, rows, "a.png");
+    const auto oiio = ropsim::encode_png_oiio(c.w, c.h, rows, "a.png");
+    ASSERT_EQ(ours.size(), oiio.size()) << c.w << " x " << c.h << " kind " << c.kind << ": the sizes differ";
+    EXPECT_TRUE(ours == oiio) << c.w << " x " << c.h << " kind " << c.kind << ": the bytes differ";
+    EXPECT_TRUE(ropsim::encode_png_rows(c.w, c.h, rows, "b.png") == ours)
+        << "encode_png_rows does not take the in-process writer";
+  }
 }
 
 TEST(ImageCompare, ClosedFormFigures) {

@@ -210,16 +210,30 @@ TEST(Format, EverySourceIsClangFormatted) {
   EXPECT_EQ(st, 0) << out;
 }
 
-// The check sees a file that is not formatted (so the test above can fail).
+// The check sees a file that is not formatted (so the test above can fail):
+// scripts/format.sh --check in a tree of its own names the unformatted files,
+// and only them, and passes once they are formatted.
 TEST(Format, TheCheckRejectsAnUnformattedFile) {
   const fs::path dir = fs::temp_directory_path() / ("ropsim-format-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  fs::create_directories(dir / "scripts");
+  for (const char* d : {"rtl_models", "sim", "traces", "tests", "bench", "util"}) fs::create_directories(dir / d);
   fs::copy_file(ROPSIM_SOURCE_DIR "/.clang-format", dir / ".clang-format");
-  std::ofstream(dir / "bad.cpp") << "int  f( int x ){return x;}\n";
+  fs::copy_file(ROPSIM_SOURCE_DIR "/scripts/format.sh", dir / "scripts" / "format.sh");
+  std::ofstream(dir / "sim" / "bad.cpp") << "int  f( int x ){return x;}\n";
+  std::ofstream(dir / "util" / "good.h") << "int g(int x);\n";
+  std::ofstream(dir / "tests" / "worse.h") << "int h( int x ) ;\n";
   std::string out;
-  const int st = run("cd '" + dir.string() + "' && clang-format --dry-run --Werror bad.cpp", out);
+  const std::string check = "bash '" + (dir / "scripts" / "format.sh").string() + "' --check";
+  const int st = run(check, out);
+  EXPECT_NE(st, 0) << "the check accepted unformatted files: " << out;
+  EXPECT_NE(out.find("sim/bad.cpp"), std::string::npos) << out;
+  EXPECT_NE(out.find("tests/worse.h"), std::string::npos) << "only the first bad file was named: " << out;
+  EXPECT_EQ(out.find("util/good.h"), std::string::npos) << "a formatted file was named: " << out;
+  std::string fixed;
+  EXPECT_EQ(run("bash '" + (dir / "scripts" / "format.sh").string() + "'", fixed), 0) << fixed;
+  std::string again;
+  EXPECT_EQ(run(check, again), 0) << "the check rejects what the script formatted: " << again;
   fs::remove_all(dir);
-  EXPECT_NE(st, 0) << "clang-format accepted an unformatted file: " << out;
 }
 
 }  // namespace

@@ -19,12 +19,11 @@
 #include "rtl_models/golden/golden_model.h"
 #include "traces/raster/sample_patterns.h"
 #include "util/errors.h"
+#include "util/hex.h"
 
 namespace ropsim::vector_rows {
 
-std::string hex32(uint32_t v) { return fmt::format("{:08x}", v); }
 std::string hexf(float f) { return hex32(depth_bits(f)); }
-std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
 
 std::string alpha_ref_row(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id, uint32_t spp, int hash_bits,
                           uint32_t index, uint32_t ref) {

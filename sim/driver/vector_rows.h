@@ -7,6 +7,7 @@
 #include <string>
 
 #include "rtl_models/algo/tracker.h"
+#include "util/hex.h"
 
 namespace ropsim::vector_rows {
 
@@ -19,9 +20,7 @@ inline constexpr const char* kDepthTestHeader =
 inline constexpr const char* kOpacityHeader = "alpha_bits,hash_bits,a_fixed_hex,ref_hex,pass\n";
 inline constexpr const char* kHilbertHeader = "order,x,y,d_hex\n";
 
-std::string hex32(uint32_t v);
 std::string hexf(float f);
-std::string hex64(uint64_t v);
 
 std::string alpha_ref_row(uint32_t sample_id, uint64_t pixel_id, uint32_t surface_id, uint32_t spp, int hash_bits,
                           uint32_t index, uint32_t ref);

@@ -7,6 +7,7 @@
 
 #include "sim/image/image_io.h"
 #include "util/errors.h"
+#include "util/hex.h"
 
 namespace ropsim {
 
@@ -95,7 +96,7 @@ nlohmann::ordered_json sampled_report(const ReportContext& ctx, const LivePoints
   sp.put("library", from.path.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(from.path), "-",
          "sampled: the live-point library file read (ropsim livepoints), or null when this run recorded its own");
   sp.put(
-      "input_digest", fmt::format("{:016x}", lib.input.digest), "-",
+      "input_digest", hex64(lib.input.digest), "-",
       "sampled: XXH3-64 of the input the live-points were recorded from (a trace file's bytes, a scene's fragments)");
   sp.put("whole", lib.whole, "bool",
          "sampled: the input was small (its units would have simulated at least half of it in detail), so one unit "

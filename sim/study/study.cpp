@@ -159,7 +159,7 @@ std::vector<StudyPoint> expand_study(const Study& s) {
       id["reference"] = s.reference;
       id["reference_spp"] = s.reference_spp;
       id["ropsim"] = std::string(ropsim_version()) + " " + ropsim_commit();
-      p.hash = hex16(hash_text(id.dump()));
+      p.hash = hex64(hash_text(id.dump()));
       if (!seen.insert(p.hash).second) continue;
       points.push_back(std::move(p));
     }
@@ -233,7 +233,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     id["spp"] = e.spp;
     id["width"] = e.width;
     id["height"] = e.height;
-    r.capture_key = hex16(hash_text(id.dump()));
+    r.capture_key = hex64(hash_text(id.dump()));
     r.input.trace_path = (std::filesystem::path(dir) / "traces" / (r.capture_key + ".rtr")).string();
   } else if (!in.mesh.empty()) {
     r.capture_scene = in.mesh;
@@ -255,7 +255,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     id["height"] = o.height ? *o.height : 0;
     id["seed"] = o.seed ? *o.seed : 0;
     id["order"] = o.order ? to_string(*o.order) : "";
-    r.capture_key = hex16(hash_text(id.dump()));
+    r.capture_key = hex64(hash_text(id.dump()));
     r.input.trace_path = (std::filesystem::path(dir) / "traces" / (r.capture_key + ".rtr")).string();
   } else if (in.trace.empty()) {
     r.input.scene.name = in.scene;
@@ -317,7 +317,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     id["sampling"] = {sp.unit_fragments, sp.warmup_fragments,  sp.cooldown_fragments,
                       sp.units,          sp.warming_fragments, sp.warming_reach};
     id["version"] = kLivePointFileVersion;
-    r.livepoints_key = hex16(hash_text(id.dump()));
+    r.livepoints_key = hex64(hash_text(id.dump()));
   }
   if (s.reference) {
     r.reference_input = r.input;
@@ -331,7 +331,7 @@ ResolvedPoint resolve_point(const Study& s, const StudyPoint& p, const std::stri
     id["height"] = r.reference_input.scene.height;
     id["scene_seed"] = r.reference_input.scene.seed;
     id["repeat"] = r.reference_input.repeat;
-    r.reference_key = hex16(hash_text(id.dump()));
+    r.reference_key = hex64(hash_text(id.dump()));
   }
   return r;
 }

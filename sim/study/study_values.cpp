@@ -93,8 +93,6 @@ bool is_regular_file(const std::string& p) {
   return std::filesystem::is_regular_file(p, ec);
 }
 
-std::string hex16(uint64_t h) { return fmt::format("{:016x}", h); }
-
 uint64_t hash_text(const std::string& s) {
   uint64_t h = 0x9e3779b97f4a7c15ull;
   for (unsigned char c : s) h = mix64(h ^ c);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "sim/study/study.h"
+#include "util/hex.h"
 
 namespace ropsim::study_detail {
 
@@ -34,8 +35,7 @@ size_t zip_length(const Study& s);
 StudyCase zip_position(const Study& s, size_t i);
 nlohmann::ordered_json to_json_params(const StudyCase& c);
 bool is_regular_file(const std::string& p);
-/// A point's identity as 16 hex digits, and the hash of a text it is made of.
-std::string hex16(uint64_t h);
+/// The hash of a text a point's identity is made of (printed with hex64).
 uint64_t hash_text(const std::string& s);
 
 }  // namespace ropsim::study_detail

@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "util/codec/image_codec_abi.h"
+#include "util/codec/png_encode.h"
 
 #ifndef ROPSIM_OIIO_MODULE_BUILD_PATH
 #error "ROPSIM_OIIO_MODULE_BUILD_PATH must name the module in the build tree (CMakeLists.txt)"
@@ -143,6 +144,11 @@ std::vector<unsigned char> encode_exr_rows(int width, int height, const RowSourc
 }
 
 std::vector<unsigned char> encode_png_rows(int width, int height, const RowSource& rows, const std::string& path) {
+  if (image_extension(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
+  return encode_png_libpng(width, height, rows, path);
+}
+
+std::vector<unsigned char> encode_png_oiio(int width, int height, const RowSource& rows, const std::string& path) {
   if (image_extension(path) != "png") throw ImageCodecError(path + ": a PNG image needs the extension .png");
   return encode(width, height, rows, path);
 }

@@ -1,10 +1,12 @@
 // Image decoding and encoding through OpenImageIO, loaded on first use.
 //
 // OpenImageIO pulls in some 260 shared libraries whose loading costs about
-// 0.15 s at every process start (more than a small simulation). So no ropsim
-// binary links it: its code is a module (libropsim_oiio.so, image_codec_oiio.cpp)
-// that this loader opens with dlopen() the first time an image is read or
-// written. A run that writes no image never pays for it.
+// 0.3 s of CPU at every process start (more than a small simulation). So no
+// ropsim binary links it: its code is a module (libropsim_oiio.so,
+// image_codec_oiio.cpp) that this loader opens with dlopen() the first time an
+// image is read, or an EXR written. A PNG is written with libpng in the
+// process (png_encode.h), to the same bytes, so a run that writes PNG images
+// only never loads the module.
 //
 // The module is looked for, in order: $ROPSIM_OIIO_MODULE (a path), beside the
 // executable, in ../lib/ropsim next to it (an install), then in the build tree

@@ -10,9 +10,12 @@ namespace ropsim {
 template <class T>
 class RingQueue {
  public:
+  /// Room for `capacity` entries before the first growth (a power of two).
+  explicit RingQueue(size_t capacity = 64) : v_(capacity), mask_(capacity - 1) {}
   bool empty() const { return n_ == 0; }
   size_t size() const { return n_; }
   T& front() { return v_[head_]; }
+  const T& front() const { return v_[head_]; }
   /// Entry i from the front (0: the front).
   T& operator[](size_t i) { return v_[(head_ + i) & mask_]; }
   const T& operator[](size_t i) const { return v_[(head_ + i) & mask_]; }
@@ -39,8 +42,8 @@ class RingQueue {
     head_ = 0;
     mask_ = v_.size() - 1;
   }
-  std::vector<T> v_ = std::vector<T>(64);
-  size_t mask_ = v_.size() - 1;  // the size is a power of two
+  std::vector<T> v_;
+  size_t mask_;  // the size is a power of two
   size_t head_ = 0, n_ = 0;
 };
 

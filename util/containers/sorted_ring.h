@@ -1,44 +1,35 @@
 // A short queue kept in ascending order: pushes land mostly at the back (so
-// insertion shifts few entries), pops leave from the front. A ring buffer
-// that grows by doubling, so steady state allocates nothing (std::deque
-// allocated and freed a block every few hundred entries).
+// insertion shifts few entries), pops leave from the front. It is a RingQueue
+// (ring_queue.h) with an ordered push, so steady state allocates nothing
+// (std::deque allocated and freed a block every few hundred entries).
 #pragma once
 #include <cstddef>
-#include <vector>
+
+#include "util/containers/ring_queue.h"
 
 namespace ropsim {
 
 template <class T, class Less>
 class SortedRing {
  public:
-  bool empty() const { return n_ == 0; }
-  size_t size() const { return n_; }
-  const T& front() const { return v_[head_]; }
-  void pop_front() {
-    head_ = (head_ + 1) & (v_.size() - 1);
-    --n_;
-  }
+  bool empty() const { return q_.empty(); }
+  size_t size() const { return q_.size(); }
+  const T& front() const { return q_[0]; }
+  void pop_front() { q_.pop_front(); }
+  /// Inserts x after every entry not greater than it (equal entries keep
+  /// their push order).
   void push(const T& x) {
-    if (n_ == v_.size()) grow();
-    const size_t mask = v_.size() - 1;
-    size_t i = n_;  // position from the head where x goes
-    while (i > 0 && less_(x, v_[(head_ + i - 1) & mask])) {
-      v_[(head_ + i) & mask] = v_[(head_ + i - 1) & mask];
+    q_.push_back(x);
+    size_t i = q_.size() - 1;  // position from the front where x goes
+    while (i > 0 && less_(x, q_[i - 1])) {
+      q_[i] = q_[i - 1];
       --i;
     }
-    v_[(head_ + i) & mask] = x;
-    ++n_;
+    q_[i] = x;
   }
 
  private:
-  void grow() {
-    std::vector<T> w(v_.size() * 2);
-    for (size_t i = 0; i < n_; ++i) w[i] = v_[(head_ + i) & (v_.size() - 1)];
-    v_.swap(w);
-    head_ = 0;
-  }
-  std::vector<T> v_ = std::vector<T>(16);
-  size_t head_ = 0, n_ = 0;
+  RingQueue<T> q_{16};
   Less less_{};
 };
 

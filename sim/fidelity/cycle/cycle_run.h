@@ -23,7 +23,6 @@
 #include "rtl_models/memory/rop_cache.h"
 #include "rtl_models/observe/attribution.h"
 #include "rtl_models/observe/interval_log.h"
-#include "rtl_models/top/store_tile_source.h"
 #include "sim/fidelity/common/bottleneck.h"
 #include "sim/fidelity/common/run_outcome.h"
 

@@ -18,6 +18,7 @@
 #include "traces/format/utf8.h"
 #include "util/byte_codec.h"
 #include "util/errors.h"
+#include "util/hex.h"
 #include "util/memory_budget.h"
 #include "util/output_file.h"
 
@@ -27,12 +28,6 @@ namespace {
 
 constexpr char kMagic[8] = {'R', 'O', 'P', 'S', 'I', 'M', 'L', 'P'};
 constexpr size_t kFileHeaderBytes = 8 + 4 + 4 + 8 + 8;  // magic, version, reserved, payload bytes, XXH3-64
-
-std::string hex64(uint64_t v) {
-  char b[17];
-  std::snprintf(b, sizeof b, "%016llx", (unsigned long long)v);
-  return b;
-}
 
 }  // namespace
 

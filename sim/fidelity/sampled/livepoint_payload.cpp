@@ -46,16 +46,11 @@ class Get {
  public:
   Get(const std::vector<uint8_t>& b, const std::string& path) : b_(b), path_(path) {}
   void at(std::string what) { what_ = std::move(what); }
-  uint8_t u8() { return uint8_t(raw(1)); }
-  uint16_t u16() { return uint16_t(raw(2)); }
-  uint32_t u32() { return uint32_t(raw(4)); }
-  uint64_t u64() { return raw(8); }
-  float f32() {
-    const uint32_t u = u32();
-    float v;
-    std::memcpy(&v, &u, 4);
-    return v;
-  }
+  uint8_t u8() { return *take(1); }
+  uint16_t u16() { return get_u16(take(2)); }
+  uint32_t u32() { return get_u32(take(4)); }
+  uint64_t u64() { return get_u64(take(8)); }
+  float f32() { return get_f32(take(4)); }
   bool flag() {
     const uint8_t v = u8();
     if (v > 1) fail("a flag is " + std::to_string(v));
@@ -87,11 +82,12 @@ class Get {
   }
 
  private:
-  uint64_t raw(int n) {
-    if (b_.size() - pos_ < size_t(n)) fail("the payload ends");
-    const uint64_t v = get_le(b_.data() + pos_, n);
-    pos_ += size_t(n);
-    return v;
+  /// The next n bytes, once they are known to be there.
+  const uint8_t* take(size_t n) {
+    if (b_.size() - pos_ < n) fail("the payload ends");
+    const uint8_t* p = b_.data() + pos_;
+    pos_ += n;
+    return p;
   }
   const std::vector<uint8_t>& b_;
   const std::string& path_;
