@@ -154,6 +154,12 @@ class Session final : public CaptureSession {
   std::array<GLuint, kCaptureBindings> node_buffers_{};
   GLint binding_ = 0;
   uint64_t node_capacity_ = 0, max_nodes_ = 0, depth_capacity_ = 0;
+  /// Lists a pixel: a fragment's is (its primitive + instance + part) mod lists_ (glsl_rewrite.h).
+  uint64_t lists_ = 1;
+  /// The list heads' buffer: the header words and lists_ heads a pixel.
+  uint64_t heads_bytes() const {
+    return kHeadsHeaderWords * 4 + uint64_t(target_.width) * uint64_t(target_.height) * lists_ * 4;
+  }
   /// Nodes whose depths (in each sample's range) may not be kNoDepth: cleared before a draw's passes.
   uint64_t depth_dirty_ = 0;
   GLuint msaa_fbo_ = 0;

@@ -65,9 +65,18 @@ void Session::use_target(const FramebufferInfo& fb) {
     fail("the target " + fb.name + " (" + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
          ") has more pixels than a storage block of " + std::to_string(max_block) +
          " bytes (GL_MAX_SHADER_STORAGE_BLOCK_SIZE) has list heads for");
+  // Lists a pixel (a fragment's by its primitive, instance and part): 4
+  // where the heads fit a storage block and a buffer texture, so that the
+  // walks are a quarter as long where primitives overlap.
+  GLint max_texels = 0;
+  g.GetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
+  lists_ = 4;
+  while (lists_ > 1 && (kHeadsHeaderWords * 4 + pixels * lists_ * 4 > uint64_t(max_block) ||
+                        kHeadsHeaderWords + pixels * lists_ > uint64_t(max_texels)))
+    lists_ /= 2;
   max_nodes_ = uint64_t(max_block) / 16 / 64 * 64;
   g.CreateBuffers(kCaptureBindings, node_buffers_.data());
-  g.NamedBufferData(node_buffers_[0], GLsizeiptr(kHeadsHeaderWords * 4 + pixels * 4), nullptr, GL_DYNAMIC_READ);
+  g.NamedBufferData(node_buffers_[0], GLsizeiptr(heads_bytes()), nullptr, GL_DYNAMIC_READ);
   g.CreateTextures(GL_TEXTURE_BUFFER, 2, fetch_textures_.data());
   g.TextureBuffer(fetch_textures_[0], GL_R32UI, node_buffers_[0]);
   // A quarter more nodes than pixels: a draw that covers the target makes
@@ -106,8 +115,7 @@ void Session::reserve_nodes(uint64_t nodes) {
 void Session::bind_nodes(int sample) {
   const GlFunctions& g = real_gl();
   const GLsizeiptr nodes = GLsizeiptr(node_capacity_ * 16);
-  g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0,
-                    GLsizeiptr(kHeadsHeaderWords * 4 + uint64_t(target_.width) * uint64_t(target_.height) * 4));
+  g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0, GLsizeiptr(heads_bytes()));
   for (int b = 1; b <= 3; ++b)
     g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0, nodes);
   if (depth_capacity_ >= uint64_t(sample + 1) * node_capacity_)
@@ -264,6 +272,7 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
       if (!p->program || (p != &ins && !split)) continue;
       if (p->loc_capacity >= 0) g.ProgramUniform1ui(p->program, p->loc_capacity, GLuint(node_capacity_));
       if (p->loc_width >= 0) g.ProgramUniform1ui(p->program, p->loc_width, GLuint(target_.width));
+      if (p->loc_lists >= 0) g.ProgramUniform1ui(p->program, p->loc_lists, GLuint(lists_));
     }
     passed = 0;
     const auto t = std::chrono::steady_clock::now();
