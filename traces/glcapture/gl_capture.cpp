@@ -211,7 +211,7 @@ GlCaptureResult run_gl_capture(const GlCaptureRequest& o, StopSignals* signals) 
       const std::string preload = library + (outer && *outer ? std::string(":") + outer : "");
       // glibc's malloc on transparent huge pages: llvmpipe's buffers (the
       // capture's node buffers are hundreds of MB) are memory touched once,
-      // and a fault per 4 KiB page costs several times the write itself.
+      // and the faults of a fresh 4 KiB page cost tens of times writing it.
       const char* tunables = std::getenv("GLIBC_TUNABLES");
       const std::string huge =
           std::string(tunables && *tunables ? std::string(tunables) + ":" : "") + "glibc.malloc.hugetlb=1";
