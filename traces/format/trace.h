@@ -223,6 +223,15 @@ class TraceWriter {
   /// payload bytes depend on the level and the worker count (0, or any N),
   /// never on the timing: a fixed count gives the same trace every run.
   TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level = 3, int zstd_workers = 0);
+  /// The header last: for a writer that learns the draw table while it
+  /// writes the records. The records are framed and compressed into memory
+  /// as they come, as `layout` says (size, spp, depth mode, colour format,
+  /// compression, checksums), and finish(header) writes PATH: `header` (the
+  /// same layout; its draw table, clear values and scene name as they end
+  /// up), then those records. The file is byte for byte the one
+  /// TraceWriter(path, header) writes from the same records.
+  struct HeaderLast {};
+  TraceWriter(const std::string& path, const TraceHeader& layout, int zstd_level, int zstd_workers, HeaderLast);
   ~TraceWriter();
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;
@@ -236,6 +245,9 @@ class TraceWriter {
   /// TraceError on a record that does not frame.
   void write_records(const uint8_t* records, size_t bytes, uint64_t count);
   void finish();
+  /// A header-last writer's end: the file with `header` (its layout must be
+  /// the one given at the start; TraceError otherwise).
+  void finish(const TraceHeader& header);
   uint64_t fragments() const { return count_; }
   /// Bytes of fragment and end records written (checksum records not included).
   uint64_t raw_bytes() const { return raw_bytes_; }
@@ -257,6 +269,10 @@ class TraceWriter {
   std::vector<uint8_t> block_;  ///< the block being gathered (checksummed traces)
   std::vector<uint8_t> head_;   ///< the header's bytes, its check excluded (patched by finish())
   bool finished_ = false;
+  /// Header last: the payload's memory stream and its bytes.
+  FILE* payload_ = nullptr;
+  char* payload_bytes_ = nullptr;
+  size_t payload_size_ = 0;
 };
 
 /// One fragment as a JSON object on one line (for `ropsim trace dump`).

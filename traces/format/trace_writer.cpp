@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -21,32 +23,49 @@
 
 namespace ropsim {
 
+namespace {
+
+/// The header's bytes as the file starts with them (its check excluded, the
+/// count's reserved bytes 0).
+std::vector<uint8_t> encode_head(const TraceHeader& header) {
+  uint8_t fixed[kFixedHeaderBytes] = {};
+  std::memcpy(fixed, kTraceMagic, 8);
+  put_u16(fixed + 8, header.version());
+  put_u16(fixed + 10, header.checksummed ? kTraceFlagChecksum | kTraceFlagHeaderCheck : 0);
+  put_u32(fixed + 12, header.width);
+  put_u32(fixed + 16, header.height);
+  fixed[20] = uint8_t(header.spp);
+  fixed[21] = uint8_t(header.depth_mode);
+  fixed[22] = uint8_t(header.color_format);
+  fixed[23] = uint8_t(header.compression);
+  for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header.clear_color[i]);
+  put_f32(fixed + 36, header.clear_depth);
+  put_u16(fixed + 40, uint16_t(header.scene_name.size()));
+  std::vector<uint8_t> head(fixed, fixed + sizeof fixed);
+  for (int i = 0; i < header.spp; ++i) {
+    head.push_back(header.positions[i].x);
+    head.push_back(header.positions[i].y);
+  }
+  head.insert(head.end(), header.scene_name.begin(), header.scene_name.end());
+  if (!header.draws.empty()) encode_draw_table(head, header.draws);  // version 2 (section 1.5)
+  return head;
+}
+
+/// Whether two headers frame and encode records alike.
+bool same_layout(const TraceHeader& a, const TraceHeader& b) {
+  return a.width == b.width && a.height == b.height && a.spp == b.spp && a.depth_mode == b.depth_mode &&
+         a.color_format == b.color_format && a.compression == b.compression && a.checksummed == b.checksummed;
+}
+
+}  // namespace
+
 TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level, int zstd_workers)
     : path_(path), header_(header) {
   std::string err = validate_header(header_);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
   out_ = std::make_unique<OutputFile>(path);
   FILE* f = out_->stream();
-  uint8_t fixed[kFixedHeaderBytes] = {};
-  std::memcpy(fixed, kTraceMagic, 8);
-  put_u16(fixed + 8, header_.version());
-  put_u16(fixed + 10, header_.checksummed ? kTraceFlagChecksum | kTraceFlagHeaderCheck : 0);
-  put_u32(fixed + 12, header_.width);
-  put_u32(fixed + 16, header_.height);
-  fixed[20] = uint8_t(header_.spp);
-  fixed[21] = uint8_t(header_.depth_mode);
-  fixed[22] = uint8_t(header_.color_format);
-  fixed[23] = uint8_t(header_.compression);
-  for (int i = 0; i < 3; ++i) put_f32(fixed + 24 + 4 * i, header_.clear_color[i]);
-  put_f32(fixed + 36, header_.clear_depth);
-  put_u16(fixed + 40, uint16_t(header_.scene_name.size()));
-  head_.assign(fixed, fixed + sizeof fixed);
-  for (int i = 0; i < header_.spp; ++i) {
-    head_.push_back(header_.positions[i].x);
-    head_.push_back(header_.positions[i].y);
-  }
-  head_.insert(head_.end(), header_.scene_name.begin(), header_.scene_name.end());
-  if (!header_.draws.empty()) encode_draw_table(head_, header_.draws);  // version 2 (section 1.5)
+  head_ = encode_head(header_);
   // A failure here destroys out_, which removes the temporary file.
   const std::unique_ptr<ByteSink> raw = open_record_sink(f, path, Compression::kNone);
   raw->write(head_.data(), head_.size());
@@ -59,9 +78,22 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
 }
 
+TraceWriter::TraceWriter(const std::string& path, const TraceHeader& layout, int zstd_level, int zstd_workers,
+                         HeaderLast)
+    : path_(path), header_(layout) {
+  std::string err = validate_header(header_);
+  if (!err.empty()) throw TraceError(path + ": header: " + err);
+  payload_ = open_memstream(&payload_bytes_, &payload_size_);
+  if (!payload_) throw TraceError(path + ": no memory for the records");
+  sink_ = open_record_sink(payload_, path, header_.compression, zstd_level, zstd_workers);
+  if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
+}
+
 TraceWriter::~TraceWriter() {
   sink_.reset();
   out_.reset();  // discards the temporary file unless finish() committed it
+  if (payload_) std::fclose(payload_);
+  std::free(payload_bytes_);
 }
 
 size_t encode_fragment_record(const TraceHeader& h, const Fragment& f, uint8_t* b, std::string& error) {
@@ -177,8 +209,43 @@ void TraceWriter::flush_block() {
   ++blocks_;
 }
 
+void TraceWriter::finish(const TraceHeader& header) {
+  if (finished_) return;
+  if (!payload_) throw TraceError(path_ + ": finish(header) of a writer whose header is written");
+  if (!same_layout(header, header_))
+    throw TraceError(path_ + ": the header's layout is not the one the records were written for");
+  std::string err = validate_header(header);
+  if (!err.empty()) throw TraceError(path_ + ": header: " + err);
+  header_ = header;
+  flush_block();
+  uint8_t b[9];
+  b[0] = kTagEnd;
+  put_u64(b + 1, count_);
+  sink_->write(b, 9);
+  raw_bytes_ += 9;
+  sink_->close();
+  sink_.reset();
+  if (std::fflush(payload_) != 0) throw TraceError(path_ + ": no memory for the records");
+  // The header with the fragment count (as finish() patches it in), its check, the payload.
+  head_ = encode_head(header_);
+  if (count_ + 1 < (uint64_t{1} << 48)) put_u48(head_.data() + kHeaderCountOffset, count_ + 1);
+  out_ = std::make_unique<OutputFile>(path_);
+  const std::unique_ptr<ByteSink> raw = open_record_sink(out_->stream(), path_, Compression::kNone);
+  raw->write(head_.data(), head_.size());
+  if (header_.checksummed) {
+    uint8_t c[kHeaderCheckBytes];
+    put_u64(c, XXH3_64bits(head_.data(), head_.size()));
+    raw->write(c, sizeof c);
+  }
+  raw->write(payload_bytes_, payload_size_);
+  raw->close();
+  out_->commit();
+  finished_ = true;
+}
+
 void TraceWriter::finish() {
   if (finished_) return;
+  if (payload_) throw TraceError(path_ + ": a header-last writer ends with finish(header)");
   flush_block();
   uint8_t b[9];
   b[0] = kTagEnd;

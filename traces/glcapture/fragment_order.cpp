@@ -60,22 +60,16 @@ std::pair<size_t, size_t> slice(size_t count, size_t t, size_t k) {
   return std::make_pair(count * t / k, count * (t + 1) / k);
 }
 
-/// A fragment's API-order key, (prim_id, row, column), and its node.
-struct Made {
-  uint64_t order;  ///< prim_id << 32 | row << 16 | column
-  uint32_t node;
-};
-
-/// A draw's fragments in API order: their keys and nodes, and each node's
-/// coverage (0 for a node that is no fragment).
+/// A draw's fragments in API order (their keys and nodes: scratch.order's
+/// first `count`), and each node's coverage (scratch.coverage; 0 for a node
+/// that is no fragment).
 struct ApiOrder {
   size_t nthreads = 1;
-  LargeArray<Made> order;
-  LargeArray<uint64_t> coverage;
+  size_t count = 0;
 };
 
 std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, uint32_t width,
-                            uint32_t height, ApiOrder& api) {
+                            uint32_t height, BuildScratch& scratch, ApiOrder& api) {
   // The work is split over threads by nodes; each split's result is merged
   // in a fixed order, and the fragments are put into API order by unique
   // keys, so they depend neither on the thread count nor on the nodes' order.
@@ -136,8 +130,8 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     return c;
   };
   // Each kept node's coverage (0 for the others), made while counting.
-  api.coverage = LargeArray<uint64_t>(n);
-  LargeArray<uint64_t>& node_coverage = api.coverage;
+  scratch.coverage.ensure(n);
+  LargeArray<uint64_t>& node_coverage = scratch.coverage;
   auto fragment_node = [&](size_t i) { return node_coverage[i] != 0; };
   std::vector<size_t> at(nthreads + 1, 0);
   in_parallel(nthreads, [&](size_t t) {
@@ -150,11 +144,12 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     at[t + 1] = c;
   });
   for (size_t t = 0; t < nthreads; ++t) at[t + 1] += at[t];
-  LargeArray<Made> order(at[nthreads]);
+  const size_t count = at[nthreads];
+  scratch.order.ensure(count);
   std::vector<std::string> errors(nthreads);
   in_parallel(nthreads, [&](size_t t) {
     const auto [lo, hi] = slice(n, t, nthreads);
-    Made* m = order.data() + at[t];
+    OrderKey* m = scratch.order.data() + at[t];
     for (size_t i = lo; i < hi; ++i) {
       if (!fragment_node(i)) continue;
       const uint32_t* st = nodes.state + 4 * i;
@@ -167,25 +162,25 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
       }
       const uint32_t* k = nodes.keys + 4 * i;
       const uint64_t prim = base[k[2]] + uint64_t(k[1]) * per_instance[k[2]] + k[0];
-      *m++ = Made{prim << 32 | uint64_t(height - 1 - gy) << 16 | x, uint32_t(i)};
+      *m++ = OrderKey{prim << 32 | uint64_t(height - 1 - gy) << 16 | x, uint32_t(i)};
     }
   });
   for (const std::string& e : errors)
     if (!e.empty()) return e;
   // A stable least-significant-digit radix sort of the (unique) order keys:
   // a byte a pass, the bytes every key shares skipped.
-  {
-    LargeArray<Made> tmp(order.size());
-    for (int shift = 0; shift < 64; shift += 8) {
-      size_t count[257] = {};
-      for (const Made& m : order) ++count[((m.order >> shift) & 0xFF) + 1];
-      if (std::any_of(count + 1, count + 257, [&](size_t c) { return c == order.size(); })) continue;
-      for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
-      for (const Made& m : order) tmp[count[(m.order >> shift) & 0xFF]++] = m;
-      std::swap(order, tmp);
-    }
+  scratch.sorted.ensure(count);
+  for (int shift = 0; shift < 64; shift += 8) {
+    size_t at_byte[257] = {};
+    const OrderKey* from = scratch.order.data();
+    for (size_t j = 0; j < count; ++j) ++at_byte[((from[j].order >> shift) & 0xFF) + 1];
+    if (std::any_of(at_byte + 1, at_byte + 257, [&](size_t c) { return c == count; })) continue;
+    for (int b = 0; b < 256; ++b) at_byte[b + 1] += at_byte[b];
+    OrderKey* to = scratch.sorted.data();
+    for (size_t j = 0; j < count; ++j) to[at_byte[(from[j].order >> shift) & 0xFF]++] = from[j];
+    std::swap(scratch.order, scratch.sorted);
   }
-  api.order = std::move(order);
+  api.count = count;
   return "";
 }
 
@@ -194,21 +189,22 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
 std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
                             uint32_t width, uint32_t height, CapturedDraw& out) {
   ApiOrder api;
-  if (std::string e = order_fragments(nodes, draw_id, parts, width, height, api); !e.empty()) return e;
+  BuildScratch scratch;
+  if (std::string e = order_fragments(nodes, draw_id, parts, width, height, scratch, api); !e.empty()) return e;
   const size_t nthreads = api.nthreads;
-  const LargeArray<Made>& order = api.order;
-  const LargeArray<uint64_t>& node_coverage = api.coverage;
+  const OrderKey* order = scratch.order.data();
+  const LargeArray<uint64_t>& node_coverage = scratch.coverage;
   std::vector<std::string> errors(nthreads);
   // The fragments in that order, a thread a range of them: first each
   // one's place among the depths.
-  std::vector<size_t> z_at(order.size() + 1, 0);
-  for (size_t j = 0; j < order.size(); ++j)
+  std::vector<size_t> z_at(api.count + 1, 0);
+  for (size_t j = 0; j < api.count; ++j)
     z_at[j + 1] = z_at[j] + size_t(__builtin_popcountll(node_coverage[order[j].node]));
   const size_t first = 0, z_base = 0;
-  out.fragments = LargeArray<CapturedFragment>(order.size());
+  out.fragments = LargeArray<CapturedFragment>(api.count);
   out.z = LargeArray<float>(z_at.back());
   in_parallel(nthreads, [&](size_t t) {
-    const auto [lo, hi] = slice(order.size(), t, nthreads);
+    const auto [lo, hi] = slice(api.count, t, nthreads);
     for (size_t j = lo; j < hi; ++j) {
       const size_t i = order[j].node;
       CapturedFragment& f = out.fragments[first + j];
@@ -236,51 +232,100 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
 }
 
 std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
-                          const TraceHeader& header, EncodedDraw& out) {
+                          const TraceHeader& header, BuildScratch& scratch, const RecordSink& sink, EncodedDraw& out) {
   ApiOrder api;
-  if (std::string e = order_fragments(nodes, draw_id, parts, header.width, header.height, api); !e.empty()) return e;
+  if (std::string e = order_fragments(nodes, draw_id, parts, header.width, header.height, scratch, api); !e.empty())
+    return e;
   const size_t nthreads = api.nthreads;
-  const LargeArray<Made>& order = api.order;
-  const LargeArray<uint64_t>& node_coverage = api.coverage;
-  // Each record's place: the sizes before it.
-  std::vector<size_t> at(order.size() + 1, 0);
+  const OrderKey* order = scratch.order.data();
+  const uint64_t* node_coverage = scratch.coverage.data();
+  out.count = api.count;
   out.covered_samples = 0;
-  for (size_t j = 0; j < order.size(); ++j) {
-    const int covered = __builtin_popcountll(node_coverage[order[j].node]);
-    at[j + 1] = at[j] + fragment_record_bytes(header, covered);
-    out.covered_samples += size_t(covered);
-  }
-  out.bytes = LargeArray<uint8_t>(at.back());
-  out.count = order.size();
+  out.size = 0;
+  // Runs of kRun fragments, each encoded by the threads (a range of the run
+  // each, at the place the records' sizes before it give) and then given to
+  // the sink.
+  constexpr size_t kRun = size_t(1) << 18;
+  constexpr size_t kAhead = 8;  // fragments the encoding fetches ahead
+  std::vector<size_t> at(nthreads + 1, 0), covered(nthreads, 0);
   std::vector<std::string> errors(nthreads);
-  in_parallel(nthreads, [&](size_t t) {
-    const auto [lo, hi] = slice(order.size(), t, nthreads);
-    Fragment f;
-    for (size_t j = lo; j < hi; ++j) {
-      const size_t i = order[j].node;
-      f.draw_id = draw_id;
-      f.prim_id = uint32_t(order[j].order >> 32);
-      f.y = uint16_t(order[j].order >> 16);
-      f.x = uint16_t(order[j].order);
-      f.coverage = node_coverage[i];
-      for (uint64_t m = f.coverage; m; m &= m - 1) {
-        const int s = __builtin_ctzll(m);
-        f.z[size_t(s)] = word_float(nodes.depth[size_t(s)][i]);
+  for (size_t run = 0; run < api.count; run += kRun) {
+    const size_t run_end = std::min(api.count, run + kRun);
+    in_parallel(nthreads, [&](size_t t) {
+      auto [lo, hi] = slice(run_end - run, t, nthreads);
+      size_t bytes = 0, samples = 0;
+      for (size_t j = run + lo; j < run + hi; ++j) {
+        const int c = __builtin_popcountll(node_coverage[order[j].node]);
+        bytes += fragment_record_bytes(header, c);
+        samples += size_t(c);
       }
-      const float* c = nodes.colour + 4 * i;
-      for (size_t k = 0; k < 3; ++k) f.rgb[k] = clamp ? clamp_unit(c[k]) : clamp_non_negative(c[k]);
-      f.alpha = clamp_unit(c[3]);
-      std::string err;
-      if (encode_fragment_record(header, f, out.bytes.data() + at[j], err) != at[j + 1] - at[j]) {
-        errors[t] = "draw " + std::to_string(draw_id) + ": fragment (" + std::to_string(f.x) + ", " +
-                    std::to_string(f.y) + ") of primitive " + std::to_string(f.prim_id) + ": " + err;
-        return;
-      }
+      at[t + 1] = bytes;
+      covered[t] = samples;
+    });
+    for (size_t t = 0; t < nthreads; ++t) {
+      at[t + 1] += at[t];
+      out.covered_samples += covered[t];
     }
-  });
-  for (const std::string& e : errors)
-    if (!e.empty()) return e;
+    scratch.records.ensure(at[nthreads]);
+    in_parallel(nthreads, [&](size_t t) {
+      auto [lo, hi] = slice(run_end - run, t, nthreads);
+      uint8_t* b = scratch.records.data() + at[t];
+      Fragment f;
+      for (size_t j = run + lo; j < run + hi; ++j) {
+        // The nodes are read in API order, not in memory order: a later
+        // fragment's depths and colour fetched ahead (its coverage, read
+        // when the sizes were counted, is in cache).
+        if (j + kAhead < run + hi) {
+          const size_t a = order[j + kAhead].node;
+          for (uint64_t m = node_coverage[a]; m; m &= m - 1)
+            __builtin_prefetch(nodes.depth[size_t(__builtin_ctzll(m))] + a);
+          __builtin_prefetch(nodes.colour + 4 * a);
+        }
+        const size_t i = order[j].node;
+        f.draw_id = draw_id;
+        f.prim_id = uint32_t(order[j].order >> 32);
+        f.y = uint16_t(order[j].order >> 16);
+        f.x = uint16_t(order[j].order);
+        f.coverage = node_coverage[i];
+        for (uint64_t m = f.coverage; m; m &= m - 1) {
+          const int s = __builtin_ctzll(m);
+          f.z[size_t(s)] = word_float(nodes.depth[size_t(s)][i]);
+        }
+        const float* c = nodes.colour + 4 * i;
+        for (size_t k = 0; k < 3; ++k) f.rgb[k] = clamp ? clamp_unit(c[k]) : clamp_non_negative(c[k]);
+        f.alpha = clamp_unit(c[3]);
+        std::string err;
+        const size_t n = encode_fragment_record(header, f, b, err);
+        if (n != fragment_record_bytes(header, __builtin_popcountll(f.coverage))) {
+          errors[t] = "draw " + std::to_string(draw_id) + ": fragment (" + std::to_string(f.x) + ", " +
+                      std::to_string(f.y) + ") of primitive " + std::to_string(f.prim_id) + ": " + err;
+          return;
+        }
+        b += n;
+      }
+    });
+    for (const std::string& e : errors)
+      if (!e.empty()) return e;
+    if (std::string e = sink(scratch.records.data(), at[nthreads], run_end - run); !e.empty()) return e;
+    out.size += at[nthreads];
+  }
   return "";
+}
+
+std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                          const TraceHeader& header, EncodedDraw& out) {
+  BuildScratch scratch;
+  std::vector<uint8_t> all;
+  const std::string e = build_records(
+      nodes, draw_id, parts, clamp, header, scratch,
+      [&](const uint8_t* r, size_t bytes, size_t) {
+        all.insert(all.end(), r, r + bytes);
+        return std::string();
+      },
+      out);
+  out.bytes = LargeArray<uint8_t>(all.size());
+  if (!all.empty()) std::memcpy(out.bytes.data(), all.data(), all.size());
+  return e;
 }
 
 void* map_pages(size_t bytes) {

@@ -5,6 +5,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -89,6 +90,10 @@ class LargeArray {
   ~LargeArray() {
     if (data_) unmap_pages(data_, n_ * sizeof(T));
   }
+  /// At least n elements: a new, larger mapping (the contents are not kept) when this one has fewer.
+  void ensure(size_t n) {
+    if (n_ < n) *this = LargeArray(n);
+  }
   size_t size() const { return n_; }
   T* data() { return data_; }
   const T* data() const { return data_; }
@@ -128,16 +133,42 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
 /// One draw's fragments as trace records, in API order.
 struct EncodedDraw {
   LargeArray<uint8_t> bytes;  ///< the records back to back (encode_fragment_record())
+  size_t size = 0;            ///< bytes of records
   size_t count = 0;           ///< fragments
   size_t covered_samples = 0;
 };
 
+/// A fragment's API-order key, (prim_id, row, column), and its node.
+struct OrderKey {
+  uint64_t order;  ///< prim_id << 32 | row << 16 | column
+  uint32_t node;
+};
+
+/// The memory build_records() works in, kept from draw to draw: a capture's
+/// draws make millions of fragments each, and fresh pages' faults cost
+/// more than the work done on them.
+struct BuildScratch {
+  LargeArray<OrderKey> order, sorted;  ///< the fragments' keys, and the radix sort's other half
+  LargeArray<uint64_t> coverage;       ///< each node's coverage (0: no fragment)
+  LargeArray<uint8_t> records;         ///< a run of encoded records
+};
+
+/// Where build_records() puts a draw's records: a run of `count` whole
+/// records (`bytes` of them) at a time, in API order. Returns "" or an error.
+using RecordSink = std::function<std::string(const uint8_t* records, size_t bytes, size_t count)>;
+
 /// The fragments build_fragments() makes, encoded as the trace records of
 /// `header` (its size and spp; DepthMode::kPerSample, ColorFormat::kRgbF32;
-/// the draw table may be empty) by the same threads that order them, so
-/// that the trace's writer only frames and compresses them
-/// (TraceWriter::write_records()). Returns "" or why a node is out of range
-/// or a fragment invalid.
+/// the draw table may be empty) by the same threads that order them, and
+/// given to `sink` a run of records at a time (the runs' memory is
+/// scratch.records, reused), so that the trace's writer only frames and
+/// compresses them (TraceWriter::write_records()) and a draw's records are
+/// never all in memory at once. `scratch` keeps the arrays from call to
+/// call. `out` gets the counts (its bytes are left empty). Returns "", why a
+/// node is out of range or a fragment invalid, or the sink's error.
+std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
+                          const TraceHeader& header, BuildScratch& scratch, const RecordSink& sink, EncodedDraw& out);
+/// The same with scratch memory of its own, the records in `out.bytes`.
 std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
                           const TraceHeader& header, EncodedDraw& out);
 

@@ -209,11 +209,18 @@ GlCaptureResult run_gl_capture(const GlCaptureRequest& o, StopSignals* signals) 
       // The library first; what the caller preloads stays.
       const char* outer = std::getenv("LD_PRELOAD");
       const std::string preload = library + (outer && *outer ? std::string(":") + outer : "");
+      // glibc's malloc on transparent huge pages: llvmpipe's buffers (the
+      // capture's node buffers are hundreds of MB) are memory touched once,
+      // and the faults of a fresh 4 KiB page cost tens of times writing it.
+      const char* tunables = std::getenv("GLIBC_TUNABLES");
+      const std::string huge =
+          std::string(tunables && *tunables ? std::string(tunables) + ":" : "") + "glibc.malloc.hugetlb=1";
       std::vector<std::pair<std::string, std::string>> env = {
           {"DISPLAY", display.display()},
           {"LD_PRELOAD", preload},
           {"LIBGL_ALWAYS_SOFTWARE", "1"},
           {"GALLIUM_DRIVER", "llvmpipe"},
+          {"GLIBC_TUNABLES", huge},
           {"ROPSIM_GL_CONTROL", dir.path().string()},
           {"ROPSIM_GL_FRAME", std::to_string(o.frame)},
           {"ROPSIM_GL_SPP", std::to_string(o.spp)},

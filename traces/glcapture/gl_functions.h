@@ -183,6 +183,8 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLENDQUERYPROC, EndQuery)                                                                       \
   X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                                                 \
   X(PFNGLGETQUERYIVPROC, GetQueryiv)                                                                   \
+  X(PFNGLBEGINCONDITIONALRENDERPROC, BeginConditionalRender)                                           \
+  X(PFNGLENDCONDITIONALRENDERPROC, EndConditionalRender)                                               \
   X(PFNGLSTENCILFUNCSEPARATEPROC, StencilFuncSeparate)                                                 \
   X(PFNGLSTENCILOPSEPARATEPROC, StencilOpSeparate)                                                     \
   X(PFNGLSTENCILMASKSEPARATEPROC, StencilMaskSeparate)                                                 \
@@ -222,6 +224,8 @@ struct GlFunctions {
 
 /// The real entry points, resolved on first use.
 const GlFunctions& real_gl();
+/// Whether the application's conditional rendering (glBeginConditionalRender) is on.
+bool application_conditional_render();
 /// The real entry point `name` (dlsym(RTLD_NEXT), else the real
 /// glXGetProcAddressARB, else eglGetProcAddress), or nullptr.
 void* real_proc_address(const char* name);

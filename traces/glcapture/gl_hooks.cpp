@@ -290,6 +290,22 @@ ROPSIM_EXPORT void glClear(GLbitfield mask) {
 
 ROPSIM_EXPORT void glUseProgram(GLuint program) { real_gl().UseProgram(program); }
 
+namespace {
+bool app_conditional_render = false;
+}  // namespace
+
+bool ropsim::glcapture::application_conditional_render() { return app_conditional_render; }
+
+ROPSIM_EXPORT void glBeginConditionalRender(GLuint id, GLenum mode) {
+  real_gl().BeginConditionalRender(id, mode);
+  app_conditional_render = true;
+}
+
+ROPSIM_EXPORT void glEndConditionalRender() {
+  real_gl().EndConditionalRender();
+  app_conditional_render = false;
+}
+
 ROPSIM_EXPORT void glLinkProgram(GLuint program) {
   real_gl().LinkProgram(program);
   if (CaptureSession* s = session()) s->linked(program);
@@ -391,6 +407,10 @@ const Wrapper kWrappers[] = {
     ROPSIM_WRAPPER(glEnd),
     ROPSIM_WRAPPER(glClear),
     ROPSIM_WRAPPER(glUseProgram),
+    ROPSIM_WRAPPER(glBeginConditionalRender),
+    {"glBeginConditionalRenderNV", reinterpret_cast<void*>(&glBeginConditionalRender)},
+    ROPSIM_WRAPPER(glEndConditionalRender),
+    {"glEndConditionalRenderNV", reinterpret_cast<void*>(&glEndConditionalRender)},
     ROPSIM_WRAPPER(glLinkProgram),
     ROPSIM_WRAPPER(glDeleteProgram),
     ROPSIM_WRAPPER(glBindFramebuffer),

@@ -335,6 +335,7 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "uniform uint ropsim_part;\n"
        "uniform uint ropsim_capacity;\n"
        "uniform uint ropsim_width;\n"
+       "uniform uint ropsim_lists;\n"
        "flat in int ropsim_instance;\n"
        // A compatibility context's alpha test (GL_ALPHA_TEST) with a GLSL
        // program: GL applies it after the shader, so the wrapper applies it
@@ -366,8 +367,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        // invocations of one pass make the same node. kNoNode when the nodes
        // overflow ropsim_capacity (the count goes on, and the draw is
        // captured again with room for them).
-       "uint ropsim_node(uint pixel, uint list, out bool made) {\n"
+       "uint ropsim_node(uint pixel, uint pixel_index, out bool made) {\n"
        "  uvec3 key = uvec3(uint(gl_PrimitiveID), uint(ropsim_instance), ropsim_part);\n"
+       "  uint list = pixel_index * ropsim_lists + ((key.x + key.y + key.z) & (ropsim_lists - 1u));\n"
        "  uint head = ropsim_head[list], stop = 0xFFFFFFFFu, mine = 0xFFFFFFFFu;\n"
        "  made = false;\n"
        "  for (;;) {\n"
@@ -443,6 +445,7 @@ Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit) {
               ") uniform usamplerBuffer ropsim_keys;\n"
               "uniform uint ropsim_part;\n"
               "uniform uint ropsim_width;\n"
+              "uniform uint ropsim_lists;\n"
               "flat in int ropsim_instance;\n"
               "void main() {\n"
               "  bool found = false;\n"
@@ -451,7 +454,7 @@ Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit) {
               "    uvec3 key = uvec3(uint(gl_PrimitiveID), uint(ropsim_instance), ropsim_part);\n"
               "    uint n = texelFetch(ropsim_heads, int(" +
               std::to_string(kHeadsHeaderWords) +
-              "u + y * ropsim_width + x)).x;\n"
+              "u + (y * ropsim_width + x) * ropsim_lists + ((key.x + key.y + key.z) & (ropsim_lists - 1u)))).x;\n"
               "    while (n != 0xFFFFFFFFu) {\n"
               "      uvec4 k = texelFetch(ropsim_keys, int(n));\n"
               "      if (k.xyz == key) break;\n"

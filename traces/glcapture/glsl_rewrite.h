@@ -1,8 +1,9 @@
 // The shader rewrite of the GL capture (docs/capture.md "Capturing a GL
 // frame"): an application's vertex and fragment shader sources become the
 // instrumented pair that re-executes a draw, one pass per sample position,
-// and gathers each fragment (coverage, depths, colour) into one node of a
-// per-pixel list in shader storage buffers. Plain text in, plain text out: no GL calls here.
+// and gathers each fragment (coverage, depths, colour) into one node of one
+// of its pixel's lists in shader storage buffers. Plain text in, plain text
+// out: no GL calls here.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -17,7 +18,9 @@ enum class GlslProfile { kCompatibility, kCore };
 
 /// The storage bindings the instrumented fragment shader uses, from the
 /// `binding` given to instrument_fragment_shader() on: the pixels' list heads
-/// (after the node count and three pad words), the nodes' keys (uvec4:
+/// (after the node count and three pad words; uniform `ropsim_lists` heads a
+/// pixel, a power of two: a fragment's list is the pixel's
+/// (gl_PrimitiveID + instance + part) mod ropsim_lists), the nodes' keys (uvec4:
 /// gl_PrimitiveID, instance, part, next node), their state (uvec4: pixel
 /// x | y << 16 in GL window coordinates, two zero words, flags), their
 /// colour (vec4), and one pass's depths (a float's bits per node, kNoDepth

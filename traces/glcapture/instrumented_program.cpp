@@ -184,9 +184,11 @@ void build_once(GLuint program, const std::vector<ShaderSource>& src, const std:
   ins.loc_gate = g.GetUniformLocation(q, "ropsim_gate");
   ins.loc_part = g.GetUniformLocation(q, "ropsim_part");
   ins.loc_width = g.GetUniformLocation(q, "ropsim_width");
+  ins.loc_lists = g.GetUniformLocation(q, "ropsim_lists");
   if (variant == ProgramVariant::kCoverage
-          ? ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_width < 0
-          : ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_pass < 0) {
+          ? ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_width < 0 || ins.loc_lists < 0
+          : ins.loc_capacity < 0 || ins.loc_offset < 0 || ins.loc_upside_down < 0 || ins.loc_pass < 0 ||
+                ins.loc_lists < 0) {
     ins.error = who + ": the instrumented program lacks the capture's uniforms";
     return;
   }

@@ -32,8 +32,9 @@ struct Instrumented {
   std::string error;  ///< "" or why it cannot be made ("program N: ...")
   GLint loc_offset = -1, loc_capacity = -1, loc_upside_down = -1;
   /// ropsim_pass (PassKind), ropsim_sample, ropsim_gate, ropsim_part,
-  /// ropsim_width (the target's: a pixel's list head) (glsl_rewrite.cpp).
-  GLint loc_pass = -1, loc_sample = -1, loc_gate = -1, loc_part = -1, loc_width = -1;
+  /// ropsim_width (the target's) and ropsim_lists (lists a pixel): a
+  /// fragment's list head (glsl_rewrite.cpp).
+  GLint loc_pass = -1, loc_sample = -1, loc_gate = -1, loc_part = -1, loc_width = -1, loc_lists = -1;
   /// ropsim_pixel_offset, the pass's geometry shift in pixels (window
   /// coordinates); -1 when the fragment shader has no interpolated input.
   GLint loc_pixel_offset = -1;

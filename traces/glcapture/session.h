@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -83,9 +84,10 @@ class Session final : public CaptureSession {
   /// The capture framebuffer's stencil buffer (made at the first draw that needs it).
   void attach_capture_stencil();
   /// Sample pass `s` above 1 spp: the coverage pass, then the shading pass
-  /// (shifted by `off` in clip space, `pixel_off` in pixels).
+  /// (shifted by `off` in clip space, `pixel_off` in pixels); with `query`,
+  /// the shading pass only when the coverage pass keeps a fragment.
   void split_pass(const ProgramSet& set, int s, std::array<float, 2> off, std::array<float, 2> pixel_off,
-                  const std::vector<DrawCallPart>& parts);
+                  const std::vector<DrawCallPart>& parts, bool query);
   /// The wrapper's alpha test for this draw (on: a GLSL program with GL_ALPHA_TEST on).
   void set_alpha_test(const Instrumented& ins, bool on);
   void reference_draw(GLuint program, const Instrumented& ins, const std::vector<DrawCallPart>& parts);
@@ -128,8 +130,12 @@ class Session final : public CaptureSession {
   std::vector<FramebufferInfo> framebuffers_;
   std::vector<DrawRecord> draws_;
   std::vector<Unsupported> unsupported_;
-  std::vector<EncodedDraw> records_;  ///< a draw's trace records in API order, draw by draw
-  uint32_t target_draws_ = 0;         ///< draws into the target so far (the next trace draw id)
+  /// The trace, its records framed and compressed draw by draw and its
+  /// header written at the frame's end (made at the first draw into the
+  /// target; none for a list).
+  std::unique_ptr<TraceWriter> trace_;
+  BuildScratch scratch_;       ///< build_records()'s arrays, kept from draw to draw
+  uint32_t target_draws_ = 0;  ///< draws into the target so far (the next trace draw id)
   bool target_known_ = false;
   bool compatibility_ = false;  ///< the context has the compatibility profile
   FramebufferInfo target_;
@@ -137,6 +143,7 @@ class Session final : public CaptureSession {
   std::array<float, 3> clear_color_{0, 0, 0};
   float clear_depth_ = 1.0f;
   GLuint capture_fbo_ = 0, query_ = 0;
+  GLuint kept_query_ = 0;         ///< whether a coverage pass keeps a fragment (GL_ANY_SAMPLES_PASSED)
   bool capture_stencil_ = false;  ///< the capture framebuffer has its stencil buffer
   /// The coverage passes' buffer textures over the list heads and the keys,
   /// on texture units fetch_unit_ and fetch_unit_ + 1 (the last two).
@@ -147,12 +154,23 @@ class Session final : public CaptureSession {
   std::array<GLuint, kCaptureBindings> node_buffers_{};
   GLint binding_ = 0;
   uint64_t node_capacity_ = 0, max_nodes_ = 0, depth_capacity_ = 0;
+  /// Lists a pixel: a fragment's is (its primitive + instance + part) mod lists_ (glsl_rewrite.h).
+  uint64_t lists_ = 1;
+  /// The list heads' buffer: the header words and lists_ heads a pixel.
+  uint64_t heads_bytes() const {
+    return kHeadsHeaderWords * 4 + uint64_t(target_.width) * uint64_t(target_.height) * lists_ * 4;
+  }
+  /// Nodes whose depths (in each sample's range) may not be kNoDepth: cleared before a draw's passes.
+  uint64_t depth_dirty_ = 0;
   GLuint msaa_fbo_ = 0;
   GLuint render_fbo_ = 0;  ///< ROPSIM_GL_RENDER_PASSES's colour buffer
   /// Seconds in each phase of the frame's capture (ROPSIM_GL_TIMES).
   struct Times {
     double passes = 0, read_back = 0, build = 0, write = 0;
   } times_s_;
+  /// The trace's layout: its header as build_records() and the writer know it before the frame's end.
+  TraceHeader trace_layout() const;
+  TraceWriter& trace();
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t);

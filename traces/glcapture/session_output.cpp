@@ -19,6 +19,30 @@ constexpr int kTraceZstdLevel = 1;
 /// machine's), so that the trace's bytes are the same on every machine.
 constexpr int kTraceZstdWorkers = 2;
 
+TraceHeader Session::trace_layout() const {
+  TraceHeader h;
+  h.width = uint32_t(target_.width);
+  h.height = uint32_t(target_.height);
+  h.spp = spp_;
+  h.depth_mode = DepthMode::kPerSample;
+  h.color_format = ColorFormat::kRgbF32;
+  h.compression = Compression::kZstd;
+  h.positions = standard_sample_positions(spp_);
+  return h;
+}
+
+TraceWriter& Session::trace() {
+  if (!trace_) {
+    try {
+      trace_ = std::make_unique<TraceWriter>(out_, trace_layout(), kTraceZstdLevel, kTraceZstdWorkers,
+                                             TraceWriter::HeaderLast{});
+    } catch (const std::exception& e) {
+      fail(e.what());
+    }
+  }
+  return *trace_;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -110,16 +134,9 @@ void Session::finish_frame() {
     if (!write_file_atomic(dir_ + "/frame-msaa4.rgba", ref.data(), ref.size(), err)) fail(err);
   }
   if (!list_only_) {
-    TraceHeader h;
-    h.width = uint32_t(target_.width);
-    h.height = uint32_t(target_.height);
-    h.spp = spp_;
-    h.depth_mode = DepthMode::kPerSample;
-    h.color_format = ColorFormat::kRgbF32;
-    h.compression = Compression::kZstd;
+    TraceHeader h = trace_layout();
     h.clear_color = clear_color_;
     h.clear_depth = clear_depth_;
-    h.positions = standard_sample_positions(spp_);
     char exe[256] = {};
     const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
     std::string app = n > 0 ? std::string(exe, size_t(n)) : "application";
@@ -131,10 +148,9 @@ void Session::finish_frame() {
     h.draws = DrawTable(std::move(states));
     if (const std::string why = h.draws.validate(); !why.empty()) fail("the draw states: " + why);
     const auto t = std::chrono::steady_clock::now();
+    // The records are framed and compressed already: the header, then them.
     try {
-      TraceWriter w(out_, h, kTraceZstdLevel, kTraceZstdWorkers);
-      for (const EncodedDraw& draw : records_) w.write_records(draw.bytes.data(), draw.bytes.size(), draw.count);
-      w.finish();
+      trace().finish(h);
     } catch (const std::exception& e) {
       fail(e.what());
     }

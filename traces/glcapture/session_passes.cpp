@@ -65,9 +65,18 @@ void Session::use_target(const FramebufferInfo& fb) {
     fail("the target " + fb.name + " (" + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
          ") has more pixels than a storage block of " + std::to_string(max_block) +
          " bytes (GL_MAX_SHADER_STORAGE_BLOCK_SIZE) has list heads for");
+  // Lists a pixel (a fragment's by its primitive, instance and part): 4
+  // where the heads fit a storage block and a buffer texture, so that the
+  // walks are a quarter as long where primitives overlap.
+  GLint max_texels = 0;
+  g.GetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
+  lists_ = 4;
+  while (lists_ > 1 && (kHeadsHeaderWords * 4 + pixels * lists_ * 4 > uint64_t(max_block) ||
+                        kHeadsHeaderWords + pixels * lists_ > uint64_t(max_texels)))
+    lists_ /= 2;
   max_nodes_ = uint64_t(max_block) / 16 / 64 * 64;
   g.CreateBuffers(kCaptureBindings, node_buffers_.data());
-  g.NamedBufferData(node_buffers_[0], GLsizeiptr(kHeadsHeaderWords * 4 + pixels * 4), nullptr, GL_DYNAMIC_READ);
+  g.NamedBufferData(node_buffers_[0], GLsizeiptr(heads_bytes()), nullptr, GL_DYNAMIC_READ);
   g.CreateTextures(GL_TEXTURE_BUFFER, 2, fetch_textures_.data());
   g.TextureBuffer(fetch_textures_[0], GL_R32UI, node_buffers_[0]);
   // A quarter more nodes than pixels: a draw that covers the target makes
@@ -75,6 +84,7 @@ void Session::use_target(const FramebufferInfo& fb) {
   // their edges), and a draw that overflows is drawn again.
   reserve_nodes(std::max<uint64_t>(65536, pixels + pixels / 4));
   g.GenQueries(1, &query_);
+  g.GenQueries(1, &kept_query_);
   if (reference_msaa_) {
     // The 4x reference: the frame's draws into a multisampled copy.
     GLuint rb[2];
@@ -105,8 +115,7 @@ void Session::reserve_nodes(uint64_t nodes) {
 void Session::bind_nodes(int sample) {
   const GlFunctions& g = real_gl();
   const GLsizeiptr nodes = GLsizeiptr(node_capacity_ * 16);
-  g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0,
-                    GLsizeiptr(kHeadsHeaderWords * 4 + uint64_t(target_.width) * uint64_t(target_.height) * 4));
+  g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0, GLsizeiptr(heads_bytes()));
   for (int b = 1; b <= 3; ++b)
     g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0, nodes);
   if (depth_capacity_ >= uint64_t(sample + 1) * node_capacity_)
@@ -122,18 +131,18 @@ void Session::attach_capture_stencil() {
   const GlFunctions& g = real_gl();
   GLuint rb = 0;
   g.CreateRenderbuffers(1, &rb);
-  g.NamedRenderbufferStorage(rb, GL_DEPTH32F_STENCIL8, target_.width, target_.height);
-  g.NamedFramebufferRenderbuffer(capture_fbo_, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb);
+  g.NamedRenderbufferStorage(rb, GL_STENCIL_INDEX8, target_.width, target_.height);
+  g.NamedFramebufferRenderbuffer(capture_fbo_, GL_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb);
   if (g.CheckNamedFramebufferStatus(capture_fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     fail("the capture framebuffer with its " + std::to_string(target_.width) + "x" + std::to_string(target_.height) +
          " stencil buffer is not complete");
 }
 
 void Session::split_pass(const ProgramSet& set, int s, std::array<float, 2> off, std::array<float, 2> pixel_off,
-                         const std::vector<DrawCallPart>& parts) {
+                         const std::vector<DrawCallPart>& parts, bool query) {
   const GlFunctions& g = real_gl();
   // The coverage pass: a fragment without a node (the coverage twin keeps
-  // it) counts itself in its pixel's stencil and writes its depth.
+  // it) counts itself in its pixel's stencil.
   const GLint zero = 0;
   // Under the application's scissor, as the passes: outside it no fragment reads the stencil.
   g.ClearNamedFramebufferiv(capture_fbo_, GL_STENCIL, 0, &zero);
@@ -141,38 +150,34 @@ void Session::split_pass(const ProgramSet& set, int s, std::array<float, 2> off,
   g.UseProgram(cov.program);
   g.ProgramUniform2f(cov.program, cov.loc_offset, off[0], off[1]);
   g.Enable(GL_STENCIL_TEST);
-  g.Enable(GL_DEPTH_TEST);
-  g.DepthFunc(GL_ALWAYS);
-  g.DepthMask(GL_TRUE);
   g.StencilFuncSeparate(GL_FRONT_AND_BACK, GL_ALWAYS, 0, 0xFF);
   g.StencilOpSeparate(GL_FRONT_AND_BACK, GL_KEEP, GL_KEEP, GL_INCR);
+  // Whether it keeps any fragment: the shading pass is drawn only then.
+  if (query) g.BeginQuery(GL_ANY_SAMPLES_PASSED, kept_query_);
   for (size_t k = 0; k < parts.size(); ++k) {
     if (cov.loc_part >= 0) g.ProgramUniform1ui(cov.program, cov.loc_part, GLuint(k));
     parts[k].replay();
   }
-  g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);  // the coverage pass's depths before the shading passes
-  // The shading passes, tested before the shader: where one fragment of the
-  // pixel has no node, only the fragments at its depth (it, and any other
-  // at the same depth, which finds its node and shades nothing); where
-  // several have none, every fragment of the pixel.
+  if (query) g.EndQuery(GL_ANY_SAMPLES_PASSED);
+  g.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);  // the coverage pass's depths before the shading pass
+  // The shading pass, tested before the shader: every fragment of a pixel
+  // where one or more have no node (those make theirs and shade; the others
+  // find theirs and shade nothing).
   const Instrumented& sh = set.shading;
   g.UseProgram(sh.program);
   g.ProgramUniform2f(sh.program, sh.loc_offset, off[0], off[1]);
   if (sh.loc_pixel_offset >= 0) g.ProgramUniform2f(sh.program, sh.loc_pixel_offset, pixel_off[0], pixel_off[1]);
   g.ProgramUniform1i(sh.program, sh.loc_pass, int(PassKind::kSample));
   if (sh.loc_sample >= 0) g.ProgramUniform1ui(sh.program, sh.loc_sample, GLuint(s));
-  g.DepthMask(GL_FALSE);
   g.StencilOpSeparate(GL_FRONT_AND_BACK, GL_KEEP, GL_KEEP, GL_KEEP);
-  for (int several = 0; several < 2; ++several) {
-    g.DepthFunc(several ? GL_ALWAYS : GL_EQUAL);
-    g.StencilFuncSeparate(GL_FRONT_AND_BACK, several ? GL_LESS : GL_EQUAL, 1, 0xFF);  // 1 < stencil; 1 == stencil
-    for (size_t k = 0; k < parts.size(); ++k) {
-      if (sh.loc_part >= 0) g.ProgramUniform1ui(sh.program, sh.loc_part, GLuint(k));
-      parts[k].replay();
-    }
+  g.StencilFuncSeparate(GL_FRONT_AND_BACK, GL_LEQUAL, 1, 0xFF);  // 1 <= stencil
+  if (query) g.BeginConditionalRender(kept_query_, GL_QUERY_WAIT);
+  for (size_t k = 0; k < parts.size(); ++k) {
+    if (sh.loc_part >= 0) g.ProgramUniform1ui(sh.program, sh.loc_part, GLuint(k));
+    parts[k].replay();
   }
+  if (query) g.EndConditionalRender();
   g.Disable(GL_STENCIL_TEST);
-  g.Disable(GL_DEPTH_TEST);
 }
 
 void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vector<DrawCallPart>& parts,
@@ -188,10 +193,15 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
            ", one of those the capture keeps its fragments in (" + std::to_string(binding_) + ".." +
            std::to_string(binding_ + kCaptureBindings - 1) + ")");
   }
-  // An occlusion query of the application's own would count the passes.
-  GLint app_query = 0;
+  // An occlusion query of the application's own would count the passes
+  // (and no other may start while it runs).
+  GLint app_query = 0, app_any = 0, app_conservative = 0;
   g.GetQueryiv(GL_SAMPLES_PASSED, GL_CURRENT_QUERY, &app_query);
+  g.GetQueryiv(GL_ANY_SAMPLES_PASSED, GL_CURRENT_QUERY, &app_any);
+  g.GetQueryiv(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, GL_CURRENT_QUERY, &app_conservative);
   const bool count = count_samples_ && app_query == 0;
+  // The shading passes' conditional rendering: not inside the application's own.
+  const bool kept_query = app_query == 0 && app_any == 0 && app_conservative == 0 && !application_conditional_render();
   // Above 1 spp (and unless the passes are counted) each sample pass is a
   // coverage pass with the coverage twin, which marks in the stencil buffer
   // the pixels of fragments that have no node yet, and a shading pass with
@@ -244,19 +254,25 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
     if (depth_capacity_ < uint64_t(spp_) * node_capacity_) {
       depth_capacity_ = uint64_t(spp_) * node_capacity_;
       g.NamedBufferData(node_buffers_[4], GLsizeiptr(depth_capacity_ * 4), nullptr, GL_DYNAMIC_READ);
+      depth_dirty_ = node_capacity_;  // a new store: undefined
     }
     g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous draw's nodes read before the reset
     const uint32_t empty = kNoNode;
     g.ClearNamedBufferData(node_buffers_[0], GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, &empty);
     const uint32_t zero[kHeadsHeaderWords] = {};
     g.NamedBufferSubData(node_buffers_[0], 0, sizeof zero, zero);
-    // Every sample uncovered until a pass writes its depth.
-    g.ClearNamedBufferSubData(node_buffers_[4], GL_R32UI, 0, GLsizeiptr(uint64_t(spp_) * node_capacity_ * 4),
-                              GL_RED_INTEGER, GL_UNSIGNED_INT, &kNoDepth);
+    // Every sample uncovered until a pass writes its depth: in each
+    // sample's range, the nodes an earlier draw's passes wrote (the passes
+    // write the depths of nodes below the capacity only).
+    for (int s = 0; s < spp_ && depth_dirty_ > 0; ++s)
+      g.ClearNamedBufferSubData(node_buffers_[4], GL_R32UI, GLintptr(uint64_t(s) * node_capacity_ * 4),
+                                GLsizeiptr(depth_dirty_ * 4), GL_RED_INTEGER, GL_UNSIGNED_INT, &kNoDepth);
+    depth_dirty_ = 0;
     for (const Instrumented* p : {&ins, &set.shading, &set.coverage}) {
       if (!p->program || (p != &ins && !split)) continue;
       if (p->loc_capacity >= 0) g.ProgramUniform1ui(p->program, p->loc_capacity, GLuint(node_capacity_));
       if (p->loc_width >= 0) g.ProgramUniform1ui(p->program, p->loc_width, GLuint(target_.width));
+      if (p->loc_lists >= 0) g.ProgramUniform1ui(p->program, p->loc_lists, GLuint(lists_));
     }
     passed = 0;
     const auto t = std::chrono::steady_clock::now();
@@ -270,7 +286,7 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
                                               off[1] * 0.5f * float(std::max(1, vp[3]))};
       bind_nodes(s == kCentrePass ? 0 : s);
       if (split && s != kCentrePass) {
-        split_pass(set, s, off, pixel_off, parts);
+        split_pass(set, s, off, pixel_off, parts, kept_query);
         continue;
       }
       g.UseProgram(ins.program);
@@ -297,6 +313,7 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
     g.GetNamedBufferSubData(node_buffers_[0], 0, 4, &n);  // waits for the passes
     times_s_.passes += seconds_since(t);
     made = n;
+    depth_dirty_ = std::min<uint64_t>(made, node_capacity_);
     if (made <= node_capacity_) break;
     if (made > max_nodes_)
       fail("draw " + std::to_string(d.index) + " (" + d.name + "): it makes " + std::to_string(made) +
@@ -335,24 +352,30 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
   times_s_.read_back += seconds_since(t);
   std::vector<DrawPart> shape;
   for (const DrawCallPart& p : parts) shape.push_back({p.prims_per_instance});
-  EncodedDraw draw;  // a draw's own: no earlier draw's fragments move
+  EncodedDraw draw;
   const bool clamp = target_.encoding != TargetEncoding::kFloat;
-  // The records' layout (the trace's header, less what the frame's end knows).
-  TraceHeader layout;
-  layout.width = uint32_t(target_.width);
-  layout.height = uint32_t(target_.height);
-  layout.spp = spp_;
-  layout.depth_mode = DepthMode::kPerSample;
-  layout.color_format = ColorFormat::kRgbF32;
+  const TraceHeader layout = trace_layout();
+  // The records go into the trace as they are encoded (framed, checksummed
+  // and compressed by zstd's threads while the next run is encoded); a list
+  // only counts them.
+  TraceWriter* trace_writer = list_only_ ? nullptr : &trace();
+  const RecordSink sink = [&](const uint8_t* records, size_t bytes, size_t count) {
+    if (!trace_writer) return std::string();
+    try {
+      trace_writer->write_records(records, bytes, count);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
   t = std::chrono::steady_clock::now();
-  const std::string err = made ? build_records(nodes, d.trace_id, shape, clamp, layout, draw) : "";
+  const std::string err = made ? build_records(nodes, d.trace_id, shape, clamp, layout, scratch_, sink, draw) : "";
   if (made)
     for (int b = 1; b <= 4; ++b) g.UnmapNamedBuffer(node_buffers_[size_t(b)]);
   if (!err.empty()) fail(err);
   times_s_.build += seconds_since(t);
   d.fragments = draw.count;
   d.covered_samples = draw.covered_samples;
-  if (!list_only_) records_.push_back(std::move(draw));  // else counted, no trace to write
   d.counted = count;
   d.samples_passed = passed;
 }
