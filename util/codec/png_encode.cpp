@@ -4,7 +4,9 @@
 #include <zlib.h>
 
 #include <csetjmp>
+#include <cstdio>
 #include <cstring>
+#include <new>
 #include <string>
 
 namespace ropsim {
@@ -19,12 +21,13 @@ struct Sink {
 
 void on_write(png_structp png, png_bytep data, size_t n) {
   auto* s = static_cast<Sink*>(png_get_io_ptr(png));
+  bool full = false;
   try {
     s->out->insert(s->out->end(), data, data + n);
-  } catch (...) {
-    std::snprintf(s->error, sizeof s->error, "out of memory");
-    png_error(png, "out of memory");
+  } catch (const std::bad_alloc&) {
+    full = true;
   }
+  if (full) png_error(png, "out of memory");  // longjmps: never from inside the handler
 }
 
 void on_flush(png_structp) {}
