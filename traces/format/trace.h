@@ -256,6 +256,8 @@ class TraceWriter {
 
  private:
   void flush_block();
+  /// Flushes the last block, writes the end record and closes the record stream.
+  void end_records();
   /// Appends encoded records (whole ones, `n` bytes) to the payload.
   void append_records(const uint8_t* b, size_t n);
 

@@ -3,6 +3,7 @@
 #include <xxhash.h>
 #include <zstd.h>
 
+#include <array>
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
@@ -51,6 +52,13 @@ std::vector<uint8_t> encode_head(const TraceHeader& header) {
   return head;
 }
 
+/// The header check: XXH3-64 of the header's bytes, little-endian.
+std::array<uint8_t, kHeaderCheckBytes> header_check(const std::vector<uint8_t>& head) {
+  std::array<uint8_t, kHeaderCheckBytes> c;
+  put_u64(c.data(), XXH3_64bits(head.data(), head.size()));
+  return c;
+}
+
 /// Whether two headers frame and encode records alike.
 bool same_layout(const TraceHeader& a, const TraceHeader& b) {
   return a.width == b.width && a.height == b.height && a.spp == b.spp && a.depth_mode == b.depth_mode &&
@@ -69,11 +77,7 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int
   // A failure here destroys out_, which removes the temporary file.
   const std::unique_ptr<ByteSink> raw = open_record_sink(f, path, Compression::kNone);
   raw->write(head_.data(), head_.size());
-  if (header_.checksummed) {
-    uint8_t c[kHeaderCheckBytes];
-    put_u64(c, XXH3_64bits(head_.data(), head_.size()));
-    raw->write(c, sizeof c);
-  }
+  if (header_.checksummed) raw->write(header_check(head_).data(), kHeaderCheckBytes);
   sink_ = open_record_sink(f, path, header_.compression, zstd_level, zstd_workers);
   if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
 }
@@ -209,14 +213,7 @@ void TraceWriter::flush_block() {
   ++blocks_;
 }
 
-void TraceWriter::finish(const TraceHeader& header) {
-  if (finished_) return;
-  if (!payload_) throw TraceError(path_ + ": finish(header) of a writer whose header is written");
-  if (!same_layout(header, header_))
-    throw TraceError(path_ + ": the header's layout is not the one the records were written for");
-  std::string err = validate_header(header);
-  if (!err.empty()) throw TraceError(path_ + ": header: " + err);
-  header_ = header;
+void TraceWriter::end_records() {
   flush_block();
   uint8_t b[9];
   b[0] = kTagEnd;
@@ -225,6 +222,17 @@ void TraceWriter::finish(const TraceHeader& header) {
   raw_bytes_ += 9;
   sink_->close();
   sink_.reset();
+}
+
+void TraceWriter::finish(const TraceHeader& header) {
+  if (finished_) return;
+  if (!payload_) throw TraceError(path_ + ": finish(header) of a writer whose header is written");
+  if (!same_layout(header, header_))
+    throw TraceError(path_ + ": the header's layout is not the one the records were written for");
+  std::string err = validate_header(header);
+  if (!err.empty()) throw TraceError(path_ + ": header: " + err);
+  header_ = header;
+  end_records();
   if (std::fflush(payload_) != 0) throw TraceError(path_ + ": no memory for the records");
   // The header with the fragment count (as finish() patches it in), its check, the payload.
   head_ = encode_head(header_);
@@ -232,11 +240,7 @@ void TraceWriter::finish(const TraceHeader& header) {
   out_ = std::make_unique<OutputFile>(path_);
   const std::unique_ptr<ByteSink> raw = open_record_sink(out_->stream(), path_, Compression::kNone);
   raw->write(head_.data(), head_.size());
-  if (header_.checksummed) {
-    uint8_t c[kHeaderCheckBytes];
-    put_u64(c, XXH3_64bits(head_.data(), head_.size()));
-    raw->write(c, sizeof c);
-  }
+  if (header_.checksummed) raw->write(header_check(head_).data(), kHeaderCheckBytes);
   raw->write(payload_bytes_, payload_size_);
   raw->close();
   out_->commit();
@@ -246,25 +250,15 @@ void TraceWriter::finish(const TraceHeader& header) {
 void TraceWriter::finish() {
   if (finished_) return;
   if (payload_) throw TraceError(path_ + ": a header-last writer ends with finish(header)");
-  flush_block();
-  uint8_t b[9];
-  b[0] = kTagEnd;
-  put_u64(b + 1, count_);
-  sink_->write(b, 9);
-  raw_bytes_ += 9;
-  sink_->close();
-  sink_.reset();
+  end_records();
   // The fragment count in the header's reserved bytes (count + 1; 0 =
   // not recorded), so a reader knows it without reading the payload. An
   // output that cannot seek (a FIFO, a device, stdout) keeps 0.
   // The header check covers the count: it is patched with it.
   if (count_ + 1 < (uint64_t{1} << 48)) {
     put_u48(head_.data() + kHeaderCountOffset, count_ + 1);
-    if (out_->patch(kHeaderCountOffset, head_.data() + kHeaderCountOffset, 6) && header_.checksummed) {
-      uint8_t c[kHeaderCheckBytes];
-      put_u64(c, XXH3_64bits(head_.data(), head_.size()));
-      out_->patch(head_.size(), c, sizeof c);
-    }
+    if (out_->patch(kHeaderCountOffset, head_.data() + kHeaderCountOffset, 6) && header_.checksummed)
+      out_->patch(head_.size(), header_check(head_).data(), kHeaderCheckBytes);
   }
   out_->commit();  // flush, fsync, close, rename: UserError on any failure
   finished_ = true;
