@@ -6,7 +6,12 @@
 # spp (ropsim_bench_cycle, default config), the golden model's on the same
 # trace file as a user runs it (`ropsim run --threads 1`, its own process, so
 # that no other model's heap is left behind in it) and the golden model alone
-# on in-memory fragments (ropsim_bench, BM_Golden).
+# on in-memory fragments (ropsim_bench, BM_Golden); and the cycle model on the
+# captured motor (traces/scenes/mesh/motor.toml: 1920 x 1080, 16 spp, each
+# side's trace captured by its own build from its own scene file, the meshes
+# from ROPSIM_MESH_DIR or ../shared/data/meshes; its `ropsim run --fidelity
+# cycle` report's host.simulated_fragments_per_second, sc_start alone).
+# ROPSIM_AB_MOTOR=0 leaves the motor out (it takes some 20 s a round).
 # Prints min / median / max of each figure per side and the median ratio.
 # With HEAD_REV, the head side is that revision, built the same way, instead
 # of this checkout (to measure one past change alone).
@@ -44,6 +49,19 @@ else
 fi
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
+motor="${ROPSIM_AB_MOTOR:-1}"
+meshes="${ROPSIM_MESH_DIR:-$root/../shared/data/meshes}"
+if [ "$motor" = 1 ]; then
+  # Each side's motor trace, from its own sources (the trace format may differ).
+  base_src="$(dirname "$base_dir")/src"
+  head_src="$root"
+  [ -n "$head_rev" ] && head_src="$(dirname "$head_dir")/src"
+  for side in base head; do
+    dir="$head_dir" src="$head_src"
+    [ "$side" = base ] && dir="$base_dir" src="$base_src"
+    (cd "$src" && "$dir/ropsim" capture traces/scenes/mesh/motor.toml --mesh-dir "$meshes" -o "$out/motor-$side.rtr" >/dev/null)
+  done
+fi
 for ((i = 0; i < rounds; ++i)); do
   for side in base head; do
     dir="$head_dir"
@@ -53,6 +71,9 @@ for ((i = 0; i < rounds; ++i)); do
     "$dir/ropsim" run --trace /tmp/ropsim-bench-cloth16.rtr --threads 1 --quiet --report "$out/$side-run-$i.json"
     "$dir/ropsim_bench" --benchmark_filter='Golden/(lk|opaque)/(16|64)' --benchmark_format=json \
       >"$out/$side-golden-$i.json" 2>/dev/null
+    if [ "$motor" = 1 ]; then
+      "$dir/ropsim" run --fidelity cycle --trace "$out/motor-$side.rtr" --quiet --report "$out/$side-motor-$i.json"
+    fi
   done
 done
 /usr/bin/python3 - "$out" "$rounds" "$base_sha" "$head_sha" <<'PY'
@@ -61,8 +82,15 @@ out, rounds, base, head = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4
 def figures(side):
     f = {}
     for i in range(rounds):
-        for kind in ("cycle", "run", "golden"):
-            doc = json.load(open(os.path.join(out, f"{side}-{kind}-{i}.json")))
+        for kind in ("cycle", "motor", "run", "golden"):
+            path = os.path.join(out, f"{side}-{kind}-{i}.json")
+            if kind == "motor" and not os.path.exists(path):
+                continue
+            doc = json.load(open(path))
+            if kind == "motor":
+                f.setdefault("cycle model, motor 1920x1080 16 spp [M frag/s]", []).append(
+                    doc["host"]["simulated_fragments_per_second"] / 1e6)
+                continue
             if kind == "run":
                 f.setdefault("golden model from the trace file [M frag/s]", []).append(
                     doc["host"]["fragments_per_second"] / 1e6)

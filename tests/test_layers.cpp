@@ -32,7 +32,9 @@ struct Layer {
 constexpr Layer kLayers[] = {
     {"util", 0, "base: output files, errors, progress, child processes"},
     {"util/containers", 0, "base: generic containers"},
-    {"util/codec", 0, "base: image decoding and encoding (OpenImageIO, loaded on first use)"},
+    {"util/codec", 0,
+     "base: image decoding and encoding (OpenImageIO as a module loaded on first use; PNG written by libpng in the "
+     "process)"},
     {"rtl_models/algo", 0, "base: the bit-level rules every fidelity calls"},
     {"rtl_models/cost", 0, "base: silicon cost of the reference RTL (synthesis sweep, models)"},
     {"traces/format", 10, "input: the trace format"},
