@@ -5,10 +5,15 @@
 #include <xxhash.h>
 #include <zstd.h>
 
+#include <array>
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <exception>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 #include "rtl_models/algo/bits.h"
@@ -86,33 +91,19 @@ class FileSource : public ByteSource {
   FILE* f_;
 };
 
-class ZstdSource : public ByteSource {
+/// The zstd frame's decoder: fread and ZSTD_decompressStream, kIoChunk at
+/// a time. decode() fills out with the next bytes and returns their count,
+/// 0 at the end of the data; a broken frame throws SourceError.
+class ZstdDecoder {
  public:
-  explicit ZstdSource(FILE* f) : f_(f), in_(kIoChunk), out_(kIoChunk) {
+  explicit ZstdDecoder(FILE* f) : f_(f), in_(kIoChunk) {
     ds_ = ZSTD_createDStream();
     ZSTD_initDStream(ds_);
   }
-  ~ZstdSource() override { ZSTD_freeDStream(ds_); }
-  size_t read(void* dst, size_t n) override {
-    uint8_t* d = static_cast<uint8_t*>(dst);
-    size_t done = 0;
-    while (done < n) {
-      if (out_pos_ < out_len_) {
-        size_t k = std::min(n - done, out_len_ - out_pos_);
-        std::memcpy(d + done, out_.data() + out_pos_, k);
-        out_pos_ += k;
-        done += k;
-        continue;
-      }
-      if (!refill()) break;
-    }
-    consumed += done;
-    return done;
-  }
-  bool complete() const override { return frame_done_; }
-
- private:
-  bool refill() {
+  ~ZstdDecoder() { ZSTD_freeDStream(ds_); }
+  ZstdDecoder(const ZstdDecoder&) = delete;
+  ZstdDecoder& operator=(const ZstdDecoder&) = delete;
+  size_t decode(uint8_t* out, size_t cap) {
     for (;;) {
       if (in_pos_ == in_len_ && !eof_) {
         in_len_ = std::fread(in_.data(), 1, in_.size(), f_);
@@ -122,28 +113,143 @@ class ZstdSource : public ByteSource {
       if (frame_done_) {
         // The payload is exactly one zstd frame: bytes after it are not trace data.
         if (in_pos_ < in_len_) throw SourceError("data after the end of the compressed frame");
-        return false;
+        return 0;
       }
       // At the end of the file the decoder may still hold decoded data: call it
       // with empty input until it has nothing more to give.
       ZSTD_inBuffer ib{in_.data(), in_len_, in_pos_};
-      ZSTD_outBuffer ob{out_.data(), out_.size(), 0};
+      ZSTD_outBuffer ob{out, cap, 0};
       size_t r = ZSTD_decompressStream(ds_, &ob, &ib);
       in_pos_ = ib.pos;
       if (ZSTD_isError(r)) throw SourceError(std::string("corrupt compressed data: ") + ZSTD_getErrorName(r));
       frame_done_ = r == 0;  // 0: the frame is complete (checksum verified) and fully flushed
-      out_len_ = ob.pos;
-      out_pos_ = 0;
-      if (out_len_ > 0) return true;
-      if (eof_ && in_pos_ == in_len_) return false;  // truncated frame: complete() stays false
+      if (ob.pos > 0) return ob.pos;
+      if (eof_ && in_pos_ == in_len_) return 0;  // truncated frame: frame_done() stays false
     }
   }
+  bool frame_done() const { return frame_done_; }
+
+ private:
   FILE* f_;
   ZSTD_DStream* ds_;
-  std::vector<uint8_t> in_, out_;
-  size_t in_pos_ = 0, in_len_ = 0, out_pos_ = 0, out_len_ = 0;
+  std::vector<uint8_t> in_;
+  size_t in_pos_ = 0, in_len_ = 0;
   bool eof_ = false;
   bool frame_done_ = false;
+};
+
+/// A zstd payload decoded on a thread of its own, kRing chunks ahead of the
+/// reader: the trace's decompression runs beside the model that reads it
+/// (a one-core model such as the cycle model gains the decoder's time). The
+/// bytes, their order and every error are those of decoding in the reader's
+/// thread: an error reaches the reader after every byte decoded before it.
+/// The decoder thread touches only its FILE and its chunks; it ends with the
+/// source (the destructor stops and joins it).
+class ZstdSource : public ByteSource {
+ public:
+  explicit ZstdSource(FILE* f) : dec_(f) {
+    for (Chunk& c : ring_) c.bytes.resize(kIoChunk);
+    thread_ = std::thread([this] { decode_ahead(); });
+  }
+  ~ZstdSource() override {
+    {
+      std::lock_guard<std::mutex> l(m_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  size_t read(void* dst, size_t n) override {
+    uint8_t* d = static_cast<uint8_t*>(dst);
+    size_t done = 0;
+    while (done < n) {
+      if (at_ < len_) {
+        const size_t k = std::min(n - done, len_ - at_);
+        std::memcpy(d + done, ring_[head_].bytes.data() + at_, k);
+        at_ += k;
+        done += k;
+        continue;
+      }
+      if (!next_chunk()) break;
+    }
+    consumed += done;
+    return done;
+  }
+  bool complete() const override {
+    std::lock_guard<std::mutex> l(m_);
+    return ended_ && frame_done_;
+  }
+
+ private:
+  static constexpr size_t kRing = 4;
+  struct Chunk {
+    std::vector<uint8_t> bytes;
+    size_t len = 0;
+  };
+  /// The reader is done with its chunk: the next one decoded, or false at the
+  /// end of the data (an error is thrown here, where decoding in the
+  /// reader's thread would have met it).
+  bool next_chunk() {
+    std::unique_lock<std::mutex> l(m_);
+    if (holding_) {  // hand the finished chunk back
+      holding_ = false;
+      head_ = (head_ + 1) % kRing;
+      --ready_;
+      cv_.notify_all();
+    }
+    cv_.wait(l, [this] { return ready_ > 0 || ended_; });
+    if (ready_ == 0) {
+      if (error_) std::rethrow_exception(error_);
+      return false;
+    }
+    holding_ = true;
+    at_ = 0;
+    len_ = ring_[head_].len;
+    return true;
+  }
+  void decode_ahead() {
+    size_t tail = 0;
+    for (;;) {
+      {
+        std::unique_lock<std::mutex> l(m_);
+        cv_.wait(l, [this] { return ready_ < kRing || stop_; });
+        if (stop_) return;
+      }
+      // The chunk at tail is the decoder's until it is counted ready.
+      Chunk& c = ring_[tail];
+      std::exception_ptr error;
+      size_t got = 0;
+      try {
+        got = dec_.decode(c.bytes.data(), c.bytes.size());
+      } catch (...) {
+        error = std::current_exception();
+      }
+      std::lock_guard<std::mutex> l(m_);
+      if (got > 0) {
+        c.len = got;
+        ++ready_;
+        tail = (tail + 1) % kRing;
+      } else {
+        error_ = error;
+        frame_done_ = dec_.frame_done();
+        ended_ = true;
+      }
+      cv_.notify_all();
+      if (ended_) return;
+    }
+  }
+  ZstdDecoder dec_;
+  std::array<Chunk, kRing> ring_;
+  // The reader's side: its chunk (ring_[head_] while holding_) and its place in it.
+  size_t head_ = 0, at_ = 0, len_ = 0;
+  bool holding_ = false;
+  // Shared, under m_: chunks decoded and not yet handed back, the end.
+  mutable std::mutex m_;
+  std::condition_variable cv_;
+  size_t ready_ = 0;
+  bool ended_ = false, frame_done_ = false, stop_ = false;
+  std::exception_ptr error_;
+  std::thread thread_;
 };
 
 class FileSink : public ByteSink {
