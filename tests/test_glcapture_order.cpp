@@ -36,7 +36,7 @@ struct Nodes {
       const float d = z + 0.01f * float(s);
       uint32_t u;
       std::memcpy(&u, &d, 4);
-      depth[size_t(s)].push_back((coverage >> s) & 1 ? u : kNoDepth);
+      depth[size_t(s)].push_back((coverage >> s) & 1 ? depth_word(u) : kNoDepth);
     }
   }
   size_t size() const { return keys.size() / 4; }
@@ -118,7 +118,9 @@ TEST(GlCaptureOrder, NodesFlipRowsAndRefusePixelsOutsideAndDepthsOutsideZeroOne)
   EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("outside the 16x10 target"), std::string::npos);
   n.state[4] = 6u | (9u << 16);
   const float far = 1.5f;
-  std::memcpy(&n.depth[0][1], &far, 4);
+  uint32_t far_bits;
+  std::memcpy(&far_bits, &far, 4);
+  n.depth[0][1] = depth_word(far_bits);
   EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("not in [0, 1]"), std::string::npos);
 }
 

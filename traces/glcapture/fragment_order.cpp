@@ -216,7 +216,7 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
       f.z_first = z_base + z_at[j];
       float* z = out.z.data() + f.z_first;
       for (uint64_t m = f.coverage; m; m &= m - 1) {
-        const float d = word_float(nodes.depth[size_t(__builtin_ctzll(m))][i]);
+        const float d = word_float(depth_bits(nodes.depth[size_t(__builtin_ctzll(m))][i]));
         if (!(d >= 0.0f && d <= 1.0f) && errors[t].empty())
           errors[t] =
               "draw " + std::to_string(draw_id) + ": a fragment's depth " + std::to_string(d) + " is not in [0, 1]";
@@ -289,7 +289,7 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
         f.coverage = node_coverage[i];
         for (uint64_t m = f.coverage; m; m &= m - 1) {
           const int s = __builtin_ctzll(m);
-          f.z[size_t(s)] = word_float(nodes.depth[size_t(s)][i]);
+          f.z[size_t(s)] = word_float(depth_bits(nodes.depth[size_t(s)][i]));
         }
         const float* c = nodes.colour + 4 * i;
         for (size_t k = 0; k < 3; ++k) f.rgb[k] = clamp ? clamp_unit(c[k]) : clamp_non_negative(c[k]);

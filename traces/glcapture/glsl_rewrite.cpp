@@ -399,13 +399,13 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    bool made;\n"
        "    ropsim_n = ropsim_node(x | (y << 16), y * ropsim_width + x, made);\n"
        "    if (ropsim_n != 0xFFFFFFFFu && ropsim_pass == 2) {\n"
-       // The sample's depth (a depth word that is not kNoDepth is the
-       // sample's coverage); the fragment is shaded here when this pass made
+       // The sample's depth word (its bits inverted: a word that is not
+       // kNoDepth is the sample's coverage); the fragment is shaded here when this pass made
        // its node: its primitive misses the pixel centre and this is its
        // lowest covered sample (the passes run in sample order after the
        // centre's).
        "      ropsim_shade = made;\n"
-       "      ropsim_depth[ropsim_n] = floatBitsToUint(gl_FragCoord.z);\n"
+       "      ropsim_depth[ropsim_n] = ~floatBitsToUint(gl_FragCoord.z);\n"
        "    }\n"
        "  }\n"
        "  if (ropsim_gate && !ropsim_shade) discard;\n" +
@@ -461,7 +461,7 @@ Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit) {
               "      n = k.w;\n"
               "    }\n"
               "    if (n != 0xFFFFFFFFu) {\n"
-              "      ropsim_depth[n] = floatBitsToUint(gl_FragCoord.z);\n"
+              "      ropsim_depth[n] = ~floatBitsToUint(gl_FragCoord.z);\n"
               "      found = true;\n"
               "    }\n"
               "  }\n"
