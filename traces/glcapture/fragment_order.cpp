@@ -233,19 +233,27 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
 
 std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
                           const TraceHeader& header, BuildScratch& scratch, const RecordSink& sink, EncodedDraw& out) {
+  // Runs of kRun fragments, each encoded into the sort's other half (free
+  // once the keys are sorted: one array of fresh memory fewer), which both
+  // of the sort's arrays are made large enough for (the sort swaps them).
+  constexpr size_t kRun = size_t(1) << 18;
+  const size_t run_keys =
+      (kRun * fragment_record_bytes(header, std::min(64, std::max(1, int(header.spp)))) + sizeof(OrderKey) - 1) /
+      sizeof(OrderKey);
+  scratch.order.ensure(run_keys);
+  scratch.sorted.ensure(run_keys);
   ApiOrder api;
   if (std::string e = order_fragments(nodes, draw_id, parts, header.width, header.height, scratch, api); !e.empty())
     return e;
+  uint8_t* const records = reinterpret_cast<uint8_t*>(scratch.sorted.data());
   const size_t nthreads = api.nthreads;
   const OrderKey* order = scratch.order.data();
   const uint64_t* node_coverage = scratch.coverage.data();
   out.count = api.count;
   out.covered_samples = 0;
   out.size = 0;
-  // Runs of kRun fragments, each encoded by the threads (a range of the run
-  // each, at the place the records' sizes before it give) and then given to
-  // the sink.
-  constexpr size_t kRun = size_t(1) << 18;
+  // Each run encoded by the threads (a range of the run each, at the place
+  // the records' sizes before it give) and then given to the sink.
   constexpr size_t kAhead = 8;  // fragments the encoding fetches ahead
   std::vector<size_t> at(nthreads + 1, 0), covered(nthreads, 0);
   std::vector<std::string> errors(nthreads);
@@ -266,10 +274,9 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
       at[t + 1] += at[t];
       out.covered_samples += covered[t];
     }
-    scratch.records.ensure(at[nthreads]);
     in_parallel(nthreads, [&](size_t t) {
       auto [lo, hi] = slice(run_end - run, t, nthreads);
-      uint8_t* b = scratch.records.data() + at[t];
+      uint8_t* b = records + at[t];
       Fragment f;
       for (size_t j = run + lo; j < run + hi; ++j) {
         // The nodes are read in API order, not in memory order: a later
@@ -306,7 +313,7 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
     });
     for (const std::string& e : errors)
       if (!e.empty()) return e;
-    if (std::string e = sink(scratch.records.data(), at[nthreads], run_end - run); !e.empty()) return e;
+    if (std::string e = sink(records, at[nthreads], run_end - run); !e.empty()) return e;
     out.size += at[nthreads];
   }
   return "";
