@@ -77,7 +77,7 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   const size_t nthreads =
       n < (size_t(1) << 18) ? 1 : std::max<size_t>(1, std::min(8u, std::thread::hardware_concurrency()));
   api.nthreads = nthreads;
-  auto kept = [&](size_t i) { return (nodes.state[4 * i + 3] & kNodeKept) != 0; };
+  auto kept = [&](size_t i) { return (nodes.state[i] & kNodeKept) != 0; };
 
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the kept nodes show more) and its instances.
@@ -138,7 +138,7 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     const auto [lo, hi] = slice(n, t, nthreads);
     size_t c = 0;
     for (size_t i = lo; i < hi; ++i) {
-      node_coverage[i] = (nodes.state[4 * i + 3] & kNodeKept) ? coverage(i) : 0;
+      node_coverage[i] = (nodes.state[i] & kNodeKept) ? coverage(i) : 0;
       c += fragment_node(i) ? 1 : 0;
     }
     at[t + 1] = c;
@@ -152,8 +152,8 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     OrderKey* m = scratch.order.data() + at[t];
     for (size_t i = lo; i < hi; ++i) {
       if (!fragment_node(i)) continue;
-      const uint32_t* st = nodes.state + 4 * i;
-      const uint32_t x = st[0] & 0xFFFF, gy = st[0] >> 16;
+      const uint32_t pixel = nodes.state[i] & kNodePixel;
+      const uint32_t x = pixel & 0xFFFF, gy = pixel >> 16;
       if (x >= width || gy >= height) {
         errors[t] = "draw " + std::to_string(draw_id) + ": a fragment at (" + std::to_string(x) + ", " +
                     std::to_string(gy) + ") is outside the " + std::to_string(width) + "x" + std::to_string(height) +

@@ -34,8 +34,8 @@ bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp);
 
 /// A draw's fragment nodes as its passes left them (glsl_rewrite.h), read in
 /// place: node i's key words keys[4i ..] (gl_PrimitiveID, instance, part,
-/// next), state words state[4i ..] (pixel x | y << 16 in GL window
-/// coordinates, two unused words, flags), colour colour[4i ..], and sample
+/// next), state word state[i] (pixel x | y << 16 in GL window
+/// coordinates and the flags, glsl_rewrite.h), colour colour[4i ..], and sample
 /// s's depth word depth[s][i] for s < spp (depth_word() of the float's bits; kNoDepth where the
 /// fragment does not cover sample s: the node's coverage).
 struct NodeView {

@@ -211,7 +211,7 @@ std::string node_buffers(int binding) {
          ") coherent buffer RopsimKeys { uvec4 ropsim_key[]; };\n"
          "layout(std430, binding = " +
          at(2) +
-         ") buffer RopsimState { uvec4 ropsim_state[]; };\n"
+         ") buffer RopsimState { uint ropsim_state[]; };\n"
          "layout(std430, binding = " +
          at(3) +
          ") writeonly buffer RopsimColour { vec4 ropsim_colour[]; };\n"
@@ -378,7 +378,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    if (mine == 0xFFFFFFFFu) {\n"
        "      mine = atomicAdd(ropsim_count, 1u);\n"
        "      if (mine >= ropsim_capacity) return 0xFFFFFFFFu;\n"
-       "      ropsim_state[mine] = uvec4(pixel, 0u, 0u, ropsim_pass == 1 ? 1u : 0u);\n"
+       "      ropsim_state[mine] = pixel | (ropsim_pass == 1 ? " +
+       std::to_string(kNodeCentre) +
+       "u : 0u);\n"
        "    }\n"
        "    ropsim_key[mine] = uvec4(key, head);\n"
        "    memoryBarrierBuffer();\n"
@@ -418,7 +420,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        // Kept: the shaded invocation did not discard (flag 2).
        "  if (ropsim_n != 0xFFFFFFFFu && ropsim_shade) {\n"
        "    ropsim_colour[ropsim_n] = ropsim_color;\n"
-       "    ropsim_state[ropsim_n].w |= 2u;\n"
+       "    ropsim_state[ropsim_n] |= " +
+       std::to_string(kNodeKept) +
+       "u;\n"
        "  }\n"
        "}\n";
   return {s, ""};

@@ -162,6 +162,8 @@ class Session final : public CaptureSession {
   /// A new store of `bytes` for node buffer b (pinned where the driver
   /// takes it). Returns whether it reads as zero (fresh pinned pages).
   bool node_store(int b, uint64_t bytes);
+  /// A node's bytes in node buffer b (1..3): keys and colour 16, state 4.
+  static uint64_t node_bytes(int b) { return b == 2 ? 4 : 16; }
   GLint binding_ = 0;
   uint64_t node_capacity_ = 0, max_nodes_ = 0, depth_capacity_ = 0;
   /// Lists a pixel: a fragment's is (its primitive + instance + part) mod lists_ (glsl_rewrite.h).

@@ -56,7 +56,7 @@ void Session::use_target(const FramebufferInfo& fb) {
     fail("the " + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
          " capture framebuffer (no attachments) is not complete");
   // The node buffers: a list head a pixel (one storage block), and nodes
-  // (16 bytes each in the keys, state and colour blocks) for as many
+  // (16 bytes each in the keys and colour blocks, 4 in the state's) for as many
   // fragments as the target has pixels, grown when a draw makes more.
   GLint max_block = 0;
   g.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
@@ -135,17 +135,17 @@ void Session::reserve_nodes(uint64_t nodes) {
   // A multiple of 64 nodes: each sample's depth range starts aligned.
   const GlFunctions& g = real_gl();
   node_capacity_ = std::min<uint64_t>(max_nodes_, (nodes + 63) / 64 * 64);
-  for (int b = 1; b <= 3; ++b) node_store(b, node_capacity_ * 16);
+  for (int b = 1; b <= 3; ++b) node_store(b, node_capacity_ * node_bytes(b));
   g.TextureBuffer(fetch_textures_[1], GL_RGBA32UI, node_buffers_[1]);  // the keys' new store
   depth_capacity_ = 0;                                                 // sized by the draw's spp at its first pass
 }
 
 void Session::bind_nodes(int sample) {
   const GlFunctions& g = real_gl();
-  const GLsizeiptr nodes = GLsizeiptr(node_capacity_ * 16);
   g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0, GLsizeiptr(heads_bytes()));
   for (int b = 1; b <= 3; ++b)
-    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0, nodes);
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0,
+                      GLsizeiptr(node_capacity_ * node_bytes(b)));
   if (depth_capacity_ >= uint64_t(sample + 1) * node_capacity_)
     g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + 4), node_buffers_[4],
                       GLintptr(uint64_t(sample) * node_capacity_ * 4), GLsizeiptr(node_capacity_ * 4));
@@ -366,7 +366,8 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
   std::array<const void*, kCaptureBindings> mapped{};
   if (made) {
     for (int b = 1; b <= 3; ++b)
-      mapped[size_t(b)] = g.MapNamedBufferRange(node_buffers_[size_t(b)], 0, GLsizeiptr(made * 16), GL_MAP_READ_BIT);
+      mapped[size_t(b)] =
+          g.MapNamedBufferRange(node_buffers_[size_t(b)], 0, GLsizeiptr(made * node_bytes(b)), GL_MAP_READ_BIT);
     mapped[4] =
         g.MapNamedBufferRange(node_buffers_[4], 0, GLsizeiptr(uint64_t(spp_) * node_capacity_ * 4), GL_MAP_READ_BIT);
     for (int b = 1; b <= 4; ++b)
