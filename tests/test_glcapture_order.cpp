@@ -30,13 +30,13 @@ struct Nodes {
   void add(uint32_t part, uint32_t instance, uint32_t prim, uint16_t x, uint16_t gy, uint64_t coverage, float z,
            float red = 0.5f, uint32_t flags = kNodeKept) {
     keys.insert(keys.end(), {prim, instance, part, kNoNode});
-    state.insert(state.end(), {uint32_t(x) | uint32_t(gy) << 16, 0u, 0u, flags});
+    state.push_back(uint32_t(x) | uint32_t(gy) << 16 | flags);
     colour.insert(colour.end(), {red, 0.25f, 0.125f, 0.5f});
     for (int s = 0; s < 64; ++s) {
       const float d = z + 0.01f * float(s);
       uint32_t u;
       std::memcpy(&u, &d, 4);
-      depth[size_t(s)].push_back((coverage >> s) & 1 ? u : kNoDepth);
+      depth[size_t(s)].push_back((coverage >> s) & 1 ? depth_word(u) : kNoDepth);
     }
   }
   size_t size() const { return keys.size() / 4; }
@@ -48,7 +48,7 @@ struct Nodes {
     Nodes o;
     for (size_t i : order) {
       o.keys.insert(o.keys.end(), keys.begin() + std::ptrdiff_t(4 * i), keys.begin() + std::ptrdiff_t(4 * i + 4));
-      o.state.insert(o.state.end(), state.begin() + std::ptrdiff_t(4 * i), state.begin() + std::ptrdiff_t(4 * i + 4));
+      o.state.push_back(state[i]);
       o.colour.insert(o.colour.end(), colour.begin() + std::ptrdiff_t(4 * i),
                       colour.begin() + std::ptrdiff_t(4 * i + 4));
       for (int s = 0; s < 64; ++s) o.depth[size_t(s)].push_back(depth[size_t(s)][i]);
@@ -114,11 +114,13 @@ TEST(GlCaptureOrder, NodesFlipRowsAndRefusePixelsOutsideAndDepthsOutsideZeroOne)
   EXPECT_EQ(out.fragments[1].y, 9);
   EXPECT_EQ(out.fragments[1].draw_id, 3u);
   EXPECT_EQ(depths(out, 1), std::vector<float>{0.25f});
-  n.state[4] = 6u | (10u << 16);  // row 10 of a 10-row target
+  n.state[1] = 6u | (10u << 16) | kNodeKept;  // row 10 of a 10-row target
   EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("outside the 16x10 target"), std::string::npos);
-  n.state[4] = 6u | (9u << 16);
+  n.state[1] = 6u | (9u << 16) | kNodeKept;
   const float far = 1.5f;
-  std::memcpy(&n.depth[0][1], &far, 4);
+  uint32_t far_bits;
+  std::memcpy(&far_bits, &far, 4);
+  n.depth[0][1] = depth_word(far_bits);
   EXPECT_NE(build_fragments(n.view(), 0, {{0}}, true, 16, 10, out).find("not in [0, 1]"), std::string::npos);
 }
 

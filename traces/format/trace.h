@@ -271,10 +271,10 @@ class TraceWriter {
   std::vector<uint8_t> block_;  ///< the block being gathered (checksummed traces)
   std::vector<uint8_t> head_;   ///< the header's bytes, its check excluded (patched by finish())
   bool finished_ = false;
-  /// Header last: the payload's memory stream and its bytes.
+  /// Header last: the payload's stream and the memory it gathers in.
+  struct Payload;
+  std::unique_ptr<Payload> payload_bytes_;
   FILE* payload_ = nullptr;
-  char* payload_bytes_ = nullptr;
-  size_t payload_size_ = 0;
 };
 
 /// One fragment as a JSON object on one line (for `ropsim trace dump`).

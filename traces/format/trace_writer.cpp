@@ -1,8 +1,10 @@
 // Writing a trace file, versions 1 and 2 (docs/trace-format.md).
 #include <sys/stat.h>
+#include <sys/types.h>
 #include <xxhash.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cinttypes>
@@ -67,6 +69,38 @@ bool same_layout(const TraceHeader& a, const TraceHeader& b) {
 
 }  // namespace
 
+/// A header-last writer's compressed records, gathered in chunks of memory
+/// as they come: each byte is written once, none is copied when the payload
+/// grows (a memory stream copies and clears its whole buffer each time it
+/// doubles, which for a payload of many MB costs more than compressing it).
+struct TraceWriter::Payload {
+  static constexpr size_t kChunkBytes = size_t(8) << 20;
+  std::vector<std::unique_ptr<uint8_t[]>> chunks;
+  size_t used = 0;  ///< bytes in the last chunk
+  void append(const char* b, size_t n) {
+    while (n > 0) {
+      if (chunks.empty() || used == kChunkBytes) {
+        chunks.emplace_back(new uint8_t[kChunkBytes]);  // not zeroed: only what is written is touched
+        used = 0;
+      }
+      const size_t k = std::min(n, kChunkBytes - used);
+      std::memcpy(chunks.back().get() + used, b, k);
+      used += k;
+      b += k;
+      n -= k;
+    }
+  }
+  static ssize_t write(void* cookie, const char* b, size_t n) {
+    try {
+      static_cast<Payload*>(cookie)->append(b, n);
+    } catch (const std::bad_alloc&) {
+      errno = ENOMEM;
+      return -1;
+    }
+    return ssize_t(n);
+  }
+};
+
 TraceWriter::TraceWriter(const std::string& path, const TraceHeader& header, int zstd_level, int zstd_workers)
     : path_(path), header_(header) {
   std::string err = validate_header(header_);
@@ -87,7 +121,10 @@ TraceWriter::TraceWriter(const std::string& path, const TraceHeader& layout, int
     : path_(path), header_(layout) {
   std::string err = validate_header(header_);
   if (!err.empty()) throw TraceError(path + ": header: " + err);
-  payload_ = open_memstream(&payload_bytes_, &payload_size_);
+  payload_bytes_ = std::make_unique<Payload>();
+  cookie_io_functions_t io{};
+  io.write = &Payload::write;
+  payload_ = fopencookie(payload_bytes_.get(), "w", io);
   if (!payload_) throw TraceError(path + ": no memory for the records");
   sink_ = open_record_sink(payload_, path, header_.compression, zstd_level, zstd_workers);
   if (header_.checksummed) block_.reserve(kChecksumBlockBytes);
@@ -97,7 +134,6 @@ TraceWriter::~TraceWriter() {
   sink_.reset();
   out_.reset();  // discards the temporary file unless finish() committed it
   if (payload_) std::fclose(payload_);
-  std::free(payload_bytes_);
 }
 
 size_t encode_fragment_record(const TraceHeader& h, const Fragment& f, uint8_t* b, std::string& error) {
@@ -241,7 +277,9 @@ void TraceWriter::finish(const TraceHeader& header) {
   const std::unique_ptr<ByteSink> raw = open_record_sink(out_->stream(), path_, Compression::kNone);
   raw->write(head_.data(), head_.size());
   if (header_.checksummed) raw->write(header_check(head_).data(), kHeaderCheckBytes);
-  raw->write(payload_bytes_, payload_size_);
+  for (size_t c = 0; c < payload_bytes_->chunks.size(); ++c)
+    raw->write(payload_bytes_->chunks[c].get(),
+               c + 1 < payload_bytes_->chunks.size() ? Payload::kChunkBytes : payload_bytes_->used);
   raw->close();
   out_->commit();
   finished_ = true;

@@ -77,7 +77,7 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
   const size_t nthreads =
       n < (size_t(1) << 18) ? 1 : std::max<size_t>(1, std::min(8u, std::thread::hardware_concurrency()));
   api.nthreads = nthreads;
-  auto kept = [&](size_t i) { return (nodes.state[4 * i + 3] & kNodeKept) != 0; };
+  auto kept = [&](size_t i) { return (nodes.state[i] & kNodeKept) != 0; };
 
   // Primitive numbering: each part's primitives per instance (the call's
   // count, or more when the kept nodes show more) and its instances.
@@ -138,7 +138,7 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     const auto [lo, hi] = slice(n, t, nthreads);
     size_t c = 0;
     for (size_t i = lo; i < hi; ++i) {
-      node_coverage[i] = (nodes.state[4 * i + 3] & kNodeKept) ? coverage(i) : 0;
+      node_coverage[i] = (nodes.state[i] & kNodeKept) ? coverage(i) : 0;
       c += fragment_node(i) ? 1 : 0;
     }
     at[t + 1] = c;
@@ -152,8 +152,8 @@ std::string order_fragments(const NodeView& nodes, uint32_t draw_id, const std::
     OrderKey* m = scratch.order.data() + at[t];
     for (size_t i = lo; i < hi; ++i) {
       if (!fragment_node(i)) continue;
-      const uint32_t* st = nodes.state + 4 * i;
-      const uint32_t x = st[0] & 0xFFFF, gy = st[0] >> 16;
+      const uint32_t pixel = nodes.state[i] & kNodePixel;
+      const uint32_t x = pixel & 0xFFFF, gy = pixel >> 16;
       if (x >= width || gy >= height) {
         errors[t] = "draw " + std::to_string(draw_id) + ": a fragment at (" + std::to_string(x) + ", " +
                     std::to_string(gy) + ") is outside the " + std::to_string(width) + "x" + std::to_string(height) +
@@ -216,7 +216,7 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
       f.z_first = z_base + z_at[j];
       float* z = out.z.data() + f.z_first;
       for (uint64_t m = f.coverage; m; m &= m - 1) {
-        const float d = word_float(nodes.depth[size_t(__builtin_ctzll(m))][i]);
+        const float d = word_float(depth_bits(nodes.depth[size_t(__builtin_ctzll(m))][i]));
         if (!(d >= 0.0f && d <= 1.0f) && errors[t].empty())
           errors[t] =
               "draw " + std::to_string(draw_id) + ": a fragment's depth " + std::to_string(d) + " is not in [0, 1]";
@@ -233,19 +233,27 @@ std::string build_fragments(const NodeView& nodes, uint32_t draw_id, const std::
 
 std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::vector<DrawPart>& parts, bool clamp,
                           const TraceHeader& header, BuildScratch& scratch, const RecordSink& sink, EncodedDraw& out) {
+  // Runs of kRun fragments, each encoded into the sort's other half (free
+  // once the keys are sorted: one array of fresh memory fewer), which both
+  // of the sort's arrays are made large enough for (the sort swaps them).
+  constexpr size_t kRun = size_t(1) << 18;
+  const size_t run_keys =
+      (kRun * fragment_record_bytes(header, std::min(64, std::max(1, int(header.spp)))) + sizeof(OrderKey) - 1) /
+      sizeof(OrderKey);
+  scratch.order.ensure(run_keys);
+  scratch.sorted.ensure(run_keys);
   ApiOrder api;
   if (std::string e = order_fragments(nodes, draw_id, parts, header.width, header.height, scratch, api); !e.empty())
     return e;
+  uint8_t* const records = reinterpret_cast<uint8_t*>(scratch.sorted.data());
   const size_t nthreads = api.nthreads;
   const OrderKey* order = scratch.order.data();
   const uint64_t* node_coverage = scratch.coverage.data();
   out.count = api.count;
   out.covered_samples = 0;
   out.size = 0;
-  // Runs of kRun fragments, each encoded by the threads (a range of the run
-  // each, at the place the records' sizes before it give) and then given to
-  // the sink.
-  constexpr size_t kRun = size_t(1) << 18;
+  // Each run encoded by the threads (a range of the run each, at the place
+  // the records' sizes before it give) and then given to the sink.
   constexpr size_t kAhead = 8;  // fragments the encoding fetches ahead
   std::vector<size_t> at(nthreads + 1, 0), covered(nthreads, 0);
   std::vector<std::string> errors(nthreads);
@@ -266,10 +274,9 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
       at[t + 1] += at[t];
       out.covered_samples += covered[t];
     }
-    scratch.records.ensure(at[nthreads]);
     in_parallel(nthreads, [&](size_t t) {
       auto [lo, hi] = slice(run_end - run, t, nthreads);
-      uint8_t* b = scratch.records.data() + at[t];
+      uint8_t* b = records + at[t];
       Fragment f;
       for (size_t j = run + lo; j < run + hi; ++j) {
         // The nodes are read in API order, not in memory order: a later
@@ -289,7 +296,7 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
         f.coverage = node_coverage[i];
         for (uint64_t m = f.coverage; m; m &= m - 1) {
           const int s = __builtin_ctzll(m);
-          f.z[size_t(s)] = word_float(nodes.depth[size_t(s)][i]);
+          f.z[size_t(s)] = word_float(depth_bits(nodes.depth[size_t(s)][i]));
         }
         const float* c = nodes.colour + 4 * i;
         for (size_t k = 0; k < 3; ++k) f.rgb[k] = clamp ? clamp_unit(c[k]) : clamp_non_negative(c[k]);
@@ -306,7 +313,7 @@ std::string build_records(const NodeView& nodes, uint32_t draw_id, const std::ve
     });
     for (const std::string& e : errors)
       if (!e.empty()) return e;
-    if (std::string e = sink(scratch.records.data(), at[nthreads], run_end - run); !e.empty()) return e;
+    if (std::string e = sink(records, at[nthreads], run_end - run); !e.empty()) return e;
     out.size += at[nthreads];
   }
   return "";

@@ -34,9 +34,9 @@ bool needs_centre_pass(const std::array<SamplePos, 64>& positions, int spp);
 
 /// A draw's fragment nodes as its passes left them (glsl_rewrite.h), read in
 /// place: node i's key words keys[4i ..] (gl_PrimitiveID, instance, part,
-/// next), state words state[4i ..] (pixel x | y << 16 in GL window
-/// coordinates, two unused words, flags), colour colour[4i ..], and sample
-/// s's depth depth[s][i] for s < spp (float bits; kNoDepth where the
+/// next), state word state[i] (pixel x | y << 16 in GL window
+/// coordinates and the flags, glsl_rewrite.h), colour colour[4i ..], and sample
+/// s's depth word depth[s][i] for s < spp (depth_word() of the float's bits; kNoDepth where the
 /// fragment does not cover sample s: the node's coverage).
 struct NodeView {
   size_t count = 0;
@@ -138,19 +138,21 @@ struct EncodedDraw {
   size_t covered_samples = 0;
 };
 
-/// A fragment's API-order key, (prim_id, row, column), and its node.
+/// A fragment's API-order key, (prim_id, row, column), and its node; 12
+/// bytes (packed): the sort's two arrays of them are the largest scratch.
 struct OrderKey {
   uint64_t order;  ///< prim_id << 32 | row << 16 | column
   uint32_t node;
-};
+} __attribute__((packed));
 
 /// The memory build_records() works in, kept from draw to draw: a capture's
 /// draws make millions of fragments each, and fresh pages' faults cost
 /// more than the work done on them.
 struct BuildScratch {
-  LargeArray<OrderKey> order, sorted;  ///< the fragments' keys, and the radix sort's other half
-  LargeArray<uint64_t> coverage;       ///< each node's coverage (0: no fragment)
-  LargeArray<uint8_t> records;         ///< a run of encoded records
+  /// The fragments' keys, and the radix sort's other half, which once the
+  /// keys are sorted holds build_records()'s run of encoded records.
+  LargeArray<OrderKey> order, sorted;
+  LargeArray<uint64_t> coverage;  ///< each node's coverage (0: no fragment)
 };
 
 /// Where build_records() puts a draw's records: a run of `count` whole
@@ -161,7 +163,7 @@ using RecordSink = std::function<std::string(const uint8_t* records, size_t byte
 /// `header` (its size and spp; DepthMode::kPerSample, ColorFormat::kRgbF32;
 /// the draw table may be empty) by the same threads that order them, and
 /// given to `sink` a run of records at a time (the runs' memory is
-/// scratch.records, reused), so that the trace's writer only frames and
+/// scratch.sorted's, reused), so that the trace's writer only frames and
 /// compresses them (TraceWriter::write_records()) and a draw's records are
 /// never all in memory at once. `scratch` keeps the arrays from call to
 /// call. `out` gets the counts (its bytes are left empty). Returns "", why a

@@ -283,7 +283,24 @@ GlCaptureResult run_gl_capture(const GlCaptureRequest& o, StopSignals* signals) 
     if (!in) throw UserError(fmt::format("{}: the capture library reported success but wrote no trace", what));
     ensure_parent_dir(o.out);
     uint64_t bytes = 0;
-    {
+    bool moved = false;
+    if (o.keep_control.empty()) {
+      // Moved rather than copied where the private folder and -o's are on
+      // one file system: the library's file (written, flushed to disk)
+      // becomes the output's temporary and is renamed onto -o.
+      OutputFile::Options by_name;
+      by_name.named = true;
+      OutputFile out(o.out, by_name);
+      if (::rename(written.c_str(), out.write_name().c_str()) == 0) {
+        in.close();
+        struct stat st;
+        if (::stat(out.write_name().c_str(), &st) == 0) bytes = uint64_t(st.st_size);
+        stop_if_interrupted();
+        out.commit();
+        moved = true;
+      }
+    }
+    if (!moved) {
       OutputFile out(o.out);
       std::vector<char> buf(1 << 20);
       while (in) {

@@ -116,6 +116,9 @@ using PfnGlEnd = decltype(&::glEnd);
   X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)                                                 \
   X(PFNGLUNMAPNAMEDBUFFERPROC, UnmapNamedBuffer)                                                       \
   X(PFNGLBINDBUFFERPROC, BindBuffer)                                                                   \
+  X(PFNGLBUFFERDATAPROC, BufferData)                                                                   \
+  X(PFNGLGETSTRINGIPROC, GetStringi)                                                                   \
+  X(PFNGLGETNAMEDBUFFERPARAMETERI64VPROC, GetNamedBufferParameteri64v)                                 \
   X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                                                           \
   X(PFNGLBINDBUFFERRANGEPROC, BindBufferRange)                                                         \
   X(PFNGLMEMORYBARRIERPROC, MemoryBarrier)                                                             \

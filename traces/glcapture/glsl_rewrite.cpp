@@ -211,7 +211,7 @@ std::string node_buffers(int binding) {
          ") coherent buffer RopsimKeys { uvec4 ropsim_key[]; };\n"
          "layout(std430, binding = " +
          at(2) +
-         ") buffer RopsimState { uvec4 ropsim_state[]; };\n"
+         ") buffer RopsimState { uint ropsim_state[]; };\n"
          "layout(std430, binding = " +
          at(3) +
          ") writeonly buffer RopsimColour { vec4 ropsim_colour[]; };\n"
@@ -378,7 +378,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    if (mine == 0xFFFFFFFFu) {\n"
        "      mine = atomicAdd(ropsim_count, 1u);\n"
        "      if (mine >= ropsim_capacity) return 0xFFFFFFFFu;\n"
-       "      ropsim_state[mine] = uvec4(pixel, 0u, 0u, ropsim_pass == 1 ? 1u : 0u);\n"
+       "      ropsim_state[mine] = pixel | (ropsim_pass == 1 ? " +
+       std::to_string(kNodeCentre) +
+       "u : 0u);\n"
        "    }\n"
        "    ropsim_key[mine] = uvec4(key, head);\n"
        "    memoryBarrierBuffer();\n"
@@ -399,13 +401,13 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        "    bool made;\n"
        "    ropsim_n = ropsim_node(x | (y << 16), y * ropsim_width + x, made);\n"
        "    if (ropsim_n != 0xFFFFFFFFu && ropsim_pass == 2) {\n"
-       // The sample's depth (a depth word that is not kNoDepth is the
-       // sample's coverage); the fragment is shaded here when this pass made
+       // The sample's depth word (its bits inverted: a word that is not
+       // kNoDepth is the sample's coverage); the fragment is shaded here when this pass made
        // its node: its primitive misses the pixel centre and this is its
        // lowest covered sample (the passes run in sample order after the
        // centre's).
        "      ropsim_shade = made;\n"
-       "      ropsim_depth[ropsim_n] = floatBitsToUint(gl_FragCoord.z);\n"
+       "      ropsim_depth[ropsim_n] = ~floatBitsToUint(gl_FragCoord.z);\n"
        "    }\n"
        "  }\n"
        "  if (ropsim_gate && !ropsim_shade) discard;\n" +
@@ -418,7 +420,9 @@ Rewritten instrument_fragment_shader(const std::string& src, GlslProfile profile
        // Kept: the shaded invocation did not discard (flag 2).
        "  if (ropsim_n != 0xFFFFFFFFu && ropsim_shade) {\n"
        "    ropsim_colour[ropsim_n] = ropsim_color;\n"
-       "    ropsim_state[ropsim_n].w |= 2u;\n"
+       "    ropsim_state[ropsim_n] |= " +
+       std::to_string(kNodeKept) +
+       "u;\n"
        "  }\n"
        "}\n";
   return {s, ""};
@@ -461,7 +465,7 @@ Rewritten coverage_fragment_shader(GlslProfile profile, int binding, int unit) {
               "      n = k.w;\n"
               "    }\n"
               "    if (n != 0xFFFFFFFFu) {\n"
-              "      ropsim_depth[n] = floatBitsToUint(gl_FragCoord.z);\n"
+              "      ropsim_depth[n] = ~floatBitsToUint(gl_FragCoord.z);\n"
               "      found = true;\n"
               "    }\n"
               "  }\n"

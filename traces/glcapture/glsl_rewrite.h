@@ -21,24 +21,30 @@ enum class GlslProfile { kCompatibility, kCore };
 /// (after the node count and three pad words; uniform `ropsim_lists` heads a
 /// pixel, a power of two: a fragment's list is the pixel's
 /// (gl_PrimitiveID + instance + part) mod ropsim_lists), the nodes' keys (uvec4:
-/// gl_PrimitiveID, instance, part, next node), their state (uvec4: pixel
-/// x | y << 16 in GL window coordinates, two zero words, flags), their
-/// colour (vec4), and one pass's depths (a float's bits per node, kNoDepth
-/// where the fragment does not cover the sample: the depths are the
-/// coverage; each sample pass binds its own range).
+/// gl_PrimitiveID, instance, part, next node), their state (one word: pixel
+/// x | y << 16 in GL window coordinates, kNodePixel, and the flags), their
+/// colour (vec4), and one pass's depths (a depth word per node: a float's
+/// bits inverted, kNoDepth where the fragment does not cover the sample: the
+/// depths are the coverage; each sample pass binds its own range).
 inline constexpr int kCaptureBindings = 5;
 /// Words before the list heads: the node count and three pad words.
 inline constexpr unsigned kHeadsHeaderWords = 4;
 /// The pixel list's end, and a node index that is no node.
 inline constexpr uint32_t kNoNode = 0xFFFFFFFFu;
-/// Node flags (the state's fourth word): the primitive covers the pixel
-/// centre (the centre pass made the node), and the shaded invocation kept
-/// the fragment (it did not discard).
-inline constexpr uint32_t kNodeCentre = 1, kNodeKept = 2;
+/// A node's state word: its pixel's bits (x and y below kMaxScreenSide,
+/// 2^15), and the flags in the two bits above x and y: the primitive covers
+/// the pixel centre (the centre pass made the node), and the shaded
+/// invocation kept the fragment (it did not discard).
+inline constexpr uint32_t kNodePixel = 0x7FFF7FFFu;
+inline constexpr uint32_t kNodeCentre = 1u << 15, kNodeKept = 1u << 31;
 /// A depth word of a sample the fragment does not cover (the depths are
-/// cleared to it before a draw's passes; a pass that covers the sample
-/// writes gl_FragCoord.z's bits, which are never these).
-inline constexpr uint32_t kNoDepth = 0xFFFFFFFFu;
+/// cleared to it before a draw's passes, and fresh memory holds it: zero); a
+/// pass that covers the sample writes depth_word() of gl_FragCoord.z's bits,
+/// their inverse, which is never zero for a depth in [0, 1].
+inline constexpr uint32_t kNoDepth = 0;
+/// The depth word of a covered sample whose depth has the bits `bits`, and back.
+constexpr uint32_t depth_word(uint32_t bits) { return ~bits; }
+constexpr uint32_t depth_bits(uint32_t word) { return ~word; }
 /// ropsim_pass: what a pass records.
 enum class PassKind : int { kNone = 0, kCentre = 1, kSample = 2 };
 

@@ -152,6 +152,18 @@ class Session final : public CaptureSession {
   /// The node buffers (glsl_rewrite.h kCaptureBindings): list heads, keys,
   /// state, colour, and the depths (a range of node_capacity_ words a sample).
   std::array<GLuint, kCaptureBindings> node_buffers_{};
+  /// The driver takes the library's memory as a buffer's store
+  /// (GL_AMD_pinned_memory, as llvmpipe does): the node buffers' stores are
+  /// then fresh mappings of the library's own, which the driver does not
+  /// clear, so that only the pages the passes write are ever touched, and
+  /// the depths, zero there (kNoDepth), need no clearing either.
+  bool pinned_ = false;
+  std::array<LargeArray<uint8_t>, kCaptureBindings> node_memory_;  ///< the pinned stores
+  /// A new store of `bytes` for node buffer b (pinned where the driver
+  /// takes it). Returns whether it reads as zero (fresh pinned pages).
+  bool node_store(int b, uint64_t bytes);
+  /// A node's bytes in node buffer b (1..3): keys and colour 16, state 4.
+  static uint64_t node_bytes(int b) { return b == 2 ? 4 : 16; }
   GLint binding_ = 0;
   uint64_t node_capacity_ = 0, max_nodes_ = 0, depth_capacity_ = 0;
   /// Lists a pixel: a fragment's is (its primitive + instance + part) mod lists_ (glsl_rewrite.h).

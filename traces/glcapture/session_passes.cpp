@@ -56,7 +56,7 @@ void Session::use_target(const FramebufferInfo& fb) {
     fail("the " + std::to_string(fb.width) + "x" + std::to_string(fb.height) +
          " capture framebuffer (no attachments) is not complete");
   // The node buffers: a list head a pixel (one storage block), and nodes
-  // (16 bytes each in the keys, state and colour blocks) for as many
+  // (16 bytes each in the keys and colour blocks, 4 in the state's) for as many
   // fragments as the target has pixels, grown when a draw makes more.
   GLint max_block = 0;
   g.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
@@ -75,8 +75,14 @@ void Session::use_target(const FramebufferInfo& fb) {
                         kHeadsHeaderWords + pixels * lists_ > uint64_t(max_texels)))
     lists_ /= 2;
   max_nodes_ = uint64_t(max_block) / 16 / 64 * 64;
+  GLint extensions = 0;
+  g.GetIntegerv(GL_NUM_EXTENSIONS, &extensions);
+  for (GLint i = 0; i < extensions && !pinned_; ++i) {
+    const char* e = reinterpret_cast<const char*>(g.GetStringi(GL_EXTENSIONS, GLuint(i)));
+    pinned_ = e && std::strcmp(e, "GL_AMD_pinned_memory") == 0;
+  }
   g.CreateBuffers(kCaptureBindings, node_buffers_.data());
-  g.NamedBufferData(node_buffers_[0], GLsizeiptr(heads_bytes()), nullptr, GL_DYNAMIC_READ);
+  node_store(0, heads_bytes());
   g.CreateTextures(GL_TEXTURE_BUFFER, 2, fetch_textures_.data());
   g.TextureBuffer(fetch_textures_[0], GL_R32UI, node_buffers_[0]);
   // A quarter more nodes than pixels: a draw that covers the target makes
@@ -102,22 +108,44 @@ void Session::use_target(const FramebufferInfo& fb) {
   }
 }
 
+bool Session::node_store(int b, uint64_t bytes) {
+  const GlFunctions& g = real_gl();
+  const GLuint buffer = node_buffers_[size_t(b)];
+  if (pinned_) {
+    // The store it replaces may still be in use by the passes drawn: its
+    // memory is released only after they end.
+    if (node_memory_[size_t(b)].size()) g.Finish();
+    LargeArray<uint8_t> memory(bytes);
+    g.BindBuffer(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, buffer);
+    g.BufferData(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, GLsizeiptr(bytes), memory.data(), GL_DYNAMIC_READ);
+    g.BindBuffer(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, 0);
+    GLint64 size = 0;
+    g.GetNamedBufferParameteri64v(buffer, GL_BUFFER_SIZE, &size);
+    if (uint64_t(size) == bytes) {
+      node_memory_[size_t(b)] = std::move(memory);
+      return true;
+    }
+    pinned_ = false;  // refused: the driver's own stores from here on
+  }
+  g.NamedBufferData(buffer, GLsizeiptr(bytes), nullptr, GL_DYNAMIC_READ);
+  return false;
+}
+
 void Session::reserve_nodes(uint64_t nodes) {
   // A multiple of 64 nodes: each sample's depth range starts aligned.
   const GlFunctions& g = real_gl();
   node_capacity_ = std::min<uint64_t>(max_nodes_, (nodes + 63) / 64 * 64);
-  for (int b = 1; b <= 3; ++b)
-    g.NamedBufferData(node_buffers_[size_t(b)], GLsizeiptr(node_capacity_ * 16), nullptr, GL_DYNAMIC_READ);
+  for (int b = 1; b <= 3; ++b) node_store(b, node_capacity_ * node_bytes(b));
   g.TextureBuffer(fetch_textures_[1], GL_RGBA32UI, node_buffers_[1]);  // the keys' new store
   depth_capacity_ = 0;                                                 // sized by the draw's spp at its first pass
 }
 
 void Session::bind_nodes(int sample) {
   const GlFunctions& g = real_gl();
-  const GLsizeiptr nodes = GLsizeiptr(node_capacity_ * 16);
   g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_), node_buffers_[0], 0, GLsizeiptr(heads_bytes()));
   for (int b = 1; b <= 3; ++b)
-    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0, nodes);
+    g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + b), node_buffers_[size_t(b)], 0,
+                      GLsizeiptr(node_capacity_ * node_bytes(b)));
   if (depth_capacity_ >= uint64_t(sample + 1) * node_capacity_)
     g.BindBufferRange(GL_SHADER_STORAGE_BUFFER, GLuint(binding_ + 4), node_buffers_[4],
                       GLintptr(uint64_t(sample) * node_capacity_ * 4), GLsizeiptr(node_capacity_ * 4));
@@ -253,8 +281,8 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
   for (;;) {
     if (depth_capacity_ < uint64_t(spp_) * node_capacity_) {
       depth_capacity_ = uint64_t(spp_) * node_capacity_;
-      g.NamedBufferData(node_buffers_[4], GLsizeiptr(depth_capacity_ * 4), nullptr, GL_DYNAMIC_READ);
-      depth_dirty_ = node_capacity_;  // a new store: undefined
+      // A new store: zero (kNoDepth) where it is fresh pinned memory, else undefined.
+      depth_dirty_ = node_store(4, depth_capacity_ * 4) ? 0 : node_capacity_;
     }
     g.MemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);  // the previous draw's nodes read before the reset
     const uint32_t empty = kNoNode;
@@ -338,7 +366,8 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
   std::array<const void*, kCaptureBindings> mapped{};
   if (made) {
     for (int b = 1; b <= 3; ++b)
-      mapped[size_t(b)] = g.MapNamedBufferRange(node_buffers_[size_t(b)], 0, GLsizeiptr(made * 16), GL_MAP_READ_BIT);
+      mapped[size_t(b)] =
+          g.MapNamedBufferRange(node_buffers_[size_t(b)], 0, GLsizeiptr(made * node_bytes(b)), GL_MAP_READ_BIT);
     mapped[4] =
         g.MapNamedBufferRange(node_buffers_[4], 0, GLsizeiptr(uint64_t(spp_) * node_capacity_ * 4), GL_MAP_READ_BIT);
     for (int b = 1; b <= 4; ++b)
