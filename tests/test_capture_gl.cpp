@@ -864,6 +864,52 @@ TEST(CaptureGl, CapturesAreByteIdenticalForEveryThreadCount) {
   }
 }
 
+// A draw that overflows its node store is drawn again with room for its
+// fragments, to the same trace. Past the store's capacity a fragment finds
+// no node of its own and counts again in every pass, so the count is more
+// than the draw's fragments: a draw that fits the largest store is still
+// captured, and one that does not is a one-line error and no trace.
+TEST(CaptureGl, ADrawThatOverflowsItsNodesIsDrawnAgainToTheSameTrace) {
+  ROPSIM_NEEDS_LIBRARY();
+  Sandbox box;
+  const std::string scene = box.path("cloth.toml");
+  std::ofstream(scene) << "width = 64\nheight = 64\nmesh_dir = \"" ROPSIM_SOURCE_DIR "/traces/scenes/mesh\"\n"
+                       << "[camera]\neye = [0.0, 0.35, 2.6]\ntarget = [0.03, 0.03, 0.0]\nfov_y = 40.0\nnear = 1.0\n"
+                       << "far = 5.0\n[[object]]\nmesh = \"cloth.obj\"\nopacity = 0.4\n";
+  write_vertices(ropsim::prepare_scene(ropsim::load_scene_file(scene)), box.path("cloth.bin"));
+  const auto capture = [&](const std::string& out, const std::string& env) {
+    return box.run("capture gl --frame 1 --spp 16 --quiet -o " + out + " -- " + gl_program("gl_mesh") +
+                       " --size 64x64 --vertices cloth.bin",
+                   kLib + env);
+  };
+  Result r = capture("whole.trace", "");
+  ASSERT_EQ(r.code, 0) << r.describe();
+  std::map<uint32_t, uint64_t> per_draw;
+  for (const ropsim::Fragment& f : read_trace(box.path("whole.trace")).fragments) ++per_draw[f.draw_id];
+  uint64_t largest = 0;
+  for (const auto& [draw, n] : per_draw) largest = std::max(largest, n);
+  ASSERT_GT(largest, 4u * 64u) << "the test needs a draw of several stores of 64 nodes";
+  const std::string whole = slurp(box.path("whole.trace"));
+  r = capture("small.trace", "ROPSIM_TEST_GL_NODES=64");
+  ASSERT_EQ(r.code, 0) << r.describe();
+  EXPECT_EQ(ropsim_test::first_byte_difference(whole, slurp(box.path("small.trace"))), "")
+      << "a first store of 64 nodes gives another trace";
+  // Twice the draw's fragments: room for its nodes, far less than the
+  // count a store of 64 nodes reaches over 17 passes.
+  r = capture("fits.trace", "ROPSIM_TEST_GL_NODES=64 ROPSIM_TEST_GL_MAX_NODES=" + std::to_string(2 * largest));
+  ASSERT_EQ(r.code, 0) << "a largest store of " << 2 * largest << " nodes holds the largest draw's " << largest
+                       << " fragments: " << r.describe();
+  EXPECT_EQ(ropsim_test::first_byte_difference(whole, slurp(box.path("fits.trace"))), "")
+      << "a store grown up to its limit gives another trace";
+  const uint64_t half = largest / 2 / 64 * 64;  // a limit of whole stores of 64 nodes, too small
+  r = capture("short.trace", "ROPSIM_TEST_GL_NODES=64 ROPSIM_TEST_GL_MAX_NODES=" + std::to_string(half));
+  EXPECT_EQ(r.code, 1) << r.describe();
+  EXPECT_NE(r.err.find("more fragments than the " + std::to_string(half) + " nodes a storage block holds"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(box.path("short.trace")));
+}
+
 // glretrace replaying an apitrace trace of a program gives the same
 // fragments as the program run live.
 TEST(CaptureGl, ReplayCapturesWhatTheApplicationDrewLive) {

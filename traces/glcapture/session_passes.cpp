@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 
 #include "traces/glcapture/fragment_order.h"
@@ -10,6 +11,15 @@
 namespace ropsim::glcapture {
 
 namespace {
+
+/// A positive node count from the environment variable `name`, else 0.
+uint64_t env_nodes(const char* name) {
+  const char* v = std::getenv(name);
+  if (!v || !*v) return 0;
+  char* end = nullptr;
+  const unsigned long long n = std::strtoull(v, &end, 10);
+  return *end ? 0 : uint64_t(n);
+}
 
 // The library's own storage block bindings (the last kCaptureBindings): an
 // application program that binds a block there cannot be captured.
@@ -88,7 +98,12 @@ void Session::use_target(const FramebufferInfo& fb) {
   // A quarter more nodes than pixels: a draw that covers the target makes
   // a few more fragments than pixels (its triangles share pixels along
   // their edges), and a draw that overflows is drawn again.
-  reserve_nodes(std::max<uint64_t>(65536, pixels + pixels / 4));
+  uint64_t first = std::max<uint64_t>(65536, pixels + pixels / 4);
+  // Test hooks: the first store and the largest, in nodes (a draw's
+  // overflow, its growth and the limit, on small frames).
+  if (const uint64_t n = env_nodes("ROPSIM_TEST_GL_NODES")) first = n;
+  if (const uint64_t n = env_nodes("ROPSIM_TEST_GL_MAX_NODES")) max_nodes_ = std::min(max_nodes_, (n + 63) / 64 * 64);
+  reserve_nodes(first);
   g.GenQueries(1, &query_);
   g.GenQueries(1, &kept_query_);
   if (reference_msaa_) {
@@ -343,11 +358,13 @@ void Session::capture_draw(GLuint program, const ProgramSet& set, const std::vec
     made = n;
     depth_dirty_ = std::min<uint64_t>(made, node_capacity_);
     if (made <= node_capacity_) break;
-    if (made > max_nodes_)
-      fail("draw " + std::to_string(d.index) + " (" + d.name + "): it makes " + std::to_string(made) +
-           " fragments, more than the " + std::to_string(max_nodes_) +
-           " nodes a storage block holds (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
-    reserve_nodes(made + made / 8);  // and the draw's passes again
+    // Past the capacity a fragment finds no node of its own in the next
+    // pass and counts again, so `made` is at least the draw's fragments,
+    // not their number: only a draw that overflows the largest store fails.
+    if (node_capacity_ >= max_nodes_)
+      fail("draw " + std::to_string(d.index) + " (" + d.name + "): it makes more fragments than the " +
+           std::to_string(max_nodes_) + " nodes a storage block holds (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
+    reserve_nodes(made + made / 8);  // at most max_nodes_; and the draw's passes again
   }
   saved.restore(binding_);
   if (split) {
