@@ -18,15 +18,18 @@ namespace {
 
 class TraceFragments : public FragmentSource {
  public:
-  TraceFragments(const std::string& path, uint32_t repeat)
-      : path_(path), repeat_(repeat), reader_(std::make_unique<TraceReader>(path)) {
+  TraceFragments(const std::string& path, uint32_t repeat, bool decode_ahead)
+      : path_(path),
+        repeat_(repeat),
+        decode_ahead_(decode_ahead),
+        reader_(std::make_unique<TraceReader>(path, decode_ahead)) {
     header_ = reader_->header();
   }
   bool next(Fragment& f) override {
     while (!reader_->next(f)) {
       if (pass_ >= repeat_) return false;
       ++pass_;
-      reader_ = std::make_unique<TraceReader>(path_);
+      reader_ = std::make_unique<TraceReader>(path_, decode_ahead_);
     }
     ++delivered_;
     return true;
@@ -51,6 +54,7 @@ class TraceFragments : public FragmentSource {
  private:
   std::string path_;
   uint32_t repeat_, pass_ = 1;
+  bool decode_ahead_;
   std::unique_ptr<TraceReader> reader_;
 };
 
@@ -114,7 +118,7 @@ std::unique_ptr<FragmentSource> fragments_from(const TraceHeader& h, const std::
 }
 
 std::unique_ptr<FragmentSource> open_fragments(const InputSpec& in) {
-  if (in.from_trace()) return std::make_unique<TraceFragments>(in.trace_path, in.repeat);
+  if (in.from_trace()) return std::make_unique<TraceFragments>(in.trace_path, in.repeat, in.decode_ahead);
   return std::make_unique<SceneFragments>(in.scene, in.repeat);
 }
 

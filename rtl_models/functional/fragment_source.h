@@ -23,6 +23,9 @@ struct InputSpec {
   std::string trace_path;  ///< non-empty: read this trace
   SceneParams scene;       ///< otherwise: build this scene
   uint32_t repeat = 1;     ///< draw the input this many times into one frame
+  /// A trace's zstd payload decoded on a thread of its own (a core is spare
+  /// for it; trace.h's TraceReader).
+  bool decode_ahead = true;
   bool from_trace() const { return !trace_path.empty(); }
   std::string describe() const;
 };

@@ -139,7 +139,10 @@ class OutputFile;
 /// Streams a trace file. Every record is validated as it is read.
 class TraceReader {
  public:
-  explicit TraceReader(const std::string& path);
+  /// decode_ahead: a zstd payload is decoded on a thread of its own, ahead
+  /// of the records read (open_record_source); false where the reader's
+  /// caller keeps every core busy.
+  explicit TraceReader(const std::string& path, bool decode_ahead = true);
   ~TraceReader();
   TraceReader(const TraceReader&) = delete;
   TraceReader& operator=(const TraceReader&) = delete;

@@ -21,7 +21,7 @@
 
 namespace ropsim {
 
-TraceReader::TraceReader(const std::string& path) : path_(path) {
+TraceReader::TraceReader(const std::string& path, bool decode_ahead) : path_(path) {
   FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) throw TraceError(path + ": cannot open: " + std::strerror(errno));
   std::unique_ptr<FILE, int (*)(FILE*)> guard(f, &std::fclose);
@@ -99,7 +99,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
   }
   if (recorded_fragments_ && file_size_ > 0) check_recorded_count(f, header_bytes);
   std::setvbuf(f, nullptr, _IOFBF, kIoChunk);
-  src_ = open_record_source(f, h.compression);
+  src_ = open_record_source(f, h.compression, decode_ahead);
   guard.release();
   file_ = f;
 }

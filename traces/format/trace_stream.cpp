@@ -138,6 +138,35 @@ class ZstdDecoder {
   bool frame_done_ = false;
 };
 
+/// A zstd payload decoded as it is read, on the reader's thread.
+class InlineZstdSource : public ByteSource {
+ public:
+  explicit InlineZstdSource(FILE* f) : dec_(f), out_(kIoChunk) {}
+  size_t read(void* dst, size_t n) override {
+    uint8_t* d = static_cast<uint8_t*>(dst);
+    size_t done = 0;
+    while (done < n) {
+      if (at_ == len_) {
+        len_ = dec_.decode(out_.data(), out_.size());
+        at_ = 0;
+        if (len_ == 0) break;
+      }
+      const size_t k = std::min(n - done, len_ - at_);
+      std::memcpy(d + done, out_.data() + at_, k);
+      at_ += k;
+      done += k;
+    }
+    consumed += done;
+    return done;
+  }
+  bool complete() const override { return dec_.frame_done(); }
+
+ private:
+  ZstdDecoder dec_;
+  std::vector<uint8_t> out_;
+  size_t at_ = 0, len_ = 0;
+};
+
 /// A zstd payload decoded on a thread of its own, kRing chunks ahead of the
 /// reader: the trace's decompression runs beside the model that reads it
 /// (a one-core model such as the cycle model gains the decoder's time). The
@@ -303,8 +332,9 @@ class ZstdSink : public FileSink {
 
 }  // namespace
 
-std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c) {
-  if (c == Compression::kZstd) return std::make_unique<ZstdSource>(f);
+std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c, bool decode_ahead) {
+  if (c == Compression::kZstd && decode_ahead) return std::make_unique<ZstdSource>(f);
+  if (c == Compression::kZstd) return std::make_unique<InlineZstdSource>(f);
   return std::make_unique<FileSource>(f);
 }
 

@@ -50,8 +50,10 @@ class SourceError : public UserError {
 };
 
 /// The fragment records of a file open at their first byte: read as they
-/// are (Compression::kNone) or through zstd. The FILE stays the caller's.
-std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c);
+/// are (Compression::kNone) or through zstd, decoded ahead on a thread of
+/// its own (decode_ahead: a core is spare for it) or as they are read. The
+/// FILE stays the caller's.
+std::unique_ptr<ByteSource> open_record_source(FILE* f, Compression c, bool decode_ahead = true);
 /// Writes to f (path names it in errors): as given, or through zstd at
 /// zstd_level on zstd_workers threads of zstd's own (0: this thread). The
 /// FILE stays the caller's.

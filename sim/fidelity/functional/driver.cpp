@@ -5,6 +5,7 @@
 
 #include "rtl_models/functional/pass_loop.h"
 #include "util/errors.h"
+#include "util/host_threads.h"
 #include "util/memory_budget.h"
 #include "util/progress.h"
 
@@ -24,10 +25,14 @@ void check_reference_estimate(const FragmentSource& src) {
                                    "the A-buffer reference of at least " + std::to_string(n) + " fragments");
 }
 
-FunctionalRun run_functional(const InputSpec& in, const GoldenConfig& cfg, bool with_reference, int threads,
+FunctionalRun run_functional(const InputSpec& spec, const GoldenConfig& cfg, bool with_reference, int threads,
                              const BreakdownRequest& breakdown) {
   const auto t0 = std::chrono::steady_clock::now();
   FunctionalRun run;
+  // The trace's decoder takes a core of its own only where the model's
+  // threads leave one spare.
+  InputSpec in = spec;
+  in.decode_ahead = spec.decode_ahead && (threads > 0 ? threads : host_threads()) < available_cores();
   auto src = open_fragments(in);
   run.header = src->header();
   if (with_reference || cfg.method == Method::kReference) check_reference_estimate(*src);
