@@ -10,6 +10,7 @@
 #include "rtl_models/algo/depth.h"
 #include "rtl_models/functional/surface_bytes.h"
 #include "util/errors.h"
+#include "util/prefetch.h"
 
 namespace ropsim {
 
@@ -76,6 +77,10 @@ TileState state_of(const SampleStore& store, const SurfaceBytes& sb, const uint8
   TileState st;
   const uint32_t spp = uint32_t(store.header().spp), bps = sb.of(b);
   const size_t len = size_t(f.tile_pixels) * spp * bps;
+  // A tile leaving the ROP cache was written long ago: ask for all its
+  // lines at once, so that their misses overlap.
+  prefetch_lines(data, len);
+  if (planes && b == Buffer::kDepth && size) prefetch_lines(planes, size_t(f.tile_pixels) * spp * sizeof(uint64_t));
   if (b == Buffer::kDepth) {
     const float* z = reinterpret_cast<const float*>(data);
     st.max_depth = farthest(z, size_t(f.tile_pixels) * spp);

@@ -25,6 +25,7 @@
 #include "rtl_models/functional/surface_bytes.h"
 #include "traces/format/draw_state.h"
 #include "traces/format/trace.h"
+#include "util/prefetch.h"
 
 namespace ropsim {
 
@@ -186,13 +187,8 @@ class BlendStage : public Stage {
   /// Hints the cache to fetch the pixel's blend targets (no effect on state).
   void prefetch(const FragWork& w) const {
     const uint32_t n = uint32_t(s_.spp);
-    if (w.px.trans) prefetch_bytes(w.px.trans, n * sample_bytes(s_.cfg.formats.transmittance));
-    if (w.px.accum) prefetch_bytes(w.px.accum, n * sample_bytes(s_.cfg.formats.accum));
-  }
-
- private:
-  static void prefetch_bytes(const uint8_t* p, uint32_t bytes) {
-    for (uint32_t i = 0; i < bytes; i += 64) __builtin_prefetch(p + i, 1);
+    if (w.px.trans) prefetch_lines<true>(w.px.trans, n * sample_bytes(s_.cfg.formats.transmittance));
+    if (w.px.accum) prefetch_lines<true>(w.px.accum, n * sample_bytes(s_.cfg.formats.accum));
   }
 };
 

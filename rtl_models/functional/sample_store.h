@@ -18,6 +18,7 @@
 #include "traces/format/trace.h"
 #include "util/containers/tile_map.h"
 #include "util/memory_budget.h"
+#include "util/prefetch.h"
 
 namespace ropsim {
 
@@ -114,12 +115,8 @@ class SampleStore {
     const SampleTile* t = tiles_.find(x, y);
     if (!t) return;
     const PixelRef r = in_tile(t->base(), x, y);
-    const auto lines = [](const void* from, size_t bytes) {
-      const uintptr_t a = reinterpret_cast<uintptr_t>(from);
-      for (uintptr_t q = a & ~uintptr_t{63}; q < a + bytes; q += 64) __builtin_prefetch(reinterpret_cast<void*>(q), 1);
-    };
-    lines(r.depth, size_t(header_.spp) * sizeof(float));
-    lines(r.rgb, size_t(header_.spp) * 3 * sizeof(uint16_t));
+    prefetch_lines<true>(r.depth, size_t(header_.spp) * sizeof(float));
+    prefetch_lines<true>(r.rgb, size_t(header_.spp) * 3 * sizeof(uint16_t));
     if (r.tracker) __builtin_prefetch(r.tracker, 1);
   }
   /// Box-filter resolve of every pixel, samples summed in sample order;
