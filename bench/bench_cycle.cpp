@@ -44,10 +44,11 @@ void BM_CycleVsFunctional(benchmark::State& state, SorterKind sorter) {
   for (auto _ : state) {
     {
       // The cycle run's final state is freed before the functional run is
-      // timed: held across it, it slowed the functional figure by a third
-      // on the 2-core VM (2.4 against 3.7 M fragments/s with the trace
-      // decoded on its own thread), while a functional run in a process of
-      // its own gains from that thread (docs/trace-format.md "Reader").
+      // timed. Held across it, it made the functional run slower on the
+      // 2-core VM: 2.4 M fragments/s with the trace decoded on a thread of
+      // its own, 3.7 M decoded inline, where a functional run in a process
+      // of its own is faster with that thread (docs/trace-format.md
+      // "Reader"). Freed, the figure is 4.7-4.8 M fragments/s.
       const CycleRun c = run_cycle(in, g, hw);
       cyc_s += c.wall_seconds;
       frags += c.counters.fragments;
