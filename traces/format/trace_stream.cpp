@@ -138,33 +138,53 @@ class ZstdDecoder {
   bool frame_done_ = false;
 };
 
-/// A zstd payload decoded as it is read, on the reader's thread.
-class InlineZstdSource : public ByteSource {
+/// A source read out of decoded chunks: read() copies from the current chunk
+/// and asks next_chunk() for another when it is used up.
+class ChunkedSource : public ByteSource {
  public:
-  explicit InlineZstdSource(FILE* f) : dec_(f), out_(kIoChunk) {}
   size_t read(void* dst, size_t n) override {
     uint8_t* d = static_cast<uint8_t*>(dst);
     size_t done = 0;
     while (done < n) {
       if (at_ == len_) {
-        len_ = dec_.decode(out_.data(), out_.size());
         at_ = 0;
-        if (len_ == 0) break;
+        len_ = 0;
+        if (!next_chunk(chunk_, len_)) break;
+        continue;
       }
       const size_t k = std::min(n - done, len_ - at_);
-      std::memcpy(d + done, out_.data() + at_, k);
+      std::memcpy(d + done, chunk_ + at_, k);
       at_ += k;
       done += k;
     }
     consumed += done;
     return done;
   }
+
+ protected:
+  /// The next chunk of data (len > 0), or false at its end; the previous
+  /// chunk is no longer read.
+  virtual bool next_chunk(const uint8_t*& chunk, size_t& len) = 0;
+
+ private:
+  const uint8_t* chunk_ = nullptr;
+  size_t at_ = 0, len_ = 0;
+};
+
+/// A zstd payload decoded as it is read, on the reader's thread.
+class InlineZstdSource : public ChunkedSource {
+ public:
+  explicit InlineZstdSource(FILE* f) : dec_(f), out_(kIoChunk) {}
   bool complete() const override { return dec_.frame_done(); }
 
  private:
+  bool next_chunk(const uint8_t*& chunk, size_t& len) override {
+    len = dec_.decode(out_.data(), out_.size());
+    chunk = out_.data();
+    return len > 0;
+  }
   ZstdDecoder dec_;
   std::vector<uint8_t> out_;
-  size_t at_ = 0, len_ = 0;
 };
 
 /// A zstd payload decoded on a thread of its own, kRing chunks ahead of the
@@ -174,7 +194,7 @@ class InlineZstdSource : public ByteSource {
 /// thread: an error reaches the reader after every byte decoded before it.
 /// The decoder thread touches only its FILE and its chunks; it ends with the
 /// source (the destructor stops and joins it).
-class ZstdSource : public ByteSource {
+class ZstdSource : public ChunkedSource {
  public:
   explicit ZstdSource(FILE* f) : dec_(f) {
     for (Chunk& c : ring_) c.bytes.resize(kIoChunk);
@@ -187,22 +207,6 @@ class ZstdSource : public ByteSource {
     }
     cv_.notify_all();
     thread_.join();
-  }
-  size_t read(void* dst, size_t n) override {
-    uint8_t* d = static_cast<uint8_t*>(dst);
-    size_t done = 0;
-    while (done < n) {
-      if (at_ < len_) {
-        const size_t k = std::min(n - done, len_ - at_);
-        std::memcpy(d + done, ring_[head_].bytes.data() + at_, k);
-        at_ += k;
-        done += k;
-        continue;
-      }
-      if (!next_chunk()) break;
-    }
-    consumed += done;
-    return done;
   }
   bool complete() const override {
     std::lock_guard<std::mutex> l(m_);
@@ -218,7 +222,7 @@ class ZstdSource : public ByteSource {
   /// The reader is done with its chunk: the next one decoded, or false at the
   /// end of the data (an error is thrown here, where decoding in the
   /// reader's thread would have met it).
-  bool next_chunk() {
+  bool next_chunk(const uint8_t*& chunk, size_t& len) override {
     std::unique_lock<std::mutex> l(m_);
     if (holding_) {  // hand the finished chunk back
       holding_ = false;
@@ -232,8 +236,8 @@ class ZstdSource : public ByteSource {
       return false;
     }
     holding_ = true;
-    at_ = 0;
-    len_ = ring_[head_].len;
+    chunk = ring_[head_].bytes.data();
+    len = ring_[head_].len;
     return true;
   }
   void decode_ahead() {
@@ -269,8 +273,8 @@ class ZstdSource : public ByteSource {
   }
   ZstdDecoder dec_;
   std::array<Chunk, kRing> ring_;
-  // The reader's side: its chunk (ring_[head_] while holding_) and its place in it.
-  size_t head_ = 0, at_ = 0, len_ = 0;
+  // The reader's side: its chunk is ring_[head_] while holding_.
+  size_t head_ = 0;
   bool holding_ = false;
   // Shared, under m_: chunks decoded and not yet handed back, the end.
   mutable std::mutex m_;
